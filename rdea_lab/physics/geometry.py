@@ -1,0 +1,240 @@
+"""Roll geometry: the three concentric rings of the 3R model and their radii.
+
+The radii follow from the unwound membrane by the Appendix of [1]
+(eqs. (45)-(58)), with the corrections listed in ``paper/ERRATA.md``:
+(46) integrates the arc length (the norm, not its square) and (57)-(58) put
+the square root over the whole volume balance.
+
+References
+----------
+.. [1] Prechtl et al., Smart Mater. Struct. (2021), doi:10.1088/1361-665X/ac34be
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .constants import EPS0
+
+
+def spiral_length(r0, d, theta):
+    """Arc length of an Archimedean spiral ``r = r0 + d theta / (2 pi)``.
+
+    Parameters
+    ----------
+    r0 : array_like
+        Starting radius [m].
+    d : array_like
+        Separation between adjacent turns [m].
+    theta : array_like
+        Accumulated turning angle [rad].
+
+    Returns
+    -------
+    numpy.ndarray
+        Arc length from angle 0 to ``theta`` [m].
+
+    Notes
+    -----
+    Eq. (46) in [1], corrected in ERRATA (the integrand is the speed
+    ``sqrt(b**2 + r**2)``, ``b = d / 2 pi``, not its square). Closed form:
+    ``(F(r) - F(r0)) / (2 b)`` with ``F(u) = u sqrt(u**2 + b**2) + b**2 asinh(u / b)``.
+    """
+    r0, d, theta = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (r0, d, theta)))
+    b = d / (2.0 * np.pi)
+    r = r0 + b * theta
+
+    def antiderivative(u):
+        return u * np.hypot(u, b) + b**2 * np.arcsinh(u / b)
+
+    return (antiderivative(r) - antiderivative(r0)) / (2.0 * b)
+
+
+def spiral_angle(r0, d, length, *, rtol=1e-15, max_iter=50):
+    """Turning angle at which an Archimedean spiral reaches a given arc length.
+
+    Parameters
+    ----------
+    r0 : array_like
+        Starting radius [m].
+    d : array_like
+        Separation between adjacent turns [m].
+    length : array_like
+        Arc length [m], >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        Turning angle [rad].
+
+    Notes
+    -----
+    Eq. (47) in [1], solved by Newton's method on the monotone
+    :func:`spiral_length` (its derivative is the speed ``sqrt(b**2 + r**2)``),
+    started from the area estimate ``r**2 = r0**2 + 2 b length``.
+    """
+    r0, d, length = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (r0, d, length)))
+    b = d / (2.0 * np.pi)
+    theta = (np.sqrt(r0**2 + 2.0 * b * length) - r0) / b
+    for _ in range(max_iter):
+        step = (spiral_length(r0, d, theta) - length) / np.hypot(b, r0 + b * theta)
+        theta = theta - step
+        if np.all(np.abs(step) <= rtol * np.maximum(np.abs(theta), 1.0)):
+            break
+    return theta
+
+
+def radii_from_membrane(L2, L3, Lp1, L2e, Ri=0.0):
+    """Radii of the three rings from the unwound membrane (Appendix of [1]).
+
+    Parameters
+    ----------
+    L2 : float
+        Membrane length in the rolling direction [m].
+    L3 : float
+        Thickness of one membrane [m]; the rolled stack is two membranes.
+    Lp1 : float
+        Electrode-free length at the start of rolling [m].
+    L2e : float
+        Electrode length in the rolling direction [m].
+    Ri : float, optional
+        Inner radius of the roll [m]; eq. (52) sets it to 0.
+
+    Returns
+    -------
+    dict
+        ``Ri, Rie, Roe, Ro`` [m] and the intermediate lengths ``theta_p1``
+        [rad], ``L_pa``, ``L_fa``, ``L_p2`` [m].
+
+    Notes
+    -----
+    Eqs. (48)-(58) in [1]; (57) and (58) as corrected in ERRATA, and (53)
+    generalised to ``Ri > 0``: ``pi (Rie**2 - Ri**2) = L3 (2 Lp1 + L_pa)``.
+    By construction ``pi (Ro**2 - Ri**2) = 2 L2 L3``: the rolled volume equals
+    the flat one.
+    """
+    d = 2.0 * L3
+    theta_p1 = float(spiral_angle(Ri, d, Lp1))
+    L_pa = float(spiral_length(Ri, d, theta_p1 + 2.0 * np.pi)) - Lp1
+    L_fa = L2e - L_pa
+    L_p2 = L2 - Lp1 - L2e
+    if L_fa <= 0:
+        raise ValueError(
+            f"the electrode length L2e = {L2e:g} m is shorter than the partially "
+            f"active first turn ({L_pa:g} m): no fully active region"
+        )
+    if L_p2 < 0:
+        raise ValueError(f"Lp1 + L2e = {Lp1 + L2e:g} m exceeds L2 = {L2:g} m")
+    Rie = np.sqrt(L3 * (2.0 * Lp1 + L_pa) / np.pi + Ri**2)
+    Roe = np.sqrt(L3 * (2.0 * L_fa + L_pa) / np.pi + Rie**2)
+    Ro = np.sqrt(2.0 * L3 * L_p2 / np.pi + Roe**2)
+    return {
+        "Ri": float(Ri), "Rie": float(Rie), "Roe": float(Roe), "Ro": float(Ro),
+        "theta_p1": theta_p1, "L_pa": L_pa, "L_fa": L_fa, "L_p2": L_p2,
+    }
+
+
+@dataclass(frozen=True)
+class RollGeometry:
+    """Undeformed geometry of a roll: ring radii and axial lengths, SI.
+
+    Attributes
+    ----------
+    Ri, Rie, Roe, Ro : float
+        Inner radius of ring a, a/b interface, b/c interface, outer radius [m].
+    L1 : float
+        Roll length along the axis [m].
+    L1e : float
+        Electrode length along the axis [m].
+    L3 : float
+        Single-membrane thickness [m].
+    """
+
+    Ri: float
+    Rie: float
+    Roe: float
+    Ro: float
+    L1: float
+    L1e: float
+    L3: float
+
+    def __post_init__(self):
+        if not (0.0 <= self.Ri <= self.Rie < self.Roe <= self.Ro):
+            raise ValueError(
+                "radii must satisfy 0 <= Ri <= Rie < Roe <= Ro, got "
+                f"Ri={self.Ri:g}, Rie={self.Rie:g}, Roe={self.Roe:g}, Ro={self.Ro:g} m"
+            )
+        if not (0.0 < self.L1e <= self.L1) or not self.L3 > 0.0:
+            raise ValueError(f"need 0 < L1e <= L1 and L3 > 0, got L1e={self.L1e:g}, L1={self.L1:g}, L3={self.L3:g} m")
+
+    @property
+    def area(self) -> float:
+        """Undeformed cross-section ``pi (Ro**2 - Ri**2)`` [m^2]."""
+        return np.pi * (self.Ro**2 - self.Ri**2)
+
+    @property
+    def volume(self) -> float:
+        """Material volume ``Omega`` [m^3], eq. (15)."""
+        return self.area * self.L1
+
+    def _fraction(self, inner, outer):
+        return (outer**2 - inner**2) / (self.Ro**2 - self.Ri**2)
+
+    @property
+    def eta_a(self) -> float:
+        """Volume fraction of the inner passive ring a, eq. (10)."""
+        return self._fraction(self.Ri, self.Rie)
+
+    @property
+    def eta_b(self) -> float:
+        """Volume fraction of the active ring b, eq. (11)."""
+        return self._fraction(self.Rie, self.Roe)
+
+    @property
+    def eta_c(self) -> float:
+        """Volume fraction of the outer passive ring c, eq. (12)."""
+        return self._fraction(self.Roe, self.Ro)
+
+    @property
+    def alpha_e1(self) -> float:
+        """Electrode coverage along the axis ``L1e / L1``, eq. (13)."""
+        return self.L1e / self.L1
+
+    def C0(self, eps_r: float) -> float:
+        """Capacitance of the undeformed roll [F], eq. (29).
+
+        ``C0 = eps0 eps_r alpha_e1 L1 pi (Roe**2 - Rie**2) / L3**2``.
+        """
+        return EPS0 * eps_r * self.alpha_e1 * self.L1 * np.pi * (self.Roe**2 - self.Rie**2) / self.L3**2
+
+    def as_dict(self, eps_r: float | None = None) -> dict:
+        """Radii, volume fractions, alpha_e1 and (with ``eps_r``) C0, SI."""
+        out = {
+            "Ri": self.Ri, "Rie": self.Rie, "Roe": self.Roe, "Ro": self.Ro,
+            "L1": self.L1, "L1e": self.L1e, "L3": self.L3,
+            "eta_a": self.eta_a, "eta_b": self.eta_b, "eta_c": self.eta_c,
+            "alpha_e1": self.alpha_e1,
+        }
+        if eps_r is not None:
+            out["eps_r"] = float(eps_r)
+            out["C0"] = self.C0(eps_r)
+        return {k: float(v) for k, v in out.items()}
+
+
+def geometry_from_card(card) -> RollGeometry:
+    """Build the :class:`RollGeometry` of a specimen card.
+
+    Parameters
+    ----------
+    card : rdea_lab.specs.specimen.SpecimenCard
+        A card with either ``membrane`` (unwound dimensions, radii by the
+        Appendix of [1]) or ``radii`` given directly.
+    """
+    if card.membrane is not None:
+        m = card.membrane
+        r = radii_from_membrane(m.L2, m.L3, m.Lp1, m.L2e, Ri=m.Ri)
+        return RollGeometry(r["Ri"], r["Rie"], r["Roe"], r["Ro"], m.L1, m.L1e, m.L3)
+    r = card.radii
+    return RollGeometry(r.Ri, r.Rie, r.Roe, r.Ro, card.L1, card.L1e, card.L3)

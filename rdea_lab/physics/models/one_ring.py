@@ -1,0 +1,70 @@
+"""One-ring (1R) model: eqs. (33)-(34) of [1], one free stretch."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import yeoh
+from ..branch import follow_branch
+from ..result import ModelResult, finish, prepare_inputs
+from ._common import HOOP_STRETCH_CAP, kappa, yeoh_coefficients
+
+
+def enthalpy(geom, material, stretch, voltage, lambda2):
+    """Free enthalpy density ``g = psi_m(l1, l2) - kappa l1**2 l2**2 v**2`` [Pa].
+
+    Its stationary points in ``lambda2`` at fixed stretch and voltage are
+    the equilibria of eq. (33) of [1].
+    """
+    l1 = np.asarray(stretch, float)
+    l2 = np.asarray(lambda2, float)
+    return (yeoh.energy(l1, l2, yeoh_coefficients(material))
+            - kappa(geom, material) * (l1 * l2 * np.asarray(voltage, float)) ** 2)
+
+
+def solve(geom, material, stretch, voltage) -> ModelResult:
+    """Axial stress, force, circumferential stretch and capacitance of the 1R model.
+
+    Parameters
+    ----------
+    geom : RollGeometry
+        Undeformed roll geometry.
+    material : parameter set
+        ``C10, C20, C30`` [Pa], ``eps_r`` [-].
+    stretch : array_like
+        Axial stretch ``lambda1`` [-], >= 1.
+    voltage : array_like
+        Voltage [V].
+
+    Returns
+    -------
+    ModelResult
+        ``lambda2a = lambda2b = lambda2c = lambda2``.
+
+    Notes
+    -----
+    Eq. (33) in [1]: ``lambda2 d psi_m / d lambda2 = alpha_e1 eta_b eps E**2``
+    with ``E = lambda1 lambda2 v / L3``, solved on the branch continued from
+    ``lambda2 = lambda1**-0.5`` at 0 V (see :mod:`rdea_lab.physics.branch`);
+    ``sigma1 = lambda1 d psi_m / d lambda1 - alpha_e1 eta_b eps E**2``;
+    capacitance eq. (34), ``C = C0 lambda1**2 lambda2**2``.
+    """
+    l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
+    C = yeoh_coefficients(material)
+    kap = kappa(geom, material)
+    K = kap * (l1 * v) ** 2
+
+    def terms(y, idx, second):
+        p_y, p_yy = yeoh.d_psi_d_l2(l1[idx], y, C)
+        return p_y, p_yy, 2.0 * y, 2.0
+
+    y0 = 1.0 / np.sqrt(l1)
+    l2, status, K_crit = follow_branch(terms, y0, HOOP_STRETCH_CAP * y0, K)
+    psi_1, _ = yeoh.gradient(l1, l2, C)
+    sigma1 = l1 * psi_1 - 2.0 * K * l2 * l2
+    cap = geom.C0(material.eps_r) * (l1 * l2) ** 2
+    with np.errstate(invalid="ignore"):
+        v_crit = np.sqrt(K_crit / (kap * l1 * l1))
+    # one hollow cylinder: mean hoop stretch l2, radial stretch 1 / (l1 l2)
+    r_i = 0.5 * (l2 * (geom.Ro + geom.Ri) - (geom.Ro - geom.Ri) / (l1 * l2))
+    return finish("1r", geom, l1, bad, shape, raw, sigma1, l2, l2, l2, cap, status, v_crit, r_i)

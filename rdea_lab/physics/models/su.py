@@ -1,0 +1,66 @@
+"""Strongly uniaxial (SU) model: eqs. (39)-(41) of [1], closed form."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import yeoh
+from ..result import OK, ModelResult, finish, prepare_inputs
+from ._common import kappa, yeoh_coefficients
+
+
+def enthalpy(geom, material, stretch, voltage):
+    """Free enthalpy density ``g = psi_m(l1, l1**-0.5) - kappa l1 v**2`` [Pa].
+
+    Parameters
+    ----------
+    geom : RollGeometry
+    material : parameter set with ``C10, C20, C30`` [Pa] and ``eps_r`` [-]
+    stretch : array_like
+        Axial stretch [-].
+    voltage : array_like
+        Voltage [V].
+    """
+    l1 = np.asarray(stretch, float)
+    return (yeoh.energy(l1, l1**-0.5, yeoh_coefficients(material))
+            - kappa(geom, material) * l1 * np.asarray(voltage, float) ** 2)
+
+
+def solve(geom, material, stretch, voltage) -> ModelResult:
+    """Axial stress, force and capacitance of the SU model.
+
+    Parameters
+    ----------
+    geom : RollGeometry
+        Undeformed roll geometry.
+    material : parameter set
+        ``C10, C20, C30`` [Pa], ``eps_r`` [-].
+    stretch : array_like
+        Axial stretch ``lambda1`` [-], >= 1.
+    voltage : array_like
+        Voltage [V].
+
+    Returns
+    -------
+    ModelResult
+
+    Notes
+    -----
+    Eq. (39) in [1]: ``sigma1 = lambda1 d psi_m(lambda1, lambda1**-0.5) /
+    d lambda1 - 0.5 alpha_e1 eta_b eps E**2`` with ``E = sqrt(lambda1) v / L3``;
+    capacitance eq. (41), ``C = C0 lambda1``. With
+    ``I1 - 3 = x = e**(2a) + 2 e**(-a) - 3``, ``a = ln lambda1``, the
+    mechanical part is ``2 lambda1**2 W'(x) (1 - lambda1**-3)``. There is no
+    free coordinate at fixed stretch, hence no limit point.
+    """
+    l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
+    C = yeoh_coefficients(material)
+    a = np.log(l1)
+    x = np.expm1(2.0 * a) + 2.0 * np.expm1(-a)
+    W1, _ = yeoh.slope(x, C)
+    sigma1 = -2.0 * l1 * l1 * W1 * np.expm1(-3.0 * a) - kappa(geom, material) * l1 * v * v
+    l2 = 1.0 / np.sqrt(l1)
+    cap = geom.C0(material.eps_r) * l1
+    n = l1.size
+    return finish("su", geom, l1, bad, shape, raw, sigma1, l2, l2, l2, cap,
+                  np.full(n, OK, np.int8), np.full(n, np.nan), geom.Ri * l2)

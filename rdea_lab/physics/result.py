@@ -1,0 +1,162 @@
+"""What every quasi-static model returns, and the checks on its inputs."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Per-sample status codes of :class:`ModelResult`.
+OK = 0
+#: The voltage is past the limit point: there is no stable equilibrium in the
+#: admissible range that a quasi-static voltage ramp could reach.
+#: ``critical_voltage`` holds the voltage where the branch was lost.
+LIMIT_POINT = 1
+#: Stretch or voltage was NaN or infinite.
+BAD_INPUT = 2
+#: The iteration did not reach its tolerance.
+NOT_CONVERGED = 3
+#: A valid, stable equilibrium, but reached through a snap-through: the branch
+#: from the unloaded state folded at ``critical_voltage`` and the roll jumped
+#: to the next stable state (e.g. the inner hole of a 3R roll with ``Ri = 0``
+#: opening abruptly at a subcritical bifurcation).
+SNAPPED = 4
+
+STATUS_NAMES = {OK: "ok", LIMIT_POINT: "past limit point", BAD_INPUT: "NaN or infinite input",
+                NOT_CONVERGED: "not converged", SNAPPED: "reached by a snap-through"}
+VALID = (OK, SNAPPED)
+
+
+class StretchBelowOneError(ValueError):
+    """A stretch below 1: the roll is compressed, which Assumption 1 of [1] excludes."""
+
+
+def prepare_inputs(stretch, voltage):
+    """Broadcast and check stretch and voltage.
+
+    Parameters
+    ----------
+    stretch : array_like
+        Axial stretch ``lambda1 = l1 / L1`` [-], >= 1.
+    voltage : array_like
+        Voltage [V].
+
+    Returns
+    -------
+    l1, v : numpy.ndarray
+        1-D float arrays; bad samples replaced by the unloaded state
+        (``l1 = 1``, ``v = 0``) so that solvers never see them.
+    bad : numpy.ndarray of bool
+        True where an input was NaN or infinite.
+    shape : tuple
+        Broadcast shape of the inputs (results are reshaped to it).
+    raw : tuple of numpy.ndarray
+        The flattened inputs as given, for the result.
+
+    Raises
+    ------
+    StretchBelowOneError
+        If any finite stretch is below 1 (Assumption 1 of [1]: the roll is
+        always in tension, ``l1 >= L1``).
+    """
+    l1, v = np.broadcast_arrays(np.asarray(stretch, dtype=float), np.asarray(voltage, dtype=float))
+    shape = l1.shape
+    l1 = l1.ravel().copy()
+    v = v.ravel().copy()
+    bad = ~(np.isfinite(l1) & np.isfinite(v))
+    low = np.flatnonzero(~bad & (l1 < 1.0))
+    if low.size:
+        i = int(low[0])
+        raise StretchBelowOneError(
+            f"stretch {l1[i]:.12g} at sample {i} is below 1 ({low.size} samples in all): "
+            "the roll must stay in tension (Assumption 1 of Prechtl et al. 2021)"
+        )
+    raw = (l1.copy(), v.copy())
+    l1[bad] = 1.0
+    v[bad] = 0.0
+    return l1, v, bad, shape, raw
+
+
+@dataclass(frozen=True)
+class ModelResult:
+    """Quasi-static response of a roll to arrays of stretch and voltage.
+
+    Attributes
+    ----------
+    model : str
+        ``"su"``, ``"1r"`` or ``"3r"``.
+    stretch, voltage : numpy.ndarray
+        The inputs [-], [V].
+    sigma1 : numpy.ndarray
+        Axial true stress, eq. (16) [Pa]; NaN where ``converged`` is False.
+    force : numpy.ndarray
+        Axial force ``sigma1 pi (Ro**2 - Ri**2) / lambda1`` [N].
+    lambda2a, lambda2b, lambda2c : numpy.ndarray
+        Circumferential stretch of rings a, b, c [-] (all equal for SU, 1R).
+    capacitance : numpy.ndarray
+        Capacitance, eqs. (29), (34), (41) [F].
+    converged : numpy.ndarray of bool
+        True where the sample has a stable equilibrium on the physical branch.
+    status : numpy.ndarray of int8
+        One of ``OK``, ``SNAPPED`` (both converged), ``LIMIT_POINT``,
+        ``BAD_INPUT``, ``NOT_CONVERGED``.
+    critical_voltage : numpy.ndarray
+        Voltage at the sample's stretch where the branch from the unloaded
+        state folds [V], where ``status`` is ``LIMIT_POINT`` or ``SNAPPED``;
+        NaN elsewhere.
+    r_i : numpy.ndarray
+        Deformed inner radius [m] (3R only; for SU and 1R it follows
+        from the uniform ring, ``Ri lambda2``).
+    """
+
+    model: str
+    stretch: np.ndarray
+    voltage: np.ndarray
+    sigma1: np.ndarray
+    force: np.ndarray
+    lambda2a: np.ndarray
+    lambda2b: np.ndarray
+    lambda2c: np.ndarray
+    capacitance: np.ndarray
+    converged: np.ndarray
+    status: np.ndarray
+    critical_voltage: np.ndarray
+    r_i: np.ndarray
+
+    @property
+    def all_converged(self) -> bool:
+        return bool(np.all(self.converged))
+
+    def summary(self) -> str:
+        """One line on the samples that have no valid equilibrium, or ``"all converged"``."""
+        n = self.status.size
+        parts = []
+        for code in (LIMIT_POINT, SNAPPED, BAD_INPUT, NOT_CONVERGED):
+            sel = self.status == code
+            if not np.any(sel):
+                continue
+            text = f"{int(sel.sum())} of {n} samples {STATUS_NAMES[code]}"
+            if code in (LIMIT_POINT, SNAPPED):
+                i = int(np.flatnonzero(sel)[0])
+                text += (f" (first at sample {i}: stretch {self.stretch.flat[i]:.4g}, voltage "
+                         f"{self.voltage.flat[i]:.4g} V, critical voltage {self.critical_voltage.flat[i]:.4g} V)")
+            parts.append(text)
+        return "; ".join(parts) if parts else f"all {n} samples converged"
+
+
+def finish(model, geom, l1, bad, shape, raw, sigma1, l2a, l2b, l2c, capacitance, status,
+           critical_voltage, r_i) -> ModelResult:
+    """Assemble a :class:`ModelResult`: force from stress, NaN where not converged."""
+    status = np.where(bad, BAD_INPUT, status).astype(np.int8)
+    ok = np.isin(status, VALID)
+    out = {}
+    for name, arr in (("sigma1", sigma1), ("lambda2a", l2a), ("lambda2b", l2b), ("lambda2c", l2c),
+                      ("capacitance", capacitance), ("r_i", r_i)):
+        arr = np.broadcast_to(np.asarray(arr, float), l1.shape)
+        out[name] = np.where(ok, arr, np.nan).reshape(shape)
+    out["force"] = out["sigma1"] * geom.area / l1.reshape(shape)
+    return ModelResult(
+        model=model, stretch=raw[0].reshape(shape), voltage=raw[1].reshape(shape),
+        converged=ok.reshape(shape), status=status.reshape(shape),
+        critical_voltage=np.asarray(critical_voltage, float).reshape(shape), **out,
+    )

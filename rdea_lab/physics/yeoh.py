@@ -1,0 +1,105 @@
+"""Yeoh hyperelastic energy of an incompressible ring, eq. (22) of [1].
+
+``psi_m(l1, l2) = sum_i C_i0 (I1 - 3)**i`` with
+``I1 = l1**2 + l2**2 + l1**-2 l2**-2`` (the third stretch is eliminated by
+incompressibility). ``I1 - 3`` and the derivatives of ``I1`` are evaluated
+from logarithmic stretches with ``expm1``, so they stay accurate as the
+stretches approach 1 (at ``l1 = 1 + 1e-12`` the plain formula loses every
+significant digit).
+
+Functions take the coefficients ``C = (C10, C20, C30)`` [Pa] and broadcast
+over array stretches.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def _invariant_terms(l1, l2):
+    a = np.log(l1)
+    b = np.log(l2)
+    x = np.expm1(2.0 * a) + np.expm1(2.0 * b) + np.expm1(-2.0 * (a + b))
+    # dI/dl1 = 2 l1 (1 - l1**-4 l2**-2), dI/dl2 = 2 l2 (1 - l1**-2 l2**-4)
+    I_1 = -2.0 * l1 * np.expm1(-4.0 * a - 2.0 * b)
+    I_2 = -2.0 * l2 * np.expm1(-2.0 * a - 4.0 * b)
+    return x, I_1, I_2
+
+
+def slope(x, C):
+    """First and second derivative of the Yeoh energy in ``I1``.
+
+    Parameters
+    ----------
+    x : array_like
+        ``I1 - 3`` [-].
+    C : tuple of float
+        ``(C10, C20, C30)`` [Pa].
+
+    Returns
+    -------
+    W1, W2 : numpy.ndarray
+        ``dW/dI1`` and ``d2W/dI1**2`` [Pa].
+    """
+    C10, C20, C30 = C
+    return C10 + x * (2.0 * C20 + 3.0 * C30 * x), 2.0 * C20 + 6.0 * C30 * x
+
+
+def energy(l1, l2, C):
+    """Yeoh free-energy density ``psi_m`` [Pa = J/m^3].
+
+    Parameters
+    ----------
+    l1 : array_like
+        Axial stretch [-].
+    l2 : array_like
+        Circumferential stretch [-].
+    C : tuple of float
+        ``(C10, C20, C30)`` [Pa].
+
+    Notes
+    -----
+    Eq. (22) in [1].
+    """
+    C10, C20, C30 = C
+    x, _, _ = _invariant_terms(np.asarray(l1, float), np.asarray(l2, float))
+    return x * (C10 + x * (C20 + x * C30))
+
+
+def gradient(l1, l2, C):
+    """Partial derivatives ``(d psi/d l1, d psi/d l2)`` [Pa].
+
+    The two stretches are independent variables (the third follows from
+    incompressibility), as eq. (39) of [1] requires.
+    """
+    x, I_1, I_2 = _invariant_terms(np.asarray(l1, float), np.asarray(l2, float))
+    W1, _ = slope(x, C)
+    return W1 * I_1, W1 * I_2
+
+
+def hessian(l1, l2, C):
+    """Second partial derivatives ``(psi_11, psi_12, psi_22)`` [Pa]."""
+    l1 = np.asarray(l1, float)
+    l2 = np.asarray(l2, float)
+    x, I_1, I_2 = _invariant_terms(l1, l2)
+    W1, W2 = slope(x, C)
+    inv = 1.0 / (l1 * l2)
+    inv2 = inv * inv
+    I_11 = 2.0 + 6.0 * inv2 / (l1 * l1)
+    I_22 = 2.0 + 6.0 * inv2 / (l2 * l2)
+    I_12 = 4.0 * inv2 * inv
+    return W2 * I_1 * I_1 + W1 * I_11, W2 * I_1 * I_2 + W1 * I_12, W2 * I_2 * I_2 + W1 * I_22
+
+
+def d_psi_d_l2(l1, l2, C):
+    """``(psi_2, psi_22)``: what the 1-D equilibrium solvers need, cheaply."""
+    l1 = np.asarray(l1, float)
+    l2 = np.asarray(l2, float)
+    a = np.log(l1)
+    b = np.log(l2)
+    e = np.exp(-2.0 * (a + b))  # (l1 l2)**-2
+    x = np.expm1(2.0 * a) + np.expm1(2.0 * b) + np.expm1(-2.0 * (a + b))
+    W1, W2 = slope(x, C)
+    I_2 = -2.0 * l2 * np.expm1(-2.0 * a - 4.0 * b)
+    I_22 = 2.0 + 6.0 * e / (l2 * l2)
+    return W1 * I_2, W2 * I_2 * I_2 + W1 * I_22
