@@ -1,0 +1,97 @@
+"""The physics twin: force and capacitance of a roll for given stretch and voltage histories."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import xarray as xr
+
+from .. import __version__
+from ..physics import viscoelastic
+from ..physics.geometry import RollGeometry, geometry_from_card
+from ..physics.models import solve
+
+#: CF attributes of the variables the twin writes.
+VARIABLES = {
+    "stretch": ("1", "axial stretch lambda1 = l1 / L1"),
+    "voltage": ("V", "voltage across the electrodes"),
+    "force": ("N", "axial force"),
+    "capacitance": ("F", "capacitance"),
+    "sigma1": ("Pa", "axial true stress (reversible + viscoelastic)"),
+    "sigma1_irr": ("Pa", "viscoelastic overstress, eq. (44)"),
+    "lambda2b": ("1", "circumferential stretch of the active ring b"),
+    "converged": ("1", "1 where the model has a stable equilibrium"),
+    "model_status": ("1", "0 ok, 1 past limit point, 2 NaN input, 3 not converged, 4 snap-through"),
+}
+
+
+def _geometry(specimen):
+    return specimen if isinstance(specimen, RollGeometry) else geometry_from_card(specimen)
+
+
+def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
+    """Run the twin over a time series.
+
+    Parameters
+    ----------
+    specimen : SpecimenCard or RollGeometry
+        The roll.
+    params : ParameterSet
+        Yeoh coefficients ``C10, C20, C30`` [Pa], ``eps_r`` [-], viscoelastic
+        ``branches`` (each with ``k`` [Pa] and ``eta`` [Pa s]) and ``eta_v0`` [Pa s].
+    t : array_like, shape (n,)
+        Sample times [s], strictly increasing.
+    stretch : array_like, shape (n,)
+        Axial stretch [-], >= 1.
+    voltage : array_like, shape (n,)
+        Voltage [V].
+    model : {"su", "1r", "3r"}
+        Quasi-static model, Sections 3.1-3.3 of [1].
+
+    Returns
+    -------
+    xarray.Dataset
+        Variables over ``time`` [s] with ``units`` and ``long_name``
+        (see :data:`VARIABLES`); ``force = (sigma1_rev + sigma1_irr) pi
+        (Ro**2 - Ri**2) / lambda1``, eq. (43) and (16) of [1]. The branch
+        strains start relaxed at ``t[0]``.
+    """
+    geom = _geometry(specimen)
+    t = np.asarray(t, float)
+    stretch = np.asarray(stretch, float)
+    voltage = np.broadcast_to(np.asarray(voltage, float), stretch.shape)
+    res = solve(model, geom, params, stretch, voltage)
+    branches = tuple(getattr(params, "branches", ()) or ())
+    eta_v0 = float(getattr(params, "eta_v0", 0.0) or 0.0)
+    sigma_irr = viscoelastic.overstress(
+        t, stretch, [b.k for b in branches], [b.eta for b in branches], eta_v0
+    )
+    sigma = res.sigma1 + sigma_irr
+    data = {
+        "stretch": stretch,
+        "voltage": voltage,
+        "force": sigma * geom.area / stretch,
+        "capacitance": res.capacitance,
+        "sigma1": sigma,
+        "sigma1_irr": sigma_irr,
+        "lambda2b": res.lambda2b,
+        "converged": res.converged.astype(np.int8),
+        "model_status": res.status,
+    }
+    ds = xr.Dataset(
+        {name: ("time", np.asarray(values), {"units": VARIABLES[name][0], "long_name": VARIABLES[name][1]})
+         for name, values in data.items()},
+        coords={"time": ("time", t, {"units": "s", "long_name": "time since start of run"})},
+    )
+    ds.attrs.update({
+        "model": model,
+        "model_summary": res.summary(),
+        "geometry": json.dumps(geom.as_dict(params.eps_r)),
+        "parameters": json.dumps({
+            "C10": params.C10, "C20": params.C20, "C30": params.C30, "eps_r": params.eps_r,
+            "branches": [{"k": b.k, "eta": b.eta} for b in branches], "eta_v0": eta_v0,
+        }),
+        "rdea_lab_version": __version__,
+    })
+    return ds
