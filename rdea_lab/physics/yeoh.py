@@ -91,15 +91,19 @@ def hessian(l1, l2, C):
     return W2 * I_1 * I_1 + W1 * I_11, W2 * I_1 * I_2 + W1 * I_12, W2 * I_2 * I_2 + W1 * I_22
 
 
-def d_psi_d_l2(l1, l2, C):
-    """``(psi_2, psi_22)``: what the 1-D equilibrium solvers need, cheaply."""
-    l1 = np.asarray(l1, float)
-    l2 = np.asarray(l2, float)
-    a = np.log(l1)
-    b = np.log(l2)
-    e = np.exp(-2.0 * (a + b))  # (l1 l2)**-2
-    x = np.expm1(2.0 * a) + np.expm1(2.0 * b) + np.expm1(-2.0 * (a + b))
-    W1, W2 = slope(x, C)
-    I_2 = -2.0 * l2 * np.expm1(-2.0 * a - 4.0 * b)
-    I_22 = 2.0 + 6.0 * e / (l2 * l2)
-    return W1 * I_2, W2 * I_2 * I_2 + W1 * I_22
+def d_psi_d_l2(l1, l2, C, second=True):
+    """``(psi_2, psi_22)``: what the 1-D equilibrium solvers need, cheaply.
+
+    Plain algebra (no logarithms): the solvers need the root of a sum of such
+    terms, not their relative accuracy near zero strain, and this is the hot
+    path. ``psi_22`` is None when ``second`` is False.
+    """
+    e = 1.0 / (l1 * l2) ** 2  # (l1 l2)**-2
+    inv2 = 1.0 / (l2 * l2)
+    x = l1 * l1 + l2 * l2 + e - 3.0
+    W1 = C[0] + x * (2.0 * C[1] + 3.0 * C[2] * x)
+    I_2 = 2.0 * l2 * (1.0 - e * inv2)
+    if not second:
+        return W1 * I_2, None
+    W2 = 2.0 * C[1] + 6.0 * C[2] * x
+    return W1 * I_2, W2 * I_2 * I_2 + W1 * (2.0 + 6.0 * e * inv2)

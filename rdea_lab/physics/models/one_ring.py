@@ -55,7 +55,7 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
     K = kap * (l1 * v) ** 2
 
     def terms(y, idx, second):
-        p_y, p_yy = yeoh.d_psi_d_l2(l1[idx], y, C)
+        p_y, p_yy = yeoh.d_psi_d_l2(l1[idx], y, C, second)
         return p_y, p_yy, 2.0 * y, 2.0
 
     y0 = 1.0 / np.sqrt(l1)

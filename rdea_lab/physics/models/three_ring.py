@@ -95,7 +95,7 @@ def _terms(rings, C):
         p_y = 0.0
         p_yy = 0.0
         for eta, l2, d, dd in parts:
-            psi_2, psi_22 = yeoh.d_psi_d_l2(l1, l2, C)
+            psi_2, psi_22 = yeoh.d_psi_d_l2(l1, l2, C, second)
             p_y = p_y + eta * psi_2 * d
             if second:
                 p_yy = p_yy + eta * (psi_22 * d * d + psi_2 * dd)

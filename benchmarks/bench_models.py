@@ -1,0 +1,122 @@
+"""Speed of the quasi-static solvers (``rdea-lab bench``).
+
+Headline figures are on the hollow core of Section 3.4 (material of ref. [36],
+lambda1 uniform in [1, 1.75], v uniform in [0, 3.5 kV], seed 0): every 1R and
+3R sample there needs the full iterative solve (no sample sits on the
+bifurcation-free SU state), so it is the honest case for throughput. The
+per-scene table adds the three paper specimens over the paper's envelope
+(lambda1 in [1, 1.5], v in [0, 2.6 kV], Table 3 material) and the active and
+passive cores. The fsolve baseline solves the corrected six-equation system
+(27) sample by sample (``baseline_3r_fsolve.py``); speed-up and agreement are
+measured on the hollow core, where the baseline's first stationary point is
+the physical one. Timings are the best of ``repeat`` runs after one warm-up.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from rdea_lab import __version__
+from rdea_lab.physics.geometry import RollGeometry, geometry_from_card
+from rdea_lab.physics.models import solve
+from rdea_lab.specs import load_params, load_specimen
+
+from baseline_3r_fsolve import solve_3r_fsolve
+
+ROOT = Path(__file__).resolve().parents[1]
+RIZZELLO = SimpleNamespace(C10=241e3, C20=-33.2e3, C30=20.1e3, eps_r=2.8)
+CORES = {  # Section 3.4, L1 = L1e (alpha_e1 = 1), L3 = 48 um
+    "hollow-core": (0.86e-3, 0.88e-3, 1.76e-3, 1.8e-3),
+    "active-core": (0.0, 0.088e-3, 1.76e-3, 1.8e-3),
+    "passive-core": (0.0, 0.81e-3, 1.76e-3, 1.8e-3),
+}
+
+
+def _core(name):
+    return RollGeometry(*CORES[name], L1=34e-3, L1e=34e-3, L3=48e-6)
+
+
+def _best(fn, repeat):
+    fn()  # warm-up
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def _envelope(n, stretch_max, voltage_max, seed=0):
+    rng = np.random.default_rng(seed)
+    return rng.uniform(1.0, stretch_max, n), rng.uniform(0.0, voltage_max, n)
+
+
+def run(samples=100_000, baseline_samples=1000, repeat=5) -> dict:
+    """Measure and return the figures as a JSON-able dict."""
+    l1, v = _envelope(samples, 1.75, 3500.0)
+    hollow = _core("hollow-core")
+    rate = {}
+    for model in ("su", "1r", "3r"):
+        rate[model] = samples / _best(lambda: solve(model, hollow, RIZZELLO, l1, v), repeat)
+
+    scenes = {}
+    table3 = load_params(ROOT / "params" / "paper2021_table3.yaml")
+    pl1, pv = _envelope(samples, 1.5, 2600.0, seed=1)
+    for i in (1, 2, 3):
+        geom = geometry_from_card(load_specimen(ROOT / "specimens" / f"specimen{i}.yaml"))
+        scenes[f"specimen-{i}"] = {m: samples / _best(lambda: solve(m, geom, table3, pl1, pv), repeat)
+                                   for m in ("su", "1r", "3r")}
+    for name in ("active-core", "passive-core"):
+        geom = _core(name)
+        scenes[name] = {m: samples / _best(lambda: solve(m, geom, RIZZELLO, l1, v), repeat)
+                        for m in ("su", "1r", "3r")}
+
+    bl1, bv = l1[:baseline_samples], v[:baseline_samples]
+    Ri, Rie, Roe, Ro = CORES["hollow-core"]
+    kw = dict(Ri=Ri, Rie=Rie, Roe=Roe, Ro=Ro, L3=48e-6, alpha_e1=1.0, C10=RIZZELLO.C10,
+              C20=RIZZELLO.C20, C30=RIZZELLO.C30, eps_r=RIZZELLO.eps_r)
+    t0 = time.perf_counter()
+    base = solve_3r_fsolve(bl1, bv, **kw)
+    t_base = time.perf_counter() - t0
+    fast = solve("3r", hollow, RIZZELLO, bl1, bv)
+    ok = base["converged"] & fast.converged
+    diff = np.abs(base["sigma1"][ok] - fast.sigma1[ok])
+    max_rel = float(np.max(diff / np.max(np.abs(fast.sigma1[ok]))))
+    return {
+        "samples_per_s": {m: float(r) for m, r in rate.items()},
+        "speedup_3r_vs_fsolve": float(rate["3r"] / (baseline_samples / t_base)),
+        "max_rel_diff_3r_vs_fsolve": max_rel,
+        "fsolve_samples_per_s": float(baseline_samples / t_base),
+        "baseline_samples": int(baseline_samples),
+        "baseline_converged": int(np.count_nonzero(base["converged"])),
+        "samples": int(samples),
+        "scenes_samples_per_s": scenes,
+        "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
+                    "processor": platform.machine(), "numpy": np.__version__},
+        "rdea_lab_version": __version__,
+        "notes": ("headline: hollow core, lambda1 U[1,1.75], v U[0,3.5kV]; max_rel_diff = max |dsigma1| / "
+                  "max |sigma1| over samples both converge on"),
+    }
+
+
+def format_text(r: dict) -> str:
+    lines = [f"quasi-static solvers, {r['samples']} samples (hollow core, lambda1 1-1.75, 0-3.5 kV), best of runs:"]
+    for m, x in r["samples_per_s"].items():
+        lines.append(f"  {m:<3} {x:12.3e} samples/s")
+    lines.append(f"3R vs per-sample fsolve of (27) on {r['baseline_samples']} samples: "
+                 f"{r['speedup_3r_vs_fsolve']:.0f}x faster ({r['fsolve_samples_per_s']:.0f} samples/s), "
+                 f"max rel. diff {r['max_rel_diff_3r_vs_fsolve']:.1e}")
+    lines.append("per scene [samples/s]:      su          1r          3r")
+    for name, rates in r["scenes_samples_per_s"].items():
+        lines.append(f"  {name:<14}" + "".join(f"{rates[m]:12.3e}" for m in ("su", "1r", "3r")))
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(format_text(run()))
