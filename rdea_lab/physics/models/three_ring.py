@@ -57,6 +57,29 @@ class _Rings:
         inv = 1.0 / l1
         return np.sqrt(s + self.Da * inv), np.sqrt(s + self.Dab * inv), np.sqrt(s + self.Dabc * inv)
 
+    def radius_derivatives(self, xi, l1):
+        """``(r, dr/dxi, d2r/dxi2)`` for ``r_ie, r_oe, r_o`` at fixed ``l1``.
+
+        ``r**2 = xi**2 + D / l1`` gives ``dr/dxi = xi / r`` and
+        ``d2r/dxi2 = (D / l1) / r**3``; with ``D = 0`` (no ring a) ``r = xi``.
+        """
+        inv = 1.0 / l1
+        s = xi * xi
+        out = []
+        for D in (self.Da, self.Dab, self.Dabc):
+            if D == 0.0:
+                out.append((xi, 1.0, 0.0))
+                continue
+            r = np.sqrt(s + D * inv)
+            q = 1.0 / r
+            out.append((r, xi * q, D * inv * q * q * q))
+        return out
+
+    def radius_stretch_rates(self, radii, l1):
+        """``dr/dlambda1`` at fixed ``xi`` for ``r_ie, r_oe, r_o``: ``-D / (2 l1**2 r)``."""
+        w = -0.5 / (l1 * l1)
+        return [0.0 if D == 0.0 else w * D / r for D, r in zip((self.Da, self.Dab, self.Dabc), radii)]
+
     def stretches(self, xi, l1):
         """``(lambda2a, lambda2b, lambda2c)`` at inner radius ``xi`` [Ro]."""
         r_ie, r_oe, r_o = self.radii(xi, l1)
@@ -77,21 +100,16 @@ def _terms(rings, C):
 
     def terms(xi, idx, second):
         l1 = rings.l1[idx]
-        inv = 1.0 / l1
-        r_ie, r_oe, r_o = rings.radii(xi, l1)
-        q_ie, q_oe = 1.0 / r_ie, 1.0 / r_oe
+        (r_ie, d_ie, dd_ie), (r_oe, d_oe, dd_oe), (r_o, d_o, dd_o) = rings.radius_derivatives(xi, l1)
         parts = []  # (eta, lambda2, d lambda2 / d xi, d2 lambda2 / d xi2)
         if rings.has_a:
-            parts.append((rings.eta[0], (xi + r_ie) / rings.Sa, (1.0 + xi * q_ie) / rings.Sa,
-                          rings.Da * inv * q_ie**3 / rings.Sa))
+            parts.append((rings.eta[0], (xi + r_ie) / rings.Sa, (1.0 + d_ie) / rings.Sa, dd_ie / rings.Sa))
         l2b = (r_ie + r_oe) / rings.Sb
-        d_b = xi * (q_ie + q_oe) / rings.Sb
-        dd_b = (rings.Da * q_ie**3 + rings.Dab * q_oe**3) * inv / rings.Sb
+        d_b = (d_ie + d_oe) / rings.Sb
+        dd_b = (dd_ie + dd_oe) / rings.Sb
         parts.append((rings.eta[1], l2b, d_b, dd_b))
         if rings.has_c:
-            q_o = 1.0 / r_o
-            parts.append((rings.eta[2], (r_oe + r_o) / rings.Sc, xi * (q_oe + q_o) / rings.Sc,
-                          (rings.Dab * q_oe**3 + rings.Dabc * q_o**3) * inv / rings.Sc))
+            parts.append((rings.eta[2], (r_oe + r_o) / rings.Sc, (d_oe + d_o) / rings.Sc, (dd_oe + dd_o) / rings.Sc))
         p_y = 0.0
         p_yy = 0.0
         for eta, l2, d, dd in parts:
@@ -162,8 +180,7 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
 
     # sigma1 = lambda1 dg/dlambda1 at fixed xi
     r_ie, r_oe, r_o = rings.radii(xi, l1)
-    w = -0.5 / (l1 * l1)
-    dr_ie, dr_oe, dr_o = w * rings.Da / r_ie, w * rings.Dab / r_oe, w * rings.Dabc / r_o
+    dr_ie, dr_oe, dr_o = rings.radius_stretch_rates((r_ie, r_oe, r_o), l1)
     l2b = (r_ie + r_oe) / rings.Sb
     dl2b = (dr_ie + dr_oe) / rings.Sb
     psi_1, psi_2 = yeoh.gradient(l1, l2b, C)
