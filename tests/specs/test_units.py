@@ -1,0 +1,155 @@
+"""Tests of rdea_lab.specs.units: quantities with units to SI floats and back."""
+
+from decimal import Decimal
+
+import pytest
+from hypothesis import given, strategies as st
+
+from rdea_lab.specs import SpecError, format_quantity, parse_quantity
+
+
+def parse(value, dimension):
+    return parse_quantity(value, dimension, source="test.yaml", field="x")
+
+
+# Decimal prefixes are applied in decimal arithmetic, so the result is the
+# float nearest to the exact SI value: the same float Python makes from the
+# literal on the right. Exact equality is therefore the right tolerance.
+@pytest.mark.parametrize(
+    "text, dimension, si",
+    [
+        ("48 um", "length", 48e-6),
+        ("48 µm", "length", 48e-6),  # U+00B5 micro sign
+        ("48 μm", "length", 48e-6),  # U+03BC greek mu
+        ("48um", "length", 48e-6),
+        ("1.8 mm", "length", 1.8e-3),
+        ("0.81 mm", "length", 0.81e-3),
+        ("1e-3 m", "length", 1e-3),
+        ("242 kPa", "pressure", 242e3),
+        ("-69 kPa", "pressure", -69e3),
+        ("-33.2 kPa", "pressure", -33.2e3),
+        ("8271 kPa", "pressure", 8271e3),
+        ("86 kPa s", "viscosity", 86000.0),
+        ("86 kPa*s", "viscosity", 86000.0),
+        ("86 kPa·s", "viscosity", 86000.0),
+        ("2.6 kV", "voltage", 2600.0),
+        ("3.5 kV", "voltage", 3500.0),
+        ("0.1 Hz", "frequency", 0.1),
+        ("10 ms", "time", 0.01),
+        ("1 min", "time", 60.0),
+        ("1.5 N", "force", 1.5),
+        ("100 pF", "capacitance", 1e-10),
+        ("50 V/um", "electric_field", 5e7),
+        (2.8, "dimensionless", 2.8),
+        (3, "dimensionless", 3.0),
+        ("2.8", "dimensionless", 2.8),
+        ("280 %", "dimensionless", 2.8),
+    ],
+)
+def test_parse_to_si(text, dimension, si):
+    value = parse(text, dimension)
+    assert type(value) is float
+    assert value == si
+
+
+def test_non_decimal_unit():
+    # 1 inch = 25.4 mm by definition; one multiplication, so one rounding
+    assert parse("1 inch", "length") == pytest.approx(0.0254, rel=1e-15)
+
+
+def test_error_names_source_field_and_allowed_unit():
+    with pytest.raises(SpecError) as info:
+        parse_quantity("48 kg", "length", source="specimens/x.yaml", field="membrane.L3", example_unit="um")
+    err = info.value
+    assert (err.source, err.field) == ("specimens/x.yaml", "membrane.L3")
+    assert str(err) == (
+        "specimens/x.yaml: membrane.L3: '48 kg' is not a length; give it with a length unit, e.g. '48 um'"
+    )
+
+
+@pytest.mark.parametrize(
+    "value, dimension, match",
+    [
+        (34, "length", r"'34' has no unit; give a length, e.g. '34 mm'"),
+        ("34", "length", r"'34' has no unit; give a length, e.g. '34 mm'"),
+        (242000.0, "pressure", r"has no unit; give a pressure"),
+        (True, "length", r"True is not a quantity"),
+        (False, "dimensionless", r"False is not a quantity"),
+        (None, "length", r"no value given; give a length"),
+        ([48], "length", r"\[48\] is not a quantity"),
+        ("abc", "length", r"'abc' is not a number followed by a unit"),
+        ("mm", "length", r"'mm' is not a number followed by a unit"),
+        ("nan mm", "length", r"'nan mm' is not a finite number"),
+        ("-inf kPa", "pressure", r"is not a finite number"),
+        ("1e400 m", "length", r"is not a finite number"),
+        ("1e306 km", "length", r"is not a finite number"),  # finite text, overflows in SI
+        (float("nan"), "dimensionless", r"nan is not a finite number"),
+        (float("inf"), "dimensionless", r"inf is not a finite number"),
+        ("48 kg", "length", r"'48 kg' is not a length; give it with a length unit"),
+        ("48 foo", "length", r"unknown unit 'foo'"),
+        ("48 m)", "length", r"unknown unit 'm\)'"),
+        ("48 m/0", "length", r"unknown unit"),
+        ("86 kPa", "viscosity", r"is not a viscosity \(pressure times time\)"),
+        ("2.8 kPa", "dimensionless", r"is not a dimensionless number; give a plain number"),
+        ("1 rad/s", "frequency", r"angle unit"),
+        ("60 rpm", "frequency", r"angle unit"),
+    ],
+)
+def test_parse_errors(value, dimension, match):
+    with pytest.raises(SpecError, match=match) as info:
+        parse(value, dimension)
+    assert str(info.value).startswith("test.yaml: x: ")
+    assert "\n" not in str(info.value)
+
+
+def test_unknown_dimension_is_a_programming_error():
+    with pytest.raises(ValueError, match="unknown dimension 'mass'"):
+        parse("1 kg", "mass")
+
+
+@pytest.mark.parametrize(
+    "value, unit, text",
+    [
+        (242000.0, "kPa", "242 kPa"),
+        (-69000.0, "kPa", "-69 kPa"),
+        (4.8e-5, "um", "48 um"),
+        (0.034, "mm", "34 mm"),
+        (0.0, "mm", "0 mm"),
+        (86000.0, "kPa s", "86 kPa s"),
+        (2600.0, "kV", "2.6 kV"),
+        (2.8, "", "2.8"),
+    ],
+)
+def test_format_quantity(value, unit, text):
+    assert format_quantity(value, unit) == text
+
+
+def test_format_quantity_fixed_digits_for_messages():
+    assert format_quantity(-85205.6336, "kPa", digits=4) == "-85.21 kPa"
+
+
+def test_format_quantity_unknown_unit_kind():
+    with pytest.raises(ValueError, match="matches none"):
+        format_quantity(1.0, "kg")
+
+
+_UNITS = {"mm": "length", "um": "length", "kPa": "pressure", "kPa s": "viscosity",
+          "kV": "voltage", "pF": "capacitance", "Hz": "frequency", "": "dimensionless"}
+
+
+@given(
+    value=st.floats(min_value=-1e12, max_value=1e12, allow_nan=False, allow_infinity=False),
+    unit=st.sampled_from(sorted(_UNITS)),
+)
+def test_format_then_parse_round_trips_exactly(value, unit):
+    text = format_quantity(value, unit)
+    assert parse(text, _UNITS[unit]) == value
+    assert "\n" not in text
+
+
+@given(st.floats(min_value=1e-9, max_value=1e3))
+def test_parse_is_exact_for_short_decimals(x):
+    # a 6-digit decimal in mm parses to the float nearest to its SI value
+    text = f"{x:.6g}"
+    nearest = float(str(Decimal(text).scaleb(-3)))  # exact shift, then one correctly rounded conversion
+    assert parse(f"{text} mm", "length") == nearest
