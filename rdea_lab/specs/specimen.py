@@ -1,0 +1,276 @@
+"""Specimen cards: the geometry of one rolled DEA, as YAML with units.
+
+Two geometry forms, exactly one per card:
+
+``membrane``
+    the unwound membrane dimensions of Table 1 in [1] (``L1, L2, L3, L1e,
+    Lp1, L2e`` and optionally ``Ri``, the spiral's starting radius, 0 by
+    default as in Eq. (52) of [1]); the physics layer computes the radii
+    (appendix of [1]);
+``radii``
+    the radii of the three rings ``Ri <= Rie < Roe <= Ro`` (Fig. 3b of [1])
+    with ``L1``, ``L1e`` and ``L3`` at the top level, as for the three cores
+    of Section 3.4 of [1].
+
+All lengths are stored as SI floats [m].
+
+[1] J. Prechtl et al., Smart Mater. Struct. (2021),
+    doi:10.1088/1361-665X/ac34be.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from typing import Any
+
+import yaml
+from pydantic import Field, field_validator, model_validator
+
+from .errors import DOCUMENT, Identifier, SpecError, SpecModel, read_yaml_mapping, parse_yaml_mapping, show
+from .units import format_quantity, quantity
+
+Length = quantity("length", "mm", gt=0.0)
+Thickness = quantity("length", "um", gt=0.0)
+Radius = quantity("length", "mm", ge=0.0)
+
+#: unit each length is written with
+_UNITS = {"L3": "um"}
+KINDS = ("roll",)
+#: relative slack for sums compared with a length (0.1 + 0.2 > 0.3 in floats)
+_ROUNDING = 1e-12
+
+
+def _mm(value: float, key: str = "") -> str:
+    return format_quantity(value, _UNITS.get(key, "mm"))
+
+
+class Membrane(SpecModel):
+    """Unwound membrane dimensions (Table 1 of [1]).
+
+    Attributes
+    ----------
+    L1 : float
+        Length along the actuation direction [m].
+    L2 : float
+        Length along the rolling direction, before rolling [m].
+    L3 : float
+        Thickness of one membrane [m].
+    L1e : float
+        Electrode length along the actuation direction [m].
+    Lp1 : float
+        Electrode-free length at the start of rolling [m].
+    L2e : float
+        Electrode length along the rolling direction [m].
+    Ri : float
+        Starting radius of the spiral [m]; 0 as in Eq. (52) of [1].
+    """
+
+    L1: Length
+    L2: Length
+    L3: Thickness
+    L1e: Length
+    Lp1: Length
+    L2e: Length
+    Ri: Radius = 0.0
+
+    @model_validator(mode="after")
+    def _consistent(self) -> "Membrane":
+        if self.L1e > self.L1:
+            raise SpecError("", "L1e", f"L1e = {_mm(self.L1e)} is longer than L1 = {_mm(self.L1)}; need L1e <= L1")
+        if self.Lp1 + self.L2e > self.L2 * (1.0 + _ROUNDING):
+            raise SpecError(
+                "", "L2e",
+                f"Lp1 + L2e = {_mm(self.Lp1)} + {_mm(self.L2e)} is longer than L2 = {_mm(self.L2)}; "
+                "need Lp1 + L2e <= L2 (the outer passive length L2 - Lp1 - L2e must be >= 0)",
+            )
+        return self
+
+    @property
+    def Lp2(self) -> float:
+        """Electrode-free length at the end of rolling, ``L2 - Lp1 - L2e`` [m].
+
+        Never negative: when ``Lp1 + L2e`` equals ``L2`` in decimal, float
+        rounding of the sum can leave -1e-17 m, returned as 0.
+        """
+        return max(0.0, self.L2 - self.Lp1 - self.L2e)
+
+
+class Radii(SpecModel):
+    """Radii of the three rings a (passive), b (active), c (passive) [m].
+
+    Requires ``0 <= Ri <= Rie < Roe <= Ro``: ring b must have a positive
+    thickness, rings a and c may vanish.
+    """
+
+    Ri: Radius
+    Rie: Length
+    Roe: Length
+    Ro: Length
+
+    @model_validator(mode="after")
+    def _ordered(self) -> "Radii":
+        if self.Rie < self.Ri:
+            raise SpecError("", "Rie", f"Rie = {_mm(self.Rie)} is smaller than Ri = {_mm(self.Ri)}; need Ri <= Rie")
+        if self.Roe <= self.Rie:
+            raise SpecError(
+                "", "Roe",
+                f"Roe = {_mm(self.Roe)} is not larger than Rie = {_mm(self.Rie)}; need Rie < Roe "
+                "(the active ring b must have a positive thickness)",
+            )
+        if self.Ro < self.Roe:
+            raise SpecError("", "Ro", f"Ro = {_mm(self.Ro)} is smaller than Roe = {_mm(self.Roe)}; need Roe <= Ro")
+        return self
+
+
+_TOP = ("L1", "L1e", "L3")
+
+
+class SpecimenCard(SpecModel):
+    """One specimen: an id and its geometry, in one of two forms.
+
+    Attributes
+    ----------
+    id : str
+        Letters, digits, ``-``, ``_``, ``.`` (e.g. ``specimen-2``).
+    kind : str
+        ``"roll"`` (the only kind so far).
+    membrane : Membrane or None
+        Unwound membrane form.
+    radii : Radii or None
+        Ring radii form; then ``L1``, ``L1e``, ``L3`` are top-level keys.
+    description, source : str or None
+        Free text; `source` says where the numbers come from.
+    """
+
+    id: Identifier
+    kind: str
+    description: str | None = None
+    source: str | None = None
+    membrane: Membrane | None = None
+    radii: Radii | None = None
+    radii_L1: Length | None = Field(None, alias="L1")
+    radii_L1e: Length | None = Field(None, alias="L1e")
+    radii_L3: Thickness | None = Field(None, alias="L3")
+
+    @field_validator("kind", mode="before")
+    @classmethod
+    def _known_kind(cls, value: Any) -> Any:
+        if value not in KINDS:
+            raise SpecError("", "", f"kind {show(value)} is not supported; allowed: {', '.join(KINDS)}")
+        return value
+
+    @model_validator(mode="after")
+    def _one_geometry(self) -> "SpecimenCard":
+        top = {"L1": self.radii_L1, "L1e": self.radii_L1e, "L3": self.radii_L3}
+        if self.membrane is not None and self.radii is not None:
+            raise SpecError("", "radii", "give the geometry either as 'membrane' or as 'radii', not both")
+        if self.membrane is None and self.radii is None:
+            raise SpecError(
+                "", "membrane",
+                "missing geometry; give 'membrane' (L1, L2, L3, L1e, Lp1, L2e) "
+                "or 'radii' (Ri, Rie, Roe, Ro) with top-level L1, L1e, L3",
+            )
+        if self.membrane is not None:
+            for key, value in top.items():
+                if value is not None:
+                    raise SpecError(
+                        "", key, f"a top-level {key} belongs to the 'radii' form; "
+                        f"with 'membrane', give {key} inside membrane",
+                    )
+            return self
+        for key, value in top.items():
+            if value is None:
+                raise SpecError(
+                    "", key, f"missing required key '{key}' (the 'radii' form needs L1, L1e and L3 at the top level)"
+                )
+        if self.radii_L1e > self.radii_L1:
+            raise SpecError(
+                "", "L1e", f"L1e = {_mm(self.radii_L1e)} is longer than L1 = {_mm(self.radii_L1)}; need L1e <= L1"
+            )
+        ring = self.radii.Roe - self.radii.Rie
+        if not self.radii_L3 < ring:
+            raise SpecError(
+                "", "L3",
+                f"L3 = {_mm(self.radii_L3, 'L3')} is not smaller than the active ring's thickness "
+                f"Roe - Rie = {format_quantity(ring, 'mm', digits=4)}; "
+                "a layer must be thinner than the ring it is rolled into",
+            )
+        return self
+
+    @property
+    def form(self) -> str:
+        """``"membrane"`` or ``"radii"``: which geometry form the card uses."""
+        return "membrane" if self.membrane is not None else "radii"
+
+    @property
+    def L1(self) -> float:
+        """Length along the actuation direction [m]."""
+        return self.membrane.L1 if self.membrane is not None else self.radii_L1
+
+    @property
+    def L1e(self) -> float:
+        """Electrode length along the actuation direction [m]."""
+        return self.membrane.L1e if self.membrane is not None else self.radii_L1e
+
+    @property
+    def L3(self) -> float:
+        """Thickness of one membrane [m]."""
+        return self.membrane.L3 if self.membrane is not None else self.radii_L3
+
+
+def specimen_from_mapping(mapping: Any, source: str = "<mapping>") -> SpecimenCard:
+    """Validate a specimen card given as a mapping (as read from YAML).
+
+    Parameters
+    ----------
+    mapping : Mapping
+        Keys as in a specimen YAML file; lengths as strings with units.
+    source : str
+        Where the mapping came from, for error messages.
+
+    Raises
+    ------
+    SpecError
+    """
+    if not isinstance(mapping, Mapping):
+        raise SpecError(source, DOCUMENT, f"expected a mapping of keys, got {show(mapping)}")
+    return SpecimenCard.from_yaml_mapping(dict(mapping), source)
+
+
+def specimen_from_yaml(text: str, source: str = "<string>") -> SpecimenCard:
+    """Validate a specimen card given as YAML text (e.g. a dataset attr)."""
+    return specimen_from_mapping(parse_yaml_mapping(text, source), source)
+
+
+def load_specimen(path: str | os.PathLike) -> SpecimenCard:
+    """Read and validate a specimen card YAML file.
+
+    Raises
+    ------
+    SpecError
+        The file is missing, not YAML, not a mapping, or the card is invalid;
+        the message names the file and the field.
+    """
+    mapping, source = read_yaml_mapping(path)
+    return specimen_from_mapping(mapping, source)
+
+
+def dump_specimen(card: SpecimenCard) -> str:
+    """Write a card as YAML with units; `load_specimen` reads it back equal."""
+    data: dict[str, Any] = {"id": card.id, "kind": card.kind}
+    for key in ("description", "source"):
+        if getattr(card, key) is not None:
+            data[key] = getattr(card, key)
+    if card.membrane is not None:
+        data["membrane"] = {k: _mm(getattr(card.membrane, k), k) for k in Membrane.model_fields}
+    else:
+        data["radii"] = {k: _mm(getattr(card.radii, k), k) for k in Radii.model_fields}
+        data.update({k: _mm(getattr(card, k), k) for k in _TOP})
+    return yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=1000)
+
+
+__all__ = [
+    "KINDS", "Membrane", "Radii", "SpecimenCard", "dump_specimen", "load_specimen",
+    "specimen_from_mapping", "specimen_from_yaml",
+]
