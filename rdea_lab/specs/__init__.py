@@ -1,0 +1,36 @@
+"""Units and specs: specimen cards and material parameter sets, as YAML with
+units, validated into frozen pydantic models holding SI floats.
+
+The lowest layer of rdea-lab: it imports nothing else from the package. Every
+user mistake raises `SpecError`, whose ``str`` is one line
+``"{source}: {field}: {message}"``.
+"""
+
+from .errors import SpecError
+from .params import (
+    ParameterSet,
+    ViscoBranch,
+    dump_params,
+    load_params,
+    material_problems,
+    params_from_mapping,
+    params_from_yaml,
+    yeoh_slope_nonpositive_at,
+)
+from .specimen import (
+    Membrane,
+    Radii,
+    SpecimenCard,
+    dump_specimen,
+    load_specimen,
+    specimen_from_mapping,
+    specimen_from_yaml,
+)
+from .units import format_quantity, parse_quantity, ureg
+
+__all__ = [
+    "Membrane", "ParameterSet", "Radii", "SpecError", "SpecimenCard", "ViscoBranch",
+    "dump_params", "dump_specimen", "format_quantity", "load_params", "load_specimen",
+    "material_problems", "params_from_mapping", "params_from_yaml", "parse_quantity",
+    "specimen_from_mapping", "specimen_from_yaml", "ureg", "yeoh_slope_nonpositive_at",
+]

@@ -1,0 +1,328 @@
+"""Material parameter sets: Yeoh coefficients, permittivity, viscoelastic branches.
+
+YAML form (quantities with units)::
+
+    name: paper2021-table3
+    yeoh: {C10: 242 kPa, C20: -69 kPa, C30: 47 kPa}
+    eps_r: 2.8
+    viscoelastic: {branches: [{k: 8271 kPa, eta: 86 kPa s}], eta_v0: 0 kPa s}
+
+`viscoelastic` is optional (no branches, ``eta_v0 = 0``); so are each of its
+keys. The Python model is flat and SI: ``ParameterSet.C10`` [Pa], ...
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import yaml
+from pydantic import model_validator
+
+from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, show
+from .units import format_quantity, quantity
+
+Pressure = quantity("pressure", "kPa")
+Viscosity = quantity("viscosity", "kPa s")
+Number = quantity("dimensionless", "")
+
+
+def _kpa(value: float) -> str:
+    return format_quantity(value, "kPa")
+
+
+def _kpas(value: float) -> str:
+    return format_quantity(value, "kPa s")
+
+
+def yeoh_slope_nonpositive_at(C10: float, C20: float, C30: float) -> float | None:
+    """Smallest ``x = I1 - 3 >= 0`` where the Yeoh slope stops being positive.
+
+    The slope is ``dW/dI1 = C10 + 2 C20 x + 3 C30 x^2``; its first root on
+    ``x >= 0`` is found in closed form (no sampling).
+
+    Parameters
+    ----------
+    C10, C20, C30 : float
+        Yeoh coefficients [Pa].
+
+    Returns
+    -------
+    float or None
+        ``x`` [-] where ``dW/dI1 <= 0`` first holds (0 if ``C10 <= 0``), or
+        None if the slope stays positive for every ``x >= 0``.
+
+    Notes
+    -----
+    The roots of ``3 C30 x^2 + 2 C20 x + C10`` are
+    ``(-C20 +- sqrt(C20^2 - 3 C10 C30)) / (3 C30)``; the smaller non-negative
+    one is written as ``C10 / (-C20 + sqrt(C20^2 - 3 C10 C30))`` (product of
+    the roots), which has no cancellation for ``C20 < 0`` and also covers
+    ``C30 = 0`` (``x = C10 / (-2 C20)``); for ``C30 < 0`` there is always one
+    positive root (for ``C20 > 0`` taken as ``(C20 + sqrt(...)) / (-3 C30)``).
+    """
+    if C10 <= 0.0:
+        return 0.0
+    if C30 >= 0.0 and C20 >= 0.0:
+        return None  # every term is non-negative and C10 > 0
+    # sqrt(C20^2 - 3 C10 C30) without squaring C20 (no under/overflow)
+    t = math.sqrt(3.0 * C10) * math.sqrt(abs(C30))
+    if C30 < 0.0:
+        root = math.hypot(C20, t)
+        if C20 > 0.0:  # -C20 + root would cancel; use the other form of the root
+            return (C20 + root) / (-3.0 * C30)
+    else:  # C20 < 0
+        if -C20 < t:
+            return None  # C30 > 0 and the parabola's minimum stays above 0
+        root = math.sqrt(-C20 - t) * math.sqrt(-C20 + t)
+    return C10 / (-C20 + root)
+
+
+def _branch_problems(k: float, eta: float, prefix: str) -> list[tuple[str, str]]:
+    problems = []
+    if not math.isfinite(k) or k <= 0.0:
+        problems.append((f"{prefix}k", f"k = {_kpa(k)} must be a finite stiffness > 0 kPa"))
+    if not math.isfinite(eta) or eta <= 0.0:
+        problems.append((f"{prefix}eta", f"eta = {_kpas(eta)} must be a finite viscosity > 0 kPa s"))
+    return problems
+
+
+def material_problems(
+    C10: float,
+    C20: float,
+    C30: float,
+    eps_r: float,
+    ks: Sequence[float] = (),
+    etas: Sequence[float] = (),
+    eta_v0: float = 0.0,
+) -> list[tuple[str, str]]:
+    """Every non-physical value in a material parameter set.
+
+    Parameters
+    ----------
+    C10, C20, C30 : float
+        Yeoh coefficients [Pa].
+    eps_r : float
+        Relative permittivity [-].
+    ks : sequence of float
+        Spring stiffness of each Maxwell branch [Pa].
+    etas : sequence of float
+        Damping of each Maxwell branch [Pa s].
+    eta_v0 : float
+        Parallel damping [Pa s].
+
+    Returns
+    -------
+    list of (str, str)
+        ``(field, message)`` per problem, in the order of the YAML form;
+        fields like ``yeoh.C10``, ``eps_r``, ``viscoelastic.branches[0].eta``.
+        Empty if the set is physical.
+
+    Notes
+    -----
+    Rules: all finite; ``C10 > 0``; ``C30 >= 0``; the Yeoh slope
+    ``dW/dI1 = C10 + 2 C20 x + 3 C30 x^2 > 0`` for every ``x = I1 - 3 >= 0``
+    (see `yeoh_slope_nonpositive_at`), i.e. ``C20 > -sqrt(3 C10 C30)``
+    (``C20 >= 0`` if ``C30 = 0``); ``eps_r >= 1``; ``k > 0``, ``eta > 0``,
+    ``eta_v0 >= 0``.
+    """
+    problems: list[tuple[str, str]] = []
+    yeoh = {"C10": C10, "C20": C20, "C30": C30}
+    finite = {name: math.isfinite(value) for name, value in yeoh.items()}
+    for name, value in yeoh.items():
+        if not finite[name]:
+            problems.append((f"yeoh.{name}", f"{name} = {value} must be a finite number"))
+    if finite["C10"] and C10 <= 0.0:
+        problems.append(("yeoh.C10", f"C10 = {_kpa(C10)} must be > 0 kPa (the small-strain shear modulus is 2 C10)"))
+    if all(finite.values()) and C10 > 0.0 and C30 >= 0.0:
+        x = yeoh_slope_nonpositive_at(C10, C20, C30)
+        if x is not None:
+            limit = format_quantity(-math.sqrt(3.0 * C10) * math.sqrt(C30), "kPa", digits=4)
+            bound = "C20 >= 0 kPa" if C30 == 0.0 else f"C20 > -sqrt(3 C10 C30) = {limit}"
+            problems.append((
+                "yeoh.C20",
+                f"C20 = {_kpa(C20)} is too negative for C10 = {_kpa(C10)}, C30 = {_kpa(C30)}: "
+                f"the Yeoh slope dW/dI1 = C10 + 2 C20 x + 3 C30 x^2 turns non-positive at x = I1 - 3 = {x:.4g}, "
+                f"so the energy stops increasing with stretch; need {bound}",
+            ))
+    if finite["C30"] and C30 < 0.0:
+        problems.append((
+            "yeoh.C30",
+            f"C30 = {_kpa(C30)} must be >= 0 kPa: with C30 < 0 the Yeoh slope dW/dI1 = "
+            "C10 + 2 C20 (I1 - 3) + 3 C30 (I1 - 3)^2 turns negative at large stretch",
+        ))
+    if not (math.isfinite(eps_r) and eps_r >= 1.0):
+        problems.append(("eps_r", f"eps_r = {eps_r} must be a finite number >= 1 "
+                                  "(a relative permittivity below 1 is not a dielectric)"))
+    if len(ks) != len(etas):
+        problems.append(("viscoelastic.branches", f"got {len(ks)} stiffnesses k and {len(etas)} dampings eta"))
+    for i, (k, eta) in enumerate(zip(ks, etas)):
+        problems += _branch_problems(k, eta, f"viscoelastic.branches[{i}].")
+    if not (math.isfinite(eta_v0) and eta_v0 >= 0.0):
+        problems.append(("viscoelastic.eta_v0", f"eta_v0 = {_kpas(eta_v0)} must be a finite viscosity >= 0 kPa s"))
+    return problems
+
+
+class ViscoBranch(SpecModel):
+    """One Maxwell branch: a spring `k` [Pa] in series with a damper `eta` [Pa s].
+
+    Eq. (43)-(44) in [1]; Table 3 calls them ``k_v1`` and ``eta_v1``.
+    """
+
+    k: Pressure
+    eta: Viscosity
+
+    @model_validator(mode="after")
+    def _physical(self) -> "ViscoBranch":
+        for field, message in _branch_problems(self.k, self.eta, ""):
+            raise SpecError("", field, message)
+        return self
+
+    @property
+    def tau(self) -> float:
+        """Relaxation time ``eta / k`` [s]."""
+        return self.eta / self.k
+
+
+class ParameterSet(SpecModel):
+    """A material parameter set, in SI.
+
+    Attributes
+    ----------
+    name : str
+        Letters, digits, ``-``, ``_``, ``.``.
+    C10, C20, C30 : float
+        Yeoh coefficients [Pa].
+    eps_r : float
+        Relative permittivity [-].
+    branches : tuple of ViscoBranch
+        Maxwell branches (M = len(branches)).
+    eta_v0 : float
+        Parallel damping [Pa s].
+    description, source : str or None
+        Free text; `source` says where the numbers come from.
+    """
+
+    _yaml_paths = {
+        "C10": "yeoh.C10", "C20": "yeoh.C20", "C30": "yeoh.C30",
+        "branches": "viscoelastic.branches", "eta_v0": "viscoelastic.eta_v0",
+    }
+
+    name: Identifier
+    C10: Pressure
+    C20: Pressure
+    C30: Pressure
+    eps_r: Number
+    branches: tuple[ViscoBranch, ...] = ()
+    eta_v0: Viscosity = 0.0
+    description: str | None = None
+    source: str | None = None
+
+    @model_validator(mode="after")
+    def _physical(self) -> "ParameterSet":
+        problems = material_problems(
+            self.C10, self.C20, self.C30, self.eps_r,
+            [b.k for b in self.branches], [b.eta for b in self.branches], self.eta_v0,
+        )
+        if problems:
+            raise SpecError("", *problems[0])
+        return self
+
+    @property
+    def M(self) -> int:
+        """Number of Maxwell branches (viscoelastic model order)."""
+        return len(self.branches)
+
+    def replace(self, **changes: Any) -> "ParameterSet":
+        """A new, validated set with some fields changed (SI numbers).
+
+        Raises
+        ------
+        SpecError
+            Unknown field, or the new set is not physical.
+        """
+        data = {name: getattr(self, name) for name in type(self).model_fields}
+        data.update(changes)
+        return type(self)(**data)
+
+
+# ------------------------------------------------------------- YAML form
+class _Yeoh(SpecModel):
+    C10: Pressure
+    C20: Pressure
+    C30: Pressure
+
+
+class _Viscoelastic(SpecModel):
+    branches: tuple[ViscoBranch, ...] = ()
+    eta_v0: Viscosity = 0.0
+
+
+class _ParamsFile(SpecModel):
+    name: Identifier
+    description: str | None = None
+    source: str | None = None
+    yeoh: _Yeoh
+    eps_r: Number
+    viscoelastic: _Viscoelastic = _Viscoelastic()
+
+
+def params_from_mapping(mapping: Any, source: str = "<mapping>") -> ParameterSet:
+    """Validate a parameter set given as a mapping in the YAML form.
+
+    Raises
+    ------
+    SpecError
+    """
+    if not isinstance(mapping, Mapping):
+        raise SpecError(source, DOCUMENT, f"expected a mapping of keys, got {show(mapping)}")
+    f = _ParamsFile.from_yaml_mapping(dict(mapping), source)
+    try:
+        return ParameterSet(
+            name=f.name, description=f.description, source=f.source,
+            C10=f.yeoh.C10, C20=f.yeoh.C20, C30=f.yeoh.C30, eps_r=f.eps_r,
+            branches=f.viscoelastic.branches, eta_v0=f.viscoelastic.eta_v0,
+        )
+    except SpecError as err:
+        raise err.with_source(source) from None
+
+
+def params_from_yaml(text: str, source: str = "<string>") -> ParameterSet:
+    """Validate a parameter set given as YAML text (e.g. a dataset attr)."""
+    return params_from_mapping(parse_yaml_mapping(text, source), source)
+
+
+def load_params(path: str | os.PathLike) -> ParameterSet:
+    """Read and validate a parameter set YAML file.
+
+    Raises
+    ------
+    SpecError
+        The file is missing, not YAML, not a mapping, or a value is invalid
+        or non-physical; the message names the file and the field.
+    """
+    mapping, source = read_yaml_mapping(path)
+    return params_from_mapping(mapping, source)
+
+
+def dump_params(ps: ParameterSet) -> str:
+    """Write a parameter set as YAML with units; `load_params` reads it back equal."""
+    data: dict[str, Any] = {"name": ps.name}
+    for key in ("description", "source"):
+        if getattr(ps, key) is not None:
+            data[key] = getattr(ps, key)
+    data["yeoh"] = {k: _kpa(getattr(ps, k)) for k in ("C10", "C20", "C30")}
+    data["eps_r"] = ps.eps_r
+    data["viscoelastic"] = {
+        "branches": [{"k": _kpa(b.k), "eta": _kpas(b.eta)} for b in ps.branches],
+        "eta_v0": _kpas(ps.eta_v0),
+    }
+    return yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=1000)
+
+
+__all__ = [
+    "ParameterSet", "ViscoBranch", "dump_params", "load_params", "material_problems",
+    "params_from_mapping", "params_from_yaml", "yeoh_slope_nonpositive_at",
+]
