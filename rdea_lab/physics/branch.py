@@ -121,7 +121,18 @@ def follow_branch(terms, y0, y_max, K, *, pitchfork=False, n_scan=24, rtol=1e-14
         K_crit[idx] = np.where(folded[idx], np.nan, h_prev)
     fi = np.flatnonzero(folded)
     if fi.size:
-        K_crit[fi] = _fold(terms, fi, fold_lo[fi], fold_hi[fi], fold_h[fi], y0[fi], pitchfork)
+        K_crit[fi], y_top = _fold(terms, fi, fold_lo[fi], fold_hi[fi], fold_h[fi], y0[fi], pitchfork)
+        # Just below a fold, h >= K holds only in a window around the maximum that
+        # can be narrower than the scan step: the scan then saw h fall. Such a
+        # sample has not folded; its root lies between the node before and the top.
+        below = K[fi] <= K_crit[fi]
+        if np.any(below):
+            b = fi[below]
+            folded[b] = False
+            status[b] = OK
+            K_crit[b] = np.nan
+            lo[b] = fold_lo[b]
+            hi[b] = y_top[below]
 
     todo = np.flatnonzero((status == OK) & (K > h_start))
     y_new, ok = _refine_root(terms, todo, lo[todo], hi[todo], K[todo], y_max[todo] - y0[todo],
@@ -166,18 +177,20 @@ def _refine_root(terms, idx, lo, hi, K, scale, rtol, max_iter):
 
 
 def _fold(terms, idx, lo, hi, h_guess, y0, pitchfork, iters=80):
-    """Load parameter at the fold: the maximum of ``h`` on ``[lo, hi]`` (golden section)."""
-    at_start = lo <= y0
+    """The fold: maximum of ``h`` on ``[lo, hi]`` by golden section.
+
+    Returns the load parameter at the maximum and where it is.
+    """
+    K = h_guess.copy()
+    y_top = lo.copy()
     if pitchfork:
         # a subcritical pitchfork folds at y0 itself: h_start is the critical load
-        K = h_guess.copy()
-        rest = ~(at_start & (h_guess > 0))
+        rest = ~((lo <= y0) & (h_guess > 0))
     else:
-        K = np.empty_like(h_guess)
         rest = np.ones(idx.size, dtype=bool)
     sel = np.flatnonzero(rest)
     if sel.size == 0:
-        return K
+        return K, y_top
     a, b, ids = lo[sel].copy(), hi[sel].copy(), idx[sel]
     a = np.where(a <= y0[sel], a + 1e-12 * (b - a), a)  # h is 0/0 exactly at a pitchfork's y0
 
@@ -197,5 +210,7 @@ def _fold(terms, idx, lo, hi, h_guess, y0, pitchfork, iters=80):
         # reuse the surviving interior point
         c, d = np.where(left, c_new, d), np.where(left, c, d_new)
         hc, hd = np.where(left, h(c_new), hd), np.where(left, hc, h(d_new))
-    K[sel] = np.maximum(np.maximum(hc, hd), h_guess[sel])
-    return K
+    top_c = hc >= hd
+    K[sel] = np.maximum(np.where(top_c, hc, hd), h_guess[sel])
+    y_top[sel] = np.where(top_c, c, d)
+    return K, y_top

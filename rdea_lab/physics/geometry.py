@@ -166,6 +166,12 @@ class RollGeometry:
                 "radii must satisfy 0 <= Ri <= Rie < Roe <= Ro, got "
                 f"Ri={self.Ri:g}, Rie={self.Rie:g}, Roe={self.Roe:g}, Ro={self.Ro:g} m"
             )
+        if self.Ri == 0.0 and self.Rie < 1e-6 * self.Ro:
+            raise ValueError(
+                f"Rie = {self.Rie:g} m is below 1e-6 Ro with Ri = 0: as the passive core shrinks "
+                "the 3R model tends to the SU model (the core forbids the hole to open), and "
+                "Rie = 0 would drop that constraint; give Rie >= 1e-6 Ro or use the SU model"
+            )
         if not (0.0 < self.L1e <= self.L1) or not self.L3 > 0.0:
             raise ValueError(f"need 0 < L1e <= L1 and L3 > 0, got L1e={self.L1e:g}, L1={self.L1:g}, L3={self.L3:g} m")
 

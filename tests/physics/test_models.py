@@ -35,7 +35,7 @@ def rolls(draw):
     """Random admissible roll geometries, Ri from 0 up to a thin shell."""
     Ro = 1.8e-3
     Roe = draw(st.floats(0.5, 1.0)) * Ro
-    Rie = draw(st.floats(0.0, 0.95)) * Roe
+    Rie = draw(st.floats(1e-3, 0.95)) * Roe
     Ri = draw(st.sampled_from([0.0, 1.0])) * draw(st.floats(0.0, 1.0)) * Rie
     return RollGeometry(Ri, Rie, Roe, Ro, L1=34e-3, L1e=draw(st.floats(0.5, 1.0)) * 34e-3, L3=48e-6)
 
@@ -175,6 +175,21 @@ def test_figure_8_sweep_moves_from_1r_to_su_behaviour():
         r1_dev.append(_max_dev(geom, "1r"))
     assert su_dev[-1] > r1_dev[-1] and su_dev[0] < r1_dev[0]
     assert np.all(np.diff(su_dev) > 0) and np.all(np.diff(r1_dev) < 0)
+
+
+def test_3r_tends_to_su_as_the_passive_core_shrinks():
+    """Ri = 0, Rie -> 0+: the shrinking core ring resists the hole ever more (its hoop
+    stretch ~ r_i / Rie), so 3R tends to SU (Section 3.4: 'the roll behaves as a single
+    solid uniaxial cylinder'); Rie below 1e-6 Ro is refused rather than half-modelled."""
+    devs = []
+    for f in (1e-2, 1e-4, 1e-6):
+        geom = core((0.0, f * 1.8e-3, 1.35e-3, 1.8e-3))
+        l1 = np.array([1.5, 2.0])
+        devs.append(np.max(np.abs(solve("3r", geom, TABLE3, l1, 3500.0).sigma1
+                                  - solve("su", geom, TABLE3, l1, 3500.0).sigma1)))
+    assert devs[0] > devs[1] > devs[2] and devs[2] < 5.0  # Pa; 746, 69, 2.1 Pa here
+    with pytest.raises(ValueError, match="tends to the SU model"):
+        core((0.0, 1e-10, 1.35e-3, 1.8e-3))
 
 
 def test_capacitance_laws():

@@ -1,0 +1,205 @@
+"""The hard cases of the physics core, each a named test."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rdea_lab.physics.models import solve, three_ring
+from rdea_lab.physics.models._common import HOOP_STRETCH_CAP, kappa
+from rdea_lab.physics.result import BAD_INPUT, LIMIT_POINT, OK, SNAPPED, StretchBelowOneError
+
+from conftest import RIZZELLO, TABLE3, core
+
+MODELS = ("su", "1r", "3r")
+SPECIMEN2 = (0.0, 0.6026e-3, 1.6211e-3, 1.7393e-3)  # our appendix radii of specimen 2
+
+
+def test_Ri_zero_specimen2_stays_uniaxial_at_paper_voltage_and_opens_at_high_voltage():
+    """Ri = 0: at 2.6 kV the 3R state is the SU state (r_i = 0); at 8 kV the inner
+    hole opens (the pitchfork of ERRATA), with lower enthalpy than the saddle r_i = 0."""
+    geom = core(SPECIMEN2, L1e=29e-3)
+    l1 = np.linspace(1.0, 1.5, 26)
+    r3 = solve("3r", geom, TABLE3, l1, 2600.0)
+    assert np.all(r3.r_i == 0.0)
+    np.testing.assert_allclose(r3.sigma1, solve("su", geom, TABLE3, l1, 2600.0).sigma1, rtol=0, atol=1e-6)
+    # the bifurcation voltage falls with stretch (it is 8.8 kV at lambda1 = 1 for the
+    # Section 3.4 material on this geometry): at 8 kV the hole is open from 1.2 on
+    l1 = np.linspace(1.2, 1.5, 16)
+    hi = solve("3r", geom, TABLE3, l1, 8000.0)
+    assert hi.all_converged and np.all(hi.r_i > 0)
+    assert np.all(three_ring.enthalpy(geom, TABLE3, l1, 8000.0, hi.r_i)
+                  < three_ring.enthalpy(geom, TABLE3, l1, 8000.0, 0.0))
+
+
+@pytest.mark.parametrize("v", [0.0, 3500.0])
+def test_ring_a_vanishing(v):
+    """Ri -> Rie: the solution tends continuously to the one without ring a."""
+    l1 = np.linspace(1.0, 1.75, 16)
+    limit = solve("3r", core((0.88e-3, 0.88e-3, 1.76e-3, 1.8e-3)), RIZZELLO, l1, v)
+    assert limit.all_converged and np.all(np.isnan(limit.lambda2a))
+    for gap in (1e-3, 1e-6, 1e-9, 1e-12):
+        geom = core((0.88e-3 * (1 - gap), 0.88e-3, 1.76e-3, 1.8e-3))
+        r = solve("3r", geom, RIZZELLO, l1, v)
+        assert r.all_converged
+        # ring a carries a fraction eta_a (~0.6 gap) of the volume; what it changes is
+        # bounded by eta_a times the stress scale (1.24 MPa at lambda1 = 1.75)
+        assert np.max(np.abs(r.sigma1 - limit.sigma1)) <= 1.24e6 * geom.eta_a + 1e-6
+
+
+@pytest.mark.parametrize("v", [0.0, 3500.0])
+def test_ring_c_vanishing(v):
+    """Roe -> Ro: likewise, for the outer passive ring."""
+    l1 = np.linspace(1.0, 1.75, 16)
+    for Ri in (0.0, 0.86e-3):
+        limit = solve("3r", core((Ri, 0.88e-3, 1.8e-3, 1.8e-3)), RIZZELLO, l1, v)
+        assert limit.all_converged and np.all(np.isnan(limit.lambda2c))
+        near = solve("3r", core((Ri, 0.88e-3, 1.8e-3 * (1 - 1e-10), 1.8e-3)), RIZZELLO, l1, v)
+        assert near.all_converged
+        np.testing.assert_allclose(near.sigma1, limit.sigma1, rtol=0, atol=1e-2)  # eta_c ~ 2e-10
+
+
+def test_thin_shell():
+    """Ri close to Ro (a 0.1 mm wall at 1.8 mm): a thin shell is a rolled strip, so 3R
+    follows 1R closely, and agrees with the per-sample fsolve reference."""
+    import sys
+    from pathlib import Path
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    from baseline_3r_fsolve import solve_3r_fsolve
+
+    radii = (1.70e-3, 1.705e-3, 1.795e-3, 1.8e-3)
+    geom = core(radii)
+    l1 = np.linspace(1.0, 1.75, 16)
+    v = np.full(16, 3500.0)
+    r3 = solve("3r", geom, RIZZELLO, l1, v)
+    r1 = solve("1r", geom, RIZZELLO, l1, v)
+    assert r3.all_converged and r1.all_converged
+    assert np.max(np.abs(r3.sigma1 - r1.sigma1)) < 0.01 * np.max(np.abs(r1.sigma1))
+    base = solve_3r_fsolve(l1, v, Ri=radii[0], Rie=radii[1], Roe=radii[2], Ro=radii[3], L3=48e-6, alpha_e1=1.0,
+                           C10=RIZZELLO.C10, C20=RIZZELLO.C20, C30=RIZZELLO.C30, eps_r=2.8)
+    np.testing.assert_allclose(r3.sigma1, base["sigma1"], rtol=0, atol=1e-8 * np.max(np.abs(r3.sigma1)))
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_stretch_exactly_one_and_one_plus_1e_12(model, any_core):
+    """At rest the stress is exactly 0; at 1 + e (e = 1e-12, exact as l1 - 1) it is the
+    small-strain value 6 C10 e (Young's modulus 3 mu = 6 C10) to 1e-6: the expm1-based
+    invariants keep the digits the naive formula loses."""
+    assert solve(model, any_core, TABLE3, 1.0, 0.0).sigma1 == 0.0
+    l1 = 1.0 + 1e-12
+    e = l1 - 1.0
+    assert solve(model, any_core, TABLE3, l1, 0.0).sigma1 == pytest.approx(6 * TABLE3.C10 * e, rel=1e-6, abs=0)
+    r = solve(model, any_core, TABLE3, np.array([1.0, l1]), 2600.0)  # compressive under voltage
+    assert r.all_converged and np.all(r.sigma1 < 0)
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_stretch_three(model, any_core):
+    l1 = np.linspace(1.0, 3.0, 41)
+    for v in (0.0, 3500.0):
+        r = solve(model, any_core, TABLE3, l1, v)
+        assert r.all_converged
+        assert np.all(np.diff(r.sigma1) > 0)  # stress grows with stretch over the whole range
+    r0 = [solve(m, any_core, TABLE3, 3.0, 0.0).sigma1 for m in MODELS]
+    assert r0[1] == pytest.approx(r0[0], rel=1e-9, abs=0) and r0[2] == pytest.approx(r0[0], rel=1e-9, abs=0)
+
+
+# A weakly stiffening material (admissible: C20^2 < 3 C10 C30 keeps dW/dI1 > 0) whose
+# 1R branch folds at a few kV, and a neo-Hookean one whose branch has an asymptote.
+WEAK = SimpleNamespace(C10=242e3, C20=-20e3, C30=1e3, eps_r=2.8)
+NEO = SimpleNamespace(C10=242e3, C20=0.0, C30=0.0, eps_r=2.8)
+
+
+def reference_fold_1r(geom, mat, l1):
+    """Independent of the solver: along the 1R equilibria the voltage is explicit,
+    v(l2)^2 = psi_2 / (2 l2 kappa l1^2) (eq. 33); its first maximum is the fold."""
+    l2 = np.linspace(l1**-0.5, HOOP_STRETCH_CAP * l1**-0.5, 2_000_001)
+    x = l1**2 + l2**2 + (l1 * l2) ** -2 - 3
+    W1 = mat.C10 + 2 * mat.C20 * x + 3 * mat.C30 * x**2
+    psi_2 = W1 * (2 * l2 - 2 * l1**-2 * l2**-3)
+    v = np.sqrt(psi_2 / (2 * l2 * kappa(geom, mat) * l1**2))
+    falls = np.flatnonzero(np.diff(v) < 0)
+    return v[falls[0]] if falls.size else v[-1]
+
+
+@pytest.mark.parametrize("l1", [1.0, 1.2, 1.5])
+def test_voltage_at_and_past_the_limit_point(l1):
+    geom = core("hollow")
+    v_c = reference_fold_1r(geom, WEAK, l1)
+    below = solve("1r", geom, WEAK, l1, v_c * (1 - 1e-4))
+    assert below.status == OK and np.isfinite(below.sigma1)
+    past = solve("1r", geom, WEAK, l1, np.array([v_c * (1 + 1e-4), 1.5 * v_c, 10 * v_c]))
+    # past the fold there is no stable state on the branch: the result says so, with the voltage
+    assert np.all(np.isin(past.status, (SNAPPED, LIMIT_POINT)))
+    assert np.all(past.critical_voltage == pytest.approx(v_c, rel=1e-7, abs=0))  # grid step ~1e-6 in l2
+    assert np.all(np.isnan(past.sigma1[past.status == LIMIT_POINT]))
+    assert past.status[-1] == LIMIT_POINT and "past limit point" in past.summary()
+
+
+def test_neo_hookean_has_no_equilibrium_above_its_asymptote():
+    """Neo-Hookean 1R: K(l2) = C10 (1 - l1^-2 l2^-4) rises to C10, so no equilibrium
+    exists above v* = sqrt(C10 / kappa) / l1; we report the largest voltage with an
+    equilibrium below the hoop-stretch cap: v* sqrt(1 - l1^-2 (cap^2/l1)^-2... ) ~ v*."""
+    geom = core("hollow")
+    l1 = 1.2
+    v_star = np.sqrt(NEO.C10 / kappa(geom, NEO)) / l1
+    r = solve("1r", geom, NEO, l1, np.array([0.9 * v_star, 1.01 * v_star]))
+    assert r.status[0] == OK and r.status[1] == LIMIT_POINT
+    cap = HOOP_STRETCH_CAP / np.sqrt(l1)
+    assert r.critical_voltage[1] == pytest.approx(v_star * np.sqrt(1 - l1**-2 * cap**-4), rel=1e-12, abs=0)
+
+
+def test_3r_limit_point_matches_brute_force_enthalpy():
+    """3R on the weak material: just below the reported critical voltage a local minimum of
+    g exists near the unloaded state (found on a grid), just above the branch is gone."""
+    geom = core("hollow")
+    l1 = 1.2
+    r = solve("3r", geom, WEAK, l1, 20e3)
+    assert r.status in (SNAPPED, LIMIT_POINT)
+    v_c = float(r.critical_voltage)
+    xs = np.linspace(geom.Ri / np.sqrt(l1), 3 * geom.Ro, 400_001)
+
+    def first_local_min(v):
+        g = three_ring.enthalpy(geom, WEAK, l1, v, xs)
+        i = np.flatnonzero((g[1:-1] <= g[:-2]) & (g[1:-1] <= g[2:]))
+        return xs[i[0] + 1] if i.size else np.inf
+
+    before = solve("3r", geom, WEAK, l1, 0.99 * v_c)
+    assert before.status == OK
+    assert first_local_min(0.99 * v_c) == pytest.approx(float(before.r_i), abs=2 * (xs[1] - xs[0]))
+    assert first_local_min(1.01 * v_c) > 1.2 * float(before.r_i)  # the nearby minimum has vanished
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_negative_C20(model):
+    """Table 3 has C20 = -69 kPa; a stronger softening C20 = -150 kPa (still admissible
+    with C30 = 40 kPa: C20^2 = 2.25e10 < 3 C10 C30 = 2.9e10) keeps every model well posed.
+    (Its uniaxial stress need not rise monotonically: dW/dI1 > 0 only makes it positive.)"""
+    soft = SimpleNamespace(C10=242e3, C20=-150e3, C30=40e3, eps_r=2.8)
+    l1 = np.linspace(1.0, 3.0, 81)
+    for geom in (core("hollow"), core("passive")):
+        r0 = solve(model, geom, soft, l1, 0.0)
+        assert r0.all_converged and np.all(r0.sigma1[1:] > 0)
+        # at 0 V the three models coincide; compare with SU's closed form
+        np.testing.assert_allclose(r0.sigma1, solve("su", geom, soft, l1, 0.0).sigma1, rtol=1e-9, atol=1e-6)
+        r = solve(model, geom, soft, l1, 2600.0)
+        assert r.all_converged and np.all(np.isfinite(r.sigma1))
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_nan_in_the_input_is_flagged_not_fatal(model):
+    geom = core("active")
+    l1 = np.array([1.1, np.nan, 1.3, 1.4, np.inf])
+    v = np.array([3500.0, 3500.0, np.nan, 3500.0, 0.0])
+    r = solve(model, geom, RIZZELLO, l1, v)
+    assert list(r.status == BAD_INPUT) == [False, True, True, False, True]
+    assert np.all(np.isnan(r.sigma1[r.status == BAD_INPUT]))
+    clean = solve(model, geom, RIZZELLO, l1[[0, 3]], v[[0, 3]])
+    np.testing.assert_array_equal(r.sigma1[[0, 3]], clean.sigma1)
+    assert "NaN or infinite input" in r.summary()
+
+
+@pytest.mark.parametrize("model", MODELS)
+def test_stretch_below_one_is_a_clear_error(model):
+    with pytest.raises(StretchBelowOneError, match=r"stretch 0\.99 at sample 1 is below 1.*tension"):
+        solve(model, core("passive"), RIZZELLO, np.array([1.0, 0.99, 1.2]), 0.0)
