@@ -70,7 +70,7 @@ def branch_strains(t, stretch, tau, q0=None):
     dt = np.diff(t)
     if not np.all(dt > 0):
         i = int(np.flatnonzero(~(dt > 0))[0])
-        raise ValueError(f"time must be strictly increasing; t[{i + 1}] = {t[i + 1]!r} follows t[{i}] = {t[i]!r}")
+        raise ValueError(f"time must be strictly increasing; t[{i + 1}] = {float(t[i + 1])!r} follows t[{i}] = {float(t[i])!r}")
     slope = np.diff(lam) / dt
     r = dt / tau
     a = np.exp(-r)

@@ -187,7 +187,7 @@ def test_3r_tends_to_su_as_the_passive_core_shrinks():
         l1 = np.array([1.5, 2.0])
         devs.append(np.max(np.abs(solve("3r", geom, TABLE3, l1, 3500.0).sigma1
                                   - solve("su", geom, TABLE3, l1, 3500.0).sigma1)))
-    assert devs[0] > devs[1] > devs[2] and devs[2] < 5.0  # Pa; 746, 69, 2.1 Pa here
+    assert devs[0] > devs[1] > devs[2] and devs[2] < 5.0  # Pa; we get 832, 84, 2.6 Pa
     with pytest.raises(ValueError, match="tends to the SU model"):
         core((0.0, 1e-10, 1.35e-3, 1.8e-3))
 
