@@ -32,6 +32,9 @@ def run(group: click.Group, argv=None) -> int:
     except click.exceptions.Abort:
         click.echo("rdea-lab: aborted", err=True)
         return 130
+    except click.exceptions.NoArgsIsHelpError as exc:  # bare `rdea-lab`: show the help
+        click.echo(exc.ctx.get_help() if exc.ctx is not None else "rdea-lab --help")
+        return 0
     except click.UsageError as exc:
         where = exc.ctx.command_path if exc.ctx is not None else "rdea-lab"
         click.echo(f"{where}: {_one_line(exc.format_message())} (see --help)", err=True)

@@ -34,6 +34,25 @@ def _affine_prefix(a, b):
     return A, B
 
 
+def check_time(t, shape):
+    """Check a time axis [s]: 1-D, finite, strictly increasing, matching ``shape``.
+
+    Returns it as a float array; raises ValueError naming the first bad sample.
+    """
+    t = np.asarray(t, float)
+    if t.ndim != 1 or t.shape != tuple(shape):
+        raise ValueError(f"time and stretch must be 1-D arrays of one length, got {t.shape} and {tuple(shape)}")
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:
+        raise ValueError(f"time must be finite; t[{int(bad[0])}] = {float(t[bad[0]])!r}")
+    dt = np.diff(t)
+    if not np.all(dt > 0):
+        i = int(np.flatnonzero(~(dt > 0))[0])
+        raise ValueError(f"time must be strictly increasing; t[{i + 1}] = {float(t[i + 1])!r} "
+                         f"follows t[{i}] = {float(t[i])!r}")
+    return t
+
+
 def branch_strains(t, stretch, tau, q0=None):
     """Strain ``q_j = lambda1 - xi_j`` of each Maxwell branch at every sample.
 
@@ -56,11 +75,9 @@ def branch_strains(t, stretch, tau, q0=None):
     -----
     Exact solution of eq. (44) in [1] for piecewise-linear stretch.
     """
-    t = np.asarray(t, float)
+    t = check_time(t, np.shape(stretch))
     lam = np.asarray(stretch, float)
     tau = np.atleast_1d(np.asarray(tau, float))[:, None]
-    if t.ndim != 1 or lam.shape != t.shape:
-        raise ValueError(f"time and stretch must be 1-D arrays of one length, got {t.shape} and {lam.shape}")
     if not np.all(tau > 0):
         raise ValueError(f"relaxation times must be > 0, got {tau.ravel()}")
     q = np.empty((tau.shape[0], t.size))
@@ -68,9 +85,6 @@ def branch_strains(t, stretch, tau, q0=None):
     if t.size < 2:
         return q
     dt = np.diff(t)
-    if not np.all(dt > 0):
-        i = int(np.flatnonzero(~(dt > 0))[0])
-        raise ValueError(f"time must be strictly increasing; t[{i + 1}] = {float(t[i + 1])!r} follows t[{i}] = {float(t[i])!r}")
     slope = np.diff(lam) / dt
     r = dt / tau
     a = np.exp(-r)
@@ -115,10 +129,23 @@ def overstress(t, stretch, k, eta, eta_v0=0.0, q0=None):
     -------
     numpy.ndarray, shape (n,)
         ``sum_j k_j q_j + eta_v0 d lambda1/dt``; vanishes as the rate goes to 0.
+        NaN at samples whose stretch is NaN or infinite.
+
+    Notes
+    -----
+    A sample without a finite stretch has no stress; the branches carry on
+    across it as if the stretch were linear between its finite neighbours, so
+    one lost sample does not void the rest of a run.
     """
+    t = check_time(t, np.shape(stretch))
     k = np.atleast_1d(np.asarray(k, float))
     eta = np.atleast_1d(np.asarray(eta, float))
     lam = np.asarray(stretch, float)
+    ok = np.isfinite(lam)
+    if not ok.all():
+        sigma = np.full_like(lam, np.nan)
+        sigma[ok] = overstress(t[ok], lam[ok], k, eta, eta_v0, q0)
+        return sigma
     sigma = np.zeros_like(lam)
     if k.size:
         sigma = k @ branch_strains(t, lam, eta / k, q0)

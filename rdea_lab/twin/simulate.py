@@ -58,8 +58,8 @@ def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
         strains start relaxed at ``t[0]``.
     """
     geom = _geometry(specimen)
-    t = np.asarray(t, float)
     stretch = np.asarray(stretch, float)
+    t = viscoelastic.check_time(t, stretch.shape)
     voltage = np.broadcast_to(np.asarray(voltage, float), stretch.shape)
     res = solve(model, geom, params, stretch, voltage)
     branches = tuple(getattr(params, "branches", ()) or ())

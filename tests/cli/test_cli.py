@@ -255,9 +255,6 @@ def test_bad_input_exits_2_with_one_line(case, tmp_path):
 
 
 # ------------------------------------------------------------ help and bench
-@pytest.mark.xfail(strict=True, reason="library bug: with no command, click 8.2+ raises NoArgsIsHelpError "
-                   "(a UsageError whose message is the whole help page) and cli/errors.py squashes "
-                   "the help into one long stderr line")
 def test_no_command_is_help_or_one_short_line():
     proc = rdea()
     assert proc.returncode in (0, 2)

@@ -178,9 +178,19 @@ def test_nan_stretch_flags_one_sample(card, table3, tensile_run):
     assert converged[700] == 0
     assert np.all(np.delete(converged, 700) == 1)
     # samples before the gap depend only on earlier samples: bit-identical to
-    # the clean run (the viscoelastic part is NaN from the gap on, a known
-    # limitation, so nothing is asserted after it)
+    # the clean run
     np.testing.assert_array_equal(ds["force"][:700], clean["force"][:700])
+    assert np.isnan(ds["force"][700])
+    # after it the branches carry on as if the stretch were linear across the
+    # gap: the stretch error is at most lambda'' (2 dt)^2 / 8 (lambda'' <= 0.25
+    # (2 pi 0.1)^2 for this cosine), so the overstress moves by at most k times
+    # that, and the force by that times area / stretch
+    dt = t[1] - t[0]
+    d_stretch = 0.25 * (2 * np.pi * 0.1) ** 2 * (2 * dt) ** 2 / 8
+    bound = table3.branches[0].k * d_stretch * np.pi * (1.7393e-3) ** 2
+    after = slice(701, None)
+    assert np.all(np.isfinite(ds["force"][after]))
+    assert np.max(np.abs(ds["force"][after] - clean["force"][after])) <= bound
 
 
 def test_stretch_below_one_raises(card, table3):
@@ -205,3 +215,15 @@ def test_quasi_static_curves_shape(card, table3, model):
     # at 0 V every model is on the uniaxial state: the hand SU stress;
     # 1e-8 covers the iterative solvers' stopping tolerance, abs for lambda1 = 1
     np.testing.assert_allclose(out["curves"][0]["sigma1"], su_stress_hand(stretch), rtol=1e-8, atol=1e-3)
+
+
+@pytest.mark.parametrize("branches", [True, False])
+def test_time_axis_is_checked_whatever_the_parameters(card, table3, branches):
+    params = table3 if branches else table3.replace(branches=())
+    lam = np.array([1.0, 1.1, 1.2])
+    with pytest.raises(ValueError, match=r"strictly increasing; t\[2\] = 0.5 follows t\[1\] = 1.0"):
+        simulate(card, params, [0.0, 1.0, 0.5], lam, 0.0)
+    with pytest.raises(ValueError, match="1-D arrays of one length"):
+        simulate(card, params, [0.0, 1.0], lam, 0.0)
+    with pytest.raises(ValueError, match="time must be finite"):
+        simulate(card, params, [0.0, np.nan, 2.0], lam, 0.0)
