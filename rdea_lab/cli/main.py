@@ -13,7 +13,9 @@ import click
 import numpy as np
 
 from .. import __version__
+from ..paths import project_root
 from ..physics.geometry import geometry_from_card
+from ..reports.paper_models import reproduce_models
 from ..specs import load_params, load_specimen, parse_quantity
 from ..twin.curves import CURVE_FIELDS, quasi_static_curves
 from .errors import die, run
@@ -160,6 +162,36 @@ def curve(card, params_path, model, stretch_text, voltage_text, as_json, as_csv)
         for i in list(range(0, stretch.size, step)) + ([stretch.size - 1] if (stretch.size - 1) % step else []):
             click.echo(f"  {c['stretch'][i]:8.4f} {c['sigma1'][i] / 1e6:11.5f} {c['force'][i]:9.4f} "
                        f"{c['lambda2b'][i]:9.5f} {c['capacitance'][i] * 1e12:9.2f}")
+
+
+@cli.command()
+@click.option("--out", "out_dir", default="reports/paper2021", show_default=True,
+              type=click.Path(file_okay=False), help="Folder for the tables and figures.")
+def reproduce(out_dir):
+    """Reproduce the paper's results that this version covers, end to end.
+
+    Today: Table 2 (radii from the unwound membranes) and Section 3.4 (SU, 1R
+    and 3R compared on the hollow, active and passive cores; Figures 5-8).
+    The experimental campaign, calibration and Table 4 come with the rig,
+    calibration and report commands.
+
+    \b
+    Example:
+      rdea-lab reproduce --out reports/paper2021
+    """
+    root = project_root()
+    if root is None:
+        die("reproduce: specimens/ and params/ not found; run from the rdea-lab checkout")
+    out = Path(out_dir)
+    click.echo(f"reproducing Table 2 and Section 3.4 into {out}/ ...")
+    summary = reproduce_models(root, out / "models")
+    for r in summary["table2"]:
+        click.echo(f"  Table 2 {r['specimen']}: Rie {r['Rie_mm']:.3f}, Roe {r['Roe_mm']:.3f}, Ro {r['Ro_mm']:.3f} mm "
+                   f"(paper {r['Rie_paper_mm']:.3f}, {r['Roe_paper_mm']:.3f}, {r['Ro_paper_mm']:.3f}; "
+                   f"max offset {r['max_offset_percent']:.2f} %)")
+    for name, s in summary["section_3_4"].items():
+        click.echo(f"  Section 3.4 {name}: {s['paper_claim']}; we get {s['ours']:.4f} MPa")
+    click.echo(f"tables: {out / 'models' / 'models.md'}; figures: {out / 'models'}/figure*.png")
 
 
 def _benchmarks_dir() -> Path:

@@ -1,0 +1,1 @@
+"""Reports: tables and figures that compare models and measurements."""
