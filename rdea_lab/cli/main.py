@@ -19,6 +19,7 @@ from ..reports.paper_models import reproduce_models
 from ..specs import load_params, load_specimen, parse_quantity
 from ..twin.curves import CURVE_FIELDS, quasi_static_curves
 from .errors import die, run
+from .runs import register as register_run_commands
 
 #: Table 1 of [1]: the datasheet permittivity of the silicone.
 DEFAULT_EPS_R = 2.8
@@ -224,6 +225,9 @@ def bench(samples, baseline_samples, repeat, as_json):
         click.echo(json.dumps(result, indent=2))
     else:
         click.echo(bench_models.format_text(result))
+
+
+register_run_commands(cli)
 
 
 def main(argv=None):

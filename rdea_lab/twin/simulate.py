@@ -95,3 +95,59 @@ def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
         "rdea_lab_version": __version__,
     })
     return ds
+
+
+class TwinStream:
+    """The twin one block at a time, carrying the viscoelastic state across blocks.
+
+    Block by block it gives the same numbers as :func:`simulate` over the whole
+    series (the branch update is exact over each interval, including the one
+    between two blocks).
+
+    Parameters
+    ----------
+    specimen : SpecimenCard or RollGeometry
+    params : ParameterSet
+    model : {"su", "1r", "3r"}
+    """
+
+    def __init__(self, specimen, params, model="su"):
+        self.geom = _geometry(specimen)
+        self.params = params
+        self.model = model
+        branches = tuple(getattr(params, "branches", ()) or ())
+        self._k = np.array([b.k for b in branches], float)
+        self._tau = np.array([b.eta / b.k for b in branches], float)
+        self._eta_v0 = float(getattr(params, "eta_v0", 0.0) or 0.0)
+        self._last = None  # (t, stretch, q) at the end of the previous block
+
+    def step(self, t, stretch, voltage) -> dict:
+        """Force [N], capacitance [F], stress [Pa] and model status for one block."""
+        stretch = np.asarray(stretch, float)
+        t = viscoelastic.check_time(t, stretch.shape)
+        res = solve(self.model, self.geom, self.params, stretch, np.broadcast_to(voltage, stretch.shape))
+        sigma_irr = np.zeros_like(stretch)
+        if self._last is not None and not t[0] > self._last[0]:
+            raise ValueError(f"block starts at t = {float(t[0])!r}, not after the previous block's end")
+        ok = np.isfinite(stretch)
+        if self._k.size or self._eta_v0:
+            prev_t, prev_lam, prev_q = self._last if self._last is not None else (None, None, None)
+            tt, ll = t[ok], stretch[ok]
+            if prev_t is not None:
+                tt, ll = np.concatenate([[prev_t], tt]), np.concatenate([[prev_lam], ll])
+            q = None
+            if self._k.size and tt.size:
+                q = viscoelastic.branch_strains(tt, ll, self._tau, prev_q)
+                part = self._k @ q
+                sigma_irr[ok] = part[1:] if prev_t is not None else part
+            if self._eta_v0 and tt.size > 1:
+                rate = viscoelastic.stretch_rate(tt, ll)
+                sigma_irr[ok] += self._eta_v0 * (rate[1:] if prev_t is not None else rate)
+            if tt.size:
+                self._last = (tt[-1], ll[-1], q[:, -1] if q is not None else None)
+        elif np.any(ok):
+            self._last = (t[ok][-1], stretch[ok][-1], None)
+        sigma_irr[~ok] = np.nan
+        sigma = res.sigma1 + sigma_irr
+        return {"force": sigma * self.geom.area / stretch, "capacitance": res.capacitance,
+                "sigma1": sigma, "model_status": res.status, "summary": res.summary()}

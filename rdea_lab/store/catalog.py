@@ -1,0 +1,75 @@
+"""Reading runs back: open one, list a folder of them."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from .journal import FORMAT
+
+
+def open_run(path: Path) -> xr.Dataset:
+    """Open a run dataset (loaded into memory, file closed)."""
+    with xr.open_dataset(path, engine="netcdf4") as ds:
+        return ds.load()
+
+
+def _journal_row(folder: Path) -> dict:
+    header = json.loads((folder / "header.json").read_text())
+    if header.get("format") != FORMAT:
+        raise ValueError("not a journal")
+    a = header["attrs"]
+    size = (folder / "samples.f8").stat().st_size if (folder / "samples.f8").exists() else 0
+    n = size // (8 * len(header["columns"]))
+    rate = float(a.get("sample_rate", 0.0)) or float("nan")
+    return {"file": str(folder), "specimen": a.get("specimen_id", "?"), "protocol": a.get("protocol_name", "?"),
+            "backend": a.get("backend", "?"), "model": a.get("model", "-"),
+            "status": "unfinished (rdea-lab recover)", "duration_s": (n - 1) / rate if n else 0.0,
+            "samples": int(n), "created": a.get("created", "?")}
+
+
+def catalog(folder: Path) -> list[dict]:
+    """One row per run below ``folder``: datasets (``*.nc``) and unfinished journals."""
+    folder = Path(folder)
+    rows = []
+    for path in sorted(folder.rglob("*.nc")):
+        try:
+            with xr.open_dataset(path, engine="netcdf4") as ds:
+                a = ds.attrs
+                t = ds["time"].values if "time" in ds else np.array([])
+                rows.append({"file": str(path), "specimen": a.get("specimen_id", "?"),
+                             "protocol": a.get("protocol_name", "?"), "backend": a.get("backend", "?"),
+                             "model": a.get("model", "-"), "status": a.get("status", "?"),
+                             "duration_s": float(t[-1] - t[0]) if t.size else 0.0, "samples": int(t.size),
+                             "created": a.get("created", "?")})
+        except Exception as exc:  # a foreign or broken file: list it, say why
+            rows.append({"file": str(path), "specimen": "?", "protocol": "?", "backend": "?", "model": "-",
+                         "status": f"unreadable ({type(exc).__name__})", "duration_s": 0.0, "samples": 0,
+                         "created": "?"})
+    for part in sorted(folder.rglob("*.nc.part")):
+        try:
+            rows.append(_journal_row(part))
+        except Exception:
+            continue
+    return rows
+
+
+def describe_run(ds: xr.Dataset) -> str:
+    """A few lines on one run: provenance, status and the range of each variable."""
+    a = ds.attrs
+    t = ds["time"].values
+    lines = [f"{a.get('title', '?')}",
+             f"  status {a.get('status', '?')}" + (f": {a['status_reason']}" if a.get("status_reason") else ""),
+             f"  backend {a.get('backend', '?')}, model {a.get('model', '-')}, run {a.get('run_id', '?')}",
+             f"  created {a.get('created', '?')}, rdea-lab {a.get('rdea_lab_version', '?')}",
+             f"  {t.size} samples over {float(t[-1] - t[0]) if t.size else 0:.4g} s "
+             f"at {float(a.get('sample_rate', 0)):g} Hz"]
+    for name, var in ds.data_vars.items():
+        v = np.asarray(var.values, float)
+        finite = v[np.isfinite(v)]
+        span = f"{finite.min():.5g} .. {finite.max():.5g}" if finite.size else "not measured"
+        lines.append(f"  {name:<17} [{var.attrs.get('units', '?')}] {span}")
+    return "\n".join(lines)

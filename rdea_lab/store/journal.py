@@ -1,0 +1,179 @@
+"""Crash-safe streaming of a run: an append-only journal, turned into netCDF at the end.
+
+An HDF5 (netCDF-4) file killed in the middle of a write can be left unreadable,
+so samples are not streamed into it. While a run goes, ``<out>.part/`` holds
+
+* ``header.json``: the column names, variable attributes and dataset attributes;
+* ``samples.f8``: rows of little-endian float64, one per sample, appended and
+  ``fsync``-ed after every block (at most a second of samples).
+
+When the run ends (complete, aborted, or interrupted by Ctrl-C or SIGTERM) the
+journal becomes ``<out>`` (compressed netCDF-4) by an atomic rename, and the
+journal is removed. If the process is killed outright (SIGKILL, power loss)
+the journal stays; :func:`recover` rebuilds the dataset from every whole row
+written, with ``status: interrupted``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from .schema import EXTRA_VARIABLES, TIME, VARIABLES
+
+FORMAT = "rdea-lab-journal-1"
+
+
+def utc_now() -> str:
+    """Current UTC time, ISO 8601 to the second."""
+    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def journal_path(out: Path) -> Path:
+    """The journal folder of the dataset ``out``."""
+    out = Path(out)
+    return out.with_name(out.name + ".part")
+
+
+class JournalWriter:
+    """Append blocks of samples to a run's journal; finish into a netCDF file.
+
+    Parameters
+    ----------
+    out : Path
+        The dataset to produce (``.nc``).
+    attrs : dict
+        Dataset attributes (strings and numbers only).
+    extra : sequence of str
+        Extra variables (keys of :data:`EXTRA_VARIABLES`) the backend writes.
+    """
+
+    def __init__(self, out: Path, attrs: dict, extra=()):
+        self.out = Path(out)
+        self.dir = journal_path(self.out)
+        self.columns = ["time", *VARIABLES, *extra]
+        self.samples = 0
+        self.dir.mkdir(parents=True, exist_ok=False)
+        header = {"format": FORMAT, "columns": self.columns, "attrs": attrs}
+        tmp = self.dir / "header.json.tmp"
+        tmp.write_text(json.dumps(header, indent=1))
+        os.replace(tmp, self.dir / "header.json")
+        self._fd = os.open(self.dir / "samples.f8", os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+        _fsync_dir(self.dir)
+
+    def append(self, block: dict) -> int:
+        """Write one block (arrays keyed by column name) and make it durable."""
+        n = len(block["time"])
+        rows = np.empty((n, len(self.columns)), dtype="<f8")
+        for j, name in enumerate(self.columns):
+            rows[:, j] = block.get(name, np.nan)
+        data = rows.tobytes()
+        view = memoryview(data)
+        while view:
+            written = os.write(self._fd, view)
+            view = view[written:]
+        os.fsync(self._fd)
+        self.samples += n
+        return n
+
+    def close(self):
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def finish(self, status: str, reason: str, history: str = "") -> Path:
+        """Close the journal and write the dataset with its final status."""
+        self.close()
+        ds = read_journal(self.dir)
+        ds.attrs.update(final_attrs(ds.attrs, status, reason, history))
+        write_dataset(ds, self.out)
+        shutil.rmtree(self.dir)
+        return self.out
+
+
+def final_attrs(attrs: dict, status: str, reason: str, history: str) -> dict:
+    now = utc_now()
+    line = f"{now}: status {status}" + (f" ({reason})" if reason else "")
+    if history:
+        line += f"; {history}"
+    return {"status": status, "status_reason": reason, "finished": now,
+            "history": (attrs.get("history", "") + "\n" + line).strip()}
+
+
+def read_journal(folder: Path) -> xr.Dataset:
+    """The dataset a journal holds: every whole row written (a torn last row is dropped)."""
+    folder = Path(folder)
+    header = json.loads((folder / "header.json").read_text())
+    if header.get("format") != FORMAT:
+        raise ValueError(f"{folder}: not an rdea-lab journal (format {header.get('format')!r})")
+    columns = header["columns"]
+    raw = np.fromfile(folder / "samples.f8", dtype="<f8")
+    n = raw.size // len(columns)
+    rows = raw[: n * len(columns)].reshape(n, len(columns))
+    data_vars = {}
+    for j, name in enumerate(columns[1:], start=1):
+        if name in VARIABLES:
+            units, long_name = VARIABLES[name]
+            values = rows[:, j]
+        else:
+            units, long_name, dtype = EXTRA_VARIABLES[name]
+            values = np.nan_to_num(rows[:, j], nan=-1).astype(dtype)
+        data_vars[name] = ("time", values, {"units": units, "long_name": long_name})
+    coords = {"time": ("time", rows[:, 0], {"units": TIME[0], "long_name": TIME[1]})}
+    ds = xr.Dataset(data_vars, coords=coords, attrs=dict(header["attrs"]))
+    ds.attrs["samples"] = int(n)
+    return ds
+
+
+def write_dataset(ds: xr.Dataset, out: Path) -> None:
+    """Write ``ds`` to ``out`` atomically (temporary file, fsync, rename)."""
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".tmp")
+    encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
+    encoding["time"] = {"zlib": True, "complevel": 4}
+    ds.to_netcdf(tmp, engine="netcdf4", unlimited_dims=["time"], encoding=encoding)
+    with open(tmp, "rb") as fh:
+        os.fsync(fh.fileno())
+    os.replace(tmp, out)
+    _fsync_dir(out.parent)
+
+
+def recover(path: Path) -> Path:
+    """Rebuild the dataset of a run that died without closing its journal.
+
+    ``path`` is the journal folder (``<out>.part``) or the dataset path whose
+    journal exists. Returns the dataset written, marked ``interrupted``.
+    """
+    path = Path(path)
+    folder = path if path.name.endswith(".part") else journal_path(path)
+    if not (folder / "header.json").is_file():
+        raise FileNotFoundError(f"{path}: no run journal here (expected {folder}/header.json)")
+    out = folder.with_name(folder.name[: -len(".part")])
+    if out.exists():
+        raise FileExistsError(f"{out} exists already; move it away to recover {folder}")
+    ds = read_journal(folder)
+    n = ds.attrs["samples"]
+    reason = (f"the process stopped without closing the run; {n} samples recovered from the journal "
+              f"by rdea-lab recover")
+    ds.attrs.update(final_attrs(ds.attrs, "interrupted", reason, "rdea-lab recover"))
+    write_dataset(ds, out)
+    shutil.rmtree(folder)
+    return out
+
+
+def _fsync_dir(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)

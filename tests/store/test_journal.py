@@ -1,0 +1,101 @@
+"""The store: journal streaming, crash recovery, the netCDF schema and its round trip."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from rdea_lab.store import REQUIRED_ATTRS, VARIABLES, JournalWriter, catalog, journal_path, open_run, recover
+from rdea_lab.store.journal import read_journal
+
+ATTRS = {"Conventions": "CF-1.8", "title": "t", "rdea_lab_version": "0", "run_id": "x", "backend": "twin",
+         "specimen_id": "s", "specimen": "id: s\n", "protocol_name": "p", "protocol_kind": "tensile",
+         "protocol": "name: p\n", "sample_rate": 100.0, "seed": 0, "created": "2026-01-01T00:00:00Z",
+         "status": "running", "status_reason": "", "history": "created"}
+
+
+def block(t0, n):
+    t = t0 + np.arange(n) / 100.0
+    return {"time": t, "stretch": 1 + 0.1 * t, "position": 0.0034 * t, "voltage": 100 * t, "force": np.sin(t),
+            "capacitance": np.full(n, np.nan), "stretch_setpoint": 1 + 0.1 * t, "voltage_setpoint": 100 * t,
+            "model_status": np.zeros(n)}
+
+
+def test_round_trip_keeps_every_sample_units_and_attrs(tmp_path):
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS, extra=("model_status",))
+    blocks = [block(0.0, 100), block(1.0, 100), block(2.0, 37)]
+    for b in blocks:
+        w.append(b)
+    w.finish("complete", "")
+    assert not journal_path(out).exists()
+    ds = open_run(out)
+    assert ds.sizes["time"] == 237
+    for name in VARIABLES:
+        expected = np.concatenate([b[name] for b in blocks])
+        np.testing.assert_array_equal(ds[name].values, expected)  # float64 all the way: bit-exact
+        assert ds[name].attrs["units"] and ds[name].attrs["long_name"]
+    assert ds["time"].attrs["units"] == "s"
+    for key in REQUIRED_ATTRS:
+        assert ds.attrs[key] is not None and key in ds.attrs
+    assert ds.attrs["status"] == "complete" and ds.attrs["samples"] == 237
+    assert "status complete" in ds.attrs["history"]
+    with xr.open_dataset(out) as raw:  # plain xarray, and time is the unlimited dimension
+        assert raw.encoding["unlimited_dims"] == {"time"}
+
+
+def test_a_killed_run_leaves_a_journal_that_recover_turns_into_an_interrupted_dataset(tmp_path):
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS, extra=("model_status",))
+    w.append(block(0.0, 100))
+    w.append(block(1.0, 100))
+    # simulate SIGKILL in the middle of the next write: half a row at the end of the file
+    os.write(w._fd, np.arange(4, dtype="<f8").tobytes())
+    w._fd and os.close(w._fd)
+    assert not out.exists()
+    rows = catalog(tmp_path)
+    assert rows[0]["status"].startswith("unfinished") and rows[0]["samples"] == 200
+    path = recover(journal_path(out))
+    ds = open_run(path)
+    assert ds.sizes["time"] == 200  # the torn row is dropped, every whole one kept
+    assert ds.attrs["status"] == "interrupted"
+    assert "200 samples recovered" in ds.attrs["status_reason"]
+    assert not journal_path(out).exists()
+
+
+def test_recover_refuses_what_it_cannot_do(tmp_path):
+    with pytest.raises(FileNotFoundError, match="no run journal here"):
+        recover(tmp_path / "nothing.nc")
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS)
+    w.append(block(0.0, 10))
+    w.close()
+    out.write_bytes(b"")  # something already sits where the dataset would go
+    with pytest.raises(FileExistsError, match="move it away"):
+        recover(out)
+
+
+def test_journal_header_is_plain_json_and_refuses_a_second_writer(tmp_path):
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS)
+    header = json.loads((journal_path(out) / "header.json").read_text())
+    assert header["columns"][0] == "time" and header["attrs"]["status"] == "running"
+    with pytest.raises(FileExistsError):
+        JournalWriter(out, ATTRS)
+    w.close()
+
+
+def test_read_journal_rejects_a_foreign_folder(tmp_path):
+    folder = tmp_path / "x.nc.part"
+    folder.mkdir()
+    (folder / "header.json").write_text(json.dumps({"format": "other"}))
+    with pytest.raises(ValueError, match="not an rdea-lab journal"):
+        read_journal(folder)
+
+
+def test_catalog_lists_unreadable_files_without_failing(tmp_path):
+    (tmp_path / "broken.nc").write_bytes(b"not netcdf")
+    rows = catalog(tmp_path)
+    assert rows[0]["status"].startswith("unreadable")
