@@ -1,5 +1,5 @@
-"""Units and specs: specimen cards and material parameter sets, as YAML with
-units, validated into frozen pydantic models holding SI floats.
+"""Units and specs: specimen cards, material parameter sets and protocols, as
+YAML with units, validated into frozen pydantic models holding SI floats.
 
 The lowest layer of rdea-lab: it imports nothing else from the package. Every
 user mistake raises `SpecError`, whose ``str`` is one line
@@ -17,6 +17,14 @@ from .params import (
     params_from_yaml,
     yeoh_slope_nonpositive_at,
 )
+from .protocol import (
+    Limits,
+    ProtocolSpec,
+    dump_protocol,
+    load_protocol,
+    protocol_from_mapping,
+    protocol_from_yaml,
+)
 from .specimen import (
     Membrane,
     Radii,
@@ -29,6 +37,7 @@ from .specimen import (
 from .units import format_quantity, parse_quantity, ureg
 
 __all__ = [
+    "Limits", "ProtocolSpec", "dump_protocol", "load_protocol", "protocol_from_mapping", "protocol_from_yaml",
     "Membrane", "ParameterSet", "Radii", "SpecError", "SpecimenCard", "ViscoBranch",
     "dump_params", "dump_specimen", "format_quantity", "load_params", "load_specimen",
     "material_problems", "params_from_mapping", "params_from_yaml", "parse_quantity",
