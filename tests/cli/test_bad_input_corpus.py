@@ -1,0 +1,55 @@
+"""Every malformed protocol and specimen file: exit 2 and one line naming the file (issue 3)."""
+
+from pathlib import Path
+
+import pytest
+
+from rdea_lab.cli.errors import run as run_cli
+from rdea_lab.cli.main import cli
+
+ROOT = Path(__file__).resolve().parents[2]
+BAD_PROTOCOLS = sorted((ROOT / "tests" / "protocols" / "bad").glob("*.yaml"))
+BAD_SPECIMENS = sorted((ROOT / "tests" / "specs" / "bad").glob("specimen_*.yaml"))
+GOOD_PROTOCOL = ROOT / "protocols" / "tensile_ramp_sine_2.6kV.yaml"
+GOOD_SPECIMEN = ROOT / "specimens" / "specimen2.yaml"
+
+
+def expected_field(path: Path) -> str | None:
+    if not path.exists():
+        return None
+    first = path.read_text(errors="replace").splitlines()[:1]
+    return first[0].split("field:", 1)[1].strip() if first and "field:" in first[0] else None
+
+
+def test_the_corpus_is_large_enough():
+    assert len(BAD_PROTOCOLS) + len(BAD_SPECIMENS) >= 25
+    assert len(BAD_PROTOCOLS) >= 25
+
+
+def _check(capsys, args, path):
+    rc = run_cli(cli, [str(a) for a in args])
+    out, err = capsys.readouterr()
+    lines = err.strip().splitlines()
+    assert rc == 2, (path.name, err)
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert path.name in lines[0], lines[0]
+    field = expected_field(path)
+    if field and field != "<document>":
+        assert field in lines[0], (field, lines[0])
+    return lines[0]
+
+
+@pytest.mark.parametrize("path", BAD_PROTOCOLS, ids=lambda p: p.name)
+def test_bad_protocol(capsys, path):
+    _check(capsys, ["run", path, "--specimen", GOOD_SPECIMEN, "--dry-run"], path)
+
+
+@pytest.mark.parametrize("path", BAD_SPECIMENS, ids=lambda p: p.name)
+def test_bad_specimen(capsys, path):
+    _check(capsys, ["run", GOOD_PROTOCOL, "--specimen", path, "--dry-run"], path)
+
+
+def test_missing_files(capsys, tmp_path):
+    line = _check(capsys, ["run", tmp_path / "none.yaml", "--specimen", GOOD_SPECIMEN, "--dry-run"],
+                  tmp_path / "none.yaml")
+    assert "not found" in line
