@@ -26,7 +26,7 @@ _DIMENSIONS: dict[str, tuple[str, str, str]] = {
     "length": ("m", "length", "34 mm"),
     "pressure": ("Pa", "pressure", "242 kPa"),
     "viscosity": ("Pa*s", "viscosity", "86 kPa s"),
-    "voltage": ("V", "voltage", "2.6 kV"),
+    "voltage": ("V", "voltage", "2600 V"),
     "frequency": ("Hz", "frequency", "0.1 Hz"),
     "time": ("s", "time", "10 s"),
     "dimensionless": ("dimensionless", "dimensionless number", "2.8"),
