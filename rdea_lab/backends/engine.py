@@ -90,7 +90,11 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", progress=None
         ``status`` is ``complete``, ``aborted`` (a limit or the backend
         stopped the run) or ``interrupted`` (Ctrl-C, SIGTERM).
     """
-    backend.start(plan)
+    try:
+        backend.start(plan)  # may refuse (limits, configuration) before anything moves
+    except BaseException:
+        backend.close()
+        raise
     writer = JournalWriter(out, run_attrs(plan, card, backend, seed, command), extra=backend.extra_variables)
     status, reason = "complete", ""
     previous = signal.getsignal(signal.SIGTERM)

@@ -8,6 +8,7 @@ import traceback
 
 import click
 
+from ..backends.rig import RigRefused
 from ..physics.result import StretchBelowOneError
 from ..specs import SpecError
 
@@ -29,6 +30,8 @@ def run(group: click.Group, argv=None) -> int:
         return 0
     except click.exceptions.Exit as exc:
         return exc.exit_code
+    except SystemExit as exc:  # a command's own sys.exit(status)
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
     except click.exceptions.Abort:
         click.echo("rdea-lab: aborted", err=True)
         return 130
@@ -42,7 +45,7 @@ def run(group: click.Group, argv=None) -> int:
     except click.ClickException as exc:
         click.echo(f"rdea-lab: {_one_line(exc.format_message())}", err=True)
         return exc.exit_code
-    except (SpecError, StretchBelowOneError) as exc:
+    except (SpecError, StretchBelowOneError, RigRefused) as exc:
         click.echo(f"rdea-lab: {_one_line(exc)}", err=True)
         return 2
     except KeyboardInterrupt:

@@ -19,7 +19,9 @@ from ..reports.paper_models import reproduce_models
 from ..specs import load_params, load_specimen, parse_quantity
 from ..twin.curves import CURVE_FIELDS, quasi_static_curves
 from .errors import die, run
+from .rig import register as register_rig
 from .runs import register as register_run_commands
+from .runs import register_campaign
 
 #: Table 1 of [1]: the datasheet permittivity of the silicone.
 DEFAULT_EPS_R = 2.8
@@ -228,6 +230,8 @@ def bench(samples, baseline_samples, repeat, as_json):
 
 
 register_run_commands(cli)
+register_campaign(cli)
+register_rig(cli)
 
 
 def main(argv=None):

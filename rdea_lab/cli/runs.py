@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import shlex
 import sys
@@ -39,7 +40,16 @@ def register(cli: click.Group) -> None:
     @cli.command()
     @click.argument("protocol", type=click.Path(dir_okay=False))
     @click.option("--specimen", "card_path", required=True, type=click.Path(dir_okay=False), help="Specimen card (YAML).")
-    @click.option("--backend", type=click.Choice(["twin"]), default="twin", show_default=True, help="Executor.")
+    @click.option("--backend", type=click.Choice(["twin", "rig", "emulator"]), default="twin", show_default=True,
+                  help="twin: the physics model; rig: a rig server (--rig); emulator: a built-in emulated rig.")
+    @click.option("--rig", "rig_address", metavar="tcp://HOST:PORT", help="Rig server, for --backend rig.")
+    @click.option("--token-file", type=click.Path(dir_okay=False), help="Token presented to the rig server.")
+    @click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
+                  help="For --backend emulator: truth file [default: truth/paper2021.yaml].")
+    @click.option("--fault", "faults", multiple=True, metavar="KIND-at=SECONDS",
+                  help="For --backend emulator: disconnect-at=, breakdown-at= or stall-at= (repeatable).")
+    @click.option("--stall-timeout", type=click.FloatRange(0.1, 3600), default=5.0, show_default=True,
+                  help="Seconds without a new sample before a rig run is aborted as stalled.")
     @click.option("--params", "params_path", type=click.Path(dir_okay=False),
                   help=f"Parameter set for the twin [default: {DEFAULT_PARAMS}].")
     @click.option("--model", type=click.Choice(["su", "1r", "3r", "auto"], case_sensitive=False), default="auto",
@@ -53,14 +63,18 @@ def register(cli: click.Group) -> None:
     @click.option("--dry-run", is_flag=True, help="Check the protocol against the specimen and limits; print the plan.")
     @click.option("--quiet", is_flag=True, help="No progress bar.")
     @click.option("--seed", type=int, default=0, show_default=True, help="Random seed (recorded).")
-    def run(protocol, card_path, backend, params_path, model, tolerance, out_path, overwrite, realtime, dry_run,
-            quiet, seed):
+    def run(protocol, card_path, backend, rig_address, token_file, truth_path, faults, stall_timeout, params_path,
+            model, tolerance, out_path, overwrite, realtime, dry_run, quiet, seed):
         """Run a protocol on a specimen and store the run as one netCDF file.
 
         \b
-        Example:
+        Examples:
           rdea-lab run protocols/tensile_ramp_sine_0V.yaml --specimen specimens/specimen2.yaml \\
               --backend twin --model auto --out datasets/demo.nc
+          rdea-lab run protocols/blocking_force.yaml --specimen specimens/specimen1.yaml \\
+              --backend rig --rig tcp://127.0.0.1:5025
+          rdea-lab run protocols/blocking_force.yaml --specimen specimens/specimen1.yaml \\
+              --backend emulator --fault breakdown-at=12
         """
         from ..backends import TwinBackend, execute
         from ..physics.geometry import geometry_from_card
@@ -75,20 +89,59 @@ def register(cli: click.Group) -> None:
         P.first_violation(plan, L3=geom.L3)
         if not (0.0 < tolerance < 1.0 and math.isfinite(tolerance)):
             die(f"--tolerance: {tolerance} is not a relative deviation; allowed: 0 < tolerance < 1")
-        if params_path is None:
-            root = project_root()
-            if root is None or not (root / DEFAULT_PARAMS).is_file():
-                die("--params: required here (no params/paper2021_table3.yaml to default to)")
-            params_path = str(root / DEFAULT_PARAMS)
-        params = load_params(params_path)
-        twin = TwinBackend(card, params, model=model.lower(), tolerance=tolerance, realtime=realtime, seed=seed)
+        if backend != "emulator" and (faults or truth_path):
+            die("--fault and --truth: only with --backend emulator")
+        if backend != "rig" and (rig_address or token_file):
+            die("--rig and --token-file: only with --backend rig")
+        if backend == "twin":
+            if params_path is None:
+                root = project_root()
+                if root is None or not (root / DEFAULT_PARAMS).is_file():
+                    die("--params: required here (no params/paper2021_table3.yaml to default to)")
+                params_path = str(root / DEFAULT_PARAMS)
+            params = load_params(params_path)
+            executor = TwinBackend(card, params, model=model.lower(), tolerance=tolerance, realtime=realtime,
+                                   seed=seed)
+        elif params_path:
+            die("--params: the twin's parameters; a rig measures, it takes none")
+        elif backend == "rig":
+            if not rig_address:
+                die("--rig: required with --backend rig (e.g. --rig tcp://127.0.0.1:5025)")
+            from ..backends.rig import RigBackend, parse_address
+            from .rig import _read_token
+            try:
+                parse_address(rig_address)
+            except ValueError as exc:
+                die(f"--rig: {exc}")
+            executor = RigBackend(rig_address, card, token=_read_token(token_file) if token_file else None,
+                                  stall_timeout=stall_timeout)
+        else:
+            from ..emulator.controller import check_faults
+            from .rig import DEFAULT_TRUTH, parse_fault
+            parsed = [parse_fault(f) for f in faults]
+            try:
+                check_faults(parsed)
+            except ValueError as exc:
+                die(f"--fault: {exc}")
+            from ..specs.truth import load_truth
+            if truth_path is None:
+                root = project_root()
+                if root is None or not (root / DEFAULT_TRUTH).is_file():
+                    die(f"--truth: required here (no {DEFAULT_TRUTH} to default to)")
+                truth_path = str(root / DEFAULT_TRUTH)
+            truth = load_truth(truth_path)
         if dry_run:
             click.echo(plan.describe())
-            twin.start(plan)
             click.echo(f"limits: ok for {card.id} (L3 = {geom.L3 * 1e6:g} um)")
-            sel = twin.attrs().get("model_selection")
-            click.echo(f"twin: model {twin.model}" + (f" ({twin.choice.reason})" if sel else "")
-                       + f", parameters {params.name}")
+            if backend == "twin":
+                executor.start(plan)
+                sel = executor.attrs().get("model_selection")
+                click.echo(f"twin: model {executor.model}" + (f" ({executor.choice.reason})" if sel else "")
+                           + f", parameters {params.name}")
+            elif backend == "rig":
+                click.echo(f"rig {rig_address}: not contacted (dry run)")
+            else:
+                click.echo(f"emulator: truth {truth.name}" + (f", faults {', '.join(faults)}" if faults else ""))
             return
         out = Path(out_path) if out_path else _default_out(card.id, plan.name)
         from ..store import journal_path
@@ -101,13 +154,20 @@ def register(cli: click.Group) -> None:
             out.unlink()
         bar = _progress(plan.time.size, quiet, f"{plan.name} on {card.id}")
         command = "rdea-lab " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-        if bar is not None:
-            with bar:
-                result = execute(plan, card, twin, out, seed=seed, command=command, progress=bar.update)
-        else:
-            result = execute(plan, card, twin, out, seed=seed, command=command)
+        with contextlib.ExitStack() as stack:
+            if backend == "emulator":
+                from ..backends.campaign import _emulator
+                from ..backends.rig import RigBackend
+                address = stack.enter_context(_emulator(card, truth, realtime, faults=parsed))
+                executor = RigBackend(address, card, stall_timeout=stall_timeout)
+                seed = truth.seed
+            if bar is not None:
+                stack.enter_context(bar)
+            result = execute(plan, card, executor, out, seed=seed, command=command,
+                             progress=bar.update if bar is not None else None)
+        what = f", model {executor.model}" if backend == "twin" else ""
         click.echo(f"{result.path}: {result.samples} samples, status {result.status}"
-                   + (f" ({result.reason})" if result.reason else "") + f", model {twin.model}")
+                   + (f" ({result.reason})" if result.reason else "") + what)
         if result.status == "interrupted":
             sys.exit(130)
         if result.status != "complete":
@@ -220,3 +280,58 @@ def register(cli: click.Group) -> None:
         if plot_path:
             from ..reports.plots import plot_plan
             click.echo(f"plot: {plot_plan(plan, plot_path)}")
+
+
+def register_campaign(cli: click.Group) -> None:
+    """The ``campaign`` group."""
+
+    @cli.group()
+    def campaign():
+        """Run a whole campaign of experiments (campaigns/*.yaml)."""
+
+    @campaign.command(name="run")
+    @click.argument("file", type=click.Path(dir_okay=False))
+    @click.option("--out", "out_dir", type=click.Path(file_okay=False),
+                  help="Folder for the datasets [default: the campaign's 'out', e.g. datasets/paper2021].")
+    @click.option("--force", "overwrite", is_flag=True, help="Overwrite existing datasets.")
+    @click.option("--realtime", is_flag=True, help="Pace the runs at wall-clock speed.")
+    @click.option("--quiet", is_flag=True, help="No progress bar.")
+    def campaign_run(file, out_dir, overwrite, realtime, quiet):
+        """Run every protocol on every specimen of a campaign, into <out>/<specimen_id>/<protocol_name>.nc.
+
+        \\b
+        Example:
+          rdea-lab campaign run campaigns/paper2021.yaml
+        """
+        from ..backends.campaign import experiments, run_campaign
+        from ..specs.campaign import load_campaign
+        from ..store import journal_path
+
+        spec, root = load_campaign(file)
+        runs = experiments(spec, root, out_dir)
+        for r in runs:
+            if journal_path(r.out).exists():
+                die(f"{r.out}: an unfinished run's journal is in the way; rdea-lab recover it, or remove it")
+            if r.out.exists() and not overwrite:
+                die(f"{r.out}: exists; give --force to overwrite, or --out another folder")
+        for r in runs:
+            if r.out.exists():
+                r.out.unlink()
+        total = sum(r.plan.time.size for r in runs)
+        click.echo(f"campaign {spec.name}: {len(runs)} runs, {total} samples, backend {spec.backend}")
+        bar = _progress(total, quiet, spec.name)
+        lines = []
+        with contextlib.ExitStack() as stack:
+            if bar is not None:
+                stack.enter_context(bar)
+            results = run_campaign(spec, root, out_dir=out_dir, realtime=realtime,
+                                   progress=bar.update if bar is not None else None,
+                                   on_result=lambda r: lines.append(r) if bar is not None else
+                                   click.echo(f"  {r.path}: {r.samples} samples, {r.status}"))
+        for r in lines:
+            click.echo(f"  {r.path}: {r.samples} samples, {r.status}")
+        bad = [r for r in results if r.status != "complete"]
+        if bad:
+            click.echo(f"{len(bad)} of {len(results)} runs did not complete: "
+                       + "; ".join(f"{r.path.name}: {r.reason}" for r in bad), err=True)
+            sys.exit(1)

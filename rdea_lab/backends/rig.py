@@ -1,0 +1,252 @@
+"""The rig driver: a plan over the SCPI-style command set of docs/rig-protocol.md.
+
+Built on PyVISA with its pure-Python backend (``TCPIP::HOST::PORT::SOCKET``),
+so any server that speaks the command set (the built-in emulator, or a lab's
+own front end to its DAQ) can be driven. Limits are sent and the trajectories
+checked by the server (``ARM``) before anything moves; every abort path sends
+``ABOR`` (voltage to zero, actuator back to its start) and keeps every sample
+fetched so far.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time as _time
+
+import numpy as np
+
+from .engine import BackendFailure
+
+COLUMNS = ("time", "stretch", "position", "voltage", "force", "capacitance", "stretch_setpoint",
+           "voltage_setpoint")
+_ADDRESS = re.compile(r"^tcp://(?P<host>[A-Za-z0-9.\-]+|\[[0-9a-fA-F:]+\]):(?P<port>\d{1,5})$")
+
+
+class RigRefused(ValueError):
+    """The rig refused the run before anything moved (a limit, a bad configuration, a token)."""
+
+
+class ConnectionLost(BackendFailure):
+    """The connection to the rig broke (reset, closed, timed out)."""
+
+
+def parse_address(address: str) -> tuple[str, int]:
+    """``tcp://HOST:PORT`` -> (host, port); ValueError saying what is allowed."""
+    m = _ADDRESS.match(address or "")
+    if not m or not 0 < int(m["port"]) < 65536:
+        raise ValueError(f"rig address {address!r} is not tcp://HOST:PORT (e.g. tcp://127.0.0.1:5025)")
+    return m["host"].strip("[]"), int(m["port"])
+
+
+class RigBackend:
+    """Run a plan on a rig server.
+
+    Parameters
+    ----------
+    address : str
+        ``tcp://HOST:PORT``.
+    card : SpecimenCard
+        The specimen on the rig (its L1 and L3 configure position and field limit).
+    token : str, optional
+        Presented with ``SYST:AUTH`` before anything else.
+    timeout : float
+        Seconds to wait for any reply before calling the connection lost.
+    stall_timeout : float
+        Seconds of wall time without a new sample, while the rig says it is
+        running, before the run is aborted as stalled.
+    poll : float
+        Seconds between polls when no sample is ready.
+    """
+
+    name = "rig"
+    extra_variables = ()
+
+    def __init__(self, address, card, *, token=None, timeout=5.0, stall_timeout=5.0, poll=0.02,
+                 clock=_time.monotonic, sleep=_time.sleep):
+        self.address = address
+        self.host, self.port = parse_address(address)
+        self.card = card
+        self.token = token
+        self.timeout = timeout
+        self.stall_timeout = stall_timeout
+        self.poll = poll
+        self._clock, self._sleep = clock, sleep
+        self._inst = None
+        self._rm = None
+        self.idn = ""
+        self.truth = ""
+        self._rows = 1000
+        self._done = False
+        self._lost = None
+        self.aborted = None
+
+    # -- plumbing ---------------------------------------------------------
+    def _open(self):
+        import pyvisa
+
+        self._rm = pyvisa.ResourceManager("@py")
+        try:
+            self._inst = self._rm.open_resource(f"TCPIP::{self.host}::{self.port}::SOCKET", read_termination="\n",
+                                                write_termination="\n", timeout=int(self.timeout * 1000))
+        except Exception as exc:
+            raise RigRefused(f"rig {self.address}: cannot connect ({type(exc).__name__}: {exc})") from None
+
+    def _query(self, command: str) -> str:
+        try:
+            return self._inst.query(command).strip()
+        except Exception as exc:
+            raise ConnectionLost(f"connection to the rig {self.address} lost during {command.split()[0]} "
+                                 f"({type(exc).__name__})") from None
+
+    def _command(self, command: str, refuse=True) -> None:
+        reply = self._query(command)
+        if reply != "OK":
+            message = _error_text(reply)
+            if refuse:
+                raise RigRefused(f"rig {self.address} refused {command.split()[0]}: {message}")
+            raise BackendFailure(f"rig {self.address}: {command.split()[0]} failed: {message}")
+
+    def _upload(self, command: str, values: np.ndarray) -> None:
+        try:
+            self._inst.write_binary_values(command + " ", np.asarray(values, "<f8"), datatype="d",
+                                           is_big_endian=False)
+            reply = self._inst.read().strip()
+        except Exception as exc:
+            raise ConnectionLost(f"connection to the rig {self.address} lost during upload ({type(exc).__name__})") from None
+        if reply != "OK":
+            raise RigRefused(f"rig {self.address} refused {command}: {_error_text(reply)}")
+
+    # -- Backend interface -------------------------------------------------
+    def attrs(self) -> dict:
+        out = {"rig_address": self.address, "rig_idn": self.idn}
+        if self.truth:
+            out["emulated"] = "yes: data from the rdea-lab rig emulator, not a physical rig"
+            out["emulator_truth"] = self.truth
+        return out
+
+    def start(self, plan) -> None:
+        from ..physics.geometry import geometry_from_card
+
+        geom = geometry_from_card(self.card)
+        self._open()
+        if self.token is not None:
+            self._command(f"SYST:AUTH {self.token}")
+        self.idn = self._query("*IDN?")
+        if self.idn.startswith("ERR"):
+            raise RigRefused(f"rig {self.address}: {_error_text(self.idn)}")
+        if self.idn.split(",")[1:2] == ["rig-emulator"]:
+            truth = self._query("SYST:TRUTH?")
+            self.truth = "" if truth.startswith("ERR") else truth
+        lim = plan.limits
+        meas = ",".join({"force": "FORC", "capacitance": "CAP"}[m] for m in plan.measure)
+        for command in ("*RST", f"CONF:RATE {plan.sample_rate!r}", f"CONF:MEAS {meas}",
+                        f"CONF:LENG {geom.L1!r}", f"CONF:THIC {geom.L3!r}", f"LIM:VOLT {lim.max_voltage!r}",
+                        f"LIM:STR {lim.max_stretch!r}", f"LIM:FORC {lim.max_force!r}",
+                        f"LIM:FIEL {lim.max_field!r}"):
+            self._command(command)
+        self._upload("TRAJ:STR", plan.stretch)
+        self._upload("TRAJ:VOLT", plan.voltage)
+        self._command("ARM")
+        self._command("INIT", refuse=False)
+        self._rows = max(1, int(plan.sample_rate))  # at most a second of samples per block
+        self._last_new = self._clock()
+
+    def _fetch(self) -> np.ndarray:
+        try:
+            data = self._inst.query_binary_values(f"FETC? {self._rows}", datatype="d", is_big_endian=False,
+                                                  container=np.array)
+        except Exception as exc:
+            raise ConnectionLost(f"connection to the rig {self.address} lost while fetching samples "
+                                 f"({type(exc).__name__})") from None
+        if data.size % len(COLUMNS):
+            raise BackendFailure(f"rig {self.address} sent {data.size} values, not whole rows of {len(COLUMNS)}")
+        return data.reshape(-1, len(COLUMNS))
+
+    def read_block(self):
+        if self._done or self.aborted is not None:
+            return None
+        while True:
+            try:
+                return self._next_block()
+            except ConnectionLost as exc:
+                if self._lost is not None or not self._reconnect():
+                    raise BackendFailure(f"{exc}; could not reconnect, so samples the rig acquired after the "
+                                         "last fetch are not in this dataset") from None
+                self._lost = str(exc)  # reconnected: drain what the rig kept
+
+    def _next_block(self):
+        while True:
+            rows = self._fetch()
+            if rows.shape[0]:
+                self._last_new = self._clock()
+                return {name: rows[:, j].copy() for j, name in enumerate(COLUMNS)}
+            state, acquired, fetched, reason = _status(self._query("STAT?"))
+            if state == "DONE" and fetched >= acquired:
+                self._done = True
+                if self._lost is not None:
+                    raise BackendFailure(f"{self._lost}; reconnected and fetched all {acquired} samples")
+                return None
+            if state == "ABORTED" and fetched >= acquired:
+                why = f"the rig aborted the run: {reason or 'no reason given'}"
+                if self._lost is not None:
+                    why = f"{self._lost}; reconnected and fetched all {acquired} samples the rig acquired; {why}"
+                raise BackendFailure(why)
+            if state not in ("RUNNING", "DONE", "ABORTED"):
+                raise BackendFailure(f"rig {self.address} is {state} in the middle of a run")
+            if self._clock() - self._last_new > self.stall_timeout:
+                raise BackendFailure(f"the rig stalled: no new sample for {self.stall_timeout:g} s "
+                                     f"({acquired} acquired, state {state})")
+            self._sleep(self.poll)
+
+    def _reconnect(self, attempts=3, wait=0.5) -> bool:
+        """Open a new connection to the same rig (no reset); True on success."""
+        self.close()
+        for _ in range(attempts):
+            try:
+                self._open()
+                if self.token is not None:
+                    self._command(f"SYST:AUTH {self.token}")
+                self._query("*IDN?")
+                return True
+            except (RigRefused, BackendFailure):
+                self.close()
+                self._sleep(wait)
+        return False
+
+    def abort(self, reason: str) -> None:
+        self.aborted = reason
+        if self._inst is None:
+            return
+        try:
+            self._inst.query("ABOR")
+        except Exception:
+            pass  # the connection is gone; the server aborts a run whose client is lost
+
+    def close(self) -> None:
+        for obj in (self._inst, self._rm):
+            try:
+                if obj is not None:
+                    obj.close()
+            except Exception:
+                pass
+        self._inst = self._rm = None
+
+
+def _error_text(reply: str) -> str:
+    m = re.match(r'^ERR\s*(-?\d+)\s*,\s*"(.*)"\s*$', reply)
+    return m[2] if m else (reply or "no reply")
+
+
+def _status(reply: str):
+    m = re.match(r'^([A-Z]+),(\d+),(\d+),"(.*)"$', reply)
+    if not m:
+        raise BackendFailure(f"unreadable rig status {reply!r}")
+    return m[1], int(m[2]), int(m[3]), m[4]
+
+
+def truth_name(truth_json: str) -> str:
+    try:
+        return json.loads(truth_json).get("name", "")
+    except (ValueError, AttributeError):
+        return ""

@@ -1,0 +1,141 @@
+"""The rig driver against a real emulator server on loopback (issue 4)."""
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rdea_lab.backends import execute
+from rdea_lab.backends.campaign import run_campaign
+from rdea_lab.backends.rig import RigBackend, RigRefused
+from rdea_lab.cli.errors import run as run_cli
+from rdea_lab.cli.main import cli
+from rdea_lab.emulator import RigServer
+from rdea_lab.protocols import load_plan
+from rdea_lab.specs import load_specimen
+from rdea_lab.specs.campaign import load_campaign
+from rdea_lab.specs.truth import load_truth
+from rdea_lab.store import open_run
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def card():
+    return load_specimen(ROOT / "specimens" / "specimen2.yaml")
+
+
+@pytest.fixture(scope="module")
+def truth():
+    return load_truth(ROOT / "truth" / "paper2021.yaml")
+
+
+@pytest.fixture
+def server(card, truth, request):
+    kwargs = getattr(request, "param", {})
+    srv = RigServer(card, truth, port=0, **kwargs)
+    host, port = srv.start()
+    srv.url = f"tcp://{host}:{port}"
+    yield srv
+    srv.shutdown()
+
+
+def test_every_preset_on_every_specimen_is_complete(tmp_path):
+    spec, root = load_campaign(ROOT / "campaigns" / "paper2021.yaml")
+    results = run_campaign(spec, root, out_dir=tmp_path)
+    assert len(results) == 12 and all(r.status == "complete" for r in results)
+    for r in results:
+        ds = open_run(r.path)
+        plan = load_plan(ROOT / "protocols" / f"{ds.attrs['protocol_name']}.yaml")
+        # data complete: every sample of the plan, in order, setpoints as commanded
+        assert ds.sizes["time"] == plan.time.size == r.samples
+        np.testing.assert_allclose(ds["time"].values, plan.time, rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(ds["stretch_setpoint"].values, plan.stretch)
+        np.testing.assert_array_equal(ds["voltage_setpoint"].values, plan.voltage)
+        assert np.all(np.isfinite(ds["force"].values))
+        assert ds.attrs["emulated"].startswith("yes") and "rig-emulator" in ds.attrs["rig_idn"]
+        assert json.loads(ds.attrs["emulator_truth"])["name"] == "paper2021-emulator"
+        # the LCR bridge reads at 0 V only, and only when the protocol measures capacitance
+        c = ds["capacitance"].values
+        if ds.attrs["protocol_kind"] == "capacitance":
+            assert np.all(np.isfinite(c[np.abs(ds["voltage"].values) < 1.0]))
+        else:
+            assert np.all(np.isnan(c))
+
+
+def run_with(server, card, plan, out, **kw):
+    backend = RigBackend(server.url, card, **kw)
+    result = execute(plan, card, backend, out)
+    return result, open_run(result.path)
+
+
+@pytest.mark.parametrize("server", [{"faults": [("breakdown", 10.0)]}], indirect=True)
+def test_breakdown_mid_run(server, card, tmp_path):
+    plan = load_plan(ROOT / "protocols" / "tensile_ramp_sine_2.6kV.yaml")
+    r, ds = run_with(server, card, plan, tmp_path / "b.nc")
+    assert r.status == "aborted" and "dielectric breakdown" in r.reason
+    assert ds.sizes["time"] == server.controller.acquired  # counted on both sides: none lost
+    assert 10.0 <= ds["time"].values[-1] <= 10.0 + 1 / plan.sample_rate
+
+
+@pytest.mark.parametrize("server", [{"faults": [("stall", 3.0)]}], indirect=True)
+def test_stall_mid_run(server, card, tmp_path):
+    plan = load_plan(ROOT / "protocols" / "tensile_ramp_sine_0V.yaml")
+    r, ds = run_with(server, card, plan, tmp_path / "s.nc", stall_timeout=0.5)
+    assert r.status == "aborted" and "stalled" in r.reason
+    assert ds.sizes["time"] == server.controller.acquired
+    assert server.controller.state == "ABORTED"  # the client's ABOR reached the rig: voltage off
+
+
+@pytest.mark.parametrize("server", [{"faults": [("disconnect", 5.0)], "realtime": True}], indirect=True)
+def test_disconnect_mid_run_reconnects_and_drains(server, card, tmp_path):
+    """Realtime, so the rig holds samples the client has not fetched when the line drops;
+    the driver reconnects and fetches them: nothing acquired is lost."""
+    plan = load_plan(ROOT / "protocols" / "tensile_ramp_sine_0V.yaml")
+    r, ds = run_with(server, card, plan, tmp_path / "d.nc", poll=0.2)
+    assert r.status == "aborted"
+    assert "lost" in r.reason and "reconnected and fetched all" in r.reason
+    assert ds.sizes["time"] == server.controller.acquired
+    np.testing.assert_allclose(np.diff(ds["time"].values), 1 / plan.sample_rate, rtol=1e-9)
+
+
+@pytest.mark.parametrize("server", [{"token": "s3cret-token"}], indirect=True)
+def test_a_client_without_the_token_is_refused(server, card, tmp_path):
+    plan = load_plan(ROOT / "protocols" / "tensile_ramp_sine_0V.yaml")
+    with pytest.raises(RigRefused, match="token"):
+        execute(plan, card, RigBackend(server.url, card), tmp_path / "x.nc")
+    assert not (tmp_path / "x.nc").exists() and not (tmp_path / "x.nc.part").exists()
+    assert server.controller.state == "IDLE"
+    r, ds = run_with(server, card, plan, tmp_path / "ok.nc", token="s3cret-token")
+    assert r.status == "complete"
+
+
+def test_limits_refused_by_the_rig_before_anything_moves(server, card, tmp_path):
+    plan = load_plan(ROOT / "protocols" / "blocking_force.yaml")
+    tight = dataclasses.replace(plan, limits=plan.limits.model_copy(update={"max_voltage": 2000.0}))
+    with pytest.raises(RigRefused, match=r"refused ARM: voltage 20[0-9.]+ V at t = [0-9.]+ s is above LIM:VOLT 2000 V"):
+        execute(tight, card, RigBackend(server.url, card), tmp_path / "x.nc")
+    assert server.controller.state != "RUNNING" and server.controller.acquired == 0
+
+
+def test_limits_refused_by_the_client_before_connecting(capsys, tmp_path):
+    bad = ROOT / "tests" / "protocols" / "bad"
+    over = next(p for p in sorted(bad.glob("*.yaml")) if "voltage_above" in p.name)
+    rc = run_cli(cli, ["run", str(over), "--specimen", str(ROOT / "specimens" / "specimen2.yaml"),
+                       "--backend", "rig", "--rig", "tcp://127.0.0.1:9"])  # nothing listens on port 9
+    err = capsys.readouterr().err
+    assert rc == 2 and "max_voltage" in err and "connect" not in err
+
+
+def test_cli_emulator_backend_with_a_fault(capsys, tmp_path):
+    out = tmp_path / "f.nc"
+    rc = run_cli(cli, ["run", str(ROOT / "protocols" / "blocking_force.yaml"), "--specimen",
+                       str(ROOT / "specimens" / "specimen1.yaml"), "--backend", "emulator", "--fault",
+                       "breakdown-at=12", "--quiet", "--out", str(out)])
+    stdout = capsys.readouterr().out
+    assert rc == 1 and "status aborted" in stdout
+    ds = open_run(out)
+    assert ds.attrs["status"] == "aborted" and "breakdown" in ds.attrs["status_reason"]
+    assert ds["time"].values[-1] == pytest.approx(12.0, abs=1e-3)
