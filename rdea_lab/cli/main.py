@@ -19,6 +19,7 @@ from ..reports.paper_models import reproduce_models
 from ..specs import load_params, load_specimen, parse_quantity
 from ..twin.curves import CURVE_FIELDS, quasi_static_curves
 from .errors import die, run
+from .calibrate import register as register_calibrate
 from .rig import register as register_rig
 from .runs import register as register_run_commands
 from .runs import register_campaign
@@ -232,6 +233,7 @@ def bench(samples, baseline_samples, repeat, as_json):
 register_run_commands(cli)
 register_campaign(cli)
 register_rig(cli)
+register_calibrate(cli)
 
 
 def main(argv=None):

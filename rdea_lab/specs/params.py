@@ -267,6 +267,8 @@ class _ParamsFile(SpecModel):
     yeoh: _Yeoh
     eps_r: Number
     viscoelastic: _Viscoelastic = _Viscoelastic()
+    #: a calibration record (rdea-lab calibrate): kept in the file, not part of the set
+    calibration: dict | None = None
 
 
 def params_from_mapping(mapping: Any, source: str = "<mapping>") -> ParameterSet:
