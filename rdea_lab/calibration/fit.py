@@ -18,6 +18,11 @@ class _OutOfBudget(Exception):
     pass
 
 
+#: Objective values closer than this are equal: the normalized force error has
+#: reached the rounding floor of double precision.
+_F_FLOOR = 1e-14
+
+
 @dataclass(frozen=True)
 class CalibrationResult:
     """What a calibration found, with the numbers to judge it (fixed fields).
@@ -202,13 +207,16 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
                 simplex = np.vstack([z] + [z + step * np.eye(z.size)[i] for i in range(z.size)])
                 res = minimize(obj, z, method="Nelder-Mead",
                                options={"adaptive": True, "initial_simplex": simplex, "xatol": xatol,
-                                        "fatol": ftol * f_prev,
+                                        "fatol": max(ftol * f_prev, _F_FLOOR),
                                         "maxfev": max(1, max_evals - obj.nfev), "maxiter": 10**9})
                 nit += int(res.nit)
                 z = obj.best[1]
                 f_new = obj.best[0]
-                if not f_new < f_prev * (1 - 1e-9) or restarts >= max_restarts:
-                    converged = f_new >= f_prev * (1 - 1e-9)
+                if obj.nfev >= max_evals:
+                    raise _OutOfBudget
+                improved = f_new < f_prev * (1 - 1e-9) - _F_FLOOR
+                if not improved or restarts >= max_restarts:
+                    converged = not improved
                     message = ("no further improvement from a restart" if converged
                                else f"stopped after {max_restarts} restarts, still improving")
                     break
