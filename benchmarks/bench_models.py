@@ -88,7 +88,9 @@ def run(samples=100_000, baseline_samples=1000, repeat=5) -> dict:
     ok = base["converged"] & fast.converged
     diff = np.abs(base["sigma1"][ok] - fast.sigma1[ok])
     max_rel = float(np.max(diff / np.max(np.abs(fast.sigma1[ok]))))
+    calibration = bench_calibration()
     return {
+        "calibration": calibration,
         "samples_per_s": {m: float(r) for m, r in rate.items()},
         "speedup_3r_vs_fsolve": float(rate["3r"] / (baseline_samples / t_base)),
         "max_rel_diff_3r_vs_fsolve": max_rel,
@@ -105,6 +107,36 @@ def run(samples=100_000, baseline_samples=1000, repeat=5) -> dict:
     }
 
 
+def bench_calibration() -> dict:
+    """Specimen 2's two tensile tests on the emulator, then SU with one branch and eta_v0
+    (6 free parameters) from a start estimated from the data, as `rdea-lab calibrate` does."""
+    import tempfile
+
+    from rdea_lab.backends import execute
+    from rdea_lab.backends.campaign import _emulator
+    from rdea_lab.backends.rig import RigBackend
+    from rdea_lab.calibration import calibrate, initial_guess, load_run
+    from rdea_lab.protocols import load_plan
+    from rdea_lab.specs.truth import load_truth
+
+    card = load_specimen(ROOT / "specimens" / "specimen2.yaml")
+    truth = load_truth(ROOT / "truth" / "paper2021.yaml")
+    with tempfile.TemporaryDirectory() as tmp, _emulator(card, truth, realtime=False) as address:
+        paths = []
+        for name in ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV"):
+            out = Path(tmp) / f"{name}.nc"
+            execute(load_plan(ROOT / "protocols" / f"{name}.yaml"), card, RigBackend(address, card), out)
+            paths.append(out)
+        runs = [load_run(p) for p in paths]
+    start = initial_guess(runs, 1, 2.8)
+    t0 = time.perf_counter()
+    res = calibrate(runs, start, model="su")
+    seconds = time.perf_counter() - t0
+    return {"specimen2_su_M1_seconds": seconds, "evaluations": res.nfev, "evaluations_per_s": res.nfev / seconds,
+            "samples_per_evaluation": int(sum(r.n for r in runs)), "objective": res.objective,
+            "restarts": res.restarts, "converged": res.converged}
+
+
 def format_text(r: dict) -> str:
     lines = [f"quasi-static solvers, {r['samples']} samples (hollow core, lambda1 1-1.75, 0-3.5 kV), best of runs:"]
     for m, x in r["samples_per_s"].items():
@@ -112,6 +144,10 @@ def format_text(r: dict) -> str:
     lines.append(f"3R vs per-sample fsolve of (27) on {r['baseline_samples']} samples: "
                  f"{r['speedup_3r_vs_fsolve']:.0f}x faster ({r['fsolve_samples_per_s']:.0f} samples/s), "
                  f"max rel. diff {r['max_rel_diff_3r_vs_fsolve']:.1e}")
+    c = r["calibration"]
+    lines.append(f"calibration of specimen 2 (SU, 1 branch + eta_v0, emulator data): {c['specimen2_su_M1_seconds']:.2f} s, "
+                 f"{c['evaluations']} evaluations, {c['evaluations_per_s']:.0f} evaluations/s "
+                 f"({c['samples_per_evaluation']} samples each)")
     lines.append("per scene [samples/s]:      su          1r          3r")
     for name, rates in r["scenes_samples_per_s"].items():
         lines.append(f"  {name:<14}" + "".join(f"{rates[m]:12.3e}" for m in ("su", "1r", "3r")))
