@@ -1,5 +1,6 @@
-"""Units and specs: specimen cards, material parameter sets and protocols, as
-YAML with units, validated into frozen pydantic models holding SI floats.
+"""Units and specs: specimen cards, material parameter sets, protocols and the
+emulator's truth files, as YAML with units, validated into frozen pydantic
+models holding SI floats.
 
 The lowest layer of rdea-lab: it imports nothing else from the package. Every
 user mistake raises `SpecError`, whose ``str`` is one line
@@ -34,6 +35,17 @@ from .specimen import (
     specimen_from_mapping,
     specimen_from_yaml,
 )
+from .truth import (
+    Instrument,
+    RadiiFactors,
+    TruthSpec,
+    dump_truth,
+    load_truth,
+    truth_as_mapping,
+    truth_from_mapping,
+    truth_from_yaml,
+    truth_json,
+)
 from .units import format_quantity, parse_quantity, ureg
 
 __all__ = [
@@ -42,4 +54,6 @@ __all__ = [
     "dump_params", "dump_specimen", "format_quantity", "load_params", "load_specimen",
     "material_problems", "params_from_mapping", "params_from_yaml", "parse_quantity",
     "specimen_from_mapping", "specimen_from_yaml", "ureg", "yeoh_slope_nonpositive_at",
+    "Instrument", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth", "truth_as_mapping",
+    "truth_from_mapping", "truth_from_yaml", "truth_json",
 ]

@@ -1,0 +1,250 @@
+"""Truth files: the "true" specimen and instruments behind the rig emulator.
+
+The emulator (`rdea_lab.emulator`) answers like a real rig: a roll whose
+physics is not the one a user calibrates (a chosen model, a material with
+two viscoelastic branches, radii off by a manufacturing tolerance) seen
+through imperfect instruments. A truth file says all of it, in YAML with
+units::
+
+    name: paper2021-emulator
+    model: 3r                       # the true physics: su | 1r | 3r
+    yeoh: {C10: 242 kPa, C20: -69 kPa, C30: 47 kPa}
+    eps_r: 2.8
+    viscoelastic:
+      branches: [{k: 8271 kPa, eta: 86 kPa s}, {k: 600 kPa, eta: 900 kPa s}]
+      eta_v0: 0 kPa s
+    radii_factors: {Rie: 1.02, Roe: 0.985, Ro: 1.01}   # true radius = nominal x factor
+    instrument:
+      force_noise: 4 mN             # load-cell noise, standard deviation
+      force_offset: 8 mN            # load-cell offset
+      actuator_lag: 4 ms            # first-order tracking lag of the linear actuator
+      amplifier_bandwidth: 300 Hz   # first-order bandwidth of the HV amplifier
+      parasitic_capacitance: 25 pF  # LCR parasitics, added to the true capacitance
+      capacitance_noise: 0.5 pF
+      breakdown_field: 100 V/um     # dielectric breakdown above this field estimate
+    seed: 2021
+
+The material part (``yeoh``, ``eps_r``, ``viscoelastic``) is a parameter set
+(`rdea_lab.specs.params`) with the same checks; `TruthSpec.material` holds it.
+Radii factors default to 1 (``Ri`` may be given too); whether the factored
+radii stay ordered depends on the specimen card, so that is checked where the
+two meet (`rdea_lab.emulator.true_geometry`).
+"""
+
+from __future__ import annotations
+
+import json
+import numbers
+import os
+from collections.abc import Mapping
+from typing import Annotated, Any
+
+import yaml
+from pydantic import AfterValidator, BeforeValidator
+
+from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, show
+from .params import ParameterSet, _Viscoelastic, _Yeoh, dump_params, params_from_mapping
+from .units import format_quantity, quantity
+
+#: The true physics may be any of the quasi-static models.
+MODELS = ("su", "1r", "3r")
+#: Open interval a radius factor must lie in: a tolerance, not another roll.
+FACTOR_RANGE = (0.5, 1.5)
+_MATERIAL_KEYS = ("name", "description", "source", "yeoh", "eps_r", "viscoelastic")
+
+Force = quantity("force", "mN", ge=0.0)
+Time = quantity("time", "ms", ge=0.0)
+Frequency = quantity("frequency", "Hz", gt=0.0)
+Capacitance = quantity("capacitance", "pF", ge=0.0)
+Field = quantity("electric_field", "V/um", gt=0.0)
+Number = quantity("dimensionless", "")
+
+
+def _in_factor_range(value: float) -> float:
+    lo, hi = FACTOR_RANGE
+    if not lo < value < hi:
+        raise SpecError("", "", f"radius factor {value:g} is outside ({lo:g}, {hi:g}); a factor is a "
+                                "manufacturing tolerance (true radius = nominal x factor), not another roll")
+    return value
+
+
+Factor = Annotated[Number, AfterValidator(_in_factor_range)]
+
+
+def _model_name(value: Any) -> str:
+    if not isinstance(value, str) or value.lower() not in MODELS:
+        raise SpecError("", "", f"model {show(value)} is not one of {', '.join(MODELS)}")
+    return value.lower()
+
+
+ModelName = Annotated[str, BeforeValidator(_model_name)]
+
+
+def _seed(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+        raise SpecError("", "", f"seed {show(value)} is not an integer >= 0")
+    return int(value)
+
+
+Seed = Annotated[int, BeforeValidator(_seed)]
+
+
+class RadiiFactors(SpecModel):
+    """Manufacturing tolerance: true radius = nominal radius x factor, each in (0.5, 1.5)."""
+
+    Ri: Factor = 1.0
+    Rie: Factor = 1.0
+    Roe: Factor = 1.0
+    Ro: Factor = 1.0
+
+
+class Instrument(SpecModel):
+    """The rig's instrument effects, SI.
+
+    Attributes
+    ----------
+    force_noise : float
+        Load-cell noise, standard deviation [N], >= 0.
+    force_offset : float
+        Load-cell offset [N], >= 0.
+    actuator_lag : float
+        Time constant of the linear actuator's first-order tracking lag [s], >= 0.
+    amplifier_bandwidth : float
+        -3 dB bandwidth of the high-voltage amplifier, first order [Hz], > 0.
+    parasitic_capacitance : float
+        LCR bridge parasitics, added to the true capacitance [F], >= 0.
+    capacitance_noise : float
+        LCR bridge noise, standard deviation [F], >= 0.
+    breakdown_field : float
+        The membrane breaks down above this field estimate
+        ``|v| sqrt(stretch) / L3`` [V/m], > 0.
+    """
+
+    force_noise: Force
+    force_offset: Force
+    actuator_lag: Time
+    amplifier_bandwidth: Frequency
+    parasitic_capacitance: Capacitance
+    capacitance_noise: Capacitance
+    breakdown_field: Field
+
+
+class TruthSpec(SpecModel):
+    """What the emulated rig really is (see the module docstring).
+
+    Attributes
+    ----------
+    name : str
+        Letters, digits, ``-``, ``_``, ``.``.
+    model : str
+        The true quasi-static physics, ``"su"``, ``"1r"`` or ``"3r"``.
+    material : ParameterSet
+        The true material (named like the truth).
+    radii_factors : RadiiFactors
+        True radius = nominal radius x factor.
+    instrument : Instrument
+    seed : int
+        Seed of the emulator's noise, >= 0 (0 if not given).
+    description, source : str or None
+        Free text.
+    """
+
+    name: Identifier
+    model: ModelName
+    material: ParameterSet
+    radii_factors: RadiiFactors = RadiiFactors()
+    instrument: Instrument
+    seed: Seed = 0
+    description: str | None = None
+    source: str | None = None
+
+
+# ------------------------------------------------------------- YAML form
+class _TruthFile(SpecModel):
+    name: Identifier
+    description: str | None = None
+    source: str | None = None
+    model: ModelName
+    yeoh: _Yeoh
+    eps_r: Number
+    viscoelastic: _Viscoelastic = _Viscoelastic()
+    radii_factors: RadiiFactors = RadiiFactors()
+    instrument: Instrument
+    seed: Seed = 0
+
+
+def truth_from_mapping(mapping: Any, source: str = "<mapping>") -> TruthSpec:
+    """Validate a truth given as a mapping in the YAML form.
+
+    Raises
+    ------
+    SpecError
+        Naming `source` and the field (``instrument.force_noise``,
+        ``radii_factors.Roe``, ``yeoh.C20``, ...).
+    """
+    if not isinstance(mapping, Mapping):
+        raise SpecError(source, DOCUMENT, f"expected a mapping of keys, got {show(mapping)}")
+    f = _TruthFile.from_yaml_mapping(dict(mapping), source)
+    material = params_from_mapping({k: mapping[k] for k in _MATERIAL_KEYS if k in mapping}, source)
+    try:
+        return TruthSpec(name=f.name, description=f.description, source=f.source, model=f.model,
+                         material=material, radii_factors=f.radii_factors, instrument=f.instrument, seed=f.seed)
+    except SpecError as err:
+        raise err.with_source(source) from None
+
+
+def truth_from_yaml(text: str, source: str = "<string>") -> TruthSpec:
+    """Validate a truth given as YAML text."""
+    return truth_from_mapping(parse_yaml_mapping(text, source), source)
+
+
+def load_truth(path: str | os.PathLike) -> TruthSpec:
+    """Read and validate a truth YAML file.
+
+    Raises
+    ------
+    SpecError
+        The file is missing, not YAML, not a mapping, or a value is invalid;
+        the message names the file and the field.
+    """
+    mapping, source = read_yaml_mapping(path)
+    return truth_from_mapping(mapping, source)
+
+
+_INSTRUMENT_UNITS = {
+    "force_noise": "mN", "force_offset": "mN", "actuator_lag": "ms", "amplifier_bandwidth": "Hz",
+    "parasitic_capacitance": "pF", "capacitance_noise": "pF", "breakdown_field": "V/um",
+}
+
+
+def truth_as_mapping(truth: TruthSpec) -> dict:
+    """The YAML form of a truth (quantities as strings with units);
+    `truth_from_mapping` reads it back equal."""
+    material = yaml.safe_load(dump_params(truth.material))
+    data: dict[str, Any] = {"name": truth.name}
+    for key in ("description", "source"):
+        if getattr(truth, key) is not None:
+            data[key] = getattr(truth, key)
+    data["model"] = truth.model
+    data.update({k: material[k] for k in ("yeoh", "eps_r", "viscoelastic")})
+    data["radii_factors"] = {k: getattr(truth.radii_factors, k) for k in RadiiFactors.model_fields}
+    data["instrument"] = {k: format_quantity(getattr(truth.instrument, k), unit)
+                          for k, unit in _INSTRUMENT_UNITS.items()}
+    data["seed"] = truth.seed
+    return data
+
+
+def dump_truth(truth: TruthSpec) -> str:
+    """Write a truth as YAML with units; `load_truth` reads it back equal."""
+    return yaml.safe_dump(truth_as_mapping(truth), sort_keys=False, allow_unicode=True, width=1000)
+
+
+def truth_json(truth: TruthSpec) -> str:
+    """The truth's YAML form as one line of ASCII JSON (for ``SYST:TRUTH?``)."""
+    return json.dumps(truth_as_mapping(truth), separators=(",", ":"), ensure_ascii=True)
+
+
+__all__ = [
+    "FACTOR_RANGE", "Instrument", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth",
+    "truth_as_mapping", "truth_from_mapping", "truth_from_yaml", "truth_json",
+]
