@@ -1,0 +1,18 @@
+"""The built-in rig emulator: a specimen with its own "true" physics behind
+instrument effects, served over the command set of ``docs/rig-protocol.md``.
+
+`EmulatedRig` is the pure part (setpoints in, measured samples out);
+`RigServer` puts it behind a TCP socket. The truth (model, material,
+tolerances, instrument effects) is a `rdea_lab.specs.truth.TruthSpec`.
+"""
+
+from .controller import FAULTS, RigController, RigError
+from .instruments import FirstOrderLag, lcr_bridge, load_cell, tau_of_bandwidth
+from .rig import CHANNELS, COLUMNS, EmulatedRig, RunConfig, limit_violation
+from .server import RigServer, is_loopback
+from .truth import true_geometry
+
+__all__ = [
+    "CHANNELS", "COLUMNS", "FAULTS", "EmulatedRig", "FirstOrderLag", "RigController", "RigError", "RigServer",
+    "RunConfig", "is_loopback", "lcr_bridge", "limit_violation", "load_cell", "tau_of_bandwidth", "true_geometry",
+]

@@ -1,0 +1,348 @@
+"""The emulated specimen on its rig: setpoints in, measured samples out, no sockets.
+
+`EmulatedRig` turns the two setpoint arrays of one run into the eight
+columns a rig returns (`COLUMNS`), on demand, carrying every state
+(actuator, amplifier, viscoelastic branches, noise streams) from one block
+of samples to the next; blocks are aligned on the start of the run, so
+producing in chunks of any sizes gives bit-identical data:
+
+- actuator: first-order lag (``actuator_lag``) on the stretch setpoint,
+  starting at the first setpoint; the encoder reads its actual stretch, and
+  ``position = (stretch - 1) L1`` with the configured ``L1``;
+- amplifier: first-order low-pass (``amplifier_bandwidth``) on the voltage
+  setpoint, starting at 0 V;
+- true force and capacitance: `rdea_lab.twin.simulate.TwinStream` on the true
+  geometry (`true_geometry`) with the truth's material and model;
+- load cell: + offset + noise; LCR bridge: + parasitics + noise, and only
+  where ``capacitance`` is measured and ``|voltage| < 1 V``;
+- aborts: dielectric breakdown (field estimate ``|v| sqrt(stretch) / L3``
+  with the true ``L3`` above ``breakdown_field``, or no stable equilibrium
+  left: pull-in), or a load-cell reading above ``max_force``. The samples up
+  to and including the breaking one are kept (a pull-in sample has no force
+  and is dropped); then voltage goes to 0 and the actuator back to its start.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..physics.result import VALID
+from ..twin.simulate import TwinStream
+from .instruments import FirstOrderLag, lcr_bridge, load_cell, tau_of_bandwidth
+from .truth import true_geometry
+
+#: Columns of a sample row, in order (the rows of ``FETC?``).
+COLUMNS = ("time", "stretch", "position", "voltage", "force", "capacitance", "stretch_setpoint",
+           "voltage_setpoint")
+#: Channels that can be measured.
+CHANNELS = ("force", "capacitance")
+#: The LCR bridge measures only below this |voltage| [V].
+LCR_MAX_VOLTAGE = 1.0
+#: Samples computed at once, in blocks aligned on the start of the run [samples].
+BLOCK = 4096
+#: Relative slack of the limit checks, as in `rdea_lab.protocols.check_plan`.
+SLACK = 1e-12
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """What the host configured for one run (SI).
+
+    Attributes
+    ----------
+    rate : float
+        Sample rate [Hz].
+    stretch_setpoint, voltage_setpoint : numpy.ndarray
+        One setpoint per sample [-], [V].
+    L1 : float
+        Unstretched specimen length for ``position`` [m].
+    L3 : float
+        Single-membrane thickness for the field limit [m].
+    max_voltage, max_stretch, max_force, max_field : float
+        Limits [V], [-], [N], [V/m].
+    measure : tuple of str
+        Measured channels, from `CHANNELS`.
+    """
+
+    rate: float
+    stretch_setpoint: np.ndarray
+    voltage_setpoint: np.ndarray
+    L1: float
+    L3: float
+    max_voltage: float = math.inf
+    max_stretch: float = math.inf
+    max_force: float = math.inf
+    max_field: float = math.inf
+    measure: tuple = ("force",)
+
+    def __post_init__(self):
+        for name in ("stretch_setpoint", "voltage_setpoint"):
+            arr = np.array(getattr(self, name), dtype=float).ravel()
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        unknown = set(self.measure) - set(CHANNELS)
+        if unknown:
+            raise ValueError(f"unknown channels {sorted(unknown)}; allowed: {', '.join(CHANNELS)}")
+
+    @property
+    def n(self) -> int:
+        """Number of samples of the run."""
+        return self.stretch_setpoint.size
+
+    @property
+    def time(self) -> np.ndarray:
+        """Sample times ``k / rate`` [s]."""
+        return np.arange(self.n) / self.rate
+
+
+def _g(value: float, other: float | None = None) -> str:
+    """`value` with enough digits to differ from `other` (a limit) in print."""
+    for digits in (6, 9, 12, 17):
+        text = f"{value:.{digits}g}"
+        if other is None or text != f"{other:.{digits}g}":
+            return text
+    return text
+
+
+def seconds(t: float) -> str:
+    """A sample time for messages: ``12.5`` [s], up to 10 significant digits."""
+    return f"{t:.10g}"
+
+
+def limit_violation(config: RunConfig) -> str | None:
+    """The first sample of a run's setpoints that breaks a limit, as a message.
+
+    Checks, per sample: finite setpoints; ``1 <= stretch <= max_stretch``;
+    ``|voltage| <= max_voltage``; field estimate ``|v| sqrt(stretch) / L3 <=
+    max_field`` (each with a relative slack of `SLACK` for rounding).
+
+    Returns
+    -------
+    str or None
+        E.g. ``voltage 3200 V at t = 12.5 s is above LIM:VOLT 3000 V`` for
+        the earliest violating sample (stretch before voltage before field
+        within a sample); None if every sample is within the limits.
+    """
+    x, v, t = config.stretch_setpoint, config.voltage_setpoint, config.time
+    if x.size != v.size:
+        raise ValueError(f"{x.size} stretch setpoints but {v.size} voltage setpoints")
+    av = np.abs(v)
+    with np.errstate(invalid="ignore"):
+        field = av * np.sqrt(np.maximum(x, 0.0)) / config.L3
+    checks = [
+        (~np.isfinite(x), lambda k: f"stretch setpoint {float(x[k])!r} at t = {seconds(t[k])} s is not a finite number"),
+        (~np.isfinite(v), lambda k: f"voltage setpoint {float(v[k])!r} at t = {seconds(t[k])} s is not a finite number"),
+        (x < 1.0 - SLACK, lambda k: f"stretch {_g(x[k], 1.0)} at t = {seconds(t[k])} s is below 1 "
+                                    "(the roll must stay in tension)"),
+        (x > config.max_stretch * (1.0 + SLACK),
+         lambda k: f"stretch {_g(x[k], config.max_stretch)} at t = {seconds(t[k])} s is above "
+                   f"LIM:STR {_g(config.max_stretch)}"),
+        (av > config.max_voltage * (1.0 + SLACK),
+         lambda k: f"voltage {_g(v[k], math.copysign(config.max_voltage, v[k]))} V at t = {seconds(t[k])} s is "
+                   f"{'above' if v[k] > 0 else 'beyond (in magnitude)'} LIM:VOLT {_g(config.max_voltage)} V"),
+        (field > config.max_field * (1.0 + SLACK),
+         lambda k: f"field estimate {_g(field[k], config.max_field)} V/m (voltage {_g(v[k])} V, stretch "
+                   f"{_g(x[k])}, CONF:THIC {_g(config.L3)} m) at t = {seconds(t[k])} s is above "
+                   f"LIM:FIEL {_g(config.max_field)} V/m"),
+    ]
+    first = [(int(np.argmax(mask)), order) for order, (mask, _) in enumerate(checks) if mask.any()]
+    if not first:
+        return None
+    k, order = min(first)
+    return checks[order][1](k)
+
+
+@dataclass
+class _Event:
+    index: int
+    keep: int  # samples kept (up to, excluding, this index)
+    reason: str
+
+
+class EmulatedRig:
+    """One run of the emulated specimen, produced on demand.
+
+    Parameters
+    ----------
+    card : SpecimenCard
+        The nominal specimen on the rig.
+    truth : TruthSpec
+        True physics and instrument effects.
+    rng : numpy.random.Generator
+        Source of all noise (two independent streams are spawned from it:
+        load cell and LCR bridge).
+    config : RunConfig
+        Rate, setpoints, L1, limits, measured channels.
+    breakdown_at : float, optional
+        Injected fault: the membrane breaks down at the first sample with
+        ``t >= breakdown_at`` [s].
+    truth_source : str, optional
+        Where `truth` came from, for error messages.
+
+    Attributes
+    ----------
+    acquired : int
+        Samples produced so far.
+    state : str
+        ``"running"``, ``"done"`` or ``"aborted"``.
+    reason : str
+        Why the run aborted (``""`` otherwise).
+    """
+
+    def __init__(self, card, truth, rng: np.random.Generator, config: RunConfig, *,
+                 breakdown_at: float | None = None, truth_source: str | None = None):
+        if config.n < 1:
+            raise ValueError("a run needs at least one sample")
+        self.config = config
+        self.truth = truth
+        self.geom = true_geometry(card, truth, source=truth_source)
+        self._twin = TwinStream(self.geom, truth.material, truth.model)
+        inst = truth.instrument
+        dt = 1.0 / config.rate
+        self._start = float(config.stretch_setpoint[0])
+        self._actuator = FirstOrderLag(inst.actuator_lag, dt, self._start)
+        self._amplifier = FirstOrderLag(tau_of_bandwidth(inst.amplifier_bandwidth), dt, 0.0)
+        self._force_rng, self._cap_rng = rng.spawn(2)
+        self.breakdown_at = breakdown_at
+        self.acquired = 0
+        self._computed = 0
+        self._pending = None  # (rows computed but not yet produced, first abort event of their block)
+        self.state = "running"
+        self.reason = ""
+
+    # ------------------------------------------------------------ state
+    @property
+    def n(self) -> int:
+        """Samples in the whole run."""
+        return self.config.n
+
+    @property
+    def running(self) -> bool:
+        return self.state == "running"
+
+    def abort(self, reason: str) -> None:
+        """Stop the run: voltage to 0, actuator back to its start; no further samples."""
+        if self.state != "running":
+            return
+        self.state, self.reason = "aborted", reason
+        self._pending = None
+        self._amplifier.reset(0.0)
+        self._actuator.reset(self._start)
+
+    def samples_before(self, t: float) -> int:
+        """Number of samples of the run with time ``k / rate < t``."""
+        k = max(0, math.ceil(t * self.config.rate))
+        while k > 0 and (k - 1) / self.config.rate >= t:
+            k -= 1
+        while k / self.config.rate < t:
+            k += 1
+        return min(k, self.n)
+
+    def samples_until(self, t: float) -> int:
+        """Number of samples of the run with time ``k / rate <= t``."""
+        k = self.samples_before(t)
+        while k < self.n and k / self.config.rate <= t:
+            k += 1
+        return k
+
+    # ------------------------------------------------------------ output
+    def produce(self, n: int) -> np.ndarray:
+        """The next up to `n` samples, shape ``(m, 8)`` (`COLUMNS`), ``m <= n``.
+
+        Fewer than `n` (maybe none) when the run ends or aborts.
+        """
+        out = []
+        n = int(n)
+        while n > 0 and self.state == "running":
+            if self._pending is None or self._pending[0].shape[0] == 0:
+                self._pending = self._compute_block()
+            rows, event = self._pending
+            take = min(n, rows.shape[0])
+            if event is not None:
+                take = min(take, event.keep - self.acquired)
+            out.append(rows[:take])
+            self._pending = (rows[take:], event)
+            self.acquired += take
+            n -= take
+            if event is not None and self.acquired == event.keep:
+                self.abort(event.reason)
+            elif self.acquired >= self.n:
+                self.state = "done"
+                self._amplifier.reset(0.0)
+                self._actuator.reset(self._start)
+        return np.concatenate(out) if out else np.empty((0, len(COLUMNS)))
+
+    def produce_until(self, t: float) -> np.ndarray:
+        """Every not yet produced sample with time ``<= t`` [s]."""
+        return self.produce(self.samples_until(t) - self.acquired)
+
+    def _compute_block(self):
+        """The next `BLOCK` samples (fewer at the end of the run) and the first abort among them.
+
+        Always the same blocks from the start of the run, whatever `produce`
+        is asked for: the physics (whose viscoelastic prefix scan rounds
+        differently for different block lengths) and the noise streams see
+        the same blocks, so any chunking gives bit-identical data.
+        """
+        cfg, inst = self.config, self.truth.instrument
+        k0 = self._computed
+        m = min(BLOCK, self.n - k0)
+        self._computed += m
+        k = np.arange(k0, k0 + m)
+        t = k / cfg.rate
+        s_sp = cfg.stretch_setpoint[k0:k0 + m]
+        v_sp = cfg.voltage_setpoint[k0:k0 + m]
+        stretch = self._actuator(s_sp)
+        voltage = self._amplifier(v_sp)
+        # the roll cannot be compressed: a setpoint of 1 - 1e-16 is 1
+        true = self._twin.step(t, np.maximum(stretch, 1.0), voltage)
+        force = load_cell(true["force"], inst.force_offset, inst.force_noise, self._force_rng)
+        capacitance = lcr_bridge(true["capacitance"], voltage, inst.parasitic_capacitance, inst.capacitance_noise,
+                                 self._cap_rng, enabled="capacitance" in cfg.measure, max_voltage=LCR_MAX_VOLTAGE)
+        rows = np.column_stack([
+            t, stretch, (stretch - 1.0) * cfg.L1, voltage,
+            force if "force" in cfg.measure else np.full(m, np.nan),
+            capacitance, s_sp, v_sp,
+        ])
+        event = self._first_event(t, stretch, voltage, force, true["model_status"])
+        if event is not None:
+            event.index += k0
+            event.keep += k0
+        return rows, event
+
+    def _first_event(self, t, stretch, voltage, force, status) -> _Event | None:
+        """The earliest abort in a block: breakdown, pull-in or force limit (indices in the block)."""
+        E = np.abs(voltage) * np.sqrt(np.maximum(stretch, 1.0)) / self.geom.L3
+        fmt = lambda i: f"dielectric breakdown at t = {seconds(t[i])} s (field {E[i] / 1e6:.4g} V/um"  # noqa: E731
+        events = []
+        over = E > self.truth.instrument.breakdown_field
+        if over.any():
+            i = int(np.argmax(over))
+            events.append(_Event(i, i + 1, fmt(i) + ")"))
+        if self.breakdown_at is not None:
+            hit = t >= self.breakdown_at
+            if hit.any():
+                i = int(np.argmax(hit))
+                events.append(_Event(i, i + 1, fmt(i) + "; injected fault)"))
+        lost = ~np.isin(status, VALID)
+        if lost.any():
+            i = int(np.argmax(lost))
+            events.append(_Event(i, i, fmt(i) + f"; pull-in: no stable equilibrium at {voltage[i]:.4g} V, "
+                                                f"stretch {stretch[i]:.4g})"))
+        high = np.abs(force) > self.config.max_force
+        if high.any():
+            i = int(np.argmax(high))
+            events.append(_Event(i, i + 1, f"force {force[i]:.4g} N at t = {seconds(t[i])} s above "
+                                           f"LIM:FORC {_g(self.config.max_force)} N"))
+        if not events:
+            return None
+        first = min(events, key=lambda e: e.index)  # ties: in the order above
+        if lost[first.index]:  # a sample without equilibrium has no force to keep
+            first.keep = first.index
+        return first
+
+
+__all__ = ["CHANNELS", "COLUMNS", "EmulatedRig", "RunConfig", "limit_violation"]

@@ -1,0 +1,102 @@
+"""Helpers of the emulator tests: paths, a truth with other instrument values, a raw-socket client."""
+
+import socket
+from pathlib import Path
+
+import numpy as np
+
+from rdea_lab.specs.truth import truth_as_mapping, truth_from_mapping
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: An amplifier this fast has exp(-2 pi f dt) == 0.0 at any rate <= 100 kHz: an ideal follower.
+IDEAL_BANDWIDTH = "1e12 Hz"
+
+
+def truth_with(truth, **instrument):
+    """`truth` with some instrument values replaced (YAML strings with units)."""
+    data = truth_as_mapping(truth)
+    data["instrument"] = {**data["instrument"], **instrument}
+    return truth_from_mapping(data)
+
+
+def quiet_truth(truth):
+    """`truth` without instrument effects (no noise, offset, lag, parasitics; breakdown far away)."""
+    return truth_with(truth, force_noise="0 N", force_offset="0 N", actuator_lag="0 s",
+                      amplifier_bandwidth=IDEAL_BANDWIDTH, parasitic_capacitance="0 F", capacitance_noise="0 F",
+                      breakdown_field="1e6 V/um")
+
+
+def block(values) -> bytes:
+    data = np.asarray(values, "<f8").tobytes()
+    n = str(len(data))
+    return f"#{len(n)}{n}".encode() + data
+
+
+class Client:
+    """A raw-socket client of the rig command set."""
+
+    def __init__(self, address, timeout=5.0):
+        self.sock = socket.create_connection(address, timeout=timeout)
+        self.file = self.sock.makefile("rb")
+
+    def send(self, data: bytes | str) -> None:
+        self.sock.sendall(data if isinstance(data, bytes) else data.encode() + b"\n")
+
+    def line(self) -> str:
+        raw = self.file.readline()
+        if not raw:
+            raise ConnectionError("closed by the server")
+        return raw.decode().rstrip("\n")
+
+    def q(self, command: str) -> str:
+        self.send(command)
+        return self.line()
+
+    def upload(self, header: str, values) -> str:
+        self.send(header.encode() + b" " + block(values) + b"\n")
+        return self.line()
+
+    def fetch(self, n: int) -> np.ndarray:
+        self.send(f"FETC? {n}")
+        head = self.file.read(2)
+        if len(head) < 2:
+            raise ConnectionError("closed by the server")
+        assert head[:1] == b"#", head
+        size = int(self.file.read(int(head[1:2])))
+        data = self.file.read(size)
+        assert self.file.read(1) == b"\n"
+        return np.frombuffer(data, "<f8").reshape(-1, 8)
+
+    def closed(self) -> bool:
+        """True if the server closed the connection (EOF)."""
+        return self.file.read(1) == b""
+
+    def close(self) -> None:
+        self.file.close()
+        self.sock.close()
+
+    def configure(self, rate=100.0, meas="FORC,CAP", L1=0.034, L3=4.8e-05, volt=3000.0, stretch=1.6,
+                  force=50.0, field=8e7) -> None:
+        for command in (f"CONF:RATE {rate!r}", f"CONF:MEAS {meas}", f"CONF:LENG {L1!r}", f"CONF:THIC {L3!r}",
+                        f"LIM:VOLT {volt!r}", f"LIM:STR {stretch!r}", f"LIM:FORC {force!r}",
+                        f"LIM:FIEL {field!r}"):
+            assert self.q(command) == "OK", command
+
+    def start(self, x, v) -> None:
+        assert self.upload("TRAJ:STR", x) == "OK"
+        assert self.upload("TRAJ:VOLT", v) == "OK"
+        assert self.q("ARM") == "OK"
+        assert self.q("INIT") == "OK"
+
+    def drain(self, rows=100) -> np.ndarray:
+        """Fetch until the run has ended and every sample is fetched."""
+        out = []
+        for _ in range(100_000):  # a stalled rig would loop forever
+            got = self.fetch(rows)
+            out.append(got)
+            if got.shape[0] == 0:
+                state = self.q("STAT?").split(",")[0]
+                if state in ("DONE", "ABORTED"):
+                    return np.concatenate(out)
+        raise AssertionError("the run never ended")
