@@ -1,0 +1,115 @@
+"""Tests of rdea_lab.cli.rig: ``rdea-lab rig serve``, in process for bad input, as a real process for serving."""
+
+import json
+import os
+import select
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from rdea_lab.cli.errors import run
+from rdea_lab.cli.main import cli
+from rdea_lab.cli.rig import register
+
+from .helpers import ROOT, Client
+
+if "rig" not in cli.commands:  # until rdea_lab.cli.main registers it
+    register(cli)
+
+CARD = str(ROOT / "specimens" / "specimen2.yaml")
+#: the CLI with the rig group, as a process
+LAUNCH = ("import sys; from rdea_lab.cli.main import cli; from rdea_lab.cli.rig import register; "
+          "from rdea_lab.cli.errors import run; 'rig' in cli.commands or register(cli); "
+          "sys.exit(run(cli, sys.argv[1:]))")
+
+
+def rig_cli(capsys, *args):
+    code = run(cli, ["rig", *map(str, args)])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_help_has_an_example(capsys):
+    code, out, _ = rig_cli(capsys, "serve", "--help")
+    assert code == 0 and "Example:" in out and "rdea-lab rig serve --specimen" in out
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--fault", "melt-at=1"], "--fault: 'melt-at=1' is not one of disconnect-at=SECONDS"),
+    (["--fault", "stall=1"], "is not one of"),
+    (["--fault", "stall-at=soon"], "'soon' is not a number of seconds"),
+    (["--fault", "stall-at=-1"], "finite number of seconds >= 0"),
+    (["--fault", "stall-at=nan"], "finite number of seconds >= 0"),
+    (["--fault", "stall-at=1", "--fault", "stall-at=2"], "stall-at given 2 times"),
+    (["--host", "0.0.0.0"], "--host 0.0.0.0: not a loopback address; give --token-file"),
+    (["--token-file", "/nonexistent/token"], "--token-file: cannot read"),
+])
+def test_bad_input_exits_2_with_one_line(capsys, args, words):
+    code, out, err = rig_cli(capsys, "serve", "--specimen", CARD, "--port", "0", *args)
+    assert code == 2 and out == ""
+    assert words in err and err.count("\n") == 1
+
+
+def test_empty_token_file(capsys, tmp_path):
+    token = tmp_path / "token"
+    token.write_text("  \n")
+    code, _, err = rig_cli(capsys, "serve", "--specimen", CARD, "--token-file", token)
+    assert code == 2 and "must hold one token" in err
+
+
+def test_bad_truth_file_names_file_and_field(capsys, tmp_path):
+    bad = tmp_path / "truth.yaml"
+    text = (ROOT / "truth" / "paper2021.yaml").read_text().replace("force_noise: 4 mN", "force_noise: -4 mN")
+    bad.write_text(text)
+    code, _, err = rig_cli(capsys, "serve", "--specimen", CARD, "--truth", bad, "--port", "0")
+    assert code == 2 and f"{bad}: instrument.force_noise: must be >= 0" in err and err.count("\n") == 1
+
+
+def serve(*args):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen([sys.executable, "-c", LAUNCH, "rig", "serve", "--specimen", CARD, "--port", "0", *args],
+                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    ready, _, _ = select.select([proc.stdout], [], [], 60)
+    assert ready, "the server printed nothing"
+    line = proc.stdout.readline()
+    assert " listening on tcp://127.0.0.1:" in line, (line, proc.stderr.read() if proc.poll() is not None else "")
+    port = int(line.rsplit(":", 1)[1])
+    return proc, ("127.0.0.1", port)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_serve_until_a_signal_then_exit_0(sig):
+    proc, address = serve()
+    try:
+        client = Client(address)
+        assert client.q("*IDN?").startswith("rdea-lab,rig-emulator,specimen-2,")
+        assert json.loads(client.q("SYST:TRUTH?"))["name"] == "paper2021-emulator"
+        proc.send_signal(sig)
+        assert proc.wait(timeout=20) == 0
+        assert client.closed()      # the server closed the connection on its way out
+        client.close()
+        assert proc.stderr.read() == ""
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+def test_serve_with_a_token_file(tmp_path):
+    token = tmp_path / "token"
+    token.write_text("letmein-42\n")
+    proc, address = serve("--token-file", str(token))
+    try:
+        c = Client(address)
+        assert c.q("*IDN?") == 'ERR -300,"token required"' and c.closed()
+        c = Client(address)
+        assert c.q("SYST:AUTH letmein-42") == "OK" and c.q("*IDN?").startswith("rdea-lab,rig-emulator,")
+        c.close()
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=20) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
