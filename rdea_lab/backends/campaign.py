@@ -72,12 +72,14 @@ def run_campaign(spec, root: Path, *, out_dir=None, realtime=False, progress=Non
     from ..specs.truth import load_truth
 
     truth = load_truth(root / (spec.truth or "truth/paper2021.yaml"))
+    seeds = {id(r): spec.seed + i for i, r in enumerate(runs)}  # each run its own noise, reproducibly
     for card_id in dict.fromkeys(r.card.id for r in runs):
         mine = [r for r in runs if r.card.id == card_id]
         with _emulator(mine[0].card, truth, realtime) as address:
             for run in mine:
-                results.append(execute(run.plan, run.card, RigBackend(address, run.card), run.out,
-                                       seed=truth.seed, command=command, progress=progress))
+                seed = seeds[id(run)]
+                results.append(execute(run.plan, run.card, RigBackend(address, run.card, seed=seed), run.out,
+                                       seed=seed, command=command, progress=progress))
                 if on_result:
                     on_result(results[-1])
     return results

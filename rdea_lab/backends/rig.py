@@ -57,12 +57,14 @@ class RigBackend:
         running, before the run is aborted as stalled.
     poll : float
         Seconds between polls when no sample is ready.
+    seed : int
+        Sent as ``CONF:SEED`` (the emulator draws its noise from it; recorded).
     """
 
     name = "rig"
     extra_variables = ()
 
-    def __init__(self, address, card, *, token=None, timeout=5.0, stall_timeout=5.0, poll=0.02,
+    def __init__(self, address, card, *, token=None, timeout=5.0, stall_timeout=5.0, poll=0.02, seed=0,
                  clock=_time.monotonic, sleep=_time.sleep):
         self.address = address
         self.host, self.port = parse_address(address)
@@ -71,6 +73,7 @@ class RigBackend:
         self.timeout = timeout
         self.stall_timeout = stall_timeout
         self.poll = poll
+        self.seed = int(seed)
         self._clock, self._sleep = clock, sleep
         self._inst = None
         self._rm = None
@@ -141,7 +144,8 @@ class RigBackend:
         lim = plan.limits
         meas = ",".join({"force": "FORC", "capacitance": "CAP"}[m] for m in plan.measure)
         for command in ("*RST", f"CONF:RATE {plan.sample_rate!r}", f"CONF:MEAS {meas}",
-                        f"CONF:LENG {geom.L1!r}", f"CONF:THIC {geom.L3!r}", f"LIM:VOLT {lim.max_voltage!r}",
+                        f"CONF:LENG {geom.L1!r}", f"CONF:THIC {geom.L3!r}", f"CONF:SEED {self.seed}",
+                        f"LIM:VOLT {lim.max_voltage!r}",
                         f"LIM:STR {lim.max_stretch!r}", f"LIM:FORC {lim.max_force!r}",
                         f"LIM:FIEL {lim.max_field!r}"):
             self._command(command)

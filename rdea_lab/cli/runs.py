@@ -114,7 +114,7 @@ def register(cli: click.Group) -> None:
             except ValueError as exc:
                 die(f"--rig: {exc}")
             executor = RigBackend(rig_address, card, token=_read_token(token_file) if token_file else None,
-                                  stall_timeout=stall_timeout)
+                                  stall_timeout=stall_timeout, seed=seed)
         else:
             from ..emulator.controller import check_faults
             from .rig import DEFAULT_TRUTH, parse_fault
@@ -159,8 +159,7 @@ def register(cli: click.Group) -> None:
                 from ..backends.campaign import _emulator
                 from ..backends.rig import RigBackend
                 address = stack.enter_context(_emulator(card, truth, realtime, faults=parsed))
-                executor = RigBackend(address, card, stall_timeout=stall_timeout)
-                seed = truth.seed
+                executor = RigBackend(address, card, stall_timeout=stall_timeout, seed=seed)
             if bar is not None:
                 stack.enter_context(bar)
             result = execute(plan, card, executor, out, seed=seed, command=command,

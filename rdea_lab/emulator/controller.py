@@ -133,6 +133,7 @@ class RigController:
             "CONF:RATE": (self._conf_rate, True), "CONF:RATE?": (self._conf_rate_q, False),
             "CONF:MEAS": (self._conf_meas, True), "CONF:MEAS?": (self._conf_meas_q, False),
             "CONF:LENG": (self._conf_leng, True), "CONF:THIC": (self._conf_thic, True),
+            "CONF:SEED": (self._conf_seed, True), "CONF:SEED?": (self._conf_seed_q, False),
             "LIM:VOLT": (self._lim("volt"), True), "LIM:STR": (self._lim("str"), True),
             "LIM:FORC": (self._lim("forc"), True), "LIM:FIEL": (self._lim("fiel"), True),
             "LIM?": (self._lim_q, False), "TRAJ:STR": (self._traj("str"), True),
@@ -148,6 +149,7 @@ class RigController:
         self.measure: tuple = ("force",)
         self.L1: float | None = None
         self.L3: float | None = None
+        self.seed = 0
         self.limits: dict[str, float | None] = {key: None for key, _ in _LIMITS}
         self.trajectories: dict[str, np.ndarray | None] = {"str": None, "volt": None}
         self.state = "IDLE"
@@ -341,6 +343,21 @@ class RigController:
                               f"sample rate {value:g} Hz is outside {MIN_RATE:g} Hz to {MAX_RATE:g} Hz")
         return "OK"
 
+    def _conf_seed(self, session, arg, block):
+        """The run's noise seed: the noise comes from (truth seed, run seed), so two runs
+        with the same trajectory differ unless they are given the same seed."""
+        self._configurable("CONF:SEED")
+        try:
+            value = int(arg)
+        except ValueError:
+            raise RigError(-104, f"data type error: seed {arg[:40]!r} is not an integer") from None
+        self.seed = _in_range(value, 0 <= value < 2**63, f"seed {value} is outside 0 to 2**63 - 1")
+        return "OK"
+
+    def _conf_seed_q(self, session, arg, block):
+        self._no_arg("CONF:SEED?", arg)
+        return str(self.seed)
+
     def _conf_rate_q(self, session, arg, block):
         self._no_arg("CONF:RATE?", arg)
         return repr(self.rate) if self.rate is not None else "nan"
@@ -450,7 +467,7 @@ class RigController:
         self._no_arg("INIT", arg)
         if self.state != "ARMED":
             raise RigError(-221, f"settings conflict: INIT needs an armed run, the rig is {self.state}; send ARM first")
-        rng = np.random.default_rng(self.truth.seed)
+        rng = np.random.default_rng([self.truth.seed, self.seed])
         self.run = EmulatedRig(self.card, self.truth, rng, self._armed, breakdown_at=self.faults.get("breakdown"),
                                truth_source=self.truth_source)
         self.state = "RUNNING"
