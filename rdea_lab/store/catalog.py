@@ -40,8 +40,9 @@ def catalog(folder: Path) -> list[dict]:
             with xr.open_dataset(path, engine="netcdf4") as ds:
                 a = ds.attrs
                 t = ds["time"].values if "time" in ds else np.array([])
+                backend = a.get("backend", "?") + (" (emulator)" if a.get("emulated") else "")
                 rows.append({"file": str(path), "specimen": a.get("specimen_id", "?"),
-                             "protocol": a.get("protocol_name", "?"), "backend": a.get("backend", "?"),
+                             "protocol": a.get("protocol_name", "?"), "backend": backend,
                              "model": a.get("model", "-"), "status": a.get("status", "?"),
                              "duration_s": float(t[-1] - t[0]) if t.size else 0.0, "samples": int(t.size),
                              "created": a.get("created", "?")})
