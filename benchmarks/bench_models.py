@@ -112,8 +112,8 @@ def bench_calibration() -> dict:
     (6 free parameters) from a start estimated from the data, as `rdea-lab calibrate` does."""
     import tempfile
 
-    from rdea_lab.backends import execute
-    from rdea_lab.backends.campaign import _emulator
+    from rdea_lab.runs import execute
+    from rdea_lab.runs.campaign import _emulator
     from rdea_lab.backends.rig import RigBackend
     from rdea_lab.calibration import calibrate, initial_guess, load_run
     from rdea_lab.protocols import load_plan

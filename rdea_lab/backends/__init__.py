@@ -1,7 +1,6 @@
-"""Backends: executors of plans behind one interface, and the run engine."""
+"""Backends: executors of plans behind one interface (the twin, the rig driver)."""
 
-from .base import Backend
-from .engine import BackendFailure, RunInterrupted, RunResult, execute
+from .base import Backend, BackendFailure, RunInterrupted
 from .twin import TwinBackend
 
-__all__ = ["Backend", "BackendFailure", "RunInterrupted", "RunResult", "TwinBackend", "execute"]
+__all__ = ["Backend", "BackendFailure", "RunInterrupted", "TwinBackend"]

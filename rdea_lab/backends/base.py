@@ -5,6 +5,14 @@ from __future__ import annotations
 from typing import Protocol, runtime_checkable
 
 
+class BackendFailure(Exception):
+    """The backend reports the run cannot go on (lost connection, breakdown, server abort)."""
+
+
+class RunInterrupted(Exception):
+    """Ctrl-C or SIGTERM during a run."""
+
+
 @runtime_checkable
 class Backend(Protocol):
     """An executor of a :class:`~rdea_lab.protocols.Plan`.

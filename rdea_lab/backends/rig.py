@@ -16,7 +16,7 @@ import time as _time
 
 import numpy as np
 
-from .engine import BackendFailure
+from .base import BackendFailure
 
 COLUMNS = ("time", "stretch", "position", "voltage", "force", "capacitance", "stretch_setpoint",
            "voltage_setpoint")

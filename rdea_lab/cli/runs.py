@@ -76,7 +76,8 @@ def register(cli: click.Group) -> None:
           rdea-lab run protocols/blocking_force.yaml --specimen specimens/specimen1.yaml \\
               --backend emulator --fault breakdown-at=12
         """
-        from ..backends import TwinBackend, execute
+        from ..backends import TwinBackend
+        from ..runs import execute
         from ..physics.geometry import geometry_from_card
 
         P = _plans()
@@ -156,7 +157,7 @@ def register(cli: click.Group) -> None:
         command = "rdea-lab " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         with contextlib.ExitStack() as stack:
             if backend == "emulator":
-                from ..backends.campaign import _emulator
+                from ..runs.campaign import _emulator
                 from ..backends.rig import RigBackend
                 address = stack.enter_context(_emulator(card, truth, realtime, faults=parsed))
                 executor = RigBackend(address, card, stall_timeout=stall_timeout, seed=seed)
@@ -302,7 +303,7 @@ def register_campaign(cli: click.Group) -> None:
         Example:
           rdea-lab campaign run campaigns/paper2021.yaml
         """
-        from ..backends.campaign import experiments, run_campaign
+        from ..runs.campaign import experiments, run_campaign
         from ..specs.campaign import load_campaign
         from ..store import journal_path
 

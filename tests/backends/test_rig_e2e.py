@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rdea_lab.backends import execute
-from rdea_lab.backends.campaign import run_campaign
+from rdea_lab.runs import execute
+from rdea_lab.runs import run_campaign
 from rdea_lab.backends.rig import RigBackend, RigRefused
 from rdea_lab.cli.errors import run as run_cli
 from rdea_lab.cli.main import cli

@@ -9,8 +9,8 @@ from pathlib import Path
 from ..protocols import first_violation, load_plan
 from ..specs import load_params, load_specimen
 from ..physics.geometry import geometry_from_card
+from ..backends.twin import TwinBackend
 from .engine import RunResult, execute
-from .twin import TwinBackend
 
 DEFAULT_PARAMS = "params/paper2021_table3.yaml"
 
@@ -56,7 +56,7 @@ def run_campaign(spec, root: Path, *, out_dir=None, realtime=False, progress=Non
     The emulator backend starts one emulated rig per specimen on loopback and
     stops it after that specimen's runs.
     """
-    from .rig import RigBackend
+    from ..backends.rig import RigBackend
 
     runs = experiments(spec, root, out_dir)
     results = []

@@ -1,5 +1,8 @@
 """The run engine: plan -> backend -> blocks -> journal -> dataset.
 
+It sits above both the backends and the store (it drives one and feeds the
+other), so it is a layer of its own.
+
 One loop for every backend. Every abort path (a force above the limit, Ctrl-C,
 SIGTERM, a lost connection, an error) calls ``backend.abort`` first, which
 turns the voltage off, and then closes the dataset with the right status,
@@ -16,16 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..backends.base import BackendFailure, RunInterrupted
 from ..specs import dump_specimen
 from ..store.journal import JournalWriter, utc_now
-
-
-class RunInterrupted(Exception):
-    """Ctrl-C or SIGTERM during a run."""
-
-
-class BackendFailure(Exception):
-    """The backend reports the run cannot go on (lost connection, breakdown, server abort)."""
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from rdea_lab.backends import BackendFailure, TwinBackend, execute
+from rdea_lab.backends import BackendFailure, TwinBackend
+from rdea_lab.runs import execute
 from rdea_lab.physics.geometry import geometry_from_card
 from rdea_lab.physics.models import solve
 from rdea_lab.specs import load_params, load_specimen

@@ -1,0 +1,49 @@
+"""The layers of DESIGN.md import one way: lower layers never import upper ones."""
+
+import ast
+from pathlib import Path
+
+PKG = Path(__file__).resolve().parents[1] / "rdea_lab"
+#: Bottom to top. DESIGN.md's order, plus the emulator (below the backends that
+#: drive it) and the run engine (above backends and store: it couples the two).
+LAYERS = ["specs", "physics", "twin", "protocols", "emulator", "backends", "store", "runs", "calibration",
+          "reports", "cli"]
+ANYWHERE = {"", "paths"}  # the package root (__version__) and the path helper
+
+
+def imported_layers(path: Path):
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:  # relative: resolve against this module's package
+                parts = path.relative_to(PKG).parts[:-1]
+                base = list(parts[: len(parts) - (node.level - 1)]) if node.level > 1 else list(parts)
+                target = base + (node.module.split(".") if node.module else [])
+            elif node.module and node.module.startswith("rdea_lab"):
+                target = node.module.split(".")[1:]
+            else:
+                continue
+            yield target[0] if target else "", node.lineno
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("rdea_lab."):
+                    yield alias.name.split(".")[1], node.lineno
+
+
+def test_lower_layers_never_import_upper_ones():
+    bad = []
+    for path in sorted(PKG.rglob("*.py")):
+        own = path.relative_to(PKG).parts[0]
+        if own not in LAYERS:
+            continue
+        for layer, line in imported_layers(path):
+            if layer in ANYWHERE or layer == own or layer.endswith(".py"):
+                continue
+            if layer in LAYERS and LAYERS.index(layer) > LAYERS.index(own):
+                bad.append(f"{path.relative_to(PKG)}:{line} ({own}) imports {layer}")
+    assert not bad, "\n".join(bad)
+
+
+def test_every_package_is_placed_in_a_layer():
+    packages = {p.name for p in PKG.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+    assert packages <= set(LAYERS), packages - set(LAYERS)
