@@ -1,0 +1,328 @@
+"""The Table 4 analogue: the twin against every measured run, with figures and provenance.
+
+``validation_report(params_path, datasets_folder, out)`` runs the twin on each
+complete run's own measured stretch and voltage history
+(:func:`rdea_lab.calibration.predict_force`, viscoelastic branches included),
+and for capacitance runs also the capacitance at the samples where the LCR
+bridge measured it. Each run gives one row: the maximum relative error
+against the largest measured force or capacitance of that run (the metric of
+Table 4 in [1]) and the rms error, beside the paper's value. It writes
+``table4.md``, ``table4.csv``, ``table4.tex``, figures in the manner of
+Figures 11-16 and ``index.html``.
+
+[1] Prechtl et al., Smart Mater. Struct. 30 (2021), doi:10.1088/1361-665X/ac34be.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+import yaml
+
+from ..backends.rig import truth_name
+from ..calibration.objective import file_hash, load_run, predict_force
+from ..physics.models import solve
+from ..physics.selection import select_model
+from ..specs import load_params
+from ..store import open_run
+from . import tables
+from .html import write_validation_index
+from .validation_figures import write_figures
+
+#: Table 4 of [1]: maximum relative error [-] per (experiment, voltage [V]) and specimen.
+PAPER_TABLE4 = {
+    ("tensile", 0.0): {"specimen-1": 0.0320, "specimen-2": 0.0519, "specimen-3": 0.0481},
+    ("tensile", 2600.0): {"specimen-1": 0.0613, "specimen-2": 0.0541, "specimen-3": 0.0653},
+    ("blocking", 2600.0): {"specimen-1": 0.0090, "specimen-2": 0.0099, "specimen-3": 0.0118},
+    ("capacitance", 0.0): {"specimen-1": 0.0499, "specimen-2": 0.0078, "specimen-3": 0.0516},
+}
+#: A run's voltage matches a paper voltage within this [V] (5 % of 2.6 kV).
+VOLTAGE_MATCH = 130.0
+MODELS = ("su", "1r", "3r", "auto")
+KIND_ORDER = ("tensile", "blocking", "capacitance", "custom")
+NONE_RECORDED = "none recorded"
+
+#: The columns shown (Markdown, LaTeX, HTML); the CSV has every key of CSV_KEYS.
+COLUMNS = [
+    ("experiment", "experiment", tables.text),
+    ("voltage", "voltage", tables.text),
+    ("specimen", "specimen", tables.text),
+    ("role", "role", tables.text),
+    ("calibrated_on", "calibrated on", tables.text),
+    ("model", "model", tables.text),
+    ("samples", "samples", tables.text),
+    ("max_rel_error", "max. rel. error [%]", tables.percent),
+    ("paper_max_rel_error", "paper [%]", tables.percent),
+    ("rms_text", "rms error", tables.text),
+    ("notes", "notes", tables.text),
+]
+CSV_KEYS = ["experiment", "kind", "quantity", "voltage", "voltage_V", "specimen", "protocol", "file", "sha256",
+            "role", "calibrated_on", "model", "model_reason", "samples", "excluded", "peak", "unit",
+            "max_rel_error", "rms_error", "paper_max_rel_error", "window", "notes"]
+
+
+class ReportInputError(ValueError):
+    """Bad input to a report (no runs, unknown model): one line, exit status 2 at the CLI."""
+
+
+def kv(volts: float) -> str:
+    """A voltage as the paper writes it: ``0 V``, ``2.60 kV``."""
+    return "0 V" if abs(volts) < 5.0 else f"{round(volts, -1) / 1e3:.2f} kV"
+
+
+def scan_runs(folder: Path) -> tuple[list[Path], list[dict]]:
+    """The complete runs (``*.nc``, recursively) below ``folder``, and the files skipped, with why."""
+    use, skipped = [], []
+    for path in sorted(Path(folder).rglob("*.nc")):
+        try:
+            with xr.open_dataset(path, engine="netcdf4") as ds:
+                status = ds.attrs.get("status", "?")
+                missing = [k for k in ("time", "stretch", "voltage", "force", "specimen") if
+                           k not in ds.variables and k not in ds.attrs]
+        except Exception as exc:  # a foreign or broken file: list it, say why
+            skipped.append({"file": str(path), "reason": f"unreadable ({type(exc).__name__})"})
+            continue
+        if missing:
+            skipped.append({"file": str(path), "reason": f"not an rdea-lab run (no {', '.join(missing)})"})
+        elif status != "complete":
+            skipped.append({"file": str(path), "reason": f"status {status}"})
+        else:
+            use.append(path)
+    return use, skipped
+
+
+def calibration_summary(params_path: Path) -> dict:
+    """Provenance of a parameter file: its hash and, if present, its calibration record in brief."""
+    text = Path(params_path).read_text()
+    try:
+        record = (yaml.safe_load(text) or {}).get("calibration")
+    except (yaml.YAMLError, AttributeError):
+        record = None
+    out = {"file": str(params_path), "sha256": file_hash(params_path), "record": isinstance(record, dict)}
+    if not isinstance(record, dict):
+        return {**out, "specimens": [], "runs": [], "summary": "no calibration record in the file"}
+    runs = [r for r in record.get("runs") or [] if isinstance(r, dict)]
+    out.update({k: record.get(k) for k in ("model", "metric", "objective", "converged", "message", "software")})
+    out["runs"] = [{k: r.get(k) for k in ("specimen", "protocol", "file", "sha256", "max_rel_error")} for r in runs]
+    out["specimens"] = sorted({str(r["specimen"]) for r in runs if r.get("specimen")})
+    stats = record.get("statistics") or {}
+    out["nfev"] = stats.get("nfev")
+    out["summary"] = (f"model {out['model']}, {out['metric']} objective {out['objective']}, "
+                      f"{len(runs)} run(s): " + ", ".join(f"{r.get('specimen')}/{r.get('protocol')}" for r in runs))
+    return out
+
+
+def experiment(kind: str, protocol: str, voltage: np.ndarray, has_capacitance: bool) -> dict:
+    """Which row of Table 4 a run is: its label, the voltage label and the paper's key."""
+    v = np.asarray(voltage, float)
+    plateau = float(np.median(v))
+    lo, hi = float(np.min(v)), float(np.max(v))
+    if kind == "blocking":
+        key = ("blocking", 2600.0) if abs(lo) <= VOLTAGE_MATCH and abs(hi - 2600.0) <= VOLTAGE_MATCH else None
+        return {"experiment": "blocking force", "voltage": f"{kv(lo)} to {kv(hi)}", "voltage_V": hi,
+                "quantity": "force", "key": key}
+    if kind == "capacitance" and has_capacitance:
+        key = ("capacitance", 0.0) if abs(plateau) <= VOLTAGE_MATCH else None
+        return {"experiment": "capacitance", "voltage": kv(plateau), "voltage_V": plateau,
+                "quantity": "capacitance", "key": key}
+    if kind == "capacitance":  # a capacitance run without a capacitance sample: its force only
+        return {"experiment": "capacitance run (force; no capacitance measured)", "voltage": kv(plateau),
+                "voltage_V": plateau, "quantity": "force", "key": None}
+    if kind == "tensile":
+        near = [p for (k, p) in PAPER_TABLE4 if k == "tensile" and abs(plateau - p) <= VOLTAGE_MATCH]
+        return {"experiment": "tensile (force)", "voltage": kv(plateau), "voltage_V": plateau, "quantity": "force",
+                "key": ("tensile", near[0]) if near else None}
+    return {"experiment": f"custom ({protocol})", "voltage": f"{kv(lo)} to {kv(hi)}", "voltage_V": hi,
+            "quantity": "force", "key": None}
+
+
+def compare(measured: np.ndarray, predicted: np.ndarray) -> dict:
+    """Table 4's metric: ``max |pred - meas| / max |meas|``, and the rms error, over the finite predictions.
+
+    The same numbers as :func:`rdea_lab.calibration.goodness` when every
+    prediction is finite; samples without an equilibrium are counted in
+    ``excluded`` instead of turning the row into NaN.
+    """
+    ok = np.isfinite(predicted)
+    r = predicted[ok] - measured[ok]
+    peak = float(np.max(np.abs(measured)))
+    if not ok.any() or peak == 0.0:
+        return {"max_rel_error": math.nan, "rms_error": math.nan, "peak": peak, "excluded": int((~ok).sum())}
+    return {"max_rel_error": float(np.max(np.abs(r)) / peak), "rms_error": float(np.sqrt(np.mean(r**2))),
+            "peak": peak, "excluded": int((~ok).sum())}
+
+
+def _voltage_window(voltage: np.ndarray) -> np.ndarray:
+    """Blocking runs: the samples from the first to the last where |v| exceeds 1 % of its maximum
+    (every sample if the voltage never leaves 0)."""
+    on = np.flatnonzero(np.abs(voltage) > 0.01 * np.max(np.abs(voltage)))
+    if not on.size:
+        return np.ones(voltage.size, bool)
+    mask = np.zeros(voltage.size, bool)
+    mask[on[0]:on[-1] + 1] = True
+    return mask
+
+
+def evaluate_run(path: Path, params, model: str, tolerance: float) -> tuple[dict, dict]:
+    """One run against the twin: its Table 4 row, its provenance and the series for the figures."""
+    run = load_run(path)
+    ds = open_run(path)
+    a = ds.attrs
+    # the samples load_run kept, to align capacitance and position with them
+    ok = np.ones(ds.sizes["time"], bool)
+    for k in ("time", "stretch", "voltage", "force"):
+        ok &= np.isfinite(np.asarray(ds[k].values, float))
+    position = (np.asarray(ds["position"].values, float)[ok] if "position" in ds
+                else (run.stretch - 1.0) * run.geom.L1)
+    cap = np.asarray(ds["capacitance"].values, float)[ok] if "capacitance" in ds else np.full(run.n, np.nan)
+    cap_mask = np.isfinite(cap)
+    exp = experiment(run.kind, run.protocol, run.voltage, bool(cap_mask.any()))
+    reason = ""
+    if model == "auto":
+        choice = select_model(run.geom, params, run.stretch, run.voltage, tolerance)
+        used, reason = choice.model, choice.reason
+    else:
+        used = model
+    force_pred = predict_force(run, params, used)
+    series = {"t": run.t, "stretch": run.stretch, "position": position, "voltage": run.voltage,
+              "force": run.force, "force_pred": force_pred, "cap_mask": cap_mask, "capacitance": cap[cap_mask]}
+    window = ""
+    if exp["quantity"] == "capacitance":
+        pred = solve(used, run.geom, params, run.stretch[cap_mask], run.voltage[cap_mask]).capacitance
+        series["capacitance_pred"] = pred
+        err, unit, scale, shown = compare(cap[cap_mask], pred), "F", 1e12, "pF"
+        samples = int(cap_mask.sum())
+    else:
+        sel = _voltage_window(run.voltage) if run.kind == "blocking" else np.ones(run.n, bool)
+        if not sel.all():
+            window = f"t = {run.t[sel][0]:.3g} to {run.t[sel][-1]:.3g} s (voltage cycles)"
+        series["window"] = sel
+        err, unit, scale, shown = compare(run.force[sel], force_pred[sel]), "N", 1.0, "N"
+        samples = int(sel.sum())
+    row = {k: exp[k] for k in ("experiment", "voltage", "voltage_V", "quantity")}
+    row.update({"kind": run.kind, "specimen": run.specimen, "protocol": run.protocol, "file": str(path),
+                "sha256": run.sha256, "model": used, "model_reason": reason, "samples": samples, "unit": unit,
+                **err, "window": window,
+                "paper_max_rel_error": PAPER_TABLE4.get(exp["key"], {}).get(run.specimen) if exp["key"] else None,
+                "rms_text": f"{err['rms_error'] * scale:.4g} {shown}" if math.isfinite(err["rms_error"]) else "—"})
+    notes = [window, f"{err['excluded']} samples without equilibrium left out" if err["excluded"] else "",
+             f"auto: {reason}" if reason else ""]
+    row["notes"] = "; ".join(n for n in notes if n)
+    emulated = str(a.get("emulated", ""))
+    prov = {"file": str(path), "sha256": run.sha256, "run_id": a.get("run_id", "?"), "backend": a.get("backend", "?"),
+            "created": a.get("created", "?"), "protocol": run.protocol, "kind": run.kind, "specimen": run.specimen,
+            "emulated": emulated.startswith("yes"), "truth": truth_name(a.get("emulator_truth", "")) or "",
+            "model": a.get("model", ""), "parameters_name": a.get("parameters_name", "")}
+    return row, {"row": row, "provenance": prov, "series": series}
+
+
+def _sort_key(row):
+    return (KIND_ORDER.index(row["kind"]) if row["kind"] in KIND_ORDER else len(KIND_ORDER),
+            row["quantity"], round(row["voltage_V"], -1), row["specimen"], row["protocol"], row["file"])
+
+
+def _role(row, cal) -> tuple[str, str]:
+    if not cal["specimens"]:
+        return NONE_RECORDED, NONE_RECORDED
+    on = ", ".join(cal["specimens"])
+    if row["sha256"] in {r.get("sha256") for r in cal["runs"]}:
+        return "calibration run", on
+    if row["specimen"] in cal["specimens"]:
+        return "calibration specimen", on
+    return "validation", on
+
+
+def data_origin(provenance: list[dict]) -> str:
+    """One plain sentence on where the datasets come from (emulator, twin or rig)."""
+    emulated = [p for p in provenance if p["emulated"]]
+    twin = [p for p in provenance if p["backend"] == "twin"]
+    rig = len(provenance) - len(emulated) - len(twin)
+    parts = []
+    if emulated:
+        names = sorted({p["truth"] or "unnamed truth" for p in emulated})
+        parts.append(f"{len(emulated)} of {len(provenance)} runs come from the rdea-lab rig EMULATOR "
+                     f"(truth: {', '.join(names)}), not from a physical rig")
+    if twin:
+        parts.append(f"{len(twin)} of {len(provenance)} runs are twin simulations (a model, not measurements)")
+    if rig:
+        parts.append(f"{rig} of {len(provenance)} runs do not say they are emulated or simulated "
+                     "(backend rig without an 'emulated' attribute)")
+    return "; ".join(parts) + "."
+
+
+def validation_report(params_path, datasets_folder, out, model: str = "su", tolerance: float = 0.01,
+                      figures: bool = True) -> dict:
+    """Write the Table 4 analogue, the figures and ``index.html`` for a parameter set and a folder of runs.
+
+    Parameters
+    ----------
+    params_path : path
+        Parameter file (a calibration record is one; its ``calibration`` section gives the provenance).
+    datasets_folder : path
+        Folder searched recursively for complete runs (``*.nc``).
+    out : path
+        Output folder (created).
+    model : {"su", "1r", "3r", "auto"}
+        Quasi-static model of the twin; ``auto`` picks per run with :func:`select_model`.
+    tolerance : float
+        For ``auto``: allowed deviation from 3R relative to the peak stress [-].
+    figures : bool
+        Write the PNG figures (the tables and ``index.html`` are always written).
+
+    Returns
+    -------
+    dict
+        ``rows`` (one dict per run, keys of :data:`CSV_KEYS` and ``rms_text``),
+        ``markdown`` (the table), ``files``, ``runs`` (provenance), ``params``,
+        ``skipped``, ``origin``, ``model``.
+
+    Raises
+    ------
+    SpecError
+        The parameter file is missing or invalid.
+    ReportInputError
+        Unknown model, no folder, or no complete runs in it.
+    """
+    if model not in MODELS:
+        raise ReportInputError(f"--model: {model!r} is not a model; allowed: {', '.join(MODELS)}")
+    folder = Path(datasets_folder)
+    if not folder.is_dir():
+        raise ReportInputError(f"{folder}: no such folder of datasets")
+    params = load_params(params_path)
+    paths, skipped = scan_runs(folder)
+    evaluated = []
+    for path in paths:
+        try:
+            evaluated.append(evaluate_run(path, params, model, tolerance)[1])
+        except (KeyError, OSError, ValueError) as exc:
+            skipped.append({"file": str(path), "reason": f"cannot evaluate: {' '.join(str(exc).split())}"})
+    if not evaluated:
+        raise ReportInputError(f"{folder}: no complete runs found" + (
+            f" ({len(skipped)} skipped: {skipped[0]['file']}: {skipped[0]['reason']})" if skipped else ""))
+    evaluated.sort(key=lambda e: _sort_key(e["row"]))
+    cal = calibration_summary(Path(params_path))
+    for e in evaluated:
+        e["row"]["role"], e["row"]["calibrated_on"] = _role(e["row"], cal)
+    rows = [e["row"] for e in evaluated]
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    origin = data_origin([e["provenance"] for e in evaluated])
+    md = tables.markdown(COLUMNS, rows)
+    caption = (f"Maximum relative error against the largest measured force or capacitance of each run "
+               f"(Table 4 of Prechtl et al. 2021), twin model {model}, parameters {params.name}; "
+               f"calibrated on: {', '.join(cal['specimens']) or NONE_RECORDED}. {origin}")
+    files = {"markdown": out / "table4.md", "csv": out / "table4.csv", "latex": out / "table4.tex"}
+    files["markdown"].write_text(f"# Table 4 analogue\n\n{caption}\n\n{md}")
+    tables.write_csv(files["csv"], CSV_KEYS, rows)
+    files["latex"].write_text(f"% {tables.latex_escape(caption)}\n" + tables.latex_tabular(COLUMNS, rows))
+    figs = write_figures(evaluated, out) if figures else {}
+    result = {"rows": rows, "markdown": md, "caption": caption, "model": model, "params": cal,
+              "params_name": params.name, "runs": [e["provenance"] for e in evaluated], "skipped": skipped,
+              "origin": origin, "figures": [str(f) for f in figs],
+              "figure_captions": {Path(f).name: c for f, c in figs.items()},
+              "files": {k: str(v) for k, v in files.items()}}
+    result["files"]["html"] = str(write_validation_index(out / "index.html", result, COLUMNS))
+    return result
