@@ -1,0 +1,273 @@
+"""Speed against error: SU, 1R, 3R and auto on the scenes that matter.
+
+A scene is a roll, a material and the (stretch, voltage) samples it visits:
+the three paper specimens under the paper's protocols (Table 3 material), and
+the hollow, active and passive cores of Section 3.4 of [1] at 3.5 kV over
+lambda1 from 1 to 1.75 (material of its ref. [36]). For each scene and model:
+the time per sample (best of ``repeats`` after a warm-up, ``time.perf_counter``)
+and the largest stress deviation from 3R. ``auto`` is
+:func:`~rdea_lab.physics.selection.select_model` followed by the model it
+picks; the selection counts in its time.
+
+The reference is the library's 3R solver itself: its root refinement runs to
+a relative step of 1e-14 of the coordinate's scale, a setting ``solve`` does
+not expose, so no tighter 3R can be asked for. It is checked instead against
+the independent per-sample fsolve baseline (``benchmarks/baseline_3r_fsolve.py``)
+on a subsample of the cores with ``Ri > 0``, where the baseline's stationary
+point is the physical one.
+
+[1] Prechtl et al., Smart Mater. Struct. 30 (2021), doi:10.1088/1361-665X/ac34be.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import platform
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from ..physics.geometry import geometry_from_card  # noqa: E402
+from ..physics.models import solve  # noqa: E402
+from ..physics.selection import select_model  # noqa: E402
+from ..protocols import load_plan  # noqa: E402
+from ..specs import load_params, load_specimen  # noqa: E402
+from . import tables  # noqa: E402
+from .paper_models import figure8  # noqa: E402
+
+MODELS = ("su", "1r", "3r", "auto")
+SPECIMENS = ("specimen1", "specimen2", "specimen3")
+#: The protocols of the paper's campaign (campaigns/paper2021.yaml).
+PROTOCOLS = ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV", "blocking_force", "capacitance_sweep")
+CORES = ("hollow_core", "active_core", "passive_core")
+CORE_VOLTAGE = 3500.0
+CORE_STRETCH = (1.0, 1.75)
+REFERENCE = "3R itself (root refinement to 1e-14 relative inside the solver; no tighter setting is exposed)"
+#: Where a zero error is drawn on the log axis of the Pareto plot.
+ZERO_FLOOR = 1e-16
+
+COLUMNS = [
+    ("scene", "scene", tables.text),
+    ("model", "model", tables.text),
+    ("model_used", "solves with", tables.text),
+    ("samples", "samples", tables.text),
+    ("time_per_sample_s", "time per sample [µs]", lambda v: tables.number(".3f")(v * 1e6)),
+    ("max_error_Pa", "max |σ1 − σ1(3R)| [kPa]", lambda v: tables.number(".4g")(v / 1e3)),
+    ("max_rel_error", "max error [% of peak]", lambda v: tables.number(".3g")(v * 100)),
+    ("converged", "converged", tables.text),
+    ("auto_reason", "auto: why", tables.text),
+]
+CSV_KEYS = ["scene", "roll", "protocol", "material", "voltage", "samples", "model", "model_used", "time_per_sample_s",
+            "max_error_Pa", "max_rel_error", "peak_stress_Pa", "converged", "auto_reason", "reference"]
+
+
+def scenes(root: Path, core_samples: int = 2001) -> list[dict]:
+    """The scenes: paper specimens x protocols, then the Section 3.4 cores at 3.5 kV."""
+    out = []
+    table3 = load_params(root / "params" / "paper2021_table3.yaml")
+    for spec in SPECIMENS:
+        card = load_specimen(root / "specimens" / f"{spec}.yaml")
+        for proto in PROTOCOLS:
+            plan = load_plan(root / "protocols" / f"{proto}.yaml")
+            out.append({"scene": f"{card.id} / {proto}", "roll": card.id, "protocol": proto,
+                        "geom": geometry_from_card(card), "material": table3,
+                        "stretch": np.asarray(plan.stretch, float), "voltage": np.asarray(plan.voltage, float),
+                        "voltage_text": f"{np.max(np.abs(plan.voltage)) / 1e3:g} kV max"})
+    rizzello = load_params(root / "params" / "rizzello2020.yaml")
+    lam = np.linspace(*CORE_STRETCH, core_samples)
+    for core in CORES:
+        card = load_specimen(root / "specimens" / f"{core}.yaml")
+        out.append({"scene": f"{card.id} @ 3.5 kV", "roll": card.id, "protocol": "lambda1 1 to 1.75",
+                    "geom": geometry_from_card(card), "material": rizzello, "stretch": lam,
+                    "voltage": np.full_like(lam, CORE_VOLTAGE), "voltage_text": "3.5 kV"})
+    return out
+
+
+def best_time(fn, repeats: int) -> float:
+    """Best wall time of ``repeats`` calls of ``fn`` after one warm-up [s]."""
+    fn()
+    best = math.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def deviation(sigma, ref_sigma) -> tuple[float, int]:
+    """Largest ``|sigma - sigma_ref|`` [Pa] where both converged, and the samples where only the reference did."""
+    both = np.isfinite(sigma) & np.isfinite(ref_sigma)
+    lost = int(np.sum(np.isfinite(ref_sigma) & ~np.isfinite(sigma)))
+    return (float(np.max(np.abs(sigma[both] - ref_sigma[both]))) if both.any() else math.nan), lost
+
+
+def study_scene(sc: dict, repeats: int, tolerance: float) -> list[dict]:
+    """One row per model for one scene."""
+    geom, mat, lam, v = sc["geom"], sc["material"], sc["stretch"], sc["voltage"]
+    ref = solve("3r", geom, mat, lam, v)
+    peak = float(np.nanmax(np.abs(ref.sigma1))) if np.any(ref.converged) else math.nan
+    rows = []
+    for model in MODELS:
+        if model == "auto":
+            def run():
+                choice = select_model(geom, mat, lam, v, tolerance)
+                return choice, solve(choice.model, geom, mat, lam, v)
+        else:
+            def run(model=model):
+                return None, solve(model, geom, mat, lam, v)
+        seconds = best_time(run, repeats)
+        choice, res = run()
+        err, lost = deviation(res.sigma1, ref.sigma1)
+        rows.append({"scene": sc["scene"], "roll": sc["roll"], "protocol": sc["protocol"], "material": mat.name,
+                     "voltage": sc["voltage_text"], "samples": int(lam.size), "model": model,
+                     "model_used": choice.model if choice else model, "time_per_sample_s": seconds / lam.size,
+                     "max_error_Pa": err, "max_rel_error": err / peak if peak else math.nan, "peak_stress_Pa": peak,
+                     "converged": f"{int(res.converged.sum())}/{lam.size}" + (f" ({lost} lost)" if lost else ""),
+                     "auto_reason": choice.reason if choice else "", "reference": REFERENCE})
+    return rows
+
+
+def _baseline(root: Path):
+    path = root / "benchmarks" / "baseline_3r_fsolve.py"
+    if not path.is_file():
+        return None
+    spec = importlib.util.spec_from_file_location("rdea_lab_baseline_3r_fsolve", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def fsolve_check(root: Path, scene_list: list[dict], n: int = 16) -> list[dict]:
+    """The 3R reference against the fsolve baseline on ``n`` samples of each scene with ``Ri > 0``."""
+    module = _baseline(root)
+    out = []
+    for sc in scene_list:
+        g, mat = sc["geom"], sc["material"]
+        if g.Ri <= 0.0:
+            continue
+        if module is None:
+            out.append({"scene": sc["scene"], "note": "benchmarks/baseline_3r_fsolve.py not found: not checked"})
+            continue
+        pick = np.linspace(0, sc["stretch"].size - 1, n).astype(int)
+        lam, v = sc["stretch"][pick], sc["voltage"][pick]
+        ref = solve("3r", g, mat, lam, v).sigma1
+        t0 = time.perf_counter()
+        base = module.solve_3r_fsolve(lam, v, Ri=g.Ri, Rie=g.Rie, Roe=g.Roe, Ro=g.Ro, L3=g.L3, alpha_e1=g.alpha_e1,
+                                      C10=mat.C10, C20=mat.C20, C30=mat.C30, eps_r=mat.eps_r)
+        seconds = time.perf_counter() - t0
+        ok = base["converged"] & np.isfinite(ref)
+        peak = float(np.nanmax(np.abs(ref)))
+        dev = float(np.max(np.abs(base["sigma1"][ok] - ref[ok]))) if ok.any() else math.nan
+        out.append({"scene": sc["scene"], "samples": int(n), "converged": int(ok.sum()), "max_error_Pa": dev,
+                    "max_rel_error": dev / peak, "fsolve_time_per_sample_s": seconds / n,
+                    "note": "3R (library) against fsolve on the corrected eq. (27)"})
+    return out
+
+
+def pareto_plot(rows: list[dict], path: Path) -> Path:
+    """Time per sample against max error, log-log, one marker per model per scene."""
+    markers = {"su": "o", "1r": "s", "3r": "^", "auto": "x"}
+    names = list(dict.fromkeys(r["scene"] for r in rows))
+    cmap = plt.get_cmap("tab20")
+    fig, ax = plt.subplots(figsize=(10, 6))
+    for r in rows:
+        err = r["max_rel_error"]
+        if not math.isfinite(err):
+            continue
+        ax.loglog(r["time_per_sample_s"] * 1e6, max(err, ZERO_FLOOR) * 100, markers[r["model"]],
+                  color=cmap(names.index(r["scene"]) % 20), ms=7, mfc="none", mew=1.3)
+    for m, mk in markers.items():
+        ax.plot([], [], mk, color="gray", mfc="none", label=m.upper() if m != "auto" else "auto")
+    for i, name in enumerate(names):
+        ax.plot([], [], "-", color=cmap(i % 20), label=name)
+    ax.axhline(ZERO_FLOOR * 100, color="gray", lw=0.6, ls=":")
+    ax.set_xlabel("time per sample [µs]")
+    ax.set_ylabel("max |σ1 − σ1(3R)| [% of peak 3R stress]")
+    ax.set_title(f"speed against error (3R is the reference: its zero error is drawn at {ZERO_FLOOR * 100:g} %)",
+                 fontsize=9)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return Path(path)
+
+
+def _markdown(rows, auto, check, sweep, repeats, tolerance) -> str:
+    lines = ["# Speed against error: SU, 1R, 3R and auto", "",
+             f"Time per sample: best of {repeats} after a warm-up, on {platform.machine()} "
+             f"({platform.python_implementation()} {platform.python_version()}). Error: the largest "
+             f"|σ1 − σ1(3R)| over the scene's samples, quasi-static stress. Reference: {REFERENCE}. "
+             f"auto = select_model (tolerance {tolerance:.0%} of the peak 3R stress) then the model it picks, "
+             "selection included in its time.", "", tables.markdown(COLUMNS, rows), "## What auto picks", "",
+             tables.markdown([("scene", "scene", tables.text), ("model_used", "auto picks", tables.text),
+                              ("auto_reason", "why", tables.text)], auto),
+             "## The reference against the fsolve baseline", ""]
+    if check:
+        lines.append(tables.markdown([
+            ("scene", "scene", tables.text), ("samples", "samples", tables.text),
+            ("converged", "fsolve converged", tables.text),
+            ("max_error_Pa", "max |Δσ1| [Pa]", tables.number(".3g")),
+            ("max_rel_error", "relative to peak", tables.number(".3g")),
+            ("fsolve_time_per_sample_s", "fsolve time per sample [s]", tables.number(".3g")),
+            ("note", "note", tables.text)], check))
+    else:
+        lines.append("No scene with Ri > 0: not checked.\n")
+    lines += ["## Figure 8 sweep: Ri from 0.1 to 0.9 Rie at 3.5 kV (`figure8_sweep.png`)", "",
+              tables.markdown([("Ri_over_Rie", "Ri / Rie", tables.number(".1f")),
+                               ("max_dev_su_MPa", "max dev SU [MPa]", tables.number(".4f")),
+                               ("max_dev_1r_MPa", "max dev 1R [MPa]", tables.number(".4f"))], sweep)]
+    return "\n".join(lines)
+
+
+def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_samples: int = 2001) -> dict:
+    """Write ``speed.md``, ``speed.csv``, ``pareto.png``, ``figure8_sweep.png`` and ``figure8.csv`` into ``out``.
+
+    Parameters
+    ----------
+    out : path
+        Output folder (created).
+    root : path, optional
+        Folder holding ``specimens/``, ``params/``, ``protocols/`` (default: the project root).
+    repeats : int
+        Timing repeats; the best is kept.
+    tolerance : float
+        For auto: allowed deviation from 3R relative to the peak 3R stress [-].
+    core_samples : int
+        Stretch samples of the core scenes.
+
+    Returns
+    -------
+    dict
+        ``rows`` (one per scene and model), ``auto`` (per scene: model and reason),
+        ``reference_check``, ``figure8``, ``files``.
+    """
+    from ..paths import project_root
+
+    root = Path(root) if root is not None else project_root()
+    if root is None or not (root / "specimens").is_dir():
+        raise ValueError("speed study: specimens/, params/ and protocols/ not found; run from the rdea-lab checkout")
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats}")
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    scene_list = scenes(root, core_samples)
+    rows = [r for sc in scene_list for r in study_scene(sc, repeats, tolerance)]
+    auto = [{"scene": r["scene"], "model_used": r["model_used"], "auto_reason": r["auto_reason"]}
+            for r in rows if r["model"] == "auto"]
+    check = fsolve_check(root, scene_list)
+    sweep = figure8(load_params(root / "params" / "rizzello2020.yaml"), out / "figure8_sweep.png")
+    files = {"markdown": out / "speed.md", "csv": out / "speed.csv", "pareto": out / "pareto.png",
+             "figure8": out / "figure8_sweep.png", "figure8_csv": out / "figure8.csv"}
+    files["markdown"].write_text(_markdown(rows, auto, check, sweep, repeats, tolerance))
+    tables.write_csv(files["csv"], CSV_KEYS, rows)
+    tables.write_csv(files["figure8_csv"], list(sweep[0]), sweep)
+    pareto_plot(rows, files["pareto"])
+    return {"rows": rows, "auto": auto, "reference_check": check, "figure8": sweep,
+            "files": {k: str(v) for k, v in files.items()}}
