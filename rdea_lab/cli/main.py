@@ -15,11 +15,11 @@ import numpy as np
 from .. import __version__
 from ..paths import project_root
 from ..physics.geometry import geometry_from_card
-from ..reports.paper_models import reproduce_models
 from ..specs import load_params, load_specimen, parse_quantity
 from ..twin.curves import CURVE_FIELDS, quasi_static_curves
 from .errors import die, run
 from .calibrate import register as register_calibrate
+from .report import register as register_report
 from .rig import register as register_rig
 from .runs import register as register_run_commands
 from .runs import register_campaign
@@ -170,32 +170,57 @@ def curve(card, params_path, model, stretch_text, voltage_text, as_json, as_csv)
 
 @cli.command()
 @click.option("--out", "out_dir", default="reports/paper2021", show_default=True,
-              type=click.Path(file_okay=False), help="Folder for the tables and figures.")
-def reproduce(out_dir):
-    """Reproduce the paper's results that this version covers, end to end.
+              type=click.Path(file_okay=False), help="Folder for everything reproduce writes.")
+@click.option("--campaign", "campaign_path", type=click.Path(dir_okay=False),
+              help="Campaign file [default: campaigns/paper2021.yaml]; must include specimen 2's tensile tests.")
+@click.option("--no-speed", is_flag=True, help="Skip the speed-against-error study.")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def reproduce(out_dir, campaign_path, no_speed, quiet):
+    """The paper's campaign end to end, on the built-in emulated rig.
 
-    Today: Table 2 (radii from the unwound membranes) and Section 3.4 (SU, 1R
-    and 3R compared on the hollow, active and passive cores; Figures 5-8).
-    The experimental campaign, calibration and Table 4 come with the rig,
-    calibration and report commands.
+    Runs the experiments of Section 4.2 on the three specimens (emulator), stores
+    the datasets, calibrates the SU model on specimen 2, writes the Table 4
+    analogue with its figures, the speed-against-error study, and Table 2 and
+    Section 3.4 (Figures 5-8); prints where everything is and the table.
 
     \b
     Example:
-      rdea-lab reproduce --out reports/paper2021
+      rdea-lab reproduce
     """
+    import sys as _sys
+
+    from ..reports.reproduce import reproduce as run_reproduce
+
     root = project_root()
     if root is None:
-        die("reproduce: specimens/ and params/ not found; run from the rdea-lab checkout")
+        die("reproduce: specimens/, params/ and campaigns/ not found; run from the rdea-lab checkout")
     out = Path(out_dir)
-    click.echo(f"reproducing Table 2 and Section 3.4 into {out}/ ...")
-    summary = reproduce_models(root, out / "models")
-    for r in summary["table2"]:
-        click.echo(f"  Table 2 {r['specimen']}: Rie {r['Rie_mm']:.3f}, Roe {r['Roe_mm']:.3f}, Ro {r['Ro_mm']:.3f} mm "
-                   f"(paper {r['Rie_paper_mm']:.3f}, {r['Roe_paper_mm']:.3f}, {r['Ro_paper_mm']:.3f}; "
-                   f"max offset {r['max_offset_percent']:.2f} %)")
-    for name, s in summary["section_3_4"].items():
-        click.echo(f"  Section 3.4 {name}: {s['paper_claim']}; we get {s['ours']:.4f} MPa")
-    click.echo(f"tables: {out / 'models' / 'models.md'}; figures: {out / 'models'}/figure*.png")
+
+    def bar(total, label):
+        if quiet or not _sys.stderr.isatty():
+            import contextlib
+            return contextlib.nullcontext(type("NoBar", (), {"update": staticmethod(lambda n: None)})())
+        return click.progressbar(length=total, label=label, file=_sys.stderr)
+
+    from ..reports.reproduce import ReproduceInputError
+
+    try:
+        result = run_reproduce(root, out, campaign=campaign_path, speed=not no_speed, echo=click.echo,
+                               progress_factory=bar)
+    except ReproduceInputError as exc:
+        die(str(exc))
+    v = result["validation"]
+    click.echo("")
+    click.echo(f"Table 4 analogue ({v['origin']})")
+    click.echo(v["markdown"])
+    click.echo("outputs:")
+    click.echo(f"  datasets        {out / 'datasets'}/<specimen>/<protocol>.nc")
+    click.echo(f"  parameters      {result['calibration']['params']} (+ .history.csv, .history.png)")
+    click.echo(f"  validation      {v['files']['html']} (table4.md/.csv/.tex, figures)")
+    if "speed" in result:
+        click.echo(f"  speed vs error  {out / 'speed'}/speed.md, pareto.png, figure8_sweep.png")
+    click.echo(f"  models          {out / 'models'}/models.md, figure5-8*.png")
+    click.echo(f"done in {result['seconds']:.1f} s")
 
 
 def _benchmarks_dir() -> Path:
@@ -234,6 +259,7 @@ register_run_commands(cli)
 register_campaign(cli)
 register_rig(cli)
 register_calibrate(cli)
+register_report(cli)
 
 
 def main(argv=None):

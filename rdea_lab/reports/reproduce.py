@@ -1,0 +1,95 @@
+"""`rdea-lab reproduce`: the paper campaign end to end, on the built-in emulator.
+
+Steps (each written under ``out``):
+
+1. ``datasets/``: the campaign (default ``campaigns/paper2021.yaml``) on the
+   emulated rig, one netCDF file per specimen and protocol;
+2. ``params/calibrated.yaml``: Nelder-Mead calibration on specimen 2's tensile
+   runs (SU, one Maxwell branch and the parallel damper, eps_r fixed at 2.8);
+3. ``validation/``: the Table 4 analogue, the figures and ``index.html``;
+4. ``speed/``: time per sample against error for SU, 1R, 3R and auto;
+5. ``models/``: Table 2 and Section 3.4 (Figures 5-8).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from ..calibration import calibrate, find_runs, initial_guess, load_run
+from ..calibration.record import write_record
+from ..runs import experiments, run_campaign
+from ..specs.campaign import load_campaign
+from .paper_models import reproduce_models
+from .speed import speed_study
+from .validation import validation_report
+
+CALIBRATION_SPECIMEN = "specimen-2"
+
+
+class ReproduceInputError(ValueError):
+    """A campaign that reproduce cannot use (a user mistake: exit status 2)."""
+
+
+def reproduce(root: Path, out: Path, *, campaign=None, speed=True, echo=print, progress_factory=None) -> dict:
+    """Run the whole campaign and write every result under ``out``.
+
+    Parameters
+    ----------
+    root : Path
+        Project root (``specimens/``, ``protocols/``, ``params/``, ``truth/``, ``campaigns/``).
+    out : Path
+        Output folder; its ``datasets/`` are overwritten.
+    campaign : Path, optional
+        Campaign file (default ``campaigns/paper2021.yaml``); must include specimen 2's tensile tests.
+    speed : bool
+        Run the speed-against-error study.
+    echo : callable
+        Where progress lines go.
+    progress_factory : callable, optional
+        ``progress_factory(total, label)`` -> context manager with ``update(n)`` (a progress bar).
+    """
+    out = Path(out)
+    t0 = time.perf_counter()
+    spec, spec_root = load_campaign(campaign or root / "campaigns" / "paper2021.yaml")
+    data = out / "datasets"
+    runs = experiments(spec, spec_root, data)
+    if CALIBRATION_SPECIMEN not in {r.card.id for r in runs}:
+        raise ReproduceInputError(f"{campaign or 'the campaign'}: it has no {CALIBRATION_SPECIMEN}, "
+                                  "the specimen the paper calibrates on")
+    for r in runs:
+        if r.out.exists():
+            r.out.unlink()
+    total = sum(r.plan.time.size for r in runs)
+    echo(f"[1/5] campaign {spec.name} on the {spec.backend}: {len(runs)} runs, {total} samples -> {data}/")
+    if progress_factory is not None:
+        with progress_factory(total, spec.name) as bar:
+            results = run_campaign(spec, spec_root, out_dir=data, progress=bar.update)
+    else:
+        results = run_campaign(spec, spec_root, out_dir=data)
+    failed = [r for r in results if r.status != "complete"]
+    if failed:
+        raise RuntimeError(f"{len(failed)} campaign runs did not complete: {failed[0].path}: {failed[0].reason}")
+
+    echo(f"[2/5] calibration on {CALIBRATION_SPECIMEN}'s tensile runs (SU, Nelder-Mead)")
+    cal_runs = [load_run(p) for p in find_runs([data / CALIBRATION_SPECIMEN], ("tensile",))]
+    if not cal_runs:
+        raise ValueError(f"no tensile runs of {CALIBRATION_SPECIMEN} in the campaign")
+    fit = calibrate(cal_runs, initial_guess(cal_runs, 1, 2.8), model="su")
+    files = write_record(fit, cal_runs, out / "params" / "calibrated.yaml", name="calibrated-specimen-2")
+    echo(f"      {fit.message}; {fit.nfev} evaluations in {fit.wall_time:.1f} s; C10 {fit.values['C10'] / 1e3:.1f}, "
+         f"C20 {fit.values['C20'] / 1e3:.1f}, C30 {fit.values['C30'] / 1e3:.1f} kPa -> {files['params']}")
+
+    echo("[3/5] validation report: the twin on every run's own stretch and voltage")
+    report = validation_report(files["params"], data, out / "validation", model="su")
+    result = {"campaign": [str(r.path) for r in results], "calibration": files, "calibration_result": fit,
+              "validation": report}
+    if speed:
+        echo("[4/5] speed against error: SU, 1R, 3R and auto on the paper's scenes and the Section 3.4 cores")
+        result["speed"] = speed_study(out / "speed", root)
+    else:
+        echo("[4/5] speed study skipped")
+    echo("[5/5] Table 2 and Section 3.4 (Figures 5-8)")
+    result["models"] = reproduce_models(root, out / "models")
+    result["seconds"] = time.perf_counter() - t0
+    return result
