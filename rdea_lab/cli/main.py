@@ -77,6 +77,15 @@ def geometry(card, params_path, eps_r, as_json):
         values = geometry_from_card(spec).as_dict(eps_r)
     except ValueError as exc:
         die(f"{card}: {exc}")
+    if spec.kind == "strip":
+        if as_json:
+            click.echo(json.dumps({"id": spec.id, "kind": "strip", **values}, indent=2))
+            return
+        click.echo(f"{spec.id} (strip, eps_r = {eps_r:g})")
+        for k in ("length", "width", "thickness", "electrode_length", "electrode_width"):
+            click.echo(f"  {k:<17}{values[k] * 1e3:10.4f} mm")
+        click.echo(f"  {'C0':<17}{values['C0'] * 1e12:10.2f} pF")
+        return
     keys = ("Ri", "Rie", "Roe", "Ro", "eta_a", "eta_b", "eta_c", "alpha_e1", "C0")
     if as_json:
         click.echo(json.dumps({"id": spec.id, **{k: values[k] for k in keys}, "eps_r": eps_r}, indent=2))

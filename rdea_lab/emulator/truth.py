@@ -38,6 +38,9 @@ def true_geometry(card, truth, *, source: str | None = None) -> RollGeometry:
         thicker than one layer ``L3``.
     """
     source = source or f"truth {truth.name}"
+    if getattr(card, "kind", "roll") != "roll":
+        raise SpecError(source, "kind", f"the emulator emulates a roll; {card.id} is a {card.kind} "
+                                        "(use the twin, or import measured strip data)")
     nominal = geometry_from_card(card)
     f = truth.radii_factors
     r = {k: getattr(nominal, k) * getattr(f, k) for k in _ORDER}

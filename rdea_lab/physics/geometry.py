@@ -229,15 +229,93 @@ class RollGeometry:
         return {k: float(v) for k, v in out.items()}
 
 
-def geometry_from_card(card) -> RollGeometry:
+@dataclass(frozen=True)
+class StripGeometry:
+    """A flat strip in uniaxial tension (a membrane before it is rolled, as in ref. [36] of [1]).
+
+    It offers the interface of :class:`RollGeometry` that the SU and 1R models
+    use, so those models apply unchanged: the 1R model is "formally identical to
+    the one for strip-shaped DE membranes" (Section 3.2 of [1]), its sides free
+    of traction; at 0 V it is plain uniaxial tension. The electrode covers
+    ``electrode_length x electrode_width``; the voltage acts across the
+    thickness. There are no rings: the 3R model does not apply.
+
+    Attributes
+    ----------
+    length, width, thickness : float
+        Undeformed dimensions [m].
+    electrode_length, electrode_width : float
+        Electrode dimensions [m] (0: no electrode).
+    """
+
+    length: float
+    width: float
+    thickness: float
+    electrode_length: float = 0.0
+    electrode_width: float = 0.0
+    kind = "strip"
+    # no rings: radii are undefined
+    Ri = Rie = Roe = Ro = float("nan")
+
+    def __post_init__(self):
+        if not (self.length > 0 and self.width > 0 and self.thickness > 0):
+            raise ValueError(f"a strip needs length, width, thickness > 0, got {self.length:g}, {self.width:g}, "
+                             f"{self.thickness:g} m")
+        if not (0 <= self.electrode_length <= self.length and 0 <= self.electrode_width <= self.width):
+            raise ValueError("the electrode must fit on the strip")
+
+    L1 = property(lambda self: self.length, doc="Length along the stretch [m].")
+    L1e = property(lambda self: self.electrode_length, doc="Electrode length along the stretch [m].")
+    L3 = property(lambda self: self.thickness, doc="Thickness the voltage acts across [m].")
+
+    @property
+    def area(self) -> float:
+        """Undeformed cross-section ``width x thickness`` [m^2]."""
+        return self.width * self.thickness
+
+    @property
+    def volume(self) -> float:
+        return self.area * self.length
+
+    @property
+    def eta_b(self) -> float:
+        """Active fraction across the width (with ``alpha_e1`` along the length)."""
+        return self.electrode_width / self.width
+
+    eta_a = property(lambda self: 0.0)
+    eta_c = property(lambda self: 1.0 - self.electrode_width / self.width)
+
+    @property
+    def alpha_e1(self) -> float:
+        return self.electrode_length / self.length
+
+    def C0(self, eps_r: float) -> float:
+        """Capacitance of the undeformed strip ``eps0 eps_r A_e / thickness`` [F]."""
+        return EPS0 * eps_r * self.electrode_length * self.electrode_width / self.thickness
+
+    def as_dict(self, eps_r: float | None = None) -> dict:
+        out = {"length": self.length, "width": self.width, "thickness": self.thickness,
+               "electrode_length": self.electrode_length, "electrode_width": self.electrode_width,
+               "area": self.area, "alpha_e1": self.alpha_e1, "eta_b": self.eta_b}
+        if eps_r is not None:
+            out["eps_r"] = float(eps_r)
+            out["C0"] = self.C0(eps_r)
+        return {k: float(v) for k, v in out.items()}
+
+
+def geometry_from_card(card) -> RollGeometry | StripGeometry:
     """Build the :class:`RollGeometry` of a specimen card.
 
     Parameters
     ----------
     card : rdea_lab.specs.specimen.SpecimenCard
-        A card with either ``membrane`` (unwound dimensions, radii by the
-        Appendix of [1]) or ``radii`` given directly.
+        A roll card with either ``membrane`` (unwound dimensions, radii by the
+        Appendix of [1]) or ``radii`` given directly, or a strip card
+        (:class:`StripGeometry`).
     """
+    if getattr(card, "kind", "roll") == "strip":
+        e = card.electrode
+        return StripGeometry(card.length, card.width, card.thickness, e.length if e else 0.0, e.width if e else 0.0)
     if card.membrane is not None:
         m = card.membrane
         r = radii_from_membrane(m.L2, m.L3, m.Lp1, m.L2e, Ri=m.Ri)

@@ -81,6 +81,9 @@ def select_model(geom, material, stretch, voltage, tolerance=0.01, max_points=20
     if not tolerance > 0:
         raise ValueError(f"tolerance must be > 0, got {tolerance!r}")
     lam, v = envelope(stretch, voltage, max_points)
+    if getattr(geom, "kind", "roll") == "strip":
+        return ModelChoice("1r", tolerance, {}, 0.0, int(lam.size),
+                           "a strip: the 1R model is its exact lumped model (uniaxial, sides free of traction)")
     ref = solve("3r", geom, material, lam, v)
     peak = float(np.nanmax(np.abs(ref.sigma1))) if np.any(ref.converged) else 0.0
     if not ref.all_converged or peak == 0.0:

@@ -36,7 +36,7 @@ Radius = quantity("length", "mm", ge=0.0)
 
 #: unit each length is written with
 _UNITS = {"L3": "um"}
-KINDS = ("roll",)
+KINDS = ("roll", "strip")
 #: relative slack for sums compared with a length (0.1 + 0.2 > 0.3 in floats)
 _ROUNDING = 1e-12
 
@@ -124,6 +124,22 @@ class Radii(SpecModel):
 
 
 _TOP = ("L1", "L1e", "L3")
+_STRIP = ("length", "width", "thickness")
+
+
+class Electrode(SpecModel):
+    """The electrode of a strip: where the voltage is applied (centred on the strip).
+
+    Attributes
+    ----------
+    length : float
+        Along the stretch direction [m].
+    width : float
+        Across it [m].
+    """
+
+    length: Length
+    width: Length
 
 
 class SpecimenCard(SpecModel):
@@ -152,6 +168,10 @@ class SpecimenCard(SpecModel):
     radii_L1: Length | None = Field(None, alias="L1")
     radii_L1e: Length | None = Field(None, alias="L1e")
     radii_L3: Thickness | None = Field(None, alias="L3")
+    length: Length | None = None
+    width: Length | None = None
+    thickness: Length | None = None
+    electrode: Electrode | None = None
 
     @field_validator("kind", mode="before")
     @classmethod
@@ -162,6 +182,13 @@ class SpecimenCard(SpecModel):
 
     @model_validator(mode="after")
     def _one_geometry(self) -> "SpecimenCard":
+        strip = {k: getattr(self, k) for k in (*_STRIP, "electrode")}
+        if self.kind == "strip":
+            return self._strip_geometry(strip)
+        for key, value in strip.items():
+            if value is not None:
+                raise SpecError("", key, f"'{key}' belongs to a strip card (kind: strip); a roll has "
+                                         "'membrane' or 'radii'")
         top = {"L1": self.radii_L1, "L1e": self.radii_L1e, "L3": self.radii_L3}
         if self.membrane is not None and self.radii is not None:
             raise SpecError("", "radii", "give the geometry either as 'membrane' or as 'radii', not both")
@@ -198,24 +225,49 @@ class SpecimenCard(SpecModel):
             )
         return self
 
+    def _strip_geometry(self, strip) -> "SpecimenCard":
+        for key, value in {"membrane": self.membrane, "radii": self.radii, "L1": self.radii_L1,
+                           "L1e": self.radii_L1e, "L3": self.radii_L3}.items():
+            if value is not None:
+                raise SpecError("", key, f"'{key}' belongs to a roll card; a strip has length, width, "
+                                         "thickness (and optionally electrode)")
+        for key in _STRIP:
+            if strip[key] is None:
+                raise SpecError("", key, f"missing required key '{key}' (a strip needs length, width and thickness)")
+        e = self.electrode
+        if e is not None:
+            if e.length > self.length * (1 + _ROUNDING):
+                raise SpecError("", "electrode.length", f"{_mm(e.length)} is longer than the strip ({_mm(self.length)})")
+            if e.width > self.width * (1 + _ROUNDING):
+                raise SpecError("", "electrode.width", f"{_mm(e.width)} is wider than the strip ({_mm(self.width)})")
+        return self
+
     @property
     def form(self) -> str:
-        """``"membrane"`` or ``"radii"``: which geometry form the card uses."""
+        """``"membrane"``, ``"radii"`` or ``"strip"``: which geometry form the card uses."""
+        if self.kind == "strip":
+            return "strip"
         return "membrane" if self.membrane is not None else "radii"
 
     @property
     def L1(self) -> float:
         """Length along the actuation direction [m]."""
+        if self.kind == "strip":
+            return self.length
         return self.membrane.L1 if self.membrane is not None else self.radii_L1
 
     @property
     def L1e(self) -> float:
-        """Electrode length along the actuation direction [m]."""
+        """Electrode length along the actuation direction [m] (0 for a strip without electrode)."""
+        if self.kind == "strip":
+            return self.electrode.length if self.electrode is not None else 0.0
         return self.membrane.L1e if self.membrane is not None else self.radii_L1e
 
     @property
     def L3(self) -> float:
-        """Thickness of one membrane [m]."""
+        """Thickness of one membrane (of the strip) [m]."""
+        if self.kind == "strip":
+            return self.thickness
         return self.membrane.L3 if self.membrane is not None else self.radii_L3
 
 
@@ -262,7 +314,11 @@ def dump_specimen(card: SpecimenCard) -> str:
     for key in ("description", "source"):
         if getattr(card, key) is not None:
             data[key] = getattr(card, key)
-    if card.membrane is not None:
+    if card.kind == "strip":
+        data.update({k: _mm(getattr(card, k)) for k in _STRIP})
+        if card.electrode is not None:
+            data["electrode"] = {k: _mm(getattr(card.electrode, k)) for k in ("length", "width")}
+    elif card.membrane is not None:
         data["membrane"] = {k: _mm(getattr(card.membrane, k), k) for k in Membrane.model_fields}
     else:
         data["radii"] = {k: _mm(getattr(card.radii, k), k) for k in Radii.model_fields}
@@ -271,6 +327,6 @@ def dump_specimen(card: SpecimenCard) -> str:
 
 
 __all__ = [
-    "KINDS", "Membrane", "Radii", "SpecimenCard", "dump_specimen", "load_specimen",
+    "KINDS", "Electrode", "Membrane", "Radii", "SpecimenCard", "dump_specimen", "load_specimen",
     "specimen_from_mapping", "specimen_from_yaml",
 ]

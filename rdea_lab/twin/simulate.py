@@ -9,7 +9,7 @@ import xarray as xr
 
 from .. import __version__
 from ..physics import viscoelastic
-from ..physics.geometry import RollGeometry, geometry_from_card
+from ..physics.geometry import RollGeometry, StripGeometry, geometry_from_card
 from ..physics.models import solve
 
 #: CF attributes of the variables the twin writes.
@@ -27,7 +27,7 @@ VARIABLES = {
 
 
 def _geometry(specimen):
-    return specimen if isinstance(specimen, RollGeometry) else geometry_from_card(specimen)
+    return specimen if isinstance(specimen, (RollGeometry, StripGeometry)) else geometry_from_card(specimen)
 
 
 def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:

@@ -168,6 +168,8 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
     fixed ``r_i``, which is the total derivative there because ``g`` is
     stationary in ``r_i``); ``C = C0 lambda1**2 lambda2b**2``.
     """
+    if getattr(geom, "kind", "roll") != "roll":
+        raise ValueError("the 3R model describes a roll's three rings; a strip is the 1R model (eq. 33)")
     l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
     C = yeoh_coefficients(material)
     kap = kappa(geom, material)

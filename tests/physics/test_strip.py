@@ -1,0 +1,81 @@
+"""Strip specimens (issue 7): uniaxial tension at 0 V, the DE strip under voltage."""
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from rdea_lab.physics.constants import EPS0
+from rdea_lab.physics.geometry import StripGeometry, geometry_from_card
+from rdea_lab.physics.models import solve
+from rdea_lab.physics.selection import select_model
+from rdea_lab.specs import SpecError, dump_specimen, specimen_from_yaml
+from rdea_lab.twin import simulate
+
+from conftest import RIZZELLO
+
+CARD = "{id: s1, kind: strip, length: 80 mm, width: 22 mm, thickness: 1 mm, electrode: {length: 80 mm, width: 22 mm}}"
+
+
+def W1(x, m):
+    return m.C10 + 2 * m.C20 * x + 3 * m.C30 * x**2
+
+
+def test_card_round_trip_and_geometry():
+    card = specimen_from_yaml(CARD)
+    assert specimen_from_yaml(dump_specimen(card)) == card
+    g = geometry_from_card(card)
+    assert isinstance(g, StripGeometry) and g.area == pytest.approx(22e-6, rel=1e-12, abs=0)
+    assert g.C0(2.8) == pytest.approx(EPS0 * 2.8 * 0.08 * 0.022 / 1e-3, rel=1e-12, abs=0)  # a parallel plate
+    with pytest.raises(SpecError, match="thickness"):
+        specimen_from_yaml("{id: s, kind: strip, length: 80 mm, width: 22 mm}")
+    with pytest.raises(SpecError, match="electrode.width"):
+        specimen_from_yaml("{id: s, kind: strip, length: 80 mm, width: 22 mm, thickness: 1 mm, "
+                           "electrode: {length: 10 mm, width: 30 mm}}")
+
+
+def test_zero_volts_is_plain_uniaxial_tension():
+    """Incompressible uniaxial tension: true stress 2 (l^2 - 1/l) W'(I1), I1 = l^2 + 2/l;
+    nominal force = true stress x area / l."""
+    g = geometry_from_card(specimen_from_yaml(CARD))
+    l = np.linspace(1, 3, 21)
+    sigma = 2 * (l**2 - 1 / l) * W1(l**2 + 2 / l - 3, RIZZELLO)
+    for model in ("su", "1r"):
+        r = solve(model, g, RIZZELLO, l, 0.0)
+        np.testing.assert_allclose(r.sigma1, sigma, rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(r.force, sigma * g.area / l, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("v", [2e3, 10e3, 20e3])
+def test_fully_covered_strip_under_voltage_is_the_classic_de_strip(v):
+    """Stretch l1 held, sides free: l2 dpsi/dl2 = eps E^2 with E = l1 l2 v / t (eq. 33 with
+    alpha = eta_b = 1), solved here by brentq; sigma1 = l1 dpsi/dl1 - eps E^2."""
+    g = geometry_from_card(specimen_from_yaml(CARD))
+    eps = EPS0 * 2.8
+    for l1 in (1.0, 1.5, 2.5):
+        def f(l2):
+            x = l1**2 + l2**2 + (l1 * l2) ** -2 - 3
+            return W1(x, RIZZELLO) * (2 * l2**2 - 2 * l1**-2 * l2**-2) - eps * (l1 * l2 * v / 1e-3) ** 2
+        l2 = brentq(f, l1**-0.5, 4 * l1**-0.5, xtol=1e-15)
+        x = l1**2 + l2**2 + (l1 * l2) ** -2 - 3
+        sigma = W1(x, RIZZELLO) * (2 * l1**2 - 2 * l1**-2 * l2**-2) - eps * (l1 * l2 * v / 1e-3) ** 2
+        r = solve("1r", g, RIZZELLO, l1, v)
+        assert r.lambda2b == pytest.approx(l2, rel=1e-10, abs=0)
+        assert r.sigma1 == pytest.approx(sigma, rel=1e-9, abs=1e-6)
+        assert r.capacitance == pytest.approx(g.C0(2.8) * (l1 * l2) ** 2, rel=1e-10, abs=0)
+
+
+def test_3r_is_refused_and_auto_picks_1r():
+    g = geometry_from_card(specimen_from_yaml(CARD))
+    with pytest.raises(ValueError, match="a strip is the 1R model"):
+        solve("3r", g, RIZZELLO, 1.2, 0.0)
+    assert select_model(g, RIZZELLO, [1.0, 1.5], [0.0, 0.0]).model == "1r"
+
+
+def test_twin_on_a_strip_without_electrode():
+    card = specimen_from_yaml("{id: vhb, kind: strip, length: 80 mm, width: 22 mm, thickness: 1 mm}")
+    t = np.linspace(0, 10, 101)
+    lam = 1 + 0.05 * t
+    ds = simulate(card, RIZZELLO, t, lam, 0.0, model="1r")
+    assert np.all(ds["capacitance"].values == 0.0)  # no electrode, no capacitance
+    sigma = 2 * (lam**2 - 1 / lam) * W1(lam**2 + 2 / lam - 3, RIZZELLO)
+    np.testing.assert_allclose(ds["force"].values, sigma * 22e-6 / lam, rtol=1e-12, atol=1e-12)
