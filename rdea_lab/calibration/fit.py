@@ -11,7 +11,7 @@ from scipy.optimize import minimize
 from .. import __version__
 from ..specs import ParameterSet, SpecError
 from .objective import goodness, predict_force, residuals
-from .parameters import FitParameter, fit_parameters, values_of, with_values
+from .parameters import fit_parameters, values_of, with_values
 
 
 class _OutOfBudget(Exception):

@@ -71,3 +71,15 @@ def flush_stdout():
         sys.stdout.flush()
     except BrokenPipeError:
         pass
+
+
+def project_file(given: str | None, default: str, option: str) -> str:
+    """``given``, or the project's ``default`` file (e.g. ``params/paper2021_table3.yaml``) when absent."""
+    if given is not None:
+        return given
+    from ..paths import project_root
+
+    root = project_root()
+    if root is None or not (root / default).is_file():
+        die(f"{option}: required here (no {default} to default to)")
+    return str(root / default)

@@ -10,9 +10,8 @@ from pathlib import Path
 
 import click
 
-from ..paths import project_root
 from ..specs import load_specimen
-from .errors import die, flush_stdout
+from .errors import die, flush_stdout, project_file
 
 DEFAULT_TRUTH = "truth/paper2021.yaml"
 _FAULT = re.compile(r"^(?P<kind>[a-z]+)-at=(?P<at>.+)$")
@@ -90,11 +89,7 @@ def register(cli: click.Group) -> None:
         if token is None and not is_loopback(host):
             die(f"--host {host}: not a loopback address; give --token-file so that only clients "
                 "with the token can drive the rig")
-        if truth_path is None:
-            root = project_root()
-            if root is None or not (root / DEFAULT_TRUTH).is_file():
-                die(f"--truth: required here (no {DEFAULT_TRUTH} to default to)")
-            truth_path = str(root / DEFAULT_TRUTH)
+        truth_path = project_file(truth_path, DEFAULT_TRUTH, "--truth")
         card = load_specimen(card_path)
         truth = load_truth(truth_path)
         try:

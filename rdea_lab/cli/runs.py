@@ -11,9 +11,8 @@ from pathlib import Path
 
 import click
 
-from ..paths import project_root
 from ..specs import load_params, load_specimen
-from .errors import die
+from .errors import die, project_file
 
 DEFAULT_PARAMS = "params/paper2021_table3.yaml"
 
@@ -95,12 +94,7 @@ def register(cli: click.Group) -> None:
         if backend != "rig" and (rig_address or token_file):
             die("--rig and --token-file: only with --backend rig")
         if backend == "twin":
-            if params_path is None:
-                root = project_root()
-                if root is None or not (root / DEFAULT_PARAMS).is_file():
-                    die("--params: required here (no params/paper2021_table3.yaml to default to)")
-                params_path = str(root / DEFAULT_PARAMS)
-            params = load_params(params_path)
+            params = load_params(project_file(params_path, DEFAULT_PARAMS, "--params"))
             executor = TwinBackend(card, params, model=model.lower(), tolerance=tolerance, realtime=realtime,
                                    seed=seed)
         elif params_path:
@@ -125,12 +119,7 @@ def register(cli: click.Group) -> None:
             except ValueError as exc:
                 die(f"--fault: {exc}")
             from ..specs.truth import load_truth
-            if truth_path is None:
-                root = project_root()
-                if root is None or not (root / DEFAULT_TRUTH).is_file():
-                    die(f"--truth: required here (no {DEFAULT_TRUTH} to default to)")
-                truth_path = str(root / DEFAULT_TRUTH)
-            truth = load_truth(truth_path)
+            truth = load_truth(project_file(truth_path, DEFAULT_TRUTH, "--truth"))
         if dry_run:
             click.echo(plan.describe())
             click.echo(f"limits: ok for {card.id} (L3 = {geom.L3 * 1e6:g} um)")
