@@ -10,16 +10,14 @@ import click
 from ..specs import load_specimen
 from .errors import die
 
-VHB_CREDIT = "VHB 4910 data: github.com/Chongran-Zhao/VHB4910_data (uniaxial-loading-unloading/original_data)"
-
-
 def register(cli: click.Group) -> None:
     """Add ``import`` to ``cli``."""
     from ..store.importers import FORMATS, KINDS, MIN_STRETCH
 
     @cli.command(name="import")
     @click.argument("files", nargs=-1, required=True, type=click.Path())
-    @click.option("--format", "fmt", required=True, type=click.Choice(FORMATS), help="How the files are written.")
+    @click.option("--format", "fmt", required=True, metavar="|".join(FORMATS),
+                  help="How the files are written: " + ", ".join(FORMATS) + ".")
     @click.option("--map", "map_text", required=True, metavar="KEY=COL,...",
                   help="Columns of time, position, force [, voltage, capacitance]: a name or a 0-based index "
                        "(CSV: a header name; TDMS: group/channel or a channel's name; .mat: a vector's name or "
@@ -49,9 +47,9 @@ def register(cli: click.Group) -> None:
 
         \b
         Examples:
-          # a VHB 4910 strip, loaded to stretch 1.5 at three rates; the files'
-          # units row (s),(mm),(N) gives the units. Data by Chongran Zhao et al.,
-          # github.com/Chongran-Zhao/VHB4910_data, credited in the datasets:
+          # a VHB 4910 strip loaded to stretch 1.5 at three rates; the units row
+          # (s),(mm),(N) gives the units. Data from the public repository
+          # Chongran-Zhao/VHB4910_data (GitHub), credited in the datasets:
           rdea-lab import ../shared/data/vhb4910/*.csv --format csv \\
               --map time=0,position=1,force=2 --protocol-kind tensile \\
               --specimen tests/store/import_data/vhb4910.yaml \\
@@ -63,8 +61,9 @@ def register(cli: click.Group) -> None:
               --specimen specimens/specimen2.yaml --protocol-kind custom
         """
         from ..physics.geometry import geometry_from_card
-        from ..store.importers import ImportOptions, import_files, parse_map, parse_units
+        from ..store.importers import ImportOptions, check_format, import_files, parse_map, parse_units
 
+        check_format(fmt, files[0])
         mapping = parse_map(map_text)
         units = parse_units(units_text, mapping)
         card = load_specimen(card_path)
