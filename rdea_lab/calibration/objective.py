@@ -16,6 +16,10 @@ from ..specs import specimen_from_yaml
 from ..store import open_run
 
 
+#: Measured stretch below this is a compressed specimen (an error); between it and 1, noise.
+MIN_STRETCH = 0.999
+
+
 @dataclass
 class RunData:
     """One measured run, with what every evaluation reuses precomputed.
@@ -31,6 +35,10 @@ class RunData:
         Measured histories [s], [-], [V], [N] (finite samples only).
     peak : float
         Largest |measured force| [N]: the run's error scale (Table 4).
+    excluded : int
+        Samples left out: stretch within noise below 1 (``MIN_STRETCH`` <= stretch < 1).
+    index : numpy.ndarray
+        Positions in the dataset of the samples kept (to align its other variables).
     """
 
     path: Path
@@ -44,6 +52,8 @@ class RunData:
     voltage: np.ndarray
     force: np.ndarray
     peak: float
+    excluded: int = 0
+    index: np.ndarray = field(default=None, repr=False)
     _basis: tuple = field(default=None, repr=False)
 
     @property
@@ -78,15 +88,21 @@ def load_run(path: Path) -> RunData:
     card = specimen_from_yaml(ds.attrs["specimen"], f"{path} (attribute 'specimen')")
     t, lam, v, f = (np.asarray(ds[k].values, float) for k in ("time", "stretch", "voltage", "force"))
     ok = np.isfinite(t) & np.isfinite(lam) & np.isfinite(v) & np.isfinite(f)
-    if ok.sum() < 10:
-        raise ValueError(f"{path}: fewer than 10 finite samples of time, stretch, voltage and force")
-    lam = lam[ok]
-    if np.any(lam < 1.0):
-        raise ValueError(f"{path}: stretch {lam.min():.6g} below 1 (the roll must stay in tension)")
-    f = f[ok]
-    return RunData(Path(path), file_hash(path), ds.attrs.get("protocol_name", Path(path).stem),
-                   ds.attrs.get("protocol_kind", "custom"), card.id, geometry_from_card(card), t[ok], lam, v[ok], f,
-                   float(np.max(np.abs(f))))
+    if np.any(lam[ok] < MIN_STRETCH):
+        raise ValueError(f"{path}: stretch {np.min(lam[ok]):.6g} below {MIN_STRETCH} (the specimen must stay in "
+                         "tension; more than measurement noise around the unloaded length)")
+    # measured stretches a hair below 1 (encoder noise at zero load) are left out of the
+    # fit, and counted; the viscoelastic history runs on across them
+    noise = ok & (lam < 1.0)
+    keep = ok & ~noise
+    if keep.sum() < 10:
+        raise ValueError(f"{path}: fewer than 10 usable samples of time, stretch, voltage and force")
+    run = RunData(Path(path), file_hash(path), ds.attrs.get("protocol_name", Path(path).stem),
+                  ds.attrs.get("protocol_kind", "custom"), card.id, geometry_from_card(card), t[keep], lam[keep],
+                  v[keep], f[keep], float(np.max(np.abs(f[keep]))))
+    run.excluded = int(noise.sum())
+    run.index = np.flatnonzero(keep)
+    return run
 
 
 def find_runs(paths, kinds=("tensile",)) -> list[Path]:
@@ -134,6 +150,7 @@ def goodness(run: RunData, predicted: np.ndarray) -> dict:
     r = predicted - run.force
     ss_tot = float(np.sum((run.force - run.force.mean()) ** 2))
     return {"file": str(run.path), "protocol": run.protocol, "specimen": run.specimen, "samples": run.n,
+            "excluded_samples": run.excluded,
             "rms_error_N": float(np.sqrt(np.mean(r**2))), "r2": 1.0 - float(np.sum(r**2)) / ss_tot if ss_tot else 0.0,
             "max_rel_error": float(np.max(np.abs(r)) / run.peak)}
 

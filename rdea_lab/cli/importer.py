@@ -52,7 +52,7 @@ def register(cli: click.Group) -> None:
           # Chongran-Zhao/VHB4910_data (GitHub), credited in the datasets:
           rdea-lab import ../shared/data/vhb4910/*.csv --format csv \\
               --map time=0,position=1,force=2 --protocol-kind tensile \\
-              --specimen tests/store/import_data/vhb4910.yaml \\
+              --specimen specimens/vhb4910_strip.yaml \\
               --credit "github.com/Chongran-Zhao/VHB4910_data"
           rdea-lab import run.tdms --format tdms --map time=Rig/t,position=Rig/x,force=load \\
               --units position=um --specimen specimens/specimen2.yaml --protocol-kind tensile

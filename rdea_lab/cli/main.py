@@ -19,6 +19,7 @@ from ..specs import load_params, load_specimen, parse_quantity
 from ..twin.curves import CURVE_FIELDS, quasi_static_curves
 from .errors import die, run
 from .calibrate import register as register_calibrate
+from .importer import register as register_import
 from .report import register as register_report
 from .rig import register as register_rig
 from .runs import register as register_run_commands
@@ -269,6 +270,7 @@ register_campaign(cli)
 register_rig(cli)
 register_calibrate(cli)
 register_report(cli)
+register_import(cli)
 
 
 def main(argv=None):

@@ -171,10 +171,7 @@ def evaluate_run(path: Path, params, model: str, tolerance: float) -> tuple[dict
     run = load_run(path)
     ds = open_run(path)
     a = ds.attrs
-    # the samples load_run kept, to align capacitance and position with them
-    ok = np.ones(ds.sizes["time"], bool)
-    for k in ("time", "stretch", "voltage", "force"):
-        ok &= np.isfinite(np.asarray(ds[k].values, float))
+    ok = run.index  # the samples load_run kept: align position and capacitance with them
     position = (np.asarray(ds["position"].values, float)[ok] if "position" in ds
                 else (run.stretch - 1.0) * run.geom.L1)
     cap = np.asarray(ds["capacitance"].values, float)[ok] if "capacitance" in ds else np.full(run.n, np.nan)
