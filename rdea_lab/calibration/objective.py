@@ -142,7 +142,7 @@ def predict_force(run: RunData, params, model: str) -> np.ndarray:
         sigma = sigma + k @ viscoelastic.branch_strains(run.t, run.stretch, tau)
     if params.eta_v0:
         sigma = sigma + params.eta_v0 * viscoelastic.stretch_rate(run.t, run.stretch)
-    return sigma * run.geom.area / run.stretch
+    return run.geom.carried_force(sigma * run.geom.area / run.stretch)
 
 
 def goodness(run: RunData, predicted: np.ndarray) -> dict:

@@ -208,6 +208,11 @@ class RollGeometry:
         """Electrode coverage along the axis ``L1e / L1``, eq. (13)."""
         return self.L1e / self.L1
 
+    @staticmethod
+    def carried_force(force):
+        """The force the roll carries [N]: the model's (a roll stays in tension, Assumption 1)."""
+        return force
+
     def C0(self, eps_r: float) -> float:
         """Capacitance of the undeformed roll [F], eq. (29).
 
@@ -288,6 +293,12 @@ class StripGeometry:
     @property
     def alpha_e1(self) -> float:
         return self.electrode_length / self.length
+
+    @staticmethod
+    def carried_force(force):
+        """The force the strip can carry [N]: a thin membrane buckles (goes slack)
+        instead of carrying compression, so a compressive model force reads 0."""
+        return np.maximum(force, 0.0)
 
     def C0(self, eps_r: float) -> float:
         """Capacitance of the undeformed strip ``eps0 eps_r A_e / thickness`` [F]."""

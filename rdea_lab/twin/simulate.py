@@ -71,7 +71,7 @@ def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
     data = {
         "stretch": stretch,
         "voltage": voltage,
-        "force": sigma * geom.area / stretch,
+        "force": geom.carried_force(sigma * geom.area / stretch),
         "capacitance": res.capacitance,
         "sigma1": sigma,
         "sigma1_irr": sigma_irr,
@@ -149,5 +149,5 @@ class TwinStream:
             self._last = (t[ok][-1], stretch[ok][-1], None)
         sigma_irr[~ok] = np.nan
         sigma = res.sigma1 + sigma_irr
-        return {"force": sigma * self.geom.area / stretch, "capacitance": res.capacitance,
+        return {"force": self.geom.carried_force(sigma * self.geom.area / stretch), "capacitance": res.capacitance,
                 "sigma1": sigma, "model_status": res.status, "summary": res.summary()}

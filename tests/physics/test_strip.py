@@ -79,3 +79,23 @@ def test_twin_on_a_strip_without_electrode():
     assert np.all(ds["capacitance"].values == 0.0)  # no electrode, no capacitance
     sigma = 2 * (lam**2 - 1 / lam) * W1(lam**2 + 2 / lam - 3, RIZZELLO)
     np.testing.assert_allclose(ds["force"].values, sigma * 22e-6 / lam, rtol=1e-12, atol=1e-12)
+
+
+def test_a_strip_goes_slack_instead_of_pushing_and_a_roll_does_not():
+    """Unloading faster than the material relaxes drives the viscoelastic stress below
+    zero: a thin strip buckles and carries no force (what a tensile machine measures),
+    while the roll model keeps its stress (Assumption 1 keeps a roll in tension)."""
+    from rdea_lab.specs import ParameterSet, ViscoBranch
+    soft = ParameterSet(name="v", C10=20e3, C20=0.0, C30=0.0, eps_r=4.7,
+                        branches=(ViscoBranch(k=50e3, eta=5e5),))
+    t = np.linspace(0, 20, 2001)
+    lam = 1 + 0.5 * (1 - np.abs(t - 10) / 10)  # up to 1.5 and back at 0.05 /s
+    strip = simulate(specimen_from_yaml("{id: v, kind: strip, length: 80 mm, width: 22 mm, thickness: 1 mm}"),
+                     soft, t, lam, 0.0, model="1r")
+    roll = simulate(geometry_from_card(specimen_from_yaml(CARD)), soft, t, lam, 0.0, model="1r")
+    sigma = roll["sigma1"].values
+    assert np.any(sigma < 0)  # the model's stress does go compressive on the way back
+    np.testing.assert_array_equal(strip["force"].values, np.maximum(sigma * 22e-6 / lam, 0.0))
+    from rdea_lab.physics.geometry import RollGeometry
+    g = RollGeometry(0.0, 0.6e-3, 1.6e-3, 1.7e-3, L1=34e-3, L1e=29e-3, L3=48e-6)
+    assert np.all(g.carried_force(np.array([-1.0, 2.0])) == [-1.0, 2.0])
