@@ -10,7 +10,7 @@ import numpy as np
 
 from ..physics import viscoelastic, yeoh
 from ..physics.geometry import geometry_from_card
-from ..physics.models import solve
+from ..physics.models import solve, su
 from ..physics.models._common import kappa
 from ..specs import specimen_from_yaml
 from ..store import open_run
@@ -67,9 +67,7 @@ class RunData:
     def su_basis(self):
         """``(b, x, l v^2)``: SU stress = b W'(x) - kappa l v^2 (eq. 39), W' = C10 + 2 C20 x + 3 C30 x^2."""
         if self._basis is None:
-            a = np.log(self.stretch)
-            x = np.expm1(2.0 * a) + 2.0 * np.expm1(-a)
-            b = -2.0 * self.stretch**2 * np.expm1(-3.0 * a)
+            b, x = su.basis(self.stretch)
             self._basis = (b, x, self.stretch * self.voltage**2)
         return self._basis
 

@@ -11,6 +11,7 @@ from .. import __version__
 from ..physics import viscoelastic
 from ..physics.geometry import RollGeometry, StripGeometry, geometry_from_card
 from ..physics.models import solve
+from ..physics.result import VALID
 
 #: CF attributes of the variables the twin writes.
 VARIABLES = {
@@ -59,25 +60,20 @@ def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
     """
     geom = _geometry(specimen)
     stretch = np.asarray(stretch, float)
-    t = viscoelastic.check_time(t, stretch.shape)
     voltage = np.broadcast_to(np.asarray(voltage, float), stretch.shape)
-    res = solve(model, geom, params, stretch, voltage)
+    out = TwinStream(geom, params, model).step(t, stretch, voltage)  # the whole series as one block
     branches = tuple(getattr(params, "branches", ()) or ())
     eta_v0 = float(getattr(params, "eta_v0", 0.0) or 0.0)
-    sigma_irr = viscoelastic.overstress(
-        t, stretch, [b.k for b in branches], [b.eta for b in branches], eta_v0
-    )
-    sigma = res.sigma1 + sigma_irr
     data = {
         "stretch": stretch,
         "voltage": voltage,
-        "force": geom.carried_force(sigma * geom.area / stretch),
-        "capacitance": res.capacitance,
-        "sigma1": sigma,
-        "sigma1_irr": sigma_irr,
-        "lambda2b": res.lambda2b,
-        "converged": res.converged.astype(np.int8),
-        "model_status": res.status,
+        "force": out["force"],
+        "capacitance": out["capacitance"],
+        "sigma1": out["sigma1"],
+        "sigma1_irr": out["sigma1_irr"],
+        "lambda2b": out["lambda2b"],
+        "converged": np.isin(out["model_status"], VALID).astype(np.int8),
+        "model_status": out["model_status"],
     }
     ds = xr.Dataset(
         {name: ("time", np.asarray(values), {"units": VARIABLES[name][0], "long_name": VARIABLES[name][1]})
@@ -86,7 +82,7 @@ def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
     )
     ds.attrs.update({
         "model": model,
-        "model_summary": res.summary(),
+        "model_summary": out["summary"],
         "geometry": json.dumps(geom.as_dict(params.eps_r)),
         "parameters": json.dumps({
             "C10": params.C10, "C20": params.C20, "C30": params.C30, "eps_r": params.eps_r,
@@ -150,4 +146,5 @@ class TwinStream:
         sigma_irr[~ok] = np.nan
         sigma = res.sigma1 + sigma_irr
         return {"force": self.geom.carried_force(sigma * self.geom.area / stretch), "capacitance": res.capacitance,
-                "sigma1": sigma, "model_status": res.status, "summary": res.summary()}
+                "sigma1": sigma, "sigma1_irr": sigma_irr, "lambda2b": res.lambda2b, "model_status": res.status,
+                "summary": res.summary()}

@@ -26,6 +26,18 @@ def enthalpy(geom, material, stretch, voltage):
             - kappa(geom, material) * l1 * np.asarray(voltage, float) ** 2)
 
 
+def basis(stretch):
+    """``(b, x)`` with the SU mechanical stress ``b W'(x)`` [Pa], eq. (39).
+
+    ``x = I1 - 3 = e**(2a) + 2 e**(-a) - 3`` and ``b = 2 lambda1**2 (1 - lambda1**-3)``,
+    ``a = ln lambda1``, both in forms that keep their digits near lambda1 = 1.
+    The stress is linear in the Yeoh coefficients through
+    ``W'(x) = C10 + 2 C20 x + 3 C30 x**2``, which a calibration can exploit.
+    """
+    a = np.log(stretch)
+    return -2.0 * stretch * stretch * np.expm1(-3.0 * a), np.expm1(2.0 * a) + 2.0 * np.expm1(-a)
+
+
 def solve(geom, material, stretch, voltage) -> ModelResult:
     """Axial stress, force and capacitance of the SU model.
 
@@ -54,11 +66,9 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
     free coordinate at fixed stretch, hence no limit point.
     """
     l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
-    C = yeoh_coefficients(material)
-    a = np.log(l1)
-    x = np.expm1(2.0 * a) + 2.0 * np.expm1(-a)
-    W1, _ = yeoh.slope(x, C)
-    sigma1 = -2.0 * l1 * l1 * W1 * np.expm1(-3.0 * a) - kappa(geom, material) * l1 * v * v
+    b, x = basis(l1)
+    W1, _ = yeoh.slope(x, yeoh_coefficients(material))
+    sigma1 = b * W1 - kappa(geom, material) * l1 * v * v
     l2 = 1.0 / np.sqrt(l1)
     cap = geom.C0(material.eps_r) * l1
     n = l1.size
