@@ -8,6 +8,7 @@ import time as _time
 import numpy as np
 
 from ..physics.geometry import geometry_from_card
+from ..physics.models import three_ring
 from ..physics.selection import select_model
 from ..specs import dump_params
 from ..twin.simulate import TwinStream
@@ -62,6 +63,8 @@ class TwinBackend:
         self.aborted = None
 
     def start(self, plan):
+        if self.model == "3r":
+            three_ring.check_applicable(self.geom)  # refuse before anything is written
         self._plan = plan
         if self.requested == "auto":
             self.choice = select_model(self.geom, self.params, plan.stretch, plan.voltage, self.tolerance)

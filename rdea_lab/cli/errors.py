@@ -9,7 +9,7 @@ import traceback
 import click
 
 from ..backends.rig import RigRefused
-from ..physics.result import StretchBelowOneError
+from ..physics.result import ModelNotApplicable, StretchBelowOneError
 from ..specs import SpecError
 
 
@@ -45,7 +45,7 @@ def run(group: click.Group, argv=None) -> int:
     except click.ClickException as exc:
         click.echo(f"rdea-lab: {_one_line(exc.format_message())}", err=True)
         return exc.exit_code
-    except (SpecError, StretchBelowOneError, RigRefused) as exc:
+    except (SpecError, StretchBelowOneError, ModelNotApplicable, RigRefused) as exc:
         click.echo(f"rdea-lab: {_one_line(exc)}", err=True)
         return 2
     except KeyboardInterrupt:

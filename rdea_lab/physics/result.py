@@ -27,6 +27,10 @@ STATUS_NAMES = {OK: "ok", LIMIT_POINT: "past limit point", BAD_INPUT: "NaN or in
 VALID = (OK, SNAPPED)
 
 
+class ModelNotApplicable(ValueError):
+    """The model does not describe this specimen (e.g. 3R, a model of a roll's rings, on a strip)."""
+
+
 class StretchBelowOneError(ValueError):
     """A stretch below 1: the roll is compressed, which Assumption 1 of [1] excludes."""
 

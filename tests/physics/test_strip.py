@@ -66,7 +66,8 @@ def test_fully_covered_strip_under_voltage_is_the_classic_de_strip(v):
 
 def test_3r_is_refused_and_auto_picks_1r():
     g = geometry_from_card(specimen_from_yaml(CARD))
-    with pytest.raises(ValueError, match="a strip is the 1R model"):
+    from rdea_lab.physics.result import ModelNotApplicable
+    with pytest.raises(ModelNotApplicable, match="a strip is the 1R model"):
         solve("3r", g, RIZZELLO, 1.2, 0.0)
     assert select_model(g, RIZZELLO, [1.0, 1.5], [0.0, 0.0]).model == "1r"
 
@@ -99,3 +100,20 @@ def test_a_strip_goes_slack_instead_of_pushing_and_a_roll_does_not():
     from rdea_lab.physics.geometry import RollGeometry
     g = RollGeometry(0.0, 0.6e-3, 1.6e-3, 1.7e-3, L1=34e-3, L1e=29e-3, L3=48e-6)
     assert np.all(g.carried_force(np.array([-1.0, 2.0])) == [-1.0, 2.0])
+
+
+def test_3r_on_a_strip_is_a_user_mistake_at_the_command_line(capsys, tmp_path):
+    from pathlib import Path
+
+    from rdea_lab.cli.errors import run as run_cli
+    from rdea_lab.cli.main import cli
+
+    root = Path(__file__).resolve().parents[2]
+    card = str(root / "specimens" / "vhb4910_strip.yaml")
+    for args in (["curve", "--specimen", card, "--params", str(root / "params" / "rizzello2020.yaml"), "--model", "3r"],
+                 ["run", str(root / "protocols" / "tensile_ramp_sine_0V.yaml"), "--specimen", card, "--model", "3r",
+                  "--quiet", "--out", str(tmp_path / "x.nc")]):
+        rc = run_cli(cli, args)
+        err = capsys.readouterr().err
+        assert rc == 2 and "--model 1r" in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "x.nc").exists() and not (tmp_path / "x.nc.part").exists()

@@ -30,7 +30,7 @@ import numpy as np
 
 from .. import yeoh
 from ..branch import follow_branch
-from ..result import ModelResult, finish, prepare_inputs
+from ..result import ModelNotApplicable, ModelResult, finish, prepare_inputs
 from ._common import HOOP_STRETCH_CAP, kappa, yeoh_coefficients
 
 
@@ -125,6 +125,13 @@ def _terms(rings, C):
     return terms
 
 
+def check_applicable(geom) -> None:
+    """Raise ModelNotApplicable unless ``geom`` is a roll."""
+    if getattr(geom, "kind", "roll") != "roll":
+        raise ModelNotApplicable("the 3R model describes a roll's three rings; a strip is the 1R model (eq. 33): "
+                                 "use --model 1r (or su, equal at 0 V)")
+
+
 def enthalpy(geom, material, stretch, voltage, r_i):
     """Free enthalpy density ``g`` [Pa] at a given deformed inner radius ``r_i`` [m].
 
@@ -168,8 +175,7 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
     fixed ``r_i``, which is the total derivative there because ``g`` is
     stationary in ``r_i``); ``C = C0 lambda1**2 lambda2b**2``.
     """
-    if getattr(geom, "kind", "roll") != "roll":
-        raise ValueError("the 3R model describes a roll's three rings; a strip is the 1R model (eq. 33)")
+    check_applicable(geom)
     l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
     C = yeoh_coefficients(material)
     kap = kappa(geom, material)
