@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time as _time
 from dataclasses import dataclass
 
@@ -327,3 +328,38 @@ def initial_guess(runs, M: int, eps_r: float, name="start-from-data") -> Paramet
     return ParameterSet(name=name, C10=C10, C20=0.0, C30=C10 / 20, eps_r=eps_r,
                         branches=tuple(ViscoBranch(k=C10, eta=C10 * tau) for tau in taus), eta_v0=0.0,
                         description="start values estimated from the data by rdea-lab calibrate")
+
+
+def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=None, **kwargs) -> CalibrationResult:
+    """Fit M Maxwell branches one at a time, each from the previous optimum.
+
+    Nelder-Mead started with M branches at once tends to merge them into one time
+    scale. Here the fit with m - 1 branches is extended by a branch 10 times slower
+    than the slowest and, separately, 10 times faster than the fastest (its
+    stiffness a tenth of C10), both fitted, and the better kept; ``start`` supplies
+    the first branch. ``free`` names parameters of the final set (default: all).
+
+    Returns
+    -------
+    CalibrationResult
+        Of the final fit with M branches; its ``message`` says how it grew.
+    """
+    from ..specs import ViscoBranch
+
+    def fit(params):
+        names = [n for n in values_of(params)]
+        return calibrate(runs, params, free=[n for n in names if free is None or n in free],
+                         progress=progress, **kwargs)
+
+    first = start.replace(branches=start.branches[:1])
+    best = fit(first)
+    path = [f"M = 1: {best.objective:.4g}"]
+    for m in range(2, M + 1):
+        taus = [b.tau for b in best.params.branches]
+        k_new = 0.1 * best.params.C10
+        candidates = []
+        for tau in (10 * max(taus), 0.1 * min(taus)):
+            candidates.append(fit(best.params.replace(branches=best.params.branches + (ViscoBranch(k=k_new, eta=k_new * tau),))))
+        best = min(candidates, key=lambda r: r.objective)
+        path.append(f"M = {m}: {best.objective:.4g}")
+    return dataclasses.replace(best, message=f"{best.message} (grown branch by branch: {'; '.join(path)})")

@@ -23,7 +23,8 @@ def register(cli: click.Group) -> None:
     @click.option("--free", "free_text", help="Parameters to fit, e.g. C10,C20,C30,k_v1,eta_v1 "
                                               "[default: every Yeoh and viscoelastic parameter].")
     @click.option("--viscous-branches", "M", type=click.IntRange(0, 6),
-                  help="Maxwell branches M [default: those of --init, or 1].")
+                  help="Maxwell branches M [default: those of --init, or 1]; without --init they are fitted "
+                       "one at a time, each from the previous optimum.")
     @click.option("--eps-r", type=float, default=None, help="Relative permittivity, fixed [default: --init's, or 2.8].")
     @click.option("--protocol-kind", "kinds_text", default="tensile", show_default=True,
                   help=f"For folders: which runs, comma-separated from {', '.join(KINDS)}.")
@@ -106,8 +107,13 @@ def register(cli: click.Group) -> None:
                 click.echo(f"\r  evaluations {n:6d}  best {best:.6e}  elapsed {elapsed:6.1f} s", nl=False, err=True)
 
         try:
-            result = fit(runs, start, model=model, free=free, metric=metric, max_evals=max_evals, max_time=max_time,
-                         progress=progress)
+            if init is None and M > 1:  # from the data: grow the branches one by one (they merge otherwise)
+                from ..calibration.fit import calibrate_growing
+                result = calibrate_growing(runs, initial_guess(runs, 1, eps), M, model=model, free=free, metric=metric,
+                                           max_evals=max_evals, max_time=max_time, progress=progress)
+            else:
+                result = fit(runs, start, model=model, free=free, metric=metric, max_evals=max_evals,
+                             max_time=max_time, progress=progress)
         except ValueError as exc:
             die(f"cannot fit: {exc}")
         if show:
