@@ -27,8 +27,12 @@ def _default_out(card_id: str, plan_name: str) -> Path:
     return Path("datasets") / card_id / f"{plan_name}-{stamp}.nc"
 
 
-def _progress(total: int, quiet: bool, label: str):
-    if quiet or not sys.stderr.isatty():
+def _progress(total: int, quiet: bool, label: str, seconds: float | None = None):
+    """A progress bar on stderr, for runs expected to last over a second (``seconds``,
+    when known), unless ``--quiet`` or stdout is not a terminal."""
+    if quiet or not (sys.stdout.isatty() and sys.stderr.isatty()):
+        return None
+    if seconds is not None and seconds <= 1.0:
         return None
     return click.progressbar(length=total, label=label, file=sys.stderr, show_eta=True, show_percent=True)
 
@@ -142,7 +146,10 @@ def register(cli: click.Group) -> None:
             die(f"{out}: exists; give --force to overwrite or choose --out")
         if out.exists():
             out.unlink()
-        bar = _progress(plan.time.size, quiet, f"{plan.name} on {card.id}")
+        # wall time: the plan's duration when paced (a rig always is), else about 1e5 samples/s
+        paced = realtime or backend == "rig"
+        bar = _progress(plan.time.size, quiet, f"{plan.name} on {card.id}",
+                        seconds=plan.duration if paced else plan.time.size / 1e5)
         command = "rdea-lab " + " ".join(shlex.quote(a) for a in sys.argv[1:])
         with contextlib.ExitStack() as stack:
             if backend == "emulator":
