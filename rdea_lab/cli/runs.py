@@ -27,6 +27,23 @@ def _default_out(card_id: str, plan_name: str) -> Path:
     return Path("datasets") / card_id / f"{plan_name}-{stamp}.nc"
 
 
+def _clear_outputs(paths, overwrite: bool) -> None:
+    """Check every dataset to be written before any run starts: an unfinished run's
+    journal in the way, or an existing file without ``--force``, is refused; with
+    ``--force`` the existing files are removed."""
+    from ..store import journal_path
+
+    for out in paths:
+        if journal_path(out).exists():
+            die(f"{out}: an unfinished run's journal {journal_path(out)} is in the way; "
+                "rdea-lab recover it, or remove it")
+        if out.exists() and not overwrite:
+            die(f"{out}: exists; give --force to overwrite, or choose another --out")
+    for out in paths:
+        if out.exists():
+            out.unlink()
+
+
 def _progress(total: int, quiet: bool, label: str, seconds: float | None = None):
     """A progress bar on stderr, for runs expected to last over a second (``seconds``,
     when known), unless ``--quiet`` or stdout is not a terminal."""
@@ -138,14 +155,7 @@ def register(cli: click.Group) -> None:
                 click.echo(f"emulator: truth {truth.name}" + (f", faults {', '.join(faults)}" if faults else ""))
             return
         out = Path(out_path) if out_path else _default_out(card.id, plan.name)
-        from ..store import journal_path
-        if journal_path(out).exists():
-            die(f"{out}: an unfinished run's journal {journal_path(out)} is in the way; "
-                "rdea-lab recover it, or remove it")
-        if out.exists() and not overwrite:
-            die(f"{out}: exists; give --force to overwrite or choose --out")
-        if out.exists():
-            out.unlink()
+        _clear_outputs([out], overwrite)
         # wall time: the plan's duration when paced (a rig always is), else about 1e5 samples/s
         paced = realtime or backend == "rig"
         bar = _progress(plan.time.size, quiet, f"{plan.name} on {card.id}",
@@ -301,18 +311,10 @@ def register_campaign(cli: click.Group) -> None:
         """
         from ..runs.campaign import experiments, run_campaign
         from ..specs.campaign import load_campaign
-        from ..store import journal_path
 
         spec, root = load_campaign(file)
         runs = experiments(spec, root, out_dir)
-        for r in runs:
-            if journal_path(r.out).exists():
-                die(f"{r.out}: an unfinished run's journal is in the way; rdea-lab recover it, or remove it")
-            if r.out.exists() and not overwrite:
-                die(f"{r.out}: exists; give --force to overwrite, or --out another folder")
-        for r in runs:
-            if r.out.exists():
-                r.out.unlink()
+        _clear_outputs([r.out for r in runs], overwrite)
         total = sum(r.plan.time.size for r in runs)
         click.echo(f"campaign {spec.name}: {len(runs)} runs, {total} samples, backend {spec.backend}")
         bar = _progress(total, quiet, spec.name)
