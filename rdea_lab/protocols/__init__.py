@@ -6,11 +6,11 @@ read-only arrays and returns a `Plan`; `check_plan` lists every limit
 violation, `first_violation` raises the first.
 """
 
-from .plan import Plan, check_plan, expand, first_violation, load_plan
+from .plan import Plan, as_plan, check_plan, expand, first_violation, load_plan
 from .presets import BUILDERS, expand_preset
 from .segments import describe, end_value, evaluate, render
 
 __all__ = [
-    "BUILDERS", "Plan", "check_plan", "describe", "end_value", "evaluate", "expand", "expand_preset",
+    "BUILDERS", "Plan", "as_plan", "check_plan", "describe", "end_value", "evaluate", "expand", "expand_preset",
     "first_violation", "load_plan", "render",
 ]

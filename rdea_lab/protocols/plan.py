@@ -14,14 +14,10 @@ import numpy as np
 
 from ..specs.errors import SpecError
 from ..specs.protocol import REST, Limits, ProtocolSpec, dump_protocol, load_protocol, rate_text
+from ..specs.limits import SLACK as _SLACK, limit_violations
 from ..specs.units import format_quantity
 from . import segments as seg
 from .presets import expand_preset
-
-#: relative slack of the limit checks: rounding of a ramp or sine that ends
-#: exactly on a limit (a stretch of 1 - 1e-16) is not a violation
-_SLACK = 1e-12
-
 
 def _readonly(array: np.ndarray) -> np.ndarray:
     array.setflags(write=False)
@@ -182,18 +178,21 @@ def load_plan(path: str | os.PathLike) -> Plan:
     return expand(load_protocol(path))
 
 
+def as_plan(protocol) -> Plan:
+    """A `Plan` from a plan, a `ProtocolSpec` or the path of a protocol file."""
+    if isinstance(protocol, Plan):
+        return protocol
+    if isinstance(protocol, ProtocolSpec):
+        return expand(protocol)
+    if isinstance(protocol, (str, os.PathLike)):
+        return load_plan(protocol)
+    raise TypeError(f"protocol: expected a Plan, a ProtocolSpec or the path of a protocol file (YAML), "
+                    f"got {type(protocol).__name__}")
+
+
 # ---------------------------------------------------------------- limits
-def _shown(value: float, limit: float, fmt) -> str:
-    """`value` with just enough digits to differ from `limit`."""
-    for digits in (4, 6, 9, 12, 17):
-        text = fmt(value, digits)
-        if text != fmt(limit, digits):
-            return text
-    return text
-
-
 def check_plan(plan: Plan, L3: float | None = None) -> list[SpecError]:
-    """Every limit violation of a plan, one `SpecError` per check and segment.
+    """Every limit violation of a plan, one `LimitError` per check and segment.
 
     Checks: stretch >= 1 (the roll must stay in tension), stretch <=
     ``max_stretch``, ``|voltage| <= max_voltage`` and, if `L3` is given, the
@@ -208,51 +207,13 @@ def check_plan(plan: Plan, L3: float | None = None) -> list[SpecError]:
 
     Returns
     -------
-    list of SpecError
+    list of LimitError
         Field ``stretch[i]`` or ``voltage[i]`` (the segment holding the worst
-        sample); the message names the worst value, its time, the limit and,
-        if more than one sample exceeds it, the span. Ordered by the time the
-        limit is first exceeded. Empty if the plan is within its limits.
+        sample); see `rdea_lab.specs.limits.limit_violations`. Empty if the
+        plan is within its limits.
     """
-    lim, t = plan.limits, plan.time
-    found: list[tuple[float, int, SpecError]] = []
-
-    def report(order, mask, excess, channel, segment, message):
-        idx = np.flatnonzero(mask)
-        if idx.size == 0:
-            return
-        for group in np.split(idx, np.flatnonzero(np.diff(segment[idx])) + 1):
-            worst = int(group[np.argmax(excess[group])])
-            span = f" (exceeded from t = {_seconds(t[group[0]])} to {_seconds(t[group[-1]])})" if group.size > 1 else ""
-            text = f"{message(worst)}{span}"
-            found.append((t[group[0]], order, SpecError(plan.source, f"{channel}[{segment[worst]}]", text)))
-
-    x, v = plan.stretch, plan.voltage
-    at = lambda k: f"at t = {_seconds(t[k])}"  # noqa: E731
-    plain = lambda value, digits: f"{value:.{digits}g}"  # noqa: E731
-    volts = lambda value, digits: format_quantity(value, "kV", digits=digits)  # noqa: E731
-    field = lambda value, digits: format_quantity(value, "V/um", digits=digits)  # noqa: E731
-
-    report(0, x < 1.0 - _SLACK, 1.0 - x, "stretch", plan.stretch_segment,
-           lambda k: f"stretch {_shown(x[k], 1.0, plain)} {at(k)} is below 1; the roll must stay in tension")
-    report(1, x > lim.max_stretch * (1.0 + _SLACK), x - lim.max_stretch, "stretch", plan.stretch_segment,
-           lambda k: f"stretch {_shown(x[k], lim.max_stretch, plain)} {at(k)} is above the limit "
-                     f"max_stretch = {lim.max_stretch:g}")
-    av = np.abs(v)
-    report(2, av > lim.max_voltage * (1.0 + _SLACK), av, "voltage", plan.voltage_segment,
-           lambda k: f"voltage {_shown(v[k], math.copysign(lim.max_voltage, v[k]), volts)} {at(k)} is "
-                     f"{'above' if v[k] > 0 else 'beyond (in magnitude)'} the limit "
-                     f"max_voltage = {volts(lim.max_voltage, 4)}")
-    if L3 is not None:
-        if not (math.isfinite(L3) and L3 > 0.0):
-            raise ValueError(f"L3 must be a finite thickness > 0 m, got {L3!r}")
-        E = av * np.sqrt(np.maximum(x, 0.0)) / L3
-        report(3, E > lim.max_field * (1.0 + _SLACK), E, "voltage", plan.voltage_segment,
-               lambda k: f"field estimate |v| sqrt(stretch) / L3 = {_shown(E[k], lim.max_field, field)} "
-                         f"(voltage {volts(v[k], 4)}, stretch {x[k]:.4g}, L3 = {format_quantity(L3, 'um', digits=4)}) "
-                         f"{at(k)} is above the limit max_field = {field(lim.max_field, 4)}")
-    found.sort(key=lambda item: (item[0], item[1]))
-    return [err for _, _, err in found]
+    return limit_violations(plan.limits, plan.source, plan.time, plan.stretch, plan.voltage, L3,
+                            plan.stretch_segment, plan.voltage_segment)
 
 
 def first_violation(plan: Plan, L3: float | None = None) -> None:
@@ -268,4 +229,4 @@ def first_violation(plan: Plan, L3: float | None = None) -> None:
         raise problems[0]
 
 
-__all__ = ["Plan", "check_plan", "expand", "first_violation", "load_plan"]
+__all__ = ["Plan", "as_plan", "check_plan", "expand", "first_violation", "load_plan"]

@@ -7,7 +7,9 @@ user mistake raises `SpecError`, whose ``str`` is one line
 ``"{source}: {field}: {message}"``.
 """
 
+from .coerce import as_params, as_protocol, as_specimen
 from .errors import SpecError
+from .limits import LimitError, check_limits, limit_violations
 from .params import (
     ParameterSet,
     ViscoBranch,
@@ -46,9 +48,11 @@ from .truth import (
     truth_from_yaml,
     truth_json,
 )
+from .tokens import read_token
 from .units import format_quantity, parse_quantity, ureg
 
 __all__ = [
+    "as_params", "as_protocol", "as_specimen", "LimitError", "check_limits", "limit_violations", "read_token",
     "Limits", "ProtocolSpec", "dump_protocol", "load_protocol", "protocol_from_mapping", "protocol_from_yaml",
     "Membrane", "ParameterSet", "Radii", "SpecError", "SpecimenCard", "ViscoBranch",
     "dump_params", "dump_specimen", "format_quantity", "load_params", "load_specimen",

@@ -1,0 +1,123 @@
+"""Safety limits checked on setpoint or stretch/voltage arrays, before anything moves.
+
+One implementation for a protocol's plan (`rdea_lab.protocols.check_plan`, which
+passes the segment each sample belongs to) and for a bare history given to the
+twin with a protocol (`rdea_lab.twin.predict`). The rig server keeps its own,
+independent check (it is the stand-in for separate hardware).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import SpecError
+from .protocol_segments import Limits
+from .units import format_quantity
+
+#: relative slack of the limit checks: rounding of a ramp or sine that ends
+#: exactly on a limit (a stretch of 1 - 1e-16) is not a violation
+SLACK = 1e-12
+
+
+class LimitError(SpecError):
+    """A setpoint or history beyond a safety limit, found before anything moved (exit status 2)."""
+
+
+def _seconds(t: float) -> str:
+    return format_quantity(t, "s", digits=6)
+
+
+def _shown(value: float, limit: float, fmt) -> str:
+    """`value` with just enough digits to differ from `limit`."""
+    for digits in (4, 6, 9, 12, 17):
+        text = fmt(value, digits)
+        if text != fmt(limit, digits):
+            return text
+    return text
+
+
+def limit_violations(limits: Limits, source: str, time, stretch, voltage, L3: float | None = None,
+                     stretch_segment=None, voltage_segment=None) -> list[LimitError]:
+    """Every limit violation of stretch and voltage arrays, one `LimitError` per check and segment.
+
+    Checks: stretch >= 1 (the roll must stay in tension), stretch <=
+    ``max_stretch``, ``|voltage| <= max_voltage`` and, if `L3` is given, the
+    field estimate ``E = |v| sqrt(stretch) / L3 <= max_field``. ``max_force``
+    is enforced while running, not here.
+
+    Parameters
+    ----------
+    limits : Limits
+    source : str
+        Where the arrays come from (a protocol file), for the messages.
+    time, stretch, voltage : array_like, shape (n,)
+        Sample times [s], stretch [-], voltage [V]. NaN samples are not checked.
+    L3 : float, optional
+        Membrane thickness of the specimen [m].
+    stretch_segment, voltage_segment : array_like of int, optional
+        Segment of each sample, per channel (a plan's); the error's field is then
+        ``stretch[i]`` / ``voltage[i]``, else ``stretch`` / ``voltage``.
+
+    Returns
+    -------
+    list of LimitError
+        The message names the worst value, its time, the limit and, if more
+        than one sample exceeds it, the span. Ordered by the time the limit is
+        first exceeded. Empty if every sample is within the limits.
+    """
+    lim = limits
+    t = np.asarray(time, float)
+    x = np.asarray(stretch, float)
+    v = np.broadcast_to(np.asarray(voltage, float), x.shape)
+    found: list[tuple[float, int, LimitError]] = []
+
+    def report(order, mask, excess, channel, segment, message):
+        idx = np.flatnonzero(mask)
+        if idx.size == 0:
+            return
+        groups = [idx] if segment is None else np.split(idx, np.flatnonzero(np.diff(segment[idx])) + 1)
+        for group in groups:
+            worst = int(group[np.argmax(excess[group])])
+            span = f" (exceeded from t = {_seconds(t[group[0]])} to {_seconds(t[group[-1]])})" if group.size > 1 else ""
+            field = channel if segment is None else f"{channel}[{segment[worst]}]"
+            found.append((t[group[0]], order, LimitError(source, field, f"{message(worst)}{span}")))
+
+    at = lambda k: f"at t = {_seconds(t[k])}"  # noqa: E731
+    plain = lambda value, digits: f"{value:.{digits}g}"  # noqa: E731
+    volts = lambda value, digits: format_quantity(value, "kV", digits=digits)  # noqa: E731
+    field = lambda value, digits: format_quantity(value, "V/um", digits=digits)  # noqa: E731
+    ss = None if stretch_segment is None else np.asarray(stretch_segment)
+    vs = None if voltage_segment is None else np.asarray(voltage_segment)
+
+    with np.errstate(invalid="ignore"):
+        report(0, x < 1.0 - SLACK, 1.0 - x, "stretch", ss,
+               lambda k: f"stretch {_shown(x[k], 1.0, plain)} {at(k)} is below 1; the roll must stay in tension")
+        report(1, x > lim.max_stretch * (1.0 + SLACK), x - lim.max_stretch, "stretch", ss,
+               lambda k: f"stretch {_shown(x[k], lim.max_stretch, plain)} {at(k)} is above the limit "
+                         f"max_stretch = {lim.max_stretch:g}")
+        av = np.abs(v)
+        report(2, av > lim.max_voltage * (1.0 + SLACK), av, "voltage", vs,
+               lambda k: f"voltage {_shown(v[k], math.copysign(lim.max_voltage, v[k]), volts)} {at(k)} is "
+                         f"{'above' if v[k] > 0 else 'beyond (in magnitude)'} the limit "
+                         f"max_voltage = {volts(lim.max_voltage, 4)}")
+        if L3 is not None:
+            if not (math.isfinite(L3) and L3 > 0.0):
+                raise ValueError(f"L3 must be a finite thickness > 0 m, got {L3!r}")
+            E = av * np.sqrt(np.maximum(x, 0.0)) / L3
+            report(3, E > lim.max_field * (1.0 + SLACK), E, "voltage", vs,
+                   lambda k: f"field estimate |v| sqrt(stretch) / L3 = {_shown(E[k], lim.max_field, field)} "
+                             f"(voltage {volts(v[k], 4)}, stretch {x[k]:.4g}, "
+                             f"L3 = {format_quantity(L3, 'um', digits=4)}) {at(k)} is above the limit "
+                             f"max_field = {field(lim.max_field, 4)}")
+    found.sort(key=lambda item: (item[0], item[1]))
+    return [err for _, _, err in found]
+
+
+def check_limits(limits: Limits, source: str, time, stretch, voltage, L3: float | None = None,
+                 stretch_segment=None, voltage_segment=None) -> None:
+    """Raise the first `LimitError` of `limit_violations`, if any."""
+    problems = limit_violations(limits, source, time, stretch, voltage, L3, stretch_segment, voltage_segment)
+    if problems:
+        raise problems[0]
