@@ -7,17 +7,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import xarray as xr
 
-from ..physics import viscoelastic, yeoh
 from ..physics.geometry import geometry_from_card
 from ..physics.models import solve, su
-from ..physics.models._common import kappa
+from ..twin import MIN_STRETCH, compose, viscous
 from ..specs import specimen_from_yaml
 from ..store import open_run
-
-
-#: Measured stretch below this is a compressed specimen (an error); between it and 1, noise.
-MIN_STRETCH = 0.999
 
 
 @dataclass
@@ -65,10 +61,9 @@ class RunData:
         return bool(np.all(np.abs(self.voltage) < 1.0))
 
     def su_basis(self):
-        """``(b, x, l v^2)``: SU stress = b W'(x) - kappa l v^2 (eq. 39), W' = C10 + 2 C20 x + 3 C30 x^2."""
+        """The SU stress basis of the run's history (:func:`rdea_lab.physics.models.su.stress_basis`), cached."""
         if self._basis is None:
-            b, x = su.basis(self.stretch)
-            self._basis = (b, x, self.stretch * self.voltage**2)
+            self._basis = su.stress_basis(self.stretch, self.voltage)
         return self._basis
 
 
@@ -80,9 +75,28 @@ def file_hash(path: Path) -> str:
     return h.hexdigest()
 
 
-def load_run(path: Path) -> RunData:
-    """Read a run dataset (the rdea-lab schema) for fitting."""
-    ds = open_run(path)
+def load_run(path) -> RunData:
+    """Read a run dataset (the rdea-lab schema) for fitting; a Dataset in memory is taken as it is."""
+    if isinstance(path, xr.Dataset):
+        return run_data(path)
+    return run_data(open_run(path), Path(path), file_hash(path))
+
+
+def run_data(ds: xr.Dataset, path: Path | None = None, sha256: str | None = None) -> RunData:
+    """A run dataset as `RunData`; ``path`` and ``sha256`` default to its source file's (or a hash of its data)."""
+    if path is None:
+        source = ds.encoding.get("source")
+        path = Path(source) if source else Path(f"<dataset {ds.attrs.get('run_id', '?')}>")
+        if sha256 is None:
+            if source and Path(source).is_file():
+                sha256 = file_hash(source)
+            else:
+                h = hashlib.sha256()
+                for k in ("time", "stretch", "voltage", "force"):
+                    h.update(np.ascontiguousarray(ds[k].values, "<f8").tobytes())
+                sha256 = h.hexdigest()
+    if "specimen" not in ds.attrs:
+        raise ValueError(f"{path}: no 'specimen' attribute; not an rdea-lab run")
     card = specimen_from_yaml(ds.attrs["specimen"], f"{path} (attribute 'specimen')")
     t, lam, v, f = (np.asarray(ds[k].values, float) for k in ("time", "stretch", "voltage", "force"))
     ok = np.isfinite(t) & np.isfinite(lam) & np.isfinite(v) & np.isfinite(f)
@@ -95,7 +109,7 @@ def load_run(path: Path) -> RunData:
     keep = ok & ~noise
     if keep.sum() < 10:
         raise ValueError(f"{path}: fewer than 10 usable samples of time, stretch, voltage and force")
-    run = RunData(Path(path), file_hash(path), ds.attrs.get("protocol_name", Path(path).stem),
+    run = RunData(Path(path), sha256, ds.attrs.get("protocol_name", Path(path).stem),
                   ds.attrs.get("protocol_kind", "custom"), card.id, geometry_from_card(card), t[keep], lam[keep],
                   v[keep], f[keep], float(np.max(np.abs(f[keep]))))
     run.excluded = int(noise.sum())
@@ -110,7 +124,6 @@ def find_runs(paths, kinds=("tensile",)) -> list[Path]:
         if p.is_dir():
             for f in sorted(p.rglob("*.nc")):
                 try:
-                    import xarray as xr
                     with xr.open_dataset(f) as ds:
                         if ds.attrs.get("protocol_kind") in kinds and ds.attrs.get("status") == "complete":
                             out.append(f)
@@ -126,21 +139,14 @@ def predict_force(run: RunData, params, model: str) -> np.ndarray:
 
     For SU, and for every model at 0 V (uniaxial kinematics), the quasi-static
     stress is linear in the Yeoh coefficients: a cached basis makes it three
-    vector operations. Otherwise the model is solved.
+    vector operations. Otherwise the model is solved. The rest is the twin's
+    own composition of eqs. (43), (44) and (16) (:func:`rdea_lab.twin.compose`).
     """
     if model == "su" or run.zero_voltage:
-        b, x, lv2 = run.su_basis()
-        W1, _ = yeoh.slope(x, (params.C10, params.C20, params.C30))
-        sigma = b * W1 - kappa(run.geom, params) * lv2
+        sigma_rev = su.stress_from_basis(run.su_basis(), run.geom, params)
     else:
-        sigma = solve(model, run.geom, params, run.stretch, run.voltage).sigma1
-    if params.branches:
-        k = np.array([br.k for br in params.branches])
-        tau = np.array([br.eta / br.k for br in params.branches])
-        sigma = sigma + k @ viscoelastic.branch_strains(run.t, run.stretch, tau)
-    if params.eta_v0:
-        sigma = sigma + params.eta_v0 * viscoelastic.stretch_rate(run.t, run.stretch)
-    return run.geom.carried_force(sigma * run.geom.area / run.stretch)
+        sigma_rev = solve(model, run.geom, params, run.stretch, run.voltage).sigma1
+    return compose(run.geom, viscous(params), run.t, run.stretch, sigma_rev)[2]
 
 
 def goodness(run: RunData, predicted: np.ndarray) -> dict:

@@ -15,6 +15,8 @@ loop over samples.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 
@@ -107,8 +109,91 @@ def stretch_rate(t, stretch):
     return np.concatenate([slope[:1], slope])
 
 
+@dataclass(frozen=True)
+class ViscoState:
+    """Where the branches stand after the last finite sample of a block.
+
+    Attributes
+    ----------
+    t : float
+        Its time [s].
+    stretch : float
+        Its stretch [-].
+    q : numpy.ndarray, shape (M,)
+        Branch strains ``lambda1 - xi_j`` there [-].
+    """
+
+    t: float
+    stretch: float
+    q: np.ndarray
+
+
+def overstress_step(t, stretch, k, eta, eta_v0=0.0, *, q0=None, state=None):
+    """Viscoelastic stress ``sigma_irr`` [Pa] of eq. (44) in [1] over one block, and the state after it.
+
+    The one composition of eq. (44) in rdea-lab: `overstress`, the twin and the
+    calibration all come here.
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Sample times [s], strictly increasing (and after ``state.t``).
+    stretch : array_like, shape (n,)
+        Axial stretch [-].
+    k : array_like, shape (M,)
+        Branch stiffnesses ``k_vj`` [Pa].
+    eta : array_like, shape (M,)
+        Branch viscosities ``eta_vj`` [Pa s].
+    eta_v0 : float
+        Parallel damper ``eta_v0`` [Pa s].
+    q0 : array_like, shape (M,), optional
+        Branch strains at ``t[0]`` [-] when there is no `state`; default 0 (relaxed).
+    state : ViscoState, optional
+        The end of the previous block: the interval from it to ``t[0]`` is
+        integrated exactly too, so a series cut into blocks gives the numbers of
+        the whole series.
+
+    Returns
+    -------
+    sigma : numpy.ndarray, shape (n,)
+        ``sum_j k_j q_j + eta_v0 d lambda1/dt``; vanishes as the rate goes to 0.
+        NaN at samples whose stretch is NaN or infinite.
+    state : ViscoState or None
+        At the last finite sample (`state` unchanged if there is none).
+
+    Notes
+    -----
+    A sample without a finite stretch has no stress; the branches carry on
+    across it as if the stretch were linear between its finite neighbours, so
+    one lost sample does not void the rest of a run.
+    """
+    lam = np.asarray(stretch, float)
+    t = check_time(t, lam.shape)
+    if state is not None and not t[0] > state.t:
+        raise ValueError(f"block starts at t = {float(t[0])!r}, not after the previous block's end")
+    k = np.atleast_1d(np.asarray(k, float))
+    eta = np.atleast_1d(np.asarray(eta, float))
+    ok = np.isfinite(lam)
+    tt, ll = t[ok], lam[ok]
+    if state is not None:
+        tt, ll = np.concatenate([[state.t], tt]), np.concatenate([[state.stretch], ll])
+        q0 = state.q
+    part = np.zeros(tt.size)
+    q = None
+    if k.size and tt.size:
+        q = branch_strains(tt, ll, eta / k, q0)
+        part = k @ q
+    if eta_v0 and tt.size > 1:
+        part = part + eta_v0 * stretch_rate(tt, ll)
+    sigma = np.full(lam.shape, np.nan)
+    sigma[ok] = part[1:] if state is not None else part
+    if tt.size:
+        state = ViscoState(float(tt[-1]), float(ll[-1]), q[:, -1].copy() if q is not None else np.zeros(0))
+    return sigma, state
+
+
 def overstress(t, stretch, k, eta, eta_v0=0.0, q0=None):
-    """Viscoelastic stress ``sigma_irr`` [Pa] of eq. (44) in [1].
+    """Viscoelastic stress ``sigma_irr`` [Pa] of eq. (44) in [1] over a whole series.
 
     Parameters
     ----------
@@ -128,27 +213,6 @@ def overstress(t, stretch, k, eta, eta_v0=0.0, q0=None):
     Returns
     -------
     numpy.ndarray, shape (n,)
-        ``sum_j k_j q_j + eta_v0 d lambda1/dt``; vanishes as the rate goes to 0.
-        NaN at samples whose stretch is NaN or infinite.
-
-    Notes
-    -----
-    A sample without a finite stretch has no stress; the branches carry on
-    across it as if the stretch were linear between its finite neighbours, so
-    one lost sample does not void the rest of a run.
+        See `overstress_step`, of which this is the one-block case.
     """
-    t = check_time(t, np.shape(stretch))
-    k = np.atleast_1d(np.asarray(k, float))
-    eta = np.atleast_1d(np.asarray(eta, float))
-    lam = np.asarray(stretch, float)
-    ok = np.isfinite(lam)
-    if not ok.all():
-        sigma = np.full_like(lam, np.nan)
-        sigma[ok] = overstress(t[ok], lam[ok], k, eta, eta_v0, q0)
-        return sigma
-    sigma = np.zeros_like(lam)
-    if k.size:
-        sigma = k @ branch_strains(t, lam, eta / k, q0)
-    if eta_v0:
-        sigma = sigma + eta_v0 * stretch_rate(t, lam)
-    return sigma
+    return overstress_step(t, stretch, k, eta, eta_v0, q0=q0)[0]

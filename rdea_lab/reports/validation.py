@@ -2,7 +2,7 @@
 
 ``validation_report(params_path, datasets_folder, out)`` runs the twin on each
 complete run's own measured stretch and voltage history
-(:func:`rdea_lab.calibration.predict_force`, viscoelastic branches included),
+(:func:`rdea_lab.twin.predict`, viscoelastic branches included),
 and for capacitance runs also the capacitance at the samples where the LCR
 bridge measured it. Each run gives one row: the maximum relative error
 against the largest measured force or capacitance of that run (the metric of
@@ -15,6 +15,7 @@ Figures 11-16 and ``index.html``.
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -23,10 +24,9 @@ import xarray as xr
 import yaml
 
 from ..backends.rig import truth_name
-from ..calibration.objective import file_hash, load_run, predict_force
-from ..physics.models import solve
-from ..physics.selection import select_model
-from ..specs import load_params
+from ..calibration.objective import file_hash, load_run
+from ..specs import as_params
+from ..twin import predict
 from ..store import open_run
 from . import tables
 from .html import write_validation_index
@@ -177,18 +177,17 @@ def evaluate_run(path: Path, params, model: str, tolerance: float) -> tuple[dict
     cap = np.asarray(ds["capacitance"].values, float)[ok] if "capacitance" in ds else np.full(run.n, np.nan)
     cap_mask = np.isfinite(cap)
     exp = experiment(run.kind, run.protocol, run.voltage, bool(cap_mask.any()))
-    reason = ""
-    if model == "auto":
-        choice = select_model(run.geom, params, run.stretch, run.voltage, tolerance)
-        used, reason = choice.model, choice.reason
-    else:
-        used = model
-    force_pred = predict_force(run, params, used)
+    # the twin on the samples load_run kept (the ones the calibration compares too)
+    twin = predict({"time": run.t, "stretch": run.stretch, "voltage": run.voltage}, params, model,
+                   specimen=run.geom, tolerance=tolerance)
+    used = twin.attrs["model"]
+    reason = json.loads(twin.attrs["model_selection"])["reason"] if "model_selection" in twin.attrs else ""
+    force_pred = twin["force"].values
     series = {"t": run.t, "stretch": run.stretch, "position": position, "voltage": run.voltage,
               "force": run.force, "force_pred": force_pred, "cap_mask": cap_mask, "capacitance": cap[cap_mask]}
     window = ""
     if exp["quantity"] == "capacitance":
-        pred = solve(used, run.geom, params, run.stretch[cap_mask], run.voltage[cap_mask]).capacitance
+        pred = twin["capacitance"].values[cap_mask]
         series["capacitance_pred"] = pred
         err, unit, scale, shown = compare(cap[cap_mask], pred), "F", 1e12, "pF"
         samples = int(cap_mask.sum())
@@ -288,7 +287,7 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
     folder = Path(datasets_folder)
     if not folder.is_dir():
         raise ReportInputError(f"{folder}: no such folder of datasets")
-    params = load_params(params_path)
+    params = as_params(params_path)
     paths, skipped = scan_runs(folder)
     evaluated = []
     for path in paths:

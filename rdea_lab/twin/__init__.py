@@ -1,6 +1,25 @@
-"""The physics twin: a quasi-static model plus viscoelasticity over a time series."""
+"""The physics twin: a quasi-static model plus viscoelasticity over a time series.
+
+- `predict` (history, params, model): the twin on a run's own stretch and
+  voltage history (an xarray Dataset of a run, or arrays), as a Dataset on the
+  same time coordinate; with ``protocol=`` the history is first checked against
+  that protocol's limits.
+- `simulate` (specimen, params, t, stretch, voltage, model): the same on bare arrays.
+- `TwinStream`: block by block, carrying the viscoelastic state (the twin
+  backend and the emulator use it).
+- `compose`: the one composition of eqs. (43), (44) and (16) of [1].
+
+Quick start::
+
+    import rdea_lab
+    params = rdea_lab.load_params("params/paper2021_table3.yaml")
+    ds = rdea_lab.open_run("datasets/paper2021/specimen-2/blocking_force.nc")
+    twin = rdea_lab.predict(ds, params, "su")       # force, capacitance, stress, status
+"""
 
 from .curves import quasi_static_curves
-from .simulate import simulate
+from .predict import MIN_STRETCH, predict
+from .simulate import TwinStream, as_geometry, compose, simulate, viscous
 
-__all__ = ["quasi_static_curves", "simulate"]
+__all__ = ["MIN_STRETCH", "TwinStream", "as_geometry", "compose", "predict", "quasi_static_curves", "simulate",
+           "viscous"]

@@ -12,6 +12,7 @@ from ..physics import viscoelastic
 from ..physics.geometry import RollGeometry, StripGeometry, geometry_from_card
 from ..physics.models import solve
 from ..physics.result import VALID
+from ..specs import as_params, as_specimen
 
 #: CF attributes of the variables the twin writes.
 VARIABLES = {
@@ -27,8 +28,53 @@ VARIABLES = {
 }
 
 
-def _geometry(specimen):
-    return specimen if isinstance(specimen, (RollGeometry, StripGeometry)) else geometry_from_card(specimen)
+def as_geometry(specimen):
+    """The geometry of ``specimen``: a RollGeometry/StripGeometry as it is, a card, or a card's path."""
+    if isinstance(specimen, (RollGeometry, StripGeometry)):
+        return specimen
+    return geometry_from_card(as_specimen(specimen))
+
+
+def viscous(params) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(k [Pa], eta [Pa s], eta_v0 [Pa s])`` of a parameter set's Maxwell branches and damper."""
+    branches = tuple(getattr(params, "branches", ()) or ())
+    return (np.array([b.k for b in branches], float), np.array([b.eta for b in branches], float),
+            float(getattr(params, "eta_v0", 0.0) or 0.0))
+
+
+def compose(geom, visco, t, stretch, sigma_rev, state=None):
+    """Total stress and force from the quasi-static stress and the history: eqs. (43), (44) and (16) of [1].
+
+    The one composition of the twin: `TwinStream` (and so `simulate`,
+    `predict`, the twin backend and the emulator) and the calibration objective
+    all come here.
+
+    Parameters
+    ----------
+    geom : RollGeometry or StripGeometry
+    visco : tuple
+        ``(k, eta, eta_v0)`` of :func:`viscous`.
+    t : numpy.ndarray, shape (n,)
+        Sample times [s].
+    stretch : numpy.ndarray, shape (n,)
+        Axial stretch [-].
+    sigma_rev : numpy.ndarray, shape (n,)
+        Quasi-static (reversible) axial stress of a model [Pa].
+    state : ViscoState, optional
+        End of the previous block.
+
+    Returns
+    -------
+    sigma1, sigma1_irr, force : numpy.ndarray
+        ``sigma1 = sigma_rev + sigma_irr`` [Pa] (43), the overstress (44) [Pa], and
+        the force ``sigma1 pi (Ro**2 - Ri**2) / lambda1`` [N] (16), zero where a
+        strip would push (a membrane goes slack).
+    state : ViscoState or None
+    """
+    k, eta, eta_v0 = visco
+    sigma_irr, state = viscoelastic.overstress_step(t, stretch, k, eta, eta_v0, state=state)
+    sigma = sigma_rev + sigma_irr
+    return sigma, sigma_irr, geom.carried_force(sigma * geom.area / stretch), state
 
 
 def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
@@ -36,9 +82,9 @@ def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
 
     Parameters
     ----------
-    specimen : SpecimenCard or RollGeometry
-        The roll.
-    params : ParameterSet
+    specimen : SpecimenCard, RollGeometry or path
+        The roll (a card's path is read).
+    params : ParameterSet or path
         Yeoh coefficients ``C10, C20, C30`` [Pa], ``eps_r`` [-], viscoelastic
         ``branches`` (each with ``k`` [Pa] and ``eta`` [Pa s]) and ``eta_v0`` [Pa s].
     t : array_like, shape (n,)
@@ -58,12 +104,12 @@ def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
         (Ro**2 - Ri**2) / lambda1``, eq. (43) and (16) of [1]. The branch
         strains start relaxed at ``t[0]``.
     """
-    geom = _geometry(specimen)
+    geom = as_geometry(specimen)
+    params = as_params(params)
     stretch = np.asarray(stretch, float)
     voltage = np.broadcast_to(np.asarray(voltage, float), stretch.shape)
     out = TwinStream(geom, params, model).step(t, stretch, voltage)  # the whole series as one block
-    branches = tuple(getattr(params, "branches", ()) or ())
-    eta_v0 = float(getattr(params, "eta_v0", 0.0) or 0.0)
+    k, eta, eta_v0 = viscous(params)
     data = {
         "stretch": stretch,
         "voltage": voltage,
@@ -86,7 +132,7 @@ def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
         "geometry": json.dumps(geom.as_dict(params.eps_r)),
         "parameters": json.dumps({
             "C10": params.C10, "C20": params.C20, "C30": params.C30, "eps_r": params.eps_r,
-            "branches": [{"k": b.k, "eta": b.eta} for b in branches], "eta_v0": eta_v0,
+            "branches": [{"k": float(a), "eta": float(b)} for a, b in zip(k, eta)], "eta_v0": eta_v0,
         }),
         "rdea_lab_version": __version__,
     })
@@ -102,49 +148,25 @@ class TwinStream:
 
     Parameters
     ----------
-    specimen : SpecimenCard or RollGeometry
-    params : ParameterSet
+    specimen : SpecimenCard, RollGeometry or path
+    params : ParameterSet or path
     model : {"su", "1r", "3r"}
     """
 
     def __init__(self, specimen, params, model="su"):
-        self.geom = _geometry(specimen)
-        self.params = params
+        self.geom = as_geometry(specimen)
+        self.params = as_params(params)
         self.model = model
-        branches = tuple(getattr(params, "branches", ()) or ())
-        self._k = np.array([b.k for b in branches], float)
-        self._tau = np.array([b.eta / b.k for b in branches], float)
-        self._eta_v0 = float(getattr(params, "eta_v0", 0.0) or 0.0)
-        self._last = None  # (t, stretch, q) at the end of the previous block
+        self._visco = viscous(self.params)
+        self._state = None  # ViscoState at the end of the previous block
 
     def step(self, t, stretch, voltage) -> dict:
         """Force [N], capacitance [F], stress [Pa] and model status for one block."""
         stretch = np.asarray(stretch, float)
         t = viscoelastic.check_time(t, stretch.shape)
-        res = solve(self.model, self.geom, self.params, stretch, np.broadcast_to(voltage, stretch.shape))
-        sigma_irr = np.zeros_like(stretch)
-        if self._last is not None and not t[0] > self._last[0]:
+        if self._state is not None and not t[0] > self._state.t:
             raise ValueError(f"block starts at t = {float(t[0])!r}, not after the previous block's end")
-        ok = np.isfinite(stretch)
-        if self._k.size or self._eta_v0:
-            prev_t, prev_lam, prev_q = self._last if self._last is not None else (None, None, None)
-            tt, ll = t[ok], stretch[ok]
-            if prev_t is not None:
-                tt, ll = np.concatenate([[prev_t], tt]), np.concatenate([[prev_lam], ll])
-            q = None
-            if self._k.size and tt.size:
-                q = viscoelastic.branch_strains(tt, ll, self._tau, prev_q)
-                part = self._k @ q
-                sigma_irr[ok] = part[1:] if prev_t is not None else part
-            if self._eta_v0 and tt.size > 1:
-                rate = viscoelastic.stretch_rate(tt, ll)
-                sigma_irr[ok] += self._eta_v0 * (rate[1:] if prev_t is not None else rate)
-            if tt.size:
-                self._last = (tt[-1], ll[-1], q[:, -1] if q is not None else None)
-        elif np.any(ok):
-            self._last = (t[ok][-1], stretch[ok][-1], None)
-        sigma_irr[~ok] = np.nan
-        sigma = res.sigma1 + sigma_irr
-        return {"force": self.geom.carried_force(sigma * self.geom.area / stretch), "capacitance": res.capacitance,
-                "sigma1": sigma, "sigma1_irr": sigma_irr, "lambda2b": res.lambda2b, "model_status": res.status,
-                "summary": res.summary()}
+        res = solve(self.model, self.geom, self.params, stretch, np.broadcast_to(voltage, stretch.shape))
+        sigma, sigma_irr, force, self._state = compose(self.geom, self._visco, t, stretch, res.sigma1, self._state)
+        return {"force": force, "capacitance": res.capacitance, "sigma1": sigma, "sigma1_irr": sigma_irr,
+                "lambda2b": res.lambda2b, "model_status": res.status, "summary": res.summary()}

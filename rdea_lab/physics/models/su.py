@@ -38,6 +38,25 @@ def basis(stretch):
     return -2.0 * stretch * stretch * np.expm1(-3.0 * a), np.expm1(2.0 * a) + 2.0 * np.expm1(-a)
 
 
+def stress_basis(stretch, voltage):
+    """``(b, x, lambda1 v**2)``: the SU stress is ``b W'(x) - kappa lambda1 v**2``, eq. (39).
+
+    With ``W'(x) = C10 + 2 C20 x + 3 C30 x**2`` it is linear in the Yeoh
+    coefficients and in ``kappa`` (:func:`stress_from_basis`), so a calibration
+    that evaluates many parameter sets on one history computes this once.
+    """
+    stretch = np.asarray(stretch, float)
+    b, x = basis(stretch)
+    return b, x, stretch * np.asarray(voltage, float) ** 2
+
+
+def stress_from_basis(stress_basis_, geom, material):
+    """Axial SU stress [Pa] of eq. (39) from :func:`stress_basis` for a geometry and material."""
+    b, x, lv2 = stress_basis_
+    W1, _ = yeoh.slope(x, yeoh_coefficients(material))
+    return b * W1 - kappa(geom, material) * lv2
+
+
 def solve(geom, material, stretch, voltage) -> ModelResult:
     """Axial stress, force and capacitance of the SU model.
 
@@ -66,9 +85,7 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
     free coordinate at fixed stretch, hence no limit point.
     """
     l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
-    b, x = basis(l1)
-    W1, _ = yeoh.slope(x, yeoh_coefficients(material))
-    sigma1 = b * W1 - kappa(geom, material) * l1 * v * v
+    sigma1 = stress_from_basis(stress_basis(l1, v), geom, material)
     l2 = 1.0 / np.sqrt(l1)
     cap = geom.C0(material.eps_r) * l1
     n = l1.size
