@@ -75,12 +75,10 @@ def write_record(result, runs, out: Path, name: str | None = None) -> dict[str, 
 
 
 def _plot_history(result, path: Path) -> None:
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 3.5))
+    fig = Figure(figsize=(6, 3.5))
+    ax = fig.subplots()
     h = result.history
     ax.semilogy(h[:, 0], h[:, 1], drawstyle="steps-post")
     ax.set_xlabel("objective evaluations")
@@ -89,7 +87,6 @@ def _plot_history(result, path: Path) -> None:
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 __all__ = ["record_mapping", "write_record", "format_quantity"]

@@ -11,14 +11,12 @@ import json
 from pathlib import Path
 
 import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..physics.geometry import RollGeometry, geometry_from_card  # noqa: E402
-from ..physics.models import solve  # noqa: E402
-from ..specs import load_params, load_specimen  # noqa: E402
+from ..physics.geometry import RollGeometry, geometry_from_card
+from ..physics.models import solve
+from ..specs import load_params, load_specimen
 
 #: Table 2 of [1] [mm].
 TABLE2 = {"specimen-1": (0.600, 1.206, 1.326), "specimen-2": (0.600, 1.615, 1.732),
@@ -58,7 +56,8 @@ def compare_models(geom: RollGeometry, material, stretch=STRETCH, voltages=VOLTA
 
 
 def _figure(name, comparison, path):
-    fig, axes = plt.subplots(3, len(comparison), figsize=(10, 8), sharex=True, squeeze=False)
+    fig = Figure(figsize=(10, 8))
+    axes = fig.subplots(3, len(comparison), sharex=True, squeeze=False)
     for col, (v, comp) in enumerate(comparison.items()):
         res = comp["results"]
         ax = axes[0, col]
@@ -80,14 +79,14 @@ def _figure(name, comparison, path):
             ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
 
 
 def figure8(material, path, v=3500.0) -> list[dict]:
     """Figure 8: Rie = 0.6, Roe = 1.21, Ro = 1.33 mm, Ri = 0.1 ... 0.9 Rie."""
     rows = []
-    fig, ax = plt.subplots(figsize=(6, 4))
-    cmap = plt.get_cmap("viridis")
+    fig = Figure(figsize=(6, 4))
+    ax = fig.subplots()
+    cmap = matplotlib.colormaps["viridis"]
     for i, f in enumerate(np.arange(1, 10) / 10):
         geom = RollGeometry(f * 0.6e-3, 0.6e-3, 1.21e-3, 1.33e-3, L1=34e-3, L1e=34e-3, L3=48e-6)
         comp = compare_models(geom, material, voltages=(v,))[v]
@@ -103,7 +102,6 @@ def figure8(material, path, v=3500.0) -> list[dict]:
     ax.legend(fontsize=6, ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    plt.close(fig)
     return rows
 
 

@@ -28,18 +28,16 @@ import time
 from pathlib import Path
 
 import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..physics.geometry import geometry_from_card  # noqa: E402
-from ..physics.models import solve  # noqa: E402
-from ..physics.selection import select_model  # noqa: E402
-from ..protocols import load_plan  # noqa: E402
-from ..specs import load_params, load_specimen  # noqa: E402
-from . import tables  # noqa: E402
-from .paper_models import figure8  # noqa: E402
+from ..physics.geometry import geometry_from_card
+from ..physics.models import solve
+from ..physics.selection import select_model
+from ..protocols import load_plan
+from ..specs import load_params, load_specimen
+from . import tables
+from .paper_models import figure8
 
 MODELS = ("su", "1r", "3r", "auto")
 SPECIMENS = ("specimen1", "specimen2", "specimen3")
@@ -174,8 +172,9 @@ def pareto_plot(rows: list[dict], path: Path) -> Path:
     """Time per sample against max error, log-log, one marker per model per scene."""
     markers = {"su": "o", "1r": "s", "3r": "^", "auto": "x"}
     names = list(dict.fromkeys(r["scene"] for r in rows))
-    cmap = plt.get_cmap("tab20")
-    fig, ax = plt.subplots(figsize=(10, 6))
+    cmap = matplotlib.colormaps["tab20"]
+    fig = Figure(figsize=(10, 6))
+    ax = fig.subplots()
     for r in rows:
         err = r["max_rel_error"]
         if not math.isfinite(err):
@@ -195,7 +194,6 @@ def pareto_plot(rows: list[dict], path: Path) -> Path:
     ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return Path(path)
 
 

@@ -8,11 +8,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
+from matplotlib.figure import Figure
 
 SPECIMEN_COLORS = {"specimen-1": "tab:red", "specimen-2": "tab:blue", "specimen-3": "tab:green"}
 OTHER_COLORS = ("tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
@@ -29,7 +26,6 @@ def _color(specimen: str, order: list[str]) -> str:
 def _save(fig, path: Path) -> Path:
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
-    plt.close(fig)
     return Path(path)
 
 
@@ -41,7 +37,8 @@ def _title(row) -> str:
 def tensile_figure(e: dict, color: str, path: Path) -> Path:
     """Figures 11-13: displacement and force over time (upper), force against displacement (lower)."""
     s, row = e["series"], e["row"]
-    fig, axes = plt.subplots(3, 1, figsize=(8, 8.5), gridspec_kw={"height_ratios": [1, 1.2, 1.6]})
+    fig = Figure(figsize=(8, 8.5))
+    axes = fig.subplots(3, 1, gridspec_kw={"height_ratios": [1, 1.2, 1.6]})
     ax = axes[0]
     ax.plot(s["t"], s["position"] * 1e3, color="black", lw=0.9)
     ax.set_ylabel("displacement [mm]")
@@ -68,7 +65,8 @@ def tensile_figure(e: dict, color: str, path: Path) -> Path:
 
 def blocking_figure(items: list[dict], colors: dict, path: Path) -> Path:
     """Figure 15: blocking force over time (left) and over voltage (right), one row per run."""
-    fig, axes = plt.subplots(len(items), 2, figsize=(11, 2.8 * len(items)), squeeze=False)
+    fig = Figure(figsize=(11, 2.8 * len(items)))
+    axes = fig.subplots(len(items), 2, squeeze=False)
     for (left, right), e in zip(axes, items):
         s, row = e["series"], e["row"]
         c = colors[row["specimen"]]
@@ -91,7 +89,8 @@ def blocking_figure(items: list[dict], colors: dict, path: Path) -> Path:
 
 def capacitance_figure(items: list[dict], colors: dict, path: Path) -> Path:
     """Figure 16: capacitance against displacement, measured and predicted, every run on one axis."""
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig = Figure(figsize=(7, 4.5))
+    ax = fig.subplots()
     for e in items:
         s, row = e["series"], e["row"]
         x = s["position"][s["cap_mask"]] * 1e3

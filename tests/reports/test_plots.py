@@ -1,0 +1,146 @@
+"""Plot helpers in the manner of xarray and pandas: ax= or fig= or their own pyplot figure; they return the Figure."""
+
+from pathlib import Path
+
+import matplotlib.image
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from rdea_lab.protocols import load_plan
+from rdea_lab.reports.plots import plot_plan, plot_run
+from rdea_lab.store import open_run
+
+ROOT = Path(__file__).resolve().parents[2]
+RUNS = ROOT / "datasets" / "paper2021" / "specimen-2"
+
+
+@pytest.fixture(scope="module")
+def run():
+    ds = open_run(RUNS / "tensile_ramp_sine_0V.nc")
+    yield ds.load()
+    ds.close()
+
+
+@pytest.fixture(scope="module")
+def cap_run():
+    """A run with measured capacitance (four panels)."""
+    ds = open_run(RUNS / "capacitance_sweep.nc")
+    yield ds.load()
+    ds.close()
+
+
+@pytest.fixture(scope="module")
+def plan():
+    return load_plan(ROOT / "protocols" / "blocking_force.yaml")
+
+
+def prediction_of(ds, factor=1.05):
+    """A stand-in twin prediction on the run's time: the measured force and capacitance scaled."""
+    pred = ds[["force", "capacitance"]].copy(deep=True)
+    return pred * factor
+
+
+def png_size(path):
+    return matplotlib.image.imread(path).shape[:2]
+
+
+def test_plot_run_on_ax_draws_force_against_time(run):
+    fig, ax = plt.subplots()
+    assert plot_run(run, ax=ax) is fig
+    np.testing.assert_array_equal(ax.lines[0].get_xdata(), run["time"].values)
+    np.testing.assert_array_equal(ax.lines[0].get_ydata(), run["force"].values)
+    assert ax.get_xlabel() == "time [s]" and ax.get_ylabel() == "force [N]"
+    assert len(ax.lines) == 1 and ax.get_legend() is None
+
+
+def test_plot_run_prediction_on_ax_is_a_dashed_twin_line_with_legend(run):
+    fig, ax = plt.subplots()
+    pred = prediction_of(run)
+    plot_run(run, ax=ax, prediction=pred)
+    twin = [line for line in ax.lines if line.get_label() == "twin"]
+    assert len(twin) == 1 and twin[0].get_linestyle() == "--"
+    np.testing.assert_allclose(twin[0].get_ydata(), 1.05 * run["force"].values)
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["measured", "twin"]
+
+
+def test_plot_run_default_layout(run, cap_run):
+    fig = plot_run(run)
+    assert isinstance(fig, Figure) and plt.fignum_exists(fig.number)  # pyplot's own: a notebook shows it
+    assert len(fig.axes) == 4  # stretch, voltage, force over time; the loop
+    assert [ax.get_ylabel() for ax in fig.axes] == ["stretch λ1 [-]", "voltage [kV]", "force [N]", "force [N]"]
+    np.testing.assert_array_equal(fig.axes[1].lines[0].get_ydata(), run["voltage"].values / 1e3)
+    loop = fig.axes[3]
+    np.testing.assert_array_equal(loop.lines[0].get_xdata(), run["position"].values * 1e3)
+    np.testing.assert_array_equal(loop.lines[0].get_ydata(), run["force"].values)
+    assert fig.get_size_inches() == pytest.approx((11, 6.9))
+    assert len(plot_run(cap_run).axes) == 5  # and capacitance [pF]
+
+
+def test_plot_run_into_a_given_figure(run):
+    fig = Figure(figsize=(11, 7))
+    assert plot_run(run, fig=fig) is fig
+    assert len(fig.axes) == 4
+    np.testing.assert_array_equal(fig.axes[0].lines[0].get_ydata(), run["stretch"].values)
+    assert plt.get_fignums() == []
+
+
+def test_plot_run_prediction_in_force_panel_loop_and_capacitance(cap_run):
+    fig = plot_run(cap_run, fig=Figure(), prediction=prediction_of(cap_run, 0.9))
+    labels = {ax.get_ylabel(): [line.get_label() for line in ax.lines] for ax in fig.axes}
+    assert labels["stretch λ1 [-]"] == ["measured"]
+    assert labels["capacitance [pF]"] == ["measured", "twin"]
+    assert [len([ln for ln in ax.lines if ln.get_label() == "twin"]) for ax in fig.axes] == [0, 0, 1, 1, 1]
+    loop = fig.axes[-1]
+    np.testing.assert_allclose(loop.lines[1].get_ydata(), 0.9 * cap_run["force"].values)
+    assert loop.get_legend() is not None
+
+
+def test_plot_run_path_writes_png_and_closes_its_figure(run, tmp_path):
+    out = tmp_path / "run.png"
+    fig = plot_run(run, out)  # positionally, as the CLI calls it
+    assert isinstance(fig, Figure)
+    assert png_size(out) == (828, 1320)  # (6.9 x 11) in at 120 dpi
+    assert not plt.fignum_exists(fig.number)  # made here and saved: closed, so a loop does not pile up figures
+
+
+def test_plot_run_path_with_ax_saves_the_callers_figure_and_keeps_it(run, tmp_path):
+    fig, ax = plt.subplots(figsize=(4, 3))
+    plot_run(run, tmp_path / "ax.png", ax=ax)
+    assert png_size(tmp_path / "ax.png") == (360, 480)
+    assert plt.fignum_exists(fig.number)
+
+
+def test_plot_run_bad_arguments(run):
+    fig, ax = plt.subplots()
+    with pytest.raises(ValueError, match="give ax= or fig=, not both"):
+        plot_run(run, ax=ax, fig=fig)
+    with pytest.raises(ValueError, match=r"prediction has no 'force' variable \(it has \['stretch'\]\)"):
+        plot_run(run, ax=ax, prediction=run[["stretch"]])
+    short = prediction_of(run).isel(time=slice(0, 10))
+    with pytest.raises(ValueError, match=r"prediction force has shape \(10,\); the run has \d+ samples"):
+        plot_run(run, ax=ax, prediction=short)
+    shifted = prediction_of(run).assign_coords(time=run["time"].values + 1.0)
+    with pytest.raises(ValueError, match=r"prediction time \(1 \.\.\. .* s, \d+ samples\) is not the run's time"):
+        plot_run(run, ax=ax, prediction=shifted)
+
+
+def test_plot_plan_on_ax_draws_stretch_and_voltage_on_a_twin_axis(plan):
+    fig, ax = plt.subplots()
+    assert plot_plan(plan, ax=ax) is fig
+    np.testing.assert_array_equal(ax.lines[0].get_xdata(), plan.time)
+    np.testing.assert_array_equal(ax.lines[0].get_ydata(), plan.stretch)
+    twin = [a for a in fig.axes if a is not ax]
+    assert len(twin) == 1 and twin[0].get_ylabel() == "voltage [kV]"
+    np.testing.assert_array_equal(twin[0].lines[0].get_ydata(), plan.voltage / 1e3)
+
+
+def test_plot_plan_default_and_path(plan, tmp_path):
+    fig = plot_plan(plan)
+    assert plt.fignum_exists(fig.number) and len(fig.axes) == 2
+    np.testing.assert_array_equal(fig.axes[1].lines[0].get_ydata(), plan.voltage / 1e3)
+    out = tmp_path / "plan.png"
+    saved = plot_plan(plan, out)
+    assert png_size(out) == (600, 960)  # (5 x 8) in at 120 dpi
+    assert not plt.fignum_exists(saved.number)
