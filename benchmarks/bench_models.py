@@ -113,7 +113,7 @@ def bench_calibration() -> dict:
     import tempfile
 
     from rdea_lab.runs import execute
-    from rdea_lab.runs.campaign import _emulator
+    from rdea_lab.runs import emulated_rig as _emulator
     from rdea_lab.backends.rig import RigBackend
     from rdea_lab.calibration import calibrate, initial_guess, load_run
     from rdea_lab.protocols import load_plan

@@ -12,3 +12,11 @@ def project_root() -> Path | None:
         if (base / "specimens").is_dir() and (base / "params").is_dir():
             return base
     return None
+
+
+def benchmarks_dir() -> Path | None:
+    """The checkout's ``benchmarks/`` (holding ``bench_models.py``), or None outside a source checkout."""
+    for base in (Path.cwd(), Path(__file__).resolve().parents[1]):
+        if (base / "benchmarks" / "bench_models.py").is_file():
+            return base / "benchmarks"
+    return None

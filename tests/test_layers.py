@@ -7,8 +7,8 @@ PKG = Path(__file__).resolve().parents[1] / "rdea_lab"
 #: Bottom to top. DESIGN.md's order, plus the emulator (below the backends that
 #: drive it) and the run engine (above backends and store: it couples the two).
 LAYERS = ["specs", "physics", "twin", "protocols", "emulator", "backends", "store", "runs", "calibration",
-          "reports", "cli"]
-ANYWHERE = {"", "paths"}  # the package root (__version__) and the path helper
+          "reports", "api", "cli"]
+ANYWHERE = {"", "__version__", "paths"}  # the package root (__version__) and the path helper
 
 
 def imported_layers(path: Path):
@@ -23,7 +23,11 @@ def imported_layers(path: Path):
                 target = node.module.split(".")[1:]
             else:
                 continue
-            yield target[0] if target else "", node.lineno
+            if target:
+                yield target[0], node.lineno
+            else:  # `from .. import api`: the names imported are the modules
+                for alias in node.names:
+                    yield alias.name, node.lineno
         elif isinstance(node, ast.Import):
             for alias in node.names:
                 if alias.name.startswith("rdea_lab."):
@@ -47,3 +51,28 @@ def test_lower_layers_never_import_upper_ones():
 def test_every_package_is_placed_in_a_layer():
     packages = {p.name for p in PKG.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
     assert packages <= set(LAYERS), packages - set(LAYERS)
+
+
+def test_the_cli_imports_only_the_application_layer_and_specs():
+    """The CLI parses arguments and calls the public application layer (``rdea_lab.api``); it holds no
+    physics, I/O policy or limit logic, so it imports nothing else of the package but the specs."""
+    bad = []
+    for path in sorted((PKG / "cli").rglob("*.py")):
+        for layer, line in imported_layers(path):
+            if layer not in ("api", "specs", "cli", "", "__version__") and not layer.endswith(".py"):
+                bad.append(f"{path.relative_to(PKG)}:{line} imports {layer}")
+    assert not bad, "\n".join(bad)
+
+
+def test_cli_commands_are_module_level_and_thin():
+    """Every click command is a module-level function (importable, reusable), none defined inside another."""
+    nested = []
+    for path in sorted((PKG / "cli").rglob("*.py")):
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.FunctionDef):
+                for inner in ast.walk(node):
+                    if inner is not node and isinstance(inner, ast.FunctionDef) and any(
+                            "command" in ast.unparse(d) or "group" in ast.unparse(d) for d in inner.decorator_list):
+                        nested.append(f"{path.relative_to(PKG)}:{inner.lineno} {inner.name} inside {node.name}")
+    assert not nested, "\n".join(nested)

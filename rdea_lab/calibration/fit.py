@@ -60,6 +60,14 @@ class CalibrationResult:
         Per-run goodness of fit (rms error [N], R^2, max relative error).
     history : numpy.ndarray, shape (k, 2)
         (evaluation, best objective so far) at every improvement.
+    software : str
+        rdea-lab version.
+    model_reason : str
+        Why ``auto`` chose `model` (empty otherwise).
+    run_data : tuple of RunData
+        The runs fitted (set by `calibrate_runs`).
+    record_files : dict
+        ``params``, ``history``, ``plot`` paths of the record, when one was written.
     """
 
     params: ParameterSet
@@ -90,6 +98,9 @@ class CalibrationResult:
     runs: tuple
     history: np.ndarray
     software: str = __version__
+    model_reason: str = ""
+    run_data: tuple = ()
+    record_files: dict = dataclasses.field(default_factory=dict)
 
 
 class Objective:
@@ -323,7 +334,10 @@ def initial_guess(runs, M: int, eps_r: float, name="start-from-data") -> Paramet
     C10 = slope / 6.0 if slope > 0 else 1e5
     dt = min(float(np.median(np.diff(r.t))) for r in runs)
     T = max(float(r.t[-1] - r.t[0]) for r in runs)
-    taus = np.geomspace(10 * dt, max(T / 3, 20 * dt), M) if M > 1 else np.array([np.sqrt(10 * dt * max(T / 3, 20 * dt))])
+    if M > 1:
+        taus = np.geomspace(10 * dt, max(T / 3, 20 * dt), M)
+    else:  # one branch in the geometric middle of the range; none for M = 0
+        taus = np.array([np.sqrt(10 * dt * max(T / 3, 20 * dt))])[:M]
     from ..specs import ViscoBranch
     return ParameterSet(name=name, C10=C10, C20=0.0, C30=C10 / 20, eps_r=eps_r,
                         branches=tuple(ViscoBranch(k=C10, eta=C10 * tau) for tau in taus), eta_v0=0.0,

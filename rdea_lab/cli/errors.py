@@ -1,4 +1,10 @@
-"""The CLI's edge: user mistakes exit 2 with one line, internal errors exit 1."""
+"""The CLI's edge: each outcome to an exit status and at most one line on stderr.
+
+Exit status: 0 done; 1 internal error (a bug: say so, traceback with
+RDEA_LAB_DEBUG=1); 2 bad input (one line naming the file, the field and what
+is allowed); 3 a run ended by the rig or a limit (aborted: breakdown, force
+limit, lost connection, stall); 130 interrupted (Ctrl-C, SIGTERM).
+"""
 
 from __future__ import annotations
 
@@ -8,9 +14,10 @@ import traceback
 
 import click
 
-from ..backends.rig import RigRefused
-from ..physics.result import ModelNotApplicable, StretchBelowOneError
-from ..specs import SpecError
+from .. import api
+
+EXIT_HELP = ("Exit status: 0 done, 1 internal error, 2 bad input (one line naming the file, the field and what is "
+             "allowed), 3 a run ended by the rig or a limit (aborted), 130 interrupted.")
 
 
 class UserInputError(click.ClickException):
@@ -45,7 +52,7 @@ def run(group: click.Group, argv=None) -> int:
     except click.ClickException as exc:
         click.echo(f"rdea-lab: {_one_line(exc.format_message())}", err=True)
         return exc.exit_code
-    except (SpecError, StretchBelowOneError, ModelNotApplicable, RigRefused) as exc:
+    except api.USER_ERRORS as exc:
         click.echo(f"rdea-lab: {_one_line(exc)}", err=True)
         return 2
     except KeyboardInterrupt:
@@ -73,13 +80,8 @@ def flush_stdout():
         pass
 
 
-def project_file(given: str | None, default: str, option: str) -> str:
-    """``given``, or the project's ``default`` file (e.g. ``params/paper2021_table3.yaml``) when absent."""
-    if given is not None:
-        return given
-    from ..paths import project_root
+def headless() -> None:
+    """Figures go to files: the CLI (only the CLI) picks the non-interactive backend."""
+    import matplotlib
 
-    root = project_root()
-    if root is None or not (root / default).is_file():
-        die(f"{option}: required here (no {default} to default to)")
-    return str(root / default)
+    matplotlib.use("Agg")

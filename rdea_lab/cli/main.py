@@ -12,24 +12,17 @@ from pathlib import Path
 import click
 import numpy as np
 
-from .. import __version__
-from ..paths import project_root
-from ..physics.geometry import geometry_from_card
+from .. import __version__, api
 from ..specs import load_params, load_specimen, parse_quantity
-from ..twin.curves import CURVE_FIELDS, quasi_static_curves
-from .errors import die, run
-from .calibrate import register as register_calibrate
-from .importer import register as register_import
-from .report import register as register_report
-from .rig import register as register_rig
-from .runs import register as register_run_commands
-from .runs import register_campaign
+from . import calibrate as calibrate_cmd
+from . import importer, report, rig, runs
+from .errors import EXIT_HELP, die, run
 
 #: Table 1 of [1]: the datasheet permittivity of the silicone.
 DEFAULT_EPS_R = 2.8
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100}, epilog=EXIT_HELP)
 @click.version_option(__version__, prog_name="rdea-lab")
 def cli():
     """rdea-lab: rolled dielectric elastomer actuators, from protocol to validated model.
@@ -52,7 +45,7 @@ def _jsonable(value):
     return value
 
 
-@cli.command()
+@click.command()
 @click.argument("card", type=click.Path(dir_okay=False))
 @click.option("--params", "params_path", type=click.Path(dir_okay=False),
               help="Parameter set whose eps_r gives C0 (default: eps_r = 2.8, Table 1).")
@@ -74,10 +67,7 @@ def geometry(card, params_path, eps_r, as_json):
         eps_r = DEFAULT_EPS_R
     elif not (eps_r >= 1.0 and math.isfinite(eps_r)):
         die(f"--eps-r: {eps_r} is not a relative permittivity; allowed: a finite number >= 1")
-    try:
-        values = geometry_from_card(spec).as_dict(eps_r)
-    except ValueError as exc:
-        die(f"{card}: {exc}")
+    values = api.geometry(card).as_dict(eps_r)
     if spec.kind == "strip":
         if as_json:
             click.echo(json.dumps({"id": spec.id, "kind": "strip", **values}, indent=2))
@@ -128,7 +118,7 @@ def _parse_voltages(text: str) -> list[float]:
     return out
 
 
-@cli.command()
+@click.command()
 @click.option("--specimen", "card", required=True, type=click.Path(dir_okay=False), help="Specimen card (YAML).")
 @click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False), help="Parameter set (YAML).")
 @click.option("--model", type=click.Choice(["su", "1r", "3r"], case_sensitive=False), default="su",
@@ -151,10 +141,10 @@ def curve(card, params_path, model, stretch_text, voltage_text, as_json, as_csv)
         die("curve: give --json or --csv, not both")
     stretch = _parse_stretch(stretch_text)
     voltages = _parse_voltages(voltage_text)
-    result = quasi_static_curves(load_specimen(card), load_params(params_path), model.lower(), stretch, voltages)
+    result = api.quasi_static_curves(load_specimen(card), load_params(params_path), model.lower(), stretch, voltages)
     if as_json:
         out = {"model": result["model"], "specimen": result["specimen"], "parameters": result["parameters"],
-               "curves": [{k: c[k] for k in ("voltage", *CURVE_FIELDS, "summary")} for c in result["curves"]]}
+               "curves": [{k: c[k] for k in ("voltage", *api.CURVE_FIELDS, "summary")} for c in result["curves"]]}
         click.echo(json.dumps(_jsonable(out)))
         return
     if as_csv:
@@ -178,7 +168,7 @@ def curve(card, params_path, model, stretch_text, voltage_text, as_json, as_csv)
                        f"{c['lambda2b'][i]:9.5f} {c['capacitance'][i] * 1e12:9.2f}")
 
 
-@cli.command()
+@click.command()
 @click.option("--out", "out_dir", default="reports/paper2021", show_default=True,
               type=click.Path(file_okay=False), help="Folder for everything reproduce writes.")
 @click.option("--campaign", "campaign_path", type=click.Path(dir_okay=False),
@@ -197,28 +187,22 @@ def reproduce(out_dir, campaign_path, no_speed, quiet):
     Example:
       rdea-lab reproduce
     """
-    import sys as _sys
+    from .errors import headless
 
-    from ..reports.reproduce import reproduce as run_reproduce
-
-    root = project_root()
+    headless()
+    root = api.project_root()
     if root is None:
         die("reproduce: specimens/, params/ and campaigns/ not found; run from the rdea-lab checkout")
     out = Path(out_dir)
 
     def bar(total, label):
-        if quiet or not _sys.stderr.isatty():
+        if quiet or not sys.stderr.isatty():
             import contextlib
             return contextlib.nullcontext(type("NoBar", (), {"update": staticmethod(lambda n: None)})())
-        return click.progressbar(length=total, label=label, file=_sys.stderr)
+        return click.progressbar(length=total, label=label, file=sys.stderr)
 
-    from ..reports.reproduce import ReproduceInputError
-
-    try:
-        result = run_reproduce(root, out, campaign=campaign_path, speed=not no_speed, echo=click.echo,
-                               progress_factory=bar)
-    except ReproduceInputError as exc:
-        die(str(exc))
+    result = api.reproduce(root, out, campaign=campaign_path, speed=not no_speed, echo=click.echo,
+                           progress_factory=bar)
     v = result["validation"]
     click.echo("")
     click.echo(f"Table 4 analogue ({v['origin']})")
@@ -233,14 +217,7 @@ def reproduce(out_dir, campaign_path, no_speed, quiet):
     click.echo(f"done in {result['seconds']:.1f} s")
 
 
-def _benchmarks_dir() -> Path:
-    for base in (Path.cwd(), Path(__file__).resolve().parents[2]):
-        if (base / "benchmarks" / "bench_models.py").is_file():
-            return base / "benchmarks"
-    die("bench: benchmarks/bench_models.py not found; run from a source checkout (pip install -e .)")
-
-
-@cli.command()
+@click.command()
 @click.option("--samples", default=100_000, show_default=True, type=click.IntRange(1000, 10_000_000),
               help="Samples per model.")
 @click.option("--baseline-samples", default=1000, show_default=True, type=click.IntRange(10, 100_000),
@@ -255,7 +232,10 @@ def bench(samples, baseline_samples, repeat, as_json):
     Example:
       rdea-lab bench --json
     """
-    sys.path.insert(0, str(_benchmarks_dir()))
+    folder = api.benchmarks_dir()
+    if folder is None:
+        die("bench: benchmarks/bench_models.py not found; run from a source checkout (pip install -e .)")
+    sys.path.insert(0, str(folder))
     import bench_models  # noqa: E402  (lives in benchmarks/, outside the package)
 
     result = bench_models.run(samples=samples, baseline_samples=baseline_samples, repeat=repeat)
@@ -265,12 +245,9 @@ def bench(samples, baseline_samples, repeat, as_json):
         click.echo(bench_models.format_text(result))
 
 
-register_run_commands(cli)
-register_campaign(cli)
-register_rig(cli)
-register_calibrate(cli)
-register_report(cli)
-register_import(cli)
+for command in (geometry, curve, reproduce, bench, runs.run, runs.recover, runs.ls_, runs.show, runs.protocol,
+                runs.campaign, rig.rig, calibrate_cmd.calibrate, report.report, importer.import_):
+    cli.add_command(command)
 
 
 def main(argv=None):

@@ -1,99 +1,90 @@
-"""``rdea-lab report`` (the Table 4 analogue) and ``rdea-lab report speed``."""
+"""``rdea-lab report validation`` (the Table 4 analogue) and ``rdea-lab report speed``."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 
-from .errors import die
+from .. import api
+from .errors import die, headless
 
 MODELS = ("su", "1r", "3r", "auto")
 
 
-def register(cli: click.Group) -> None:
-    @cli.group(invoke_without_command=True)
-    @click.option("--params", "params_path", type=click.Path(dir_okay=False),
-                  help="Parameter set (YAML), e.g. a calibration record.  [required]")
-    @click.option("--datasets", "datasets", type=click.Path(file_okay=False),
-                  help="Folder of runs (searched recursively for complete *.nc runs).  [required]")
-    @click.option("--out", "out_dir", default="reports/validation", show_default=True,
-                  type=click.Path(file_okay=False), help="Folder for the table, figures and index.html.")
-    @click.option("--model", type=click.Choice(MODELS, case_sensitive=False), default="su", show_default=True,
-                  help="Twin model; auto = cheapest within --tolerance of 3R, per run.")
-    @click.option("--tolerance", type=click.FloatRange(min=0.0, min_open=True), default=0.01, show_default=True,
-                  help="For --model auto: allowed deviation from 3R, relative to the peak stress.")
-    @click.option("--no-figures", is_flag=True, help="Tables and index.html only.")
-    @click.pass_context
-    def report(ctx, params_path, datasets, out_dir, model, tolerance, no_figures):
-        """The twin against measured runs: the Table 4 analogue, figures 11-16, index.html.
+@click.group()
+def report():
+    """Reports: the twin against measured runs (validation), and speed against error (speed).
 
-        Runs the twin on every complete run's own stretch and voltage history
-        and writes table4.md / .csv / .tex, PNG figures and index.html (with
-        the provenance of every run and of the parameters) into --out.
+    \b
+    Examples:
+      rdea-lab report validation --params params/calibrated.yaml --datasets datasets/paper2021 --out reports/paper2021
+      rdea-lab report speed --out reports/speed
+    """
 
-        \b
-        Examples:
-          rdea-lab report --params params/calibrated.yaml --datasets datasets/paper2021 --out reports/paper2021
-          rdea-lab report speed --out reports/speed
-        """
-        if ctx.invoked_subcommand is not None:
-            if params_path or datasets:
-                die("report: --params and --datasets belong to 'rdea-lab report', not to its subcommands")
-            return
-        from ..reports.validation import ReportInputError, validation_report
 
-        if not params_path:
-            die("report: --params is required (a parameter file, e.g. params/calibrated.yaml)")
-        if not datasets:
-            die("report: --datasets is required (a folder of runs, e.g. datasets/paper2021)")
-        if not Path(params_path).is_file():
-            die(f"--params: {params_path}: no such file")
-        if not Path(datasets).is_dir():
-            die(f"--datasets: {datasets}: no such folder")
-        click.echo(f"evaluating the twin ({model.lower()}) on the runs in {datasets} ...")
-        try:
-            result = validation_report(params_path, datasets, out_dir, model=model.lower(), tolerance=tolerance,
-                                       figures=not no_figures)
-        except ReportInputError as exc:
-            die(str(exc))
-        click.echo(result["caption"])
-        click.echo(result["markdown"], nl=False)
-        for s in result["skipped"]:
-            click.echo(f"skipped {s['file']}: {s['reason']}")
-        click.echo(f"wrote {result['files']['html']} (tables table4.md, table4.csv, table4.tex; "
-                   f"{len(result['figures'])} figures) in {out_dir}")
+@report.command()
+@click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False),
+              help="Parameter set (YAML), e.g. a calibration record.")
+@click.option("--datasets", "datasets", required=True, type=click.Path(file_okay=False),
+              help="Folder of runs (searched recursively for complete *.nc runs).")
+@click.option("--out", "out_dir", default="reports/validation", show_default=True,
+              type=click.Path(file_okay=False), help="Folder for the table, figures and index.html.")
+@click.option("--model", type=click.Choice(MODELS, case_sensitive=False), default="su", show_default=True,
+              help="Twin model; auto = cheapest within --tolerance of 3R, per run.")
+@click.option("--tolerance", type=click.FloatRange(min=0.0, min_open=True), default=0.01, show_default=True,
+              help="For --model auto: allowed deviation from 3R, relative to the peak stress.")
+@click.option("--no-figures", is_flag=True, help="Tables and index.html only.")
+def validation(params_path, datasets, out_dir, model, tolerance, no_figures):
+    """The twin against measured runs: the Table 4 analogue, figures 11-16, index.html.
 
-    @report.command()
-    @click.option("--out", "out_dir", default="reports/speed", show_default=True, type=click.Path(file_okay=False),
-                  help="Folder for speed.md, speed.csv, pareto.png and the Figure 8 sweep.")
-    @click.option("--repeats", type=click.IntRange(1, 50), default=3, show_default=True,
-                  help="Timing repeats per model and scene (the best is kept).")
-    @click.option("--tolerance", type=click.FloatRange(min=0.0, min_open=True), default=0.01, show_default=True,
-                  help="For auto: allowed deviation from 3R, relative to the peak stress.")
-    def speed(out_dir, repeats, tolerance):
-        """SU, 1R, 3R and auto: time per sample against stress error from 3R, per scene.
+    Runs the twin on every complete run's own stretch and voltage history
+    and writes table4.md / .csv / .tex, PNG figures and index.html (with
+    the provenance of every run and of the parameters) into --out.
 
-        Scenes: the three paper specimens under the paper's protocols, and the
-        hollow, active and passive cores of Section 3.4 at 3.5 kV.
+    \b
+    Example:
+      rdea-lab report validation --params params/calibrated.yaml --datasets datasets/paper2021 \\
+          --out reports/paper2021
+    """
+    headless()
+    click.echo(f"evaluating the twin ({model.lower()}) on the runs in {datasets} ...")
+    result = api.validation_report(params_path, datasets, out_dir, model=model.lower(), tolerance=tolerance,
+                                   figures=not no_figures)
+    click.echo(result["caption"])
+    click.echo(result["markdown"], nl=False)
+    for s in result["skipped"]:
+        click.echo(f"skipped {s['file']}: {s['reason']}")
+    click.echo(f"wrote {result['files']['html']} (tables table4.md, table4.csv, table4.tex; "
+               f"{len(result['figures'])} figures) in {out_dir}")
 
-        \b
-        Example:
-          rdea-lab report speed --out reports/speed
-        """
-        from ..paths import project_root
-        from ..reports.speed import speed_study
 
-        root = project_root()
-        if root is None:
-            die("report speed: specimens/, params/ and protocols/ not found; run from the rdea-lab checkout")
-        click.echo(f"timing SU, 1R, 3R and auto (best of {repeats}) ...")
-        result = speed_study(out_dir, root, repeats=repeats, tolerance=tolerance)
-        for a in result["auto"]:
-            click.echo(f"  {a['scene']}: auto picks {a['model_used']} ({a['auto_reason']})")
-        for c in result["reference_check"]:
-            if "max_rel_error" in c:
-                click.echo(f"  reference check on {c['scene']}: 3R vs fsolve within "
-                           f"{c['max_rel_error']:.2g} of the peak stress ({c['converged']}/{c['samples']} samples)")
-        click.echo(f"wrote {result['files']['markdown']}, {result['files']['csv']}, {result['files']['pareto']}, "
-                   f"{result['files']['figure8']}")
+@report.command()
+@click.option("--out", "out_dir", default="reports/speed", show_default=True, type=click.Path(file_okay=False),
+              help="Folder for speed.md, speed.csv, pareto.png and the Figure 8 sweep.")
+@click.option("--repeats", type=click.IntRange(1, 50), default=3, show_default=True,
+              help="Timing repeats per model and scene (the best is kept).")
+@click.option("--tolerance", type=click.FloatRange(min=0.0, min_open=True), default=0.01, show_default=True,
+              help="For auto: allowed deviation from 3R, relative to the peak stress.")
+def speed(out_dir, repeats, tolerance):
+    """SU, 1R, 3R and auto: time per sample against stress error from 3R, per scene.
+
+    Scenes: the three paper specimens under the paper's protocols, and the
+    hollow, active and passive cores of Section 3.4 at 3.5 kV.
+
+    \b
+    Example:
+      rdea-lab report speed --out reports/speed
+    """
+    headless()
+    root = api.project_root()
+    if root is None:
+        die("report speed: specimens/, params/ and protocols/ not found; run from the rdea-lab checkout")
+    click.echo(f"timing SU, 1R, 3R and auto (best of {repeats}) ...")
+    result = api.speed_study(out_dir, root, repeats=repeats, tolerance=tolerance)
+    for a in result["auto"]:
+        click.echo(f"  {a['scene']}: auto picks {a['model_used']} ({a['auto_reason']})")
+    for c in result["reference_check"]:
+        if "max_rel_error" in c:
+            click.echo(f"  reference check on {c['scene']}: 3R vs fsolve within "
+                       f"{c['max_rel_error']:.2g} of the peak stress ({c['converged']}/{c['samples']} samples)")
+    click.echo(f"wrote {result['files']['markdown']}, {result['files']['csv']}, {result['files']['pareto']}, "
+               f"{result['files']['figure8']}")

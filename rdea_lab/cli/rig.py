@@ -2,118 +2,78 @@
 
 from __future__ import annotations
 
-import math
-import re
 import signal
 import threading
-from pathlib import Path
 
 import click
 
-from ..specs import load_specimen
-from .errors import die, flush_stdout, project_file
-
-DEFAULT_TRUTH = "truth/paper2021.yaml"
-_FAULT = re.compile(r"^(?P<kind>[a-z]+)-at=(?P<at>.+)$")
-FAULT_KINDS = ("disconnect", "breakdown", "stall")
+from .. import api
+from ..specs import load_specimen, read_token
+from .errors import die, flush_stdout
 
 
-def parse_fault(text: str) -> tuple[str, float]:
-    """``"stall-at=3"`` -> ``("stall", 3.0)``; exit 2 with one line otherwise."""
-    m = _FAULT.match(text.strip())
-    allowed = ", ".join(f"{k}-at=SECONDS" for k in FAULT_KINDS)
-    if not m or m["kind"] not in FAULT_KINDS:
-        die(f"--fault: {text!r} is not one of {allowed} (e.g. --fault stall-at=3.0)")
+@click.group()
+def rig():
+    """The test rig: serve the built-in emulator."""
+
+
+@rig.command()
+@click.option("--specimen", "card_path", required=True, type=click.Path(dir_okay=False),
+              help="Specimen card (YAML) of the roll on the emulated rig.")
+@click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
+              help="Truth file: true physics and instrument effects [default: truth/paper2021.yaml].")
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Address to listen on; anything but loopback needs --token-file.")
+@click.option("--port", default=5025, show_default=True, type=click.IntRange(0, 65535),
+              help="TCP port (0: any free port).")
+@click.option("--realtime", is_flag=True, help="Pace runs at wall-clock speed (default: as fast as fetched).")
+@click.option("--token-file", "token_file", type=click.Path(dir_okay=False),
+              help="File holding the token clients must send first (SYST:AUTH <token>).")
+@click.option("--fault", "faults", multiple=True, metavar="KIND-at=SECONDS",
+              help="Inject a fault at a run time: disconnect-at=, breakdown-at= or stall-at= (repeatable).")
+def serve(card_path, truth_path, host, port, realtime, token_file, faults):
+    """Serve the built-in rig emulator (docs/rig-protocol.md) until Ctrl-C.
+
+    The emulated roll has its own "true" physics and instrument effects
+    (the truth file); every dataset it makes says so (*IDN? model
+    rig-emulator, SYST:TRUTH?).
+
+    \b
+    Example:
+      rdea-lab rig serve --specimen specimens/specimen2.yaml --port 5025
+      rdea-lab run protocols/blocking_force.yaml --specimen specimens/specimen2.yaml \\
+          --backend rig --rig tcp://127.0.0.1:5025
+    """
+    parsed = api.parse_faults(faults)
+    token = read_token(token_file, "--token-file") if token_file else None
+    if token is None and not api.is_loopback(host):
+        die(f"--host {host}: not a loopback address; give --token-file so that only clients "
+            "with the token can drive the rig")
+    truth_path = str(api.project_default(truth_path, api.DEFAULT_TRUTH, "--truth"))
+    card = load_specimen(card_path)
+    truth = api.load_truth(truth_path)
     try:
-        at = float(m["at"])
-    except ValueError:
-        die(f"--fault: {text!r}: {m['at']!r} is not a number of seconds")
-    if not (math.isfinite(at) and at >= 0.0):
-        die(f"--fault: {text!r}: the time must be a finite number of seconds >= 0")
-    return m["kind"], at
-
-
-def _read_token(path: str) -> str:
-    try:
-        token = Path(path).read_text(encoding="utf-8").strip()
-    except (OSError, UnicodeDecodeError) as exc:
-        die(f"--token-file: cannot read {path} ({type(exc).__name__})")
-    if not token or any(c.isspace() for c in token):
-        die(f"--token-file: {path} must hold one token: a single word, no spaces")
-    return token
-
-
-def register(cli: click.Group) -> None:
-    """Add the ``rig`` group to ``cli``."""
-
-    @cli.group()
-    def rig():
-        """The test rig: serve the built-in emulator."""
-
-    @rig.command()
-    @click.option("--specimen", "card_path", required=True, type=click.Path(dir_okay=False),
-                  help="Specimen card (YAML) of the roll on the emulated rig.")
-    @click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
-                  help=f"Truth file: true physics and instrument effects [default: {DEFAULT_TRUTH}].")
-    @click.option("--host", default="127.0.0.1", show_default=True,
-                  help="Address to listen on; anything but loopback needs --token-file.")
-    @click.option("--port", default=5025, show_default=True, type=click.IntRange(0, 65535),
-                  help="TCP port (0: any free port).")
-    @click.option("--realtime", is_flag=True, help="Pace runs at wall-clock speed (default: as fast as fetched).")
-    @click.option("--token-file", "token_file", type=click.Path(dir_okay=False),
-                  help="File holding the token clients must send first (SYST:AUTH <token>).")
-    @click.option("--fault", "faults", multiple=True, metavar="KIND-at=SECONDS",
-                  help="Inject a fault at a run time: disconnect-at=, breakdown-at= or stall-at= (repeatable).")
-    def serve(card_path, truth_path, host, port, realtime, token_file, faults):
-        """Serve the built-in rig emulator (docs/rig-protocol.md) until Ctrl-C.
-
-        The emulated roll has its own "true" physics and instrument effects
-        (the truth file); every dataset it makes says so (*IDN? model
-        rig-emulator, SYST:TRUTH?).
-
-        \b
-        Example:
-          rdea-lab rig serve --specimen specimens/specimen2.yaml --port 5025
-          rdea-lab run protocols/blocking_force.yaml --specimen specimens/specimen2.yaml \\
-              --backend rig --rig tcp://127.0.0.1:5025
-        """
-        from ..emulator import RigServer, is_loopback
-        from ..specs.truth import load_truth
-
-        parsed = [parse_fault(f) for f in faults]
-        kinds = [k for k, _ in parsed]
-        for kind in FAULT_KINDS:
-            if kinds.count(kind) > 1:
-                die(f"--fault: {kind}-at given {kinds.count(kind)} times; give each kind at most once")
-        token = _read_token(token_file) if token_file else None
-        if token is None and not is_loopback(host):
-            die(f"--host {host}: not a loopback address; give --token-file so that only clients "
-                "with the token can drive the rig")
-        truth_path = project_file(truth_path, DEFAULT_TRUTH, "--truth")
-        card = load_specimen(card_path)
-        truth = load_truth(truth_path)
-        try:
-            server = RigServer(card, truth, host=host, port=port, token=token, realtime=realtime, faults=parsed,
+        server = api.RigServer(card, truth, host=host, port=port, token=token, realtime=realtime, faults=parsed,
                                truth_source=truth_path)
-            bound_host, bound_port = server.start()
-        except OSError as exc:
-            die(f"--host/--port: cannot listen on {host}:{port} ({exc.strerror or exc})")
-        stop = threading.Event()
-        try:
-            previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
-        except ValueError:  # not the main thread (embedded use): Ctrl-C / stop only
-            previous = None
-        shown = f"[{bound_host}]" if ":" in bound_host else bound_host
-        try:
-            click.echo(f"rig emulator: {card.id} (truth {truth.name}, {'realtime' if realtime else 'virtual time'}"
-                       f"{', faults ' + ', '.join(faults) if faults else ''}) listening on tcp://{shown}:{bound_port}",
-                       nl=True)
-            flush_stdout()
-            while not stop.wait(0.5):
-                pass
-        except KeyboardInterrupt:
+        bound_host, bound_port = server.start()
+    except OSError as exc:
+        die(f"--host/--port: cannot listen on {host}:{port} ({exc.strerror or exc})")
+    stop = threading.Event()
+    try:
+        previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    except ValueError:  # not the main thread (embedded use): Ctrl-C / stop only
+        previous = None
+    shown = f"[{bound_host}]" if ":" in bound_host else bound_host
+    try:
+        click.echo(f"rig emulator: {card.id} (truth {truth.name}, {'realtime' if realtime else 'virtual time'}"
+                   f"{', faults ' + ', '.join(faults) if faults else ''}) listening on tcp://{shown}:{bound_port}",
+                   nl=True)
+        flush_stdout()
+        while not stop.wait(0.5):
             pass
-        finally:
-            server.shutdown()  # voltage off, connections closed
-            if previous is not None:
-                signal.signal(signal.SIGTERM, previous)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.shutdown()  # voltage off, connections closed
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)

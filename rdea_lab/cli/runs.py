@@ -1,335 +1,295 @@
-"""CLI commands for runs and datasets: run, recover, ls, show, protocol show."""
+"""CLI commands for runs and datasets: run, recover, ls, show, protocol show, campaign run."""
 
 from __future__ import annotations
 
 import contextlib
-import math
 import shlex
 import sys
-from datetime import datetime, timezone
 from pathlib import Path
 
 import click
 
-from ..specs import load_params, load_specimen
-from .errors import die, project_file
+from .. import api
+from ..specs import read_token
+from .errors import EXIT_HELP, die, headless
 
-DEFAULT_PARAMS = "params/paper2021_table3.yaml"
-
-
-def _plans():
-    from .. import protocols  # the protocol layer, loaded when a command needs it
-    return protocols
+LIVE_HELP = ("Live view of the samples: 'table' (a line a second), 'plot' (a matplotlib window) "
+             "or FILE.png (a PNG redrawn every second).")
 
 
-def _default_out(card_id: str, plan_name: str) -> Path:
-    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-    return Path("datasets") / card_id / f"{plan_name}-{stamp}.nc"
+def _command_line() -> str:
+    return "rdea-lab " + " ".join(shlex.quote(a) for a in sys.argv[1:])
 
 
-def _clear_outputs(paths, overwrite: bool) -> None:
-    """Check every dataset to be written before any run starts: an unfinished run's
-    journal in the way, or an existing file without ``--force``, is refused; with
-    ``--force`` the existing files are removed."""
-    from ..store import journal_path
-
-    for out in paths:
-        if journal_path(out).exists():
-            die(f"{out}: an unfinished run's journal {journal_path(out)} is in the way; "
-                "rdea-lab recover it, or remove it")
-        if out.exists() and not overwrite:
-            die(f"{out}: exists; give --force to overwrite, or choose another --out")
-    for out in paths:
-        if out.exists():
-            out.unlink()
+def parse_metadata(items) -> dict:
+    """``("operator=ana", "batch=B7")`` -> ``{"operator": "ana", "batch": "B7"}``."""
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            die(f"--md: {item!r} is not KEY=VALUE (e.g. --md operator=ana)")
+        if key.strip() in out:
+            die(f"--md: {key.strip()!r} given twice")
+        out[key.strip()] = value.strip()
+    return api.check_metadata(out, source="--md")
 
 
-def _progress(total: int, quiet: bool, label: str, seconds: float | None = None):
-    """A progress bar on stderr, for runs expected to last over a second (``seconds``,
-    when known), unless ``--quiet`` or stdout is not a terminal."""
-    if quiet or not (sys.stdout.isatty() and sys.stderr.isatty()):
-        return None
-    if seconds is not None and seconds <= 1.0:
-        return None
-    return click.progressbar(length=total, label=label, file=sys.stderr, show_eta=True, show_percent=True)
+class _Bar:
+    """A click progress bar as a run subscriber."""
+
+    def __init__(self, total, label):
+        self.bar = click.progressbar(length=total, label=label, file=sys.stderr, show_eta=True, show_percent=True)
+
+    def __enter__(self):
+        self.bar.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self.bar.__exit__(*exc)
+
+    def __call__(self, block):
+        self.bar.update(len(block))
 
 
-def register(cli: click.Group) -> None:
-    """Add the commands of this module to ``cli``."""
+def subscribers(live, quiet, total, label, seconds, stack) -> list:
+    """The CLI's subscribers: a live view (--live) or a progress bar (runs over a second, on a terminal)."""
+    if live:
+        if live == "table":
+            return [api.LiveTable()]
+        if live == "plot":
+            import matplotlib
 
-    @cli.command()
-    @click.argument("protocol", type=click.Path(dir_okay=False))
-    @click.option("--specimen", "card_path", required=True, type=click.Path(dir_okay=False), help="Specimen card (YAML).")
-    @click.option("--backend", type=click.Choice(["twin", "rig", "emulator"]), default="twin", show_default=True,
-                  help="twin: the physics model; rig: a rig server (--rig); emulator: a built-in emulated rig.")
-    @click.option("--rig", "rig_address", metavar="tcp://HOST:PORT", help="Rig server, for --backend rig.")
-    @click.option("--token-file", type=click.Path(dir_okay=False), help="Token presented to the rig server.")
-    @click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
-                  help="For --backend emulator: truth file [default: truth/paper2021.yaml].")
-    @click.option("--fault", "faults", multiple=True, metavar="KIND-at=SECONDS",
-                  help="For --backend emulator: disconnect-at=, breakdown-at= or stall-at= (repeatable).")
-    @click.option("--stall-timeout", type=click.FloatRange(0.1, 3600), default=5.0, show_default=True,
-                  help="Seconds without a new sample before a rig run is aborted as stalled.")
-    @click.option("--params", "params_path", type=click.Path(dir_okay=False),
-                  help=f"Parameter set for the twin [default: {DEFAULT_PARAMS}].")
-    @click.option("--model", type=click.Choice(["su", "1r", "3r", "auto"], case_sensitive=False), default="auto",
-                  show_default=True, help="Twin model; auto = cheapest within --tolerance of 3R on this run.")
-    @click.option("--tolerance", type=float, default=0.01, show_default=True,
-                  help="For --model auto: allowed deviation from 3R, relative to the peak stress.")
-    @click.option("--out", "out_path", type=click.Path(dir_okay=False),
-                  help="Dataset to write [default: datasets/<specimen>/<protocol>-<UTC time>.nc].")
-    @click.option("--force", "overwrite", is_flag=True, help="Overwrite an existing dataset.")
-    @click.option("--realtime", is_flag=True, help="Pace the twin at wall-clock speed, as a rig runs.")
-    @click.option("--dry-run", is_flag=True, help="Check the protocol against the specimen and limits; print the plan.")
-    @click.option("--quiet", is_flag=True, help="No progress bar.")
-    @click.option("--seed", type=int, default=0, show_default=True, help="Random seed (recorded).")
-    def run(protocol, card_path, backend, rig_address, token_file, truth_path, faults, stall_timeout, params_path,
-            model, tolerance, out_path, overwrite, realtime, dry_run, quiet, seed):
-        """Run a protocol on a specimen and store the run as one netCDF file.
+            if matplotlib.get_backend().lower() in ("agg", "pdf", "svg", "ps", "cairo", "template"):
+                die("--live plot: no display for a window here; give --live FILE.png instead")
+            return [api.LivePlot()]
+        if not live.lower().endswith(".png"):
+            die(f"--live: {live!r}; allowed: table, plot or a FILE.png")
+        headless()
+        return [api.LivePlot(Path(live))]
+    if quiet or not (sys.stdout.isatty() and sys.stderr.isatty()) or (seconds is not None and seconds <= 1.0):
+        return []
+    return [stack.enter_context(_Bar(total, label))]
 
-        \b
-        Examples:
-          rdea-lab run protocols/tensile_ramp_sine_0V.yaml --specimen specimens/specimen2.yaml \\
-              --backend twin --model auto --out datasets/demo.nc
-          rdea-lab run protocols/blocking_force.yaml --specimen specimens/specimen1.yaml \\
-              --backend rig --rig tcp://127.0.0.1:5025
-          rdea-lab run protocols/blocking_force.yaml --specimen specimens/specimen1.yaml \\
-              --backend emulator --fault breakdown-at=12
-        """
-        from ..backends import TwinBackend
-        from ..runs import execute
-        from ..physics.geometry import geometry_from_card
 
-        P = _plans()
-        plan = P.load_plan(protocol)
-        card = load_specimen(card_path)
-        try:
-            geom = geometry_from_card(card)
-        except ValueError as exc:
-            die(f"{card_path}: {exc}")
-        P.first_violation(plan, L3=geom.L3)
-        if not (0.0 < tolerance < 1.0 and math.isfinite(tolerance)):
-            die(f"--tolerance: {tolerance} is not a relative deviation; allowed: 0 < tolerance < 1")
-        if backend != "emulator" and (faults or truth_path):
-            die("--fault and --truth: only with --backend emulator")
-        if backend != "rig" and (rig_address or token_file):
-            die("--rig and --token-file: only with --backend rig")
-        if backend == "twin":
-            params = load_params(project_file(params_path, DEFAULT_PARAMS, "--params"))
-            executor = TwinBackend(card, params, model=model.lower(), tolerance=tolerance, realtime=realtime,
-                                   seed=seed)
-        elif params_path:
-            die("--params: the twin's parameters; a rig measures, it takes none")
-        elif backend == "rig":
-            if not rig_address:
-                die("--rig: required with --backend rig (e.g. --rig tcp://127.0.0.1:5025)")
-            from ..backends.rig import RigBackend, parse_address
-            from .rig import _read_token
-            try:
-                parse_address(rig_address)
-            except ValueError as exc:
-                die(f"--rig: {exc}")
-            executor = RigBackend(rig_address, card, token=_read_token(token_file) if token_file else None,
-                                  stall_timeout=stall_timeout, seed=seed)
+@click.command(epilog=EXIT_HELP)
+@click.argument("protocol", type=click.Path(dir_okay=False))
+@click.option("--specimen", "card_path", required=True, type=click.Path(dir_okay=False), help="Specimen card (YAML).")
+@click.option("--backend", type=click.Choice(["twin", "rig", "emulator"]), default="twin", show_default=True,
+              help="twin: the physics model; rig: a rig server (--rig); emulator: a built-in emulated rig.")
+@click.option("--rig", "rig_address", metavar="tcp://HOST:PORT", help="Rig server, for --backend rig.")
+@click.option("--token-file", type=click.Path(dir_okay=False), help="Token presented to the rig server.")
+@click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
+              help="For --backend emulator: truth file [default: truth/paper2021.yaml].")
+@click.option("--fault", "faults", multiple=True, metavar="KIND-at=SECONDS",
+              help="For --backend emulator: disconnect-at=, breakdown-at= or stall-at= (repeatable).")
+@click.option("--stall-timeout", type=click.FloatRange(0.1, 3600), default=5.0, show_default=True,
+              help="Seconds without a new sample before a rig run is aborted as stalled.")
+@click.option("--params", "params_path", type=click.Path(dir_okay=False),
+              help="Parameter set for the twin [default: params/paper2021_table3.yaml].")
+@click.option("--model", type=click.Choice(["su", "1r", "3r", "auto"], case_sensitive=False), default="auto",
+              show_default=True, help="Twin model; auto = cheapest within --tolerance of 3R on this run.")
+@click.option("--tolerance", type=click.FloatRange(0.0, 1.0, min_open=True, max_open=True), default=0.01,
+              show_default=True,
+              help="For --model auto: allowed deviation from 3R, relative to the peak stress.")
+@click.option("--out", "out_path", type=click.Path(dir_okay=False),
+              help="Dataset to write [default: datasets/<specimen>/<protocol>-<UTC time>.nc].")
+@click.option("--force", "overwrite", is_flag=True, help="Overwrite an existing dataset.")
+@click.option("--realtime", is_flag=True, help="Pace the twin at wall-clock speed, as a rig runs.")
+@click.option("--dry-run", is_flag=True, help="Check the protocol against the specimen and limits; print the plan.")
+@click.option("--live", metavar="table|plot|FILE.png", help=LIVE_HELP)
+@click.option("--md", "md", multiple=True, metavar="KEY=VALUE",
+              help="User metadata stored with the run (operator, batch, notes; repeatable).")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Random seed (recorded), 0 to 2**63 - 1.")
+def run(protocol, card_path, backend, rig_address, token_file, truth_path, faults, stall_timeout, params_path,
+        model, tolerance, out_path, overwrite, realtime, dry_run, live, md, quiet, seed):
+    """Run a protocol on a specimen and store the run as one netCDF file.
+
+    \b
+    Examples:
+      rdea-lab run protocols/tensile_ramp_sine_0V.yaml --specimen specimens/specimen2.yaml \\
+          --backend twin --model auto --out datasets/demo.nc --md operator=ana --live table
+      rdea-lab run protocols/blocking_force.yaml --specimen specimens/specimen1.yaml \\
+          --backend rig --rig tcp://127.0.0.1:5025
+      rdea-lab run protocols/blocking_force.yaml --specimen specimens/specimen1.yaml \\
+          --backend emulator --fault breakdown-at=12
+    """
+    metadata = parse_metadata(md)
+    setup = api.prepare_run(protocol, card_path, backend, params=params_path, model=model.lower(),
+                            tolerance=tolerance, out=out_path, seed=seed, realtime=realtime, address=rig_address,
+                            token=read_token(token_file, "--token-file") if token_file else None,
+                            truth=truth_path, faults=faults, stall_timeout=stall_timeout)
+    if dry_run:
+        click.echo(setup.describe())
+        return
+    api.check_outputs([setup.out], overwrite)
+    plan = setup.plan
+    # wall time: the plan's duration when paced (a rig always is), else about 1e5 samples/s
+    paced = realtime or backend == "rig"
+    with contextlib.ExitStack() as stack:
+        subs = subscribers(live, quiet, plan.samples, f"{plan.name} on {setup.card.id}",
+                           plan.duration if paced else plan.samples / 1e5, stack)
+        result = api.execute_setup(setup, callbacks=subs, metadata=metadata, command=_command_line())
+    what = ""
+    if backend == "twin":
+        what = f", model {api.open_run(result.path).attrs.get('model', '?')}"
+    click.echo(f"{result.path}: {result.samples} samples, status {result.status}"
+               + (f" ({result.reason})" if result.reason else "") + what)
+    if result.exit_code:
+        sys.exit(result.exit_code)
+
+
+@click.command()
+@click.argument("paths", nargs=-1, required=True, type=click.Path())
+def recover(paths):
+    """Rebuild the dataset of a run whose process died (SIGKILL, power loss) from its journal.
+
+    PATHS are journals (``<run>.nc.part``), the datasets they were writing, or
+    folders searched for journals.
+
+    \b
+    Example:
+      rdea-lab recover datasets/specimen-2/
+    """
+    targets = []
+    for p in map(Path, paths):
+        if p.is_dir() and not p.name.endswith(".part"):
+            targets += sorted(p.rglob("*.nc.part"))
         else:
-            from ..emulator.controller import check_faults
-            from .rig import DEFAULT_TRUTH, parse_fault
-            parsed = [parse_fault(f) for f in faults]
-            try:
-                check_faults(parsed)
-            except ValueError as exc:
-                die(f"--fault: {exc}")
-            from ..specs.truth import load_truth
-            truth = load_truth(project_file(truth_path, DEFAULT_TRUTH, "--truth"))
-        if dry_run:
-            click.echo(plan.describe())
-            click.echo(f"limits: ok for {card.id} (L3 = {geom.L3 * 1e6:g} um)")
-            if backend == "twin":
-                executor.start(plan)
-                sel = executor.attrs().get("model_selection")
-                click.echo(f"twin: model {executor.model}" + (f" ({executor.choice.reason})" if sel else "")
-                           + f", parameters {params.name}")
-            elif backend == "rig":
-                click.echo(f"rig {rig_address}: not contacted (dry run)")
-            else:
-                click.echo(f"emulator: truth {truth.name}" + (f", faults {', '.join(faults)}" if faults else ""))
-            return
-        out = Path(out_path) if out_path else _default_out(card.id, plan.name)
-        _clear_outputs([out], overwrite)
-        # wall time: the plan's duration when paced (a rig always is), else about 1e5 samples/s
-        paced = realtime or backend == "rig"
-        bar = _progress(plan.time.size, quiet, f"{plan.name} on {card.id}",
-                        seconds=plan.duration if paced else plan.time.size / 1e5)
-        command = "rdea-lab " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-        with contextlib.ExitStack() as stack:
-            if backend == "emulator":
-                from ..runs.campaign import _emulator
-                from ..backends.rig import RigBackend
-                address = stack.enter_context(_emulator(card, truth, realtime, faults=parsed))
-                executor = RigBackend(address, card, stall_timeout=stall_timeout, seed=seed)
-            if bar is not None:
-                stack.enter_context(bar)
-            result = execute(plan, card, executor, out, seed=seed, command=command,
-                             progress=bar.update if bar is not None else None)
-        what = f", model {executor.model}" if backend == "twin" else ""
-        click.echo(f"{result.path}: {result.samples} samples, status {result.status}"
-                   + (f" ({result.reason})" if result.reason else "") + what)
-        if result.status == "interrupted":
-            sys.exit(130)
-        if result.status != "complete":
-            sys.exit(1)
-
-    @cli.command()
-    @click.argument("paths", nargs=-1, required=True, type=click.Path())
-    def recover(paths):
-        """Rebuild the dataset of a run whose process died (SIGKILL, power loss) from its journal.
-
-        PATHS are journals (``<run>.nc.part``), the datasets they were writing, or
-        folders searched for journals.
-
-        \b
-        Example:
-          rdea-lab recover datasets/specimen-2/
-        """
-        from ..store import recover as recover_run
-        targets = []
-        for p in map(Path, paths):
-            if p.is_dir() and not p.name.endswith(".part"):
-                targets += sorted(p.rglob("*.nc.part"))
-            else:
-                targets.append(p)
-        if not targets:
-            click.echo("no unfinished runs found")
-            return
-        for t in targets:
-            try:
-                out = recover_run(t)
-            except (FileNotFoundError, FileExistsError, ValueError) as exc:
-                die(str(exc))
-            from ..store import open_run
-            ds = open_run(out)
-            click.echo(f"{out}: {ds.sizes['time']} samples recovered, status {ds.attrs['status']}")
-
-    @cli.command(name="ls")
-    @click.argument("folder", default="datasets", type=click.Path(file_okay=False))
-    def ls_(folder):
-        """A table of the runs below FOLDER, from their attributes.
-
-        \b
-        Example:
-          rdea-lab ls datasets/
-        """
-        from ..store import catalog
-        if not Path(folder).is_dir():
-            die(f"{folder}: no such folder")
-        rows = catalog(Path(folder))
-        if not rows:
-            click.echo(f"no runs below {folder}")
-            return
-        head = ("file", "specimen", "protocol", "backend", "model", "status", "duration", "samples")
-        table = [(r["file"], r["specimen"], r["protocol"], r["backend"], r["model"], r["status"],
-                  f"{r['duration_s']:.1f} s", str(r["samples"])) for r in rows]
-        widths = [max(len(h), *(len(row[i]) for row in table)) for i, h in enumerate(head)]
-        click.echo("  ".join(h.ljust(w) for h, w in zip(head, widths)))
-        for row in table:
-            click.echo("  ".join(c.ljust(w) for c, w in zip(row, widths)))
-
-    @cli.command()
-    @click.argument("file", type=click.Path(dir_okay=False))
-    @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write a PNG of the run.")
-    def show(file, plot_path):
-        """Summary of one run, and optionally a plot.
-
-        \b
-        Example:
-          rdea-lab show datasets/demo.nc --plot demo.png
-        """
-        from ..store import describe_run, open_run
-        if not Path(file).is_file():
-            die(f"{file}: no such file")
+            targets.append(p)
+    if not targets:
+        click.echo("no unfinished runs found")
+        return
+    for t in targets:
         try:
-            ds = open_run(file)
-        except (OSError, ValueError) as exc:
-            die(f"{file}: not a readable netCDF dataset ({type(exc).__name__})")
-        if "time" not in ds or "force" not in ds:
-            die(f"{file}: not an rdea-lab run (no time/force variables)")
-        click.echo(describe_run(ds))
-        if plot_path:
-            from ..reports.plots import plot_run
-            click.echo(f"plot: {plot_run(ds, plot_path)}")
-
-    @cli.group()
-    def protocol():
-        """Inspect protocols."""
-
-    @protocol.command(name="show")
-    @click.argument("file", type=click.Path(dir_okay=False))
-    @click.option("--specimen", "card_path", type=click.Path(dir_okay=False),
-                  help="Also check the field limit against this specimen's layer thickness.")
-    @click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write a PNG of the setpoints.")
-    def protocol_show(file, card_path, plot_path):
-        """Print the expanded plan of a protocol (duration, samples, envelope), and draw it.
-
-        \b
-        Example:
-          rdea-lab protocol show protocols/blocking_force.yaml --plot blocking.png
-        """
-        P = _plans()
-        plan = P.load_plan(file)
-        L3 = None
-        if card_path:
-            from ..physics.geometry import geometry_from_card
-            L3 = geometry_from_card(load_specimen(card_path)).L3
-        click.echo(plan.describe())
-        P.first_violation(plan, L3=L3)
-        click.echo("limits: ok" + (f" (field checked with L3 = {L3 * 1e6:g} um)" if L3 else ""))
-        if plot_path:
-            from ..reports.plots import plot_plan
-            click.echo(f"plot: {plot_plan(plan, plot_path)}")
+            out = api.recover(t)
+        except (FileNotFoundError, FileExistsError, ValueError) as exc:
+            die(str(exc))
+        ds = api.open_run(out)
+        click.echo(f"{out}: {ds.sizes['time']} samples recovered, status {ds.attrs['status']}")
 
 
-def register_campaign(cli: click.Group) -> None:
-    """The ``campaign`` group."""
+@click.command(name="ls")
+@click.argument("folder", default="datasets", type=click.Path(file_okay=False))
+def ls_(folder):
+    """A table of the runs below FOLDER, from their attributes (with the user's metadata).
 
-    @cli.group()
-    def campaign():
-        """Run a whole campaign of experiments (campaigns/*.yaml)."""
+    \b
+    Example:
+      rdea-lab ls datasets/
+    """
+    if not Path(folder).is_dir():
+        die(f"{folder}: no such folder")
+    table = api.catalog(Path(folder))
+    if table.empty:
+        click.echo(f"no runs below {folder}")
+        return
+    head = ["file", "specimen", "protocol", "backend", "model", "status", "duration", "samples"]
+    rows = [[r.file, r.specimen, r.protocol, r.backend, r.model, r.status, f"{r.duration_s:.1f} s", str(r.samples)]
+            for r in table.itertuples()]
+    if table["metadata"].astype(bool).any():
+        head.append("metadata")
+        for row, md in zip(rows, table["metadata"]):
+            row.append(md)
+    widths = [max(len(h), *(len(row[i]) for row in rows)) for i, h in enumerate(head)]
+    click.echo("  ".join(h.ljust(w) for h, w in zip(head, widths)).rstrip())
+    for row in rows:
+        click.echo("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip())
 
-    @campaign.command(name="run")
-    @click.argument("file", type=click.Path(dir_okay=False))
-    @click.option("--out", "out_dir", type=click.Path(file_okay=False),
-                  help="Folder for the datasets [default: the campaign's 'out', e.g. datasets/paper2021].")
-    @click.option("--force", "overwrite", is_flag=True, help="Overwrite existing datasets.")
-    @click.option("--realtime", is_flag=True, help="Pace the runs at wall-clock speed.")
-    @click.option("--quiet", is_flag=True, help="No progress bar.")
-    def campaign_run(file, out_dir, overwrite, realtime, quiet):
-        """Run every protocol on every specimen of a campaign, into <out>/<specimen_id>/<protocol_name>.nc.
 
-        \\b
-        Example:
-          rdea-lab campaign run campaigns/paper2021.yaml
-        """
-        from ..runs.campaign import experiments, run_campaign
-        from ..specs.campaign import load_campaign
+@click.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write a PNG of the run.")
+def show(file, plot_path):
+    """Summary of one run (with the user's metadata), and optionally a plot.
 
-        spec, root = load_campaign(file)
-        runs = experiments(spec, root, out_dir)
-        _clear_outputs([r.out for r in runs], overwrite)
-        total = sum(r.plan.time.size for r in runs)
-        click.echo(f"campaign {spec.name}: {len(runs)} runs, {total} samples, backend {spec.backend}")
-        bar = _progress(total, quiet, spec.name)
-        lines = []
-        with contextlib.ExitStack() as stack:
-            if bar is not None:
-                stack.enter_context(bar)
-            results = run_campaign(spec, root, out_dir=out_dir, realtime=realtime,
-                                   progress=bar.update if bar is not None else None,
-                                   on_result=lambda r: lines.append(r) if bar is not None else
+    \b
+    Example:
+      rdea-lab show datasets/demo.nc --plot demo.png
+    """
+    if not Path(file).is_file():
+        die(f"{file}: no such file")
+    try:
+        ds = api.open_run(file)
+    except (OSError, ValueError) as exc:
+        die(f"{file}: not a readable netCDF dataset ({type(exc).__name__})")
+    if "time" not in ds or "force" not in ds:
+        die(f"{file}: not an rdea-lab run (no time/force variables)")
+    click.echo(api.describe_run(ds))
+    if plot_path:
+        headless()
+        api.plot_run(ds, plot_path)
+        click.echo(f"plot: {plot_path}")
+
+
+@click.group()
+def protocol():
+    """Inspect protocols."""
+
+
+@protocol.command(name="show")
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--specimen", "card_path", type=click.Path(dir_okay=False),
+              help="Also check the field limit against this specimen's layer thickness.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write a PNG of the setpoints.")
+def protocol_show(file, card_path, plot_path):
+    """Print the expanded plan of a protocol (duration, samples, envelope), and draw it.
+
+    \b
+    Example:
+      rdea-lab protocol show protocols/blocking_force.yaml --plot blocking.png
+    """
+    plan = api.load_plan(file)
+    L3 = api.geometry(card_path).L3 if card_path else None
+    click.echo(plan.describe())
+    api.check_plan(plan, L3)
+    click.echo("limits: ok" + (f" (field checked with L3 = {L3 * 1e6:g} um)" if L3 else ""))
+    if plot_path:
+        headless()
+        api.plot_plan(plan, plot_path)
+        click.echo(f"plot: {plot_path}")
+
+
+@click.group()
+def campaign():
+    """Run a whole campaign of experiments (campaigns/*.yaml)."""
+
+
+@campaign.command(name="run", epilog=EXIT_HELP)
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--out", "out_dir", type=click.Path(file_okay=False),
+              help="Folder for the datasets [default: the campaign's 'out', e.g. datasets/paper2021].")
+@click.option("--force", "overwrite", is_flag=True, help="Overwrite existing datasets.")
+@click.option("--realtime", is_flag=True, help="Pace the runs at wall-clock speed.")
+@click.option("--live", metavar="table|plot|FILE.png", help=LIVE_HELP)
+@click.option("--md", "md", multiple=True, metavar="KEY=VALUE",
+              help="User metadata stored with every run (operator, batch, notes; repeatable).")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def campaign_run(file, out_dir, overwrite, realtime, live, md, quiet):
+    """Run every protocol on every specimen of a campaign, into <out>/<specimen_id>/<protocol_name>.nc.
+
+    \b
+    Example:
+      rdea-lab campaign run campaigns/paper2021.yaml --md operator=ana
+    """
+    metadata = parse_metadata(md)
+    spec, root = api.load_campaign(file)
+    runs = api.experiments(spec, root, out_dir)
+    api.check_outputs([r.out for r in runs], overwrite, names=[r.name for r in runs])
+    total = sum(r.plan.samples for r in runs)
+    click.echo(f"campaign {spec.name}: {len(runs)} runs, {total} samples, backend {spec.backend}")
+    lines = []
+    with contextlib.ExitStack() as stack:
+        subs = subscribers(live, quiet, total, spec.name, None, stack)
+        quietly = bool(subs)  # a bar or a live view owns the terminal: the lines come after it
+        results = api.run_campaign(spec, root, out_dir=out_dir, overwrite=overwrite, realtime=realtime,
+                                   callbacks=subs, metadata=metadata, command=_command_line(),
+                                   on_result=lambda r: lines.append(r) if quietly else
                                    click.echo(f"  {r.path}: {r.samples} samples, {r.status}"))
-        for r in lines:
-            click.echo(f"  {r.path}: {r.samples} samples, {r.status}")
-        bad = [r for r in results if r.status != "complete"]
-        if bad:
-            click.echo(f"{len(bad)} of {len(results)} runs did not complete: "
-                       + "; ".join(f"{r.path.name}: {r.reason}" for r in bad), err=True)
-            sys.exit(1)
+    for r in lines:
+        click.echo(f"  {r.path}: {r.samples} samples, {r.status}")
+    bad = [r for r in results if r.status != "complete"]
+    if bad:
+        click.echo(f"{len(bad)} of {len(results)} runs did not complete: "
+                   + "; ".join(f"{r.path.name}: {r.reason}" for r in bad), err=True)
+        sys.exit(max(r.exit_code for r in bad))

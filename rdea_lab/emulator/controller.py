@@ -527,3 +527,50 @@ class RigController:
 
 
 __all__ = ["FAULTS", "CloseConnection", "RigController", "RigError", "check_faults"]
+
+
+_FAULT_TEXT = re.compile(r"^(?P<kind>[a-z]+)-at=(?P<at>.+)$")
+
+
+def parse_fault(text, source: str = "command line", field: str = "--fault") -> tuple[str, float]:
+    """``"stall-at=3"`` -> ``("stall", 3.0)``; a ``(kind, seconds)`` pair passes through checked.
+
+    Raises
+    ------
+    SpecError
+        Saying what is allowed.
+    """
+    from ..specs import SpecError
+
+    allowed = ", ".join(f"{k}-at=SECONDS" for k in FAULTS)
+    if not isinstance(text, str):
+        try:
+            return next(iter(check_faults([text]).items()))
+        except ValueError as exc:
+            raise SpecError(source, field, str(exc)) from None
+    m = _FAULT_TEXT.match(text.strip())
+    if not m or m["kind"] not in FAULTS:
+        raise SpecError(source, field, f"{text!r} is not one of {allowed} (e.g. stall-at=3.0)")
+    try:
+        at = float(m["at"])
+    except ValueError:
+        raise SpecError(source, field, f"{text!r}: {m['at']!r} is not a number of seconds") from None
+    if not (math.isfinite(at) and at >= 0.0):
+        raise SpecError(source, field, f"{text!r}: the time must be a finite number of seconds >= 0")
+    return m["kind"], at
+
+
+def parse_faults(items, source: str = "command line", field: str = "--fault") -> list[tuple[str, float]]:
+    """Several faults (texts or pairs), each kind at most once."""
+    from ..specs import SpecError
+
+    parsed = [parse_fault(f, source, field) for f in items]
+    kinds = [k for k, _ in parsed]
+    for kind in FAULTS:
+        if kinds.count(kind) > 1:
+            raise SpecError(source, field, f"{kind}-at given {kinds.count(kind)} times; give each kind at most once")
+    try:
+        check_faults(parsed)
+    except ValueError as exc:
+        raise SpecError(source, field, str(exc)) from None
+    return parsed

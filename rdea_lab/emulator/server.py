@@ -106,6 +106,8 @@ class RigServer:
         self._sessions: dict[int, socket.socket] = {}
         self._sessions_lock = threading.Lock()
         self._ids = itertools.count(1)
+        #: connections accepted so far (a run refused before anything moves never connects)
+        self.connections = 0
         self._closing = False
         self._serving = False
 
@@ -178,6 +180,7 @@ class RigServer:
     def _serve_connection(self, sock: socket.socket, peer) -> None:
         session = next(self._ids)
         with self._sessions_lock:
+            self.connections += 1
             self._sessions[session] = sock
         if self._closing:
             self._close_session(session)

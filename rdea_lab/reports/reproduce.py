@@ -57,16 +57,13 @@ def reproduce(root: Path, out: Path, *, campaign=None, speed=True, echo=print, p
     if CALIBRATION_SPECIMEN not in {r.card.id for r in runs}:
         raise ReproduceInputError(f"{campaign or 'the campaign'}: it has no {CALIBRATION_SPECIMEN}, "
                                   "the specimen the paper calibrates on")
-    for r in runs:
-        if r.out.exists():
-            r.out.unlink()
     total = sum(r.plan.time.size for r in runs)
     echo(f"[1/5] campaign {spec.name} on the {spec.backend}: {len(runs)} runs, {total} samples -> {data}/")
     if progress_factory is not None:
         with progress_factory(total, spec.name) as bar:
-            results = run_campaign(spec, spec_root, out_dir=data, progress=bar.update)
+            results = run_campaign(spec, spec_root, out_dir=data, overwrite=True, callbacks=lambda b: bar.update(len(b)))
     else:
-        results = run_campaign(spec, spec_root, out_dir=data)
+        results = run_campaign(spec, spec_root, out_dir=data, overwrite=True)
     failed = [r for r in results if r.status != "complete"]
     if failed:
         raise RuntimeError(f"{len(failed)} campaign runs did not complete: {failed[0].path}: {failed[0].reason}")

@@ -2,17 +2,15 @@
 
 from __future__ import annotations
 
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..backends.twin import TwinBackend
+from ..physics.geometry import geometry_from_card
 from ..protocols import first_violation, load_plan
 from ..specs import load_params, load_specimen
-from ..physics.geometry import geometry_from_card
-from ..backends.twin import TwinBackend
-from .engine import RunResult, execute
-
-DEFAULT_PARAMS = "params/paper2021_table3.yaml"
+from .app import DEFAULT_PARAMS, DEFAULT_TRUTH, check_outputs, check_seed, emulated_rig
+from .engine import RunResult, check_metadata, execute
 
 
 @dataclass(frozen=True)
@@ -21,9 +19,13 @@ class Experiment:
     plan: object
     out: Path
 
+    @property
+    def name(self) -> str:
+        return f"{self.card.id}/{self.plan.name}"
+
 
 def experiments(spec, root: Path, out_dir: Path | None = None) -> list[Experiment]:
-    """The runs of a campaign, in order (specimen by specimen), every plan checked."""
+    """The runs of a campaign, in order (specimen by specimen), every plan checked against its limits."""
     out_dir = Path(out_dir) if out_dir is not None else root / spec.out
     plans = [load_plan(root / p) for p in spec.protocols]
     runs = []
@@ -36,50 +38,46 @@ def experiments(spec, root: Path, out_dir: Path | None = None) -> list[Experimen
     return runs
 
 
-@contextmanager
-def _emulator(card, truth, realtime, faults=()):
-    """A built-in emulated rig on a free loopback port, for the duration of the block."""
-    from ..emulator import RigServer
-
-    server = RigServer(card, truth, port=0, realtime=realtime, faults=faults)
-    host, port = server.start()
-    try:
-        yield f"tcp://{host}:{port}"
-    finally:
-        server.shutdown()
-
-
-def run_campaign(spec, root: Path, *, out_dir=None, realtime=False, progress=None, on_result=None,
-                 command="rdea-lab campaign run") -> list[RunResult]:
+def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=False, callbacks=(),
+                 on_result=None, metadata=None, command="rdea-lab campaign run") -> list[RunResult]:
     """Run every experiment of ``spec``; returns one result per run.
 
-    The emulator backend starts one emulated rig per specimen on loopback and
-    stops it after that specimen's runs.
+    Every plan is checked against its limits and every output (two runs on one
+    file, a journal in the way, an existing file without ``overwrite``) before
+    the first run starts. The emulator backend starts one emulated rig per
+    specimen on loopback and stops it after that specimen's runs. Each run gets
+    its own noise seed, ``spec.seed + i``.
     """
     from ..backends.rig import RigBackend
 
     runs = experiments(spec, root, out_dir)
+    metadata = check_metadata(metadata)
+    check_seed(spec.seed + max(len(runs) - 1, 0))
+    check_outputs([r.out for r in runs], overwrite, names=[r.name for r in runs])
+    seeds = {id(r): spec.seed + i for i, r in enumerate(runs)}  # each run its own noise, reproducibly
     results = []
+
+    def record(result):
+        results.append(result)
+        if on_result:
+            on_result(result)
+
     if spec.backend == "twin":
         params = load_params(root / (spec.params or DEFAULT_PARAMS))
-        for i, run in enumerate(runs):
-            backend = TwinBackend(run.card, params, model=spec.model, realtime=realtime, seed=spec.seed + i)
-            results.append(execute(run.plan, run.card, backend, run.out, seed=spec.seed + i, command=command,
-                                   progress=progress))
-            if on_result:
-                on_result(results[-1])
+        for run in runs:
+            seed = seeds[id(run)]
+            backend = TwinBackend(run.card, params, model=spec.model, realtime=realtime, seed=seed)
+            record(execute(run.plan, run.card, backend, run.out, seed=seed, command=command, callbacks=callbacks,
+                           metadata=metadata))
         return results
     from ..specs.truth import load_truth
 
-    truth = load_truth(root / (spec.truth or "truth/paper2021.yaml"))
-    seeds = {id(r): spec.seed + i for i, r in enumerate(runs)}  # each run its own noise, reproducibly
+    truth = load_truth(root / (spec.truth or DEFAULT_TRUTH))
     for card_id in dict.fromkeys(r.card.id for r in runs):
         mine = [r for r in runs if r.card.id == card_id]
-        with _emulator(mine[0].card, truth, realtime) as address:
+        with emulated_rig(mine[0].card, truth, realtime=realtime) as address:
             for run in mine:
                 seed = seeds[id(run)]
-                results.append(execute(run.plan, run.card, RigBackend(address, run.card, seed=seed), run.out,
-                                       seed=seed, command=command, progress=progress))
-                if on_result:
-                    on_result(results[-1])
+                record(execute(run.plan, run.card, RigBackend(address, run.card, seed=seed), run.out, seed=seed,
+                               command=command, callbacks=callbacks, metadata=metadata))
     return results

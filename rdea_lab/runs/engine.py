@@ -11,6 +11,8 @@ keeping every sample received.
 
 from __future__ import annotations
 
+import json
+import re
 import signal
 import uuid
 from dataclasses import dataclass
@@ -20,19 +22,62 @@ import numpy as np
 
 from .. import __version__
 from ..backends.base import BackendFailure, RunInterrupted
-from ..specs import dump_specimen
+from ..physics.geometry import geometry_from_card
+from ..protocols import first_violation
+from ..specs import SpecError, dump_specimen
 from ..store.journal import JournalWriter, utc_now
+from .callbacks import RunBlock, subscriber_name
+
+#: Exit status of a run by its dataset status (the CLI's, and `RunResult.exit_code`).
+EXIT_CODES = {"complete": 0, "aborted": 3, "interrupted": 130}
+_MD_KEY = re.compile(r"^[A-Za-z][A-Za-z0-9_.\-]{0,63}$")
 
 
 @dataclass(frozen=True)
 class RunResult:
+    """How a run ended: its dataset, status (``complete``, ``aborted``, ``interrupted``), why, and samples kept."""
+
     path: Path
     status: str
     reason: str
     samples: int
 
+    @property
+    def exit_code(self) -> int:
+        """0 complete, 3 ended by the rig or a limit (aborted), 130 interrupted."""
+        return EXIT_CODES.get(self.status, 1)
 
-def run_attrs(plan, card, backend, seed, command="") -> dict:
+
+def check_metadata(metadata, source="metadata") -> dict:
+    """User metadata (operator, sample batch, notes) as a dict of str -> str.
+
+    Keys start with a letter and hold letters, digits, ``_``, ``.``, ``-`` (at most
+    64); values are text (numbers are written as text), at most 4096 characters.
+
+    Raises
+    ------
+    SpecError
+        Naming the key and what is allowed.
+    """
+    if metadata is None:
+        return {}
+    if not isinstance(metadata, dict):
+        raise SpecError(source, "<document>", f"expected a mapping of key to value, got {type(metadata).__name__}")
+    out = {}
+    for key, value in metadata.items():
+        if not isinstance(key, str) or not _MD_KEY.match(key):
+            raise SpecError(source, str(key), "not a metadata key; allowed: a letter, then letters, digits, "
+                            "'_', '.' or '-' (at most 64)")
+        if isinstance(value, bool) or not isinstance(value, (str, int, float)):
+            raise SpecError(source, key, f"value {value!r:.40} is not text or a number")
+        text = str(value)
+        if len(text) > 4096 or "\x00" in text:
+            raise SpecError(source, key, "value longer than 4096 characters or holding a NUL")
+        out[key] = text
+    return out
+
+
+def run_attrs(plan, card, backend, seed, command="", metadata=None) -> dict:
     """The dataset attributes known before the first sample."""
     created = utc_now()
     attrs = {
@@ -54,6 +99,7 @@ def run_attrs(plan, card, backend, seed, command="") -> dict:
         "status": "running",
         "status_reason": "",
         "history": f"{created}: {command or 'rdea-lab run'}",
+        "metadata": json.dumps(metadata or {}, sort_keys=True),
     }
     attrs.update(backend.attrs())
     return attrs
@@ -63,8 +109,26 @@ def _raise_interrupted(signum, frame):
     raise RunInterrupted(f"signal {signal.Signals(signum).name}")
 
 
-def execute(plan, card, backend, out: Path, *, seed=0, command="", progress=None) -> RunResult:
+def _subscribers(callbacks):
+    callbacks = () if callbacks is None else (callbacks,) if callable(callbacks) else tuple(callbacks)
+    for cb in callbacks:
+        if not callable(cb):
+            raise TypeError(f"callbacks: {cb!r} is not callable; a subscriber is cb(block), with optional "
+                            "start(attrs) and stop(result)")
+    return callbacks
+
+
+class _SubscriberFailed(Exception):
+    pass
+
+
+def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(), metadata=None) -> RunResult:
     """Run ``plan`` on ``backend`` into the dataset ``out``.
+
+    The plan is checked against its limits (with the specimen's L3 for the
+    field estimate) before the backend is started, for every backend: an
+    over-limit plan raises `~rdea_lab.specs.LimitError` and nothing moves,
+    nothing is written.
 
     Parameters
     ----------
@@ -77,8 +141,10 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", progress=None
         Recorded in the attributes.
     command : str
         The command line, for ``history``.
-    progress : callable, optional
-        Called with the number of samples of each block.
+    callbacks : callable or sequence of callables
+        Subscribers called with each `RunBlock` (see `rdea_lab.runs.callbacks`).
+    metadata : dict, optional
+        User metadata (str -> str), stored as JSON in the ``metadata`` attribute.
 
     Returns
     -------
@@ -86,27 +152,48 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", progress=None
         ``status`` is ``complete``, ``aborted`` (a limit or the backend
         stopped the run) or ``interrupted`` (Ctrl-C, SIGTERM).
     """
+    subscribers = _subscribers(callbacks)
     try:
-        backend.start(plan)  # may refuse (limits, configuration) before anything moves
+        metadata = check_metadata(metadata)
+        first_violation(plan, L3=geometry_from_card(card).L3)  # before anything moves, whoever calls
+        backend.start(plan)  # may refuse (its own limits, configuration) before anything moves
     except BaseException:
         backend.close()
         raise
-    writer = JournalWriter(out, run_attrs(plan, card, backend, seed, command), extra=backend.extra_variables)
+    attrs = run_attrs(plan, card, backend, seed, command, metadata)
+    writer = JournalWriter(out, attrs, extra=backend.extra_variables)
     status, reason = "complete", ""
     previous = signal.getsignal(signal.SIGTERM)
     try:
         signal.signal(signal.SIGTERM, _raise_interrupted)
     except ValueError:  # not the main thread
         previous = None
+    failure = None
+    failed_cb = [None]
+
+    def notify(method, *args):
+        for cb in subscribers:
+            fn = cb if method is None else getattr(cb, method, None)
+            if fn is None:
+                continue
+            try:
+                fn(*args)
+            except (KeyboardInterrupt, RunInterrupted):
+                raise
+            except Exception as exc:
+                failed_cb[0] = cb
+                raise _SubscriberFailed(f"subscriber {subscriber_name(cb)} failed: {type(exc).__name__}: {exc}") from exc
+
     try:
         max_force = plan.limits.max_force
+        planned = plan.samples
+        notify("start", dict(attrs))
         while True:
             block = backend.read_block()
             if block is None:
                 break
+            first = writer.samples
             writer.append(block)
-            if progress is not None:
-                progress(len(block["time"]))
             over = np.flatnonzero(np.abs(block["force"]) > max_force)
             if over.size:
                 i = int(over[0])
@@ -114,12 +201,17 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", progress=None
                 reason = (f"force {block['force'][i]:.4g} N at t = {block['time'][i]:.4g} s is above the limit "
                           f"max_force = {max_force:g} N")
                 backend.abort(reason)
+            notify(None, RunBlock(block, first, writer.samples, planned, "running"))
+            if status != "complete":
                 break
     except (KeyboardInterrupt, RunInterrupted) as exc:
         status, reason = "interrupted", f"interrupted by the user ({exc or 'Ctrl-C'})"
         backend.abort(reason)
     except BackendFailure as exc:
         status, reason = "aborted", str(exc)
+        backend.abort(reason)
+    except _SubscriberFailed as exc:
+        status, reason, failure = "aborted", str(exc), exc.__cause__
         backend.abort(reason)
     except BaseException as exc:
         status, reason = "aborted", f"internal error: {type(exc).__name__}: {exc}"
@@ -131,4 +223,11 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", progress=None
             signal.signal(signal.SIGTERM, previous)
         backend.close()
     path = writer.finish(status, reason)
-    return RunResult(path, status, reason, writer.samples)
+    result = RunResult(path, status, reason, writer.samples)
+    for cb in subscribers:  # every subscriber hears how the run ended, but the one that failed
+        stop = getattr(cb, "stop", None)
+        if stop is not None and not (failure is not None and failed_cb[0] is cb):
+            stop(result)
+    if failure is not None:
+        raise failure
+    return result

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import xarray as xr
 
 from .journal import FORMAT
@@ -28,11 +29,44 @@ def _journal_row(folder: Path) -> dict:
     return {"file": str(folder), "specimen": a.get("specimen_id", "?"), "protocol": a.get("protocol_name", "?"),
             "backend": a.get("backend", "?"), "model": a.get("model", "-"),
             "status": "unfinished (rdea-lab recover)", "duration_s": (n - 1) / rate if n else 0.0,
-            "samples": int(n), "created": a.get("created", "?")}
+            "samples": int(n), "created": a.get("created", "?"), "metadata": metadata_text(user_metadata(a)),
+            "_md": user_metadata(a)}
 
 
-def catalog(folder: Path) -> list[dict]:
-    """One row per run below ``folder``: datasets (``*.nc``) and unfinished journals."""
+def user_metadata(attrs) -> dict:
+    """The user's metadata of a run (its ``metadata`` attribute, JSON), {} if none or unreadable."""
+    try:
+        value = json.loads(attrs.get("metadata") or "{}")
+    except (TypeError, ValueError):
+        return {}
+    return {str(k): str(v) for k, v in value.items()} if isinstance(value, dict) else {}
+
+
+def metadata_text(metadata: dict) -> str:
+    return "; ".join(f"{k}={v}" for k, v in metadata.items())
+
+
+COLUMNS = ["file", "specimen", "protocol", "backend", "model", "status", "duration_s", "samples", "created",
+           "metadata"]
+
+
+def catalog(folder: Path) -> pd.DataFrame:
+    """One row per run below ``folder`` (datasets ``*.nc`` and unfinished journals), as a DataFrame.
+
+    Columns: ``file``, ``specimen``, ``protocol``, ``backend`` (``(emulator)``
+    marked), ``model``, ``status``, ``duration_s`` [s], ``samples``,
+    ``created``, ``metadata`` (``key=value; ...``) and one ``md.<key>``
+    column per metadata key that any run has.
+    """
+    rows = catalog_rows(folder)
+    keys = list(dict.fromkeys(k for r in rows for k in r.get("_md", {})))
+    table = pd.DataFrame([{**{c: r[c] for c in COLUMNS}, **{f"md.{k}": r.get("_md", {}).get(k, "") for k in keys}}
+                          for r in rows], columns=COLUMNS + [f"md.{k}" for k in keys])
+    return table
+
+
+def catalog_rows(folder: Path) -> list[dict]:
+    """The rows of `catalog` as dicts (``_md`` holds each run's metadata as a dict)."""
     folder = Path(folder)
     rows = []
     for path in sorted(folder.rglob("*.nc")):
@@ -45,11 +79,12 @@ def catalog(folder: Path) -> list[dict]:
                              "protocol": a.get("protocol_name", "?"), "backend": backend,
                              "model": a.get("model", "-"), "status": a.get("status", "?"),
                              "duration_s": float(t[-1] - t[0]) if t.size else 0.0, "samples": int(t.size),
-                             "created": a.get("created", "?")})
+                             "created": a.get("created", "?"), "metadata": metadata_text(user_metadata(a)),
+                             "_md": user_metadata(a)})
         except Exception as exc:  # a foreign or broken file: list it, say why
             rows.append({"file": str(path), "specimen": "?", "protocol": "?", "backend": "?", "model": "-",
                          "status": f"unreadable ({type(exc).__name__})", "duration_s": 0.0, "samples": 0,
-                         "created": "?"})
+                         "created": "?", "metadata": ""})
     for part in sorted(folder.rglob("*.nc.part")):
         try:
             rows.append(_journal_row(part))
@@ -66,6 +101,7 @@ def describe_run(ds: xr.Dataset) -> str:
              f"  status {a.get('status', '?')}" + (f": {a['status_reason']}" if a.get("status_reason") else ""),
              f"  backend {a.get('backend', '?')}, model {a.get('model', '-')}, run {a.get('run_id', '?')}",
              f"  created {a.get('created', '?')}, rdea-lab {a.get('rdea_lab_version', '?')}",
+             *([f"  metadata {metadata_text(user_metadata(a))}"] if user_metadata(a) else []),
              f"  {t.size} samples over {float(t[-1] - t[0]) if t.size else 0:.4g} s "
              f"at {float(a.get('sample_rate', 0)):g} Hz"]
     for name, var in ds.data_vars.items():

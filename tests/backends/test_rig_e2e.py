@@ -7,6 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rdea_lab.specs import LimitError
+
 from rdea_lab.runs import execute
 from rdea_lab.runs import run_campaign
 from rdea_lab.backends.rig import RigBackend, RigRefused
@@ -115,8 +117,17 @@ def test_a_client_without_the_token_is_refused(server, card, tmp_path):
 def test_limits_refused_by_the_rig_before_anything_moves(server, card, tmp_path):
     plan = load_plan(ROOT / "protocols" / "blocking_force.yaml")
     tight = dataclasses.replace(plan, limits=plan.limits.model_copy(update={"max_voltage": 2000.0}))
-    with pytest.raises(RigRefused, match=r"refused ARM: voltage 20[0-9.]+ V at t = [0-9.]+ s is above LIM:VOLT 2000 V"):
+    # the library refuses first, whoever calls the engine ...
+    with pytest.raises(LimitError, match="max_voltage = 2 kV"):
         execute(tight, card, RigBackend(server.url, card), tmp_path / "x.nc")
+    assert not (tmp_path / "x.nc").exists() and not (tmp_path / "x.nc.part").exists()
+    # ... and a client that skips the library's check is refused by the rig itself, at ARM
+    backend = RigBackend(server.url, card)
+    try:
+        with pytest.raises(RigRefused, match=r"refused ARM: voltage 20[0-9.]+ V at t = [0-9.]+ s is above LIM:VOLT 2000 V"):
+            backend.start(tight)
+    finally:
+        backend.close()
     assert server.controller.state != "RUNNING" and server.controller.acquired == 0
 
 
@@ -135,7 +146,7 @@ def test_cli_emulator_backend_with_a_fault(capsys, tmp_path):
                        str(ROOT / "specimens" / "specimen1.yaml"), "--backend", "emulator", "--fault",
                        "breakdown-at=12", "--quiet", "--out", str(out)])
     stdout = capsys.readouterr().out
-    assert rc == 1 and "status aborted" in stdout
+    assert rc == 3 and "status aborted" in stdout  # exit 3: the run was ended by the rig
     ds = open_run(out)
     assert ds.attrs["status"] == "aborted" and "breakdown" in ds.attrs["status_reason"]
     assert ds["time"].values[-1] == pytest.approx(12.0, abs=1e-3)

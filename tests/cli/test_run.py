@@ -127,7 +127,7 @@ def test_auto_records_its_choice_and_explicit_models_run(capsys, tmp_path):
 
 
 @pytest.mark.parametrize("args, words", [
-    (["--tolerance", "0"], ["--tolerance", "allowed"]),
+    (["--tolerance", "0"], ["--tolerance", "0.0<x<1.0"]),
     (["--model", "4r"], ["--model", "4r"]),
     (["--params", "nope.yaml"], ["nope.yaml"]),
 ])

@@ -11,18 +11,13 @@ import pytest
 
 from rdea_lab.cli.errors import run
 from rdea_lab.cli.main import cli
-from rdea_lab.cli.rig import register
 
 from .helpers import ROOT, Client
 
-if "rig" not in cli.commands:  # until rdea_lab.cli.main registers it
-    register(cli)
-
 CARD = str(ROOT / "specimens" / "specimen2.yaml")
 #: the CLI with the rig group, as a process
-LAUNCH = ("import sys; from rdea_lab.cli.main import cli; from rdea_lab.cli.rig import register; "
-          "from rdea_lab.cli.errors import run; 'rig' in cli.commands or register(cli); "
-          "sys.exit(run(cli, sys.argv[1:]))")
+LAUNCH = ("import sys; from rdea_lab.cli.main import cli; "
+          "from rdea_lab.cli.errors import run; sys.exit(run(cli, sys.argv[1:]))")
 
 
 def rig_cli(capsys, *args):

@@ -10,7 +10,7 @@ import matplotlib.pyplot as plt
 import pytest
 
 from rdea_lab.cli.errors import run
-from rdea_lab.cli.report import register
+from rdea_lab.cli.main import cli
 from rdea_lab.reports.speed import MODELS, speed_study
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -90,9 +90,9 @@ def test_files_and_figure8(study):
 
 
 def test_cli_speed(tmp_path, capsys):
-    group = click.Group("rdea-lab")
-    register(group)
+    group = cli
     assert run(group, ["report", "speed", "--out", str(tmp_path), "--repeats", "1"]) == 0
     out = capsys.readouterr().out
     assert "passive-core @ 3.5 kV: auto picks" in out and (tmp_path / "speed.md").is_file()
-    assert run(group, ["report", "--params", "x.yaml", "speed", "--out", str(tmp_path)]) == 2
+    assert run(group, ["report", "--params", "x.yaml", "speed", "--out", str(tmp_path)]) == 2  # not an option of report
+    assert run(group, ["report", "speed", "--params", "x.yaml", "--out", str(tmp_path)]) == 2  # nor of report speed

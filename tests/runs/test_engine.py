@@ -10,13 +10,19 @@ from rdea_lab.backends import BackendFailure, TwinBackend
 from rdea_lab.runs import execute
 from rdea_lab.physics.geometry import geometry_from_card
 from rdea_lab.physics.models import solve
-from rdea_lab.specs import load_params, load_specimen
+from rdea_lab.specs import Limits, load_params, load_specimen
 from rdea_lab.store import journal_path, open_run
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 class FakePlan(SimpleNamespace):
+    """The parts of a Plan the engine uses (its limits are checked like a real plan's)."""
+
+    @property
+    def samples(self):
+        return self.time.size
+
     def block_slices(self, seconds=1.0):
         n = max(1, int(round(seconds * self.sample_rate)))
         return [slice(i, min(i + n, self.time.size)) for i in range(0, self.time.size, n)]
@@ -24,8 +30,9 @@ class FakePlan(SimpleNamespace):
 
 def plan(duration=10.0, rate=100.0, max_force=50.0, voltage=0.0):
     t = np.arange(int(round(duration * rate)) + 1) / rate
-    return FakePlan(name="p", kind="tensile", sample_rate=rate, measure=("force",), limits=SimpleNamespace(max_force=max_force),
+    return FakePlan(name="p", kind="tensile", sample_rate=rate, measure=("force",), limits=Limits(max_force=max_force),
                     time=t, stretch=1 + 0.25 * (1 - np.cos(2 * np.pi * 0.1 * t)), voltage=np.full(t.size, voltage),
+                    stretch_segment=np.zeros(t.size, int), voltage_segment=np.zeros(t.size, int),
                     yaml="name: p\n", source="<test>")
 
 

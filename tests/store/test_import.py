@@ -9,6 +9,7 @@ from the files' text here, independently of the importer.
 from __future__ import annotations
 
 import hashlib
+import re
 import json
 import time
 from pathlib import Path
@@ -21,7 +22,7 @@ import yaml
 from nptdms import ChannelObject, TdmsWriter
 
 from rdea_lab.cli.errors import run as run_cli
-from rdea_lab.cli.importer import register
+from rdea_lab.cli.main import cli as main_cli
 from rdea_lab.specs import SpecError, load_specimen, specimen_from_yaml
 from rdea_lab.store import REQUIRED_ATTRS, VARIABLES, open_run, write_dataset
 from rdea_lab.store.importers import ImportOptions, import_file, parse_map, parse_units
@@ -38,9 +39,7 @@ needs_vhb = pytest.mark.skipif(not VHB.is_dir(), reason=f"{VHB} is absent (CI ke
 
 @pytest.fixture(scope="module")
 def cli():
-    group = click.Group("rdea-lab")
-    register(group)
-    return group
+    return main_cli
 
 
 def invoke(cli, capsys, *args):
@@ -60,8 +59,10 @@ def vhb_text(path: Path):
 
 # ------------------------------------------------------------------ VHB 4910
 @needs_vhb
-def test_all_three_vhb_files_are_there():
-    assert [p.name for p in VHB_FILES] == ["0d01_1d5.csv", "0d03_1d5_1.csv", "0d05_1d5_1.csv"]
+def test_all_five_vhb_files_are_there():
+    """The shared folder's README lists five files: three rates to stretch 1.5, two to stretch 3.0."""
+    assert [p.name for p in VHB_FILES] == ["0d01_1d5.csv", "0d01_3d0.csv", "0d03_1d5_1.csv", "0d05_1d5_1.csv",
+                                           "0d05_3d0.csv"]
 
 
 @needs_vhb
@@ -82,8 +83,9 @@ def test_vhb_file_imports_as_the_file_says(cli, capsys, tmp_path, path):
     np.testing.assert_array_equal(ds["position"].values, mm / 1000)  # exact: mm -> m divides by 1000
     np.testing.assert_array_equal(ds["force"].values, newton)
     np.testing.assert_array_equal(ds["stretch"].values, 1 + ds["position"].values / 0.08)  # L1 = 80 mm
-    # the files are named '1d5': loaded to stretch 1.5 (peaks 40.00-40.04 mm of 80 mm)
-    assert ds["stretch"].values.max() == pytest.approx(1.5, abs=1e-3)
+    # the file name says the stretch loaded to ('1d5': 1.5, peaks 40.00-40.04 mm of 80 mm; '3d0': 3.0)
+    named = float(re.match(r"0d\d\d_(\d)d(\d)", path.stem).expand(r"\1.\2"))
+    assert ds["stretch"].values.max() == pytest.approx(named, abs=1e-3)
     # raw data: small negative positions near zero load stay as measured, and are reported
     assert mm.min() < 0
     assert ds.attrs["min_position_m"] == mm.min() / 1000

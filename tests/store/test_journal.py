@@ -56,7 +56,7 @@ def test_a_killed_run_leaves_a_journal_that_recover_turns_into_an_interrupted_da
     w._fd and os.close(w._fd)
     assert not out.exists()
     rows = catalog(tmp_path)
-    assert rows[0]["status"].startswith("unfinished") and rows[0]["samples"] == 200
+    assert rows["status"][0].startswith("unfinished") and rows["samples"][0] == 200
     path = recover(journal_path(out))
     ds = open_run(path)
     assert ds.sizes["time"] == 200  # the torn row is dropped, every whole one kept
@@ -98,4 +98,4 @@ def test_read_journal_rejects_a_foreign_folder(tmp_path):
 def test_catalog_lists_unreadable_files_without_failing(tmp_path):
     (tmp_path / "broken.nc").write_bytes(b"not netcdf")
     rows = catalog(tmp_path)
-    assert rows[0]["status"].startswith("unreadable")
+    assert rows["status"][0].startswith("unreadable")

@@ -1,0 +1,85 @@
+"""The public application layer: what the CLI, ``reproduce`` and a notebook call.
+
+Every name here is importable from ``rdea_lab`` itself (loaded on first use,
+so ``import rdea_lab`` stays light). The command-line interface imports
+nothing from the package but this layer and `rdea_lab.specs`.
+
+Quick start (a notebook cell)::
+
+    import rdea_lab
+    card = rdea_lab.load_specimen("specimens/specimen2.yaml")
+    params = rdea_lab.load_params("params/paper2021_table3.yaml")
+    ds = rdea_lab.run_protocol("protocols/tensile_ramp_sine_2.6kV.yaml", card, "twin", params=params,
+                               out="demo.nc", metadata={"operator": "ana"})
+    twin = rdea_lab.predict(ds, params, "su")          # or ds.rdea.predict(params, "su")
+    ds.rdea.plot(prediction=twin)
+
+Runs: `run_protocol`, `prepare_run`, `run_campaign`, callbacks `LiveTable`,
+`LivePlot`. Data: `open_run`, `catalog` (a DataFrame), `recover`,
+`import_files`. Model: `predict`, `simulate`, `quasi_static_curves`,
+`geometry`. Calibration: `calibrate_runs`, `format_result`. Reports:
+`validation_report`, `speed_study`, `reproduce`. Rig: `RigServer`.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+_EXPORTS = {
+    # runs
+    "run_protocol": "rdea_lab.runs.app", "prepare_run": "rdea_lab.runs.app", "execute_setup": "rdea_lab.runs.app",
+    "check_outputs": "rdea_lab.runs.app", "default_out": "rdea_lab.runs.app", "emulated_rig": "rdea_lab.runs.app",
+    "project_default": "rdea_lab.runs.app", "check_seed": "rdea_lab.runs.app", "OutputInUse": "rdea_lab.runs.app",
+    "DEFAULT_PARAMS": "rdea_lab.runs.app", "DEFAULT_TRUTH": "rdea_lab.runs.app", "BACKENDS": "rdea_lab.runs.app",
+    "run_campaign": "rdea_lab.runs.campaign", "experiments": "rdea_lab.runs.campaign",
+    "RunResult": "rdea_lab.runs.engine", "EXIT_CODES": "rdea_lab.runs.engine", "execute": "rdea_lab.runs.engine",
+    "check_metadata": "rdea_lab.runs.engine",
+    "RunBlock": "rdea_lab.runs.callbacks", "LiveTable": "rdea_lab.runs.callbacks",
+    "LivePlot": "rdea_lab.runs.live",
+    # specs
+    "load_specimen": "rdea_lab.specs", "load_params": "rdea_lab.specs", "load_protocol": "rdea_lab.specs",
+    "load_truth": "rdea_lab.specs.truth", "load_campaign": "rdea_lab.specs.campaign",
+    "SpecError": "rdea_lab.specs", "LimitError": "rdea_lab.specs", "read_token": "rdea_lab.specs",
+    "load_plan": "rdea_lab.protocols", "as_plan": "rdea_lab.protocols", "check_plan": "rdea_lab.api.helpers",
+    # physics and twin
+    "predict": "rdea_lab.twin", "simulate": "rdea_lab.twin", "TwinStream": "rdea_lab.twin",
+    "quasi_static_curves": "rdea_lab.twin", "CURVE_FIELDS": "rdea_lab.twin.curves",
+    "geometry": "rdea_lab.api.helpers", "StretchBelowOneError": "rdea_lab.physics.result",
+    "ModelNotApplicable": "rdea_lab.physics.result",
+    # store
+    "open_run": "rdea_lab.store", "catalog": "rdea_lab.store", "describe_run": "rdea_lab.store",
+    "recover": "rdea_lab.store", "journal_path": "rdea_lab.store",
+    "import_files": "rdea_lab.store.importers", "ImportOptions": "rdea_lab.store.importers",
+    "check_format": "rdea_lab.store.importers", "parse_map": "rdea_lab.store.importers",
+    "parse_units": "rdea_lab.store.importers", "IMPORT_FORMATS": "rdea_lab.api.helpers",
+    "IMPORT_KINDS": "rdea_lab.api.helpers", "IMPORT_MIN_STRETCH": "rdea_lab.api.helpers",
+    # calibration
+    "calibrate_runs": "rdea_lab.calibration.app", "format_result": "rdea_lab.calibration.app",
+    "CALIBRATION_KINDS": "rdea_lab.api.helpers", "CalibrationResult": "rdea_lab.calibration.fit",
+    # reports
+    "validation_report": "rdea_lab.reports.validation", "ReportInputError": "rdea_lab.reports.validation",
+    "speed_study": "rdea_lab.reports.speed", "reproduce": "rdea_lab.reports.reproduce",
+    "ReproduceInputError": "rdea_lab.reports.reproduce",
+    "plot_run": "rdea_lab.reports.plots", "plot_plan": "rdea_lab.reports.plots",
+    # rig
+    "RigServer": "rdea_lab.emulator", "is_loopback": "rdea_lab.emulator", "FAULTS": "rdea_lab.emulator",
+    "parse_faults": "rdea_lab.emulator.controller", "RigRefused": "rdea_lab.backends.rig",
+    # misc
+    "project_root": "rdea_lab.paths", "benchmarks_dir": "rdea_lab.paths", "USER_ERRORS": "rdea_lab.api.helpers",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name):
+    try:
+        module = _EXPORTS[name]
+    except KeyError:
+        raise AttributeError(f"module 'rdea_lab.api' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -1,0 +1,190 @@
+"""`calibrate_runs`: measured runs in, a calibrated parameter set (and its record) out.
+
+Run discovery (folders give their complete runs of the chosen protocol kinds),
+the start (a parameter file, or estimated from the data), the number of
+Maxwell branches (fitted one at a time when they start from the data), the
+free parameters, the model (``auto``: the most detailed one any specimen of
+the runs needs) and the record. The CLI's ``calibrate``, ``reproduce`` and a
+notebook all come here.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ..physics.selection import ORDER, select_model
+from ..specs import SpecError, ViscoBranch, as_params
+from .fit import CalibrationResult, calibrate, calibrate_growing, initial_guess
+from .objective import find_runs, load_run
+from .parameters import values_of
+from .record import write_record
+
+KINDS = ("tensile", "blocking", "capacitance", "custom")
+MODELS = ("su", "1r", "3r", "auto")
+DEFAULT_EPS_R = 2.8  # Table 1 of [1]
+ARGS = "arguments"
+
+
+def parameter_names(M: int) -> list[str]:
+    """The names a calibration with M branches can free: Yeoh, each branch's k and eta, the damper."""
+    return ["C10", "C20", "C30", *[f"{p}_v{j}" for j in range(1, M + 1) for p in ("k", "eta")], "eta_v0"]
+
+
+def gather_runs(inputs, kinds=("tensile",)) -> list:
+    """`RunData` of every dataset named by ``inputs`` (paths, folders or Datasets in memory).
+
+    Raises
+    ------
+    SpecError
+        A path that does not exist, an unknown kind, no runs found, or a run that cannot be fitted.
+    """
+    if isinstance(inputs, (str, os.PathLike, xr.Dataset)):
+        inputs = [inputs]
+    kinds = tuple(kinds)
+    bad = [k for k in kinds if k not in KINDS]
+    if bad or not kinds:
+        raise SpecError(ARGS, "protocol_kind", f"{', '.join(bad) or 'none given'}; allowed: {', '.join(KINDS)}")
+    paths, runs = [], []
+    for item in inputs:
+        if isinstance(item, xr.Dataset):
+            paths.append(item)
+        elif not Path(item).exists():
+            raise SpecError(str(item), "<document>", "no such dataset or folder")
+        else:
+            paths += find_runs([item], kinds)
+    if not paths:
+        raise SpecError(", ".join(str(p) for p in inputs), "<document>",
+                        f"no complete runs of kind {', '.join(kinds)} found")
+    for p in paths:
+        try:
+            runs.append(load_run(p))
+        except (KeyError, OSError, ValueError) as exc:
+            raise SpecError(str(getattr(p, "encoding", {}).get("source", p)), "<document>",
+                            f"cannot fit: {exc}") from None
+    return runs
+
+
+def choose_model(runs, start, model: str, tolerance: float = 0.01) -> tuple[str, str]:
+    """The model to fit with, and why: ``auto`` takes the most detailed one any specimen's runs need."""
+    if model not in MODELS:
+        raise SpecError(ARGS, "model", f"{model!r}; allowed: {', '.join(MODELS)}")
+    if model != "auto":
+        return model, ""
+    choices = []
+    for s in dict.fromkeys(r.specimen for r in runs):
+        mine = [r for r in runs if r.specimen == s]
+        choices.append(select_model(mine[0].geom, start, np.concatenate([r.stretch for r in mine]),
+                                    np.concatenate([r.voltage for r in mine]), tolerance))
+    chosen = max((c.model for c in choices), key=ORDER.index)
+    return chosen, "; ".join(c.reason for c in choices)
+
+
+def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, eps_r=None, kinds=("tensile",),
+                   metric="rms", max_evals=20000, max_time=300.0, tolerance=0.01, out=None, name=None,
+                   progress=None) -> CalibrationResult:
+    """Fit the Yeoh and viscoelastic parameters (eps_r fixed) to measured runs with Nelder-Mead.
+
+    Parameters
+    ----------
+    inputs : path, Dataset or sequence of them
+        Datasets, or folders of datasets (their complete runs of ``kinds``).
+    model : {"su", "1r", "3r", "auto"}
+        Quasi-static model; ``auto``: the most detailed that any specimen's
+        runs need (:func:`~rdea_lab.physics.selection.select_model` within ``tolerance``).
+    init : ParameterSet or path, optional
+        Start values; default: estimated from the data (:func:`initial_guess`).
+    free : sequence of str or str, optional
+        Parameters to fit (e.g. ``"C10,C20,C30"``); default: every Yeoh and viscoelastic one.
+    branches : int, optional
+        Maxwell branches M (0-6); default those of ``init``, or 1. From the
+        data, M > 1 are fitted one at a time (they merge otherwise); with
+        ``init``, branches beyond its own start 30 times slower than its last.
+    eps_r : float, optional
+        Relative permittivity (fixed) [-]; default ``init``'s, or 2.8 (Table 1).
+    kinds : sequence of str
+        For folders: which protocol kinds.
+    metric : {"rms", "max"}
+    max_evals, max_time : int, float
+        Budgets (evaluations, seconds).
+    out : path, optional
+        Write the record there (a parameter file with a ``calibration``
+        section, plus ``.history.csv`` / ``.history.png``).
+    name : str, optional
+        Name of the calibrated set in the record (default: ``out``'s stem).
+    progress : callable, optional
+        ``progress(evaluations, best, elapsed)``.
+
+    Returns
+    -------
+    CalibrationResult
+        Frozen; ``files`` of the record are in ``result.record_files`` when ``out`` was given.
+    """
+    runs = gather_runs(inputs, kinds)
+    init = as_params(init, "init") if init is not None else None
+    eps = eps_r if eps_r is not None else (init.eps_r if init else DEFAULT_EPS_R)
+    if not (isinstance(eps, (int, float)) and np.isfinite(eps) and eps >= 1.0):
+        raise SpecError(ARGS, "eps_r", f"{eps!r} is not a relative permittivity; allowed: a finite number >= 1")
+    M = branches if branches is not None else (init.M if init else 1)
+    if isinstance(M, bool) or not isinstance(M, int) or not 0 <= M <= 6:
+        raise SpecError(ARGS, "branches", f"{M!r}; allowed: an integer from 0 to 6")
+    if metric not in ("rms", "max"):
+        raise SpecError(ARGS, "metric", f"{metric!r}; allowed: rms, max")
+    if init is None:
+        start = initial_guess(runs, M, eps)
+    else:
+        padded = list(init.branches[:M])
+        while len(padded) < M:  # more branches than the start has: slower ones, same stiffness
+            last = padded[-1] if padded else ViscoBranch(k=init.C10, eta=init.C10)
+            padded.append(ViscoBranch(k=last.k, eta=last.eta * 30))
+        start = init.replace(eps_r=eps, branches=tuple(padded))
+    names = parameter_names(M)
+    if isinstance(free, str):
+        free = [f.strip() for f in free.split(",") if f.strip()]
+    free = list(names if free is None else free)
+    unknown = [f for f in free if f not in names]
+    if unknown:
+        raise SpecError(ARGS, "free", f"{', '.join(unknown)} unknown; allowed: {', '.join(names)}")
+    model, why = choose_model(runs, start, model, tolerance)
+    try:
+        if init is None and M > 1:  # from the data: grow the branches one by one (they merge otherwise)
+            result = calibrate_growing(runs, initial_guess(runs, 1, eps), M, model=model, free=free, metric=metric,
+                                       max_evals=max_evals, max_time=max_time, progress=progress)
+        else:
+            result = calibrate(runs, start, model=model, free=free, metric=metric, max_evals=max_evals,
+                               max_time=max_time, progress=progress)
+    except ValueError as exc:
+        raise SpecError(ARGS, "<calibration>", f"cannot fit: {exc}") from None
+    import dataclasses
+
+    extra = {"model_reason": why, "run_data": tuple(runs)}
+    if out is not None:
+        out = Path(out)
+        extra["record_files"] = write_record(result, runs, out, name=name or out.stem.replace(" ", "_"))
+    return dataclasses.replace(result, **extra)
+
+
+def format_result(result: CalibrationResult) -> str:
+    """The fit report: message, budget, each parameter with its standard error and flags, per-run fit, AIC/BIC."""
+    lines = [f"{result.message}; objective {result.objective:.4e} after {result.nfev} evaluations, "
+             f"{result.restarts} restarts, {result.wall_time:.2f} s"]
+    for p in result.parameters:
+        v = result.values[p.name]
+        se = result.stderr.get(p.name)
+        flags = [f for f, names_ in (("at bound", result.at_bound), ("unmoved", result.unmoved),
+                                     ("not identifiable", result.unidentifiable)) if p.name in names_]
+        unit = "kPa" if p.unit == "Pa" else "kPa s"
+        lines.append(f"  {p.name:<7} {v / 1e3:12.5g} {unit:<6}" + (f" +- {se / 1e3:.3g}" if p.free and se == se else "")
+                     + ("" if p.free else "  (fixed)") + (f"  [{', '.join(flags)}]" if flags else ""))
+    for g in result.runs:
+        lines.append(f"  {g['specimen']}/{g['protocol']}: rms {g['rms_error_N']:.4g} N, R2 {g['r2']:.5f}, "
+                     f"max rel. error {100 * g['max_rel_error']:.2f} %")
+    lines.append(f"  AIC {result.aic:.1f}, BIC {result.bic:.1f}")
+    return "\n".join(lines)
+
+
+__all__ = ["KINDS", "MODELS", "calibrate_runs", "choose_model", "format_result", "gather_runs", "parameter_names",
+           "values_of"]
