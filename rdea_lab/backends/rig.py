@@ -46,7 +46,7 @@ class RigBackend:
     ----------
     address : str
         ``tcp://HOST:PORT``.
-    card : SpecimenCard
+    card : SpecimenCard or path
         The specimen on the rig (its L1 and L3 configure position and field limit).
     token : str, optional
         Presented with ``SYST:AUTH`` before anything else.
@@ -68,7 +68,9 @@ class RigBackend:
                  clock=_time.monotonic, sleep=_time.sleep):
         self.address = address
         self.host, self.port = parse_address(address)
-        self.card = card
+        from ..specs import as_specimen
+
+        self.card = as_specimen(card)
         self.token = token
         self.timeout = timeout
         self.stall_timeout = stall_timeout

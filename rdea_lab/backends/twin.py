@@ -10,7 +10,7 @@ import numpy as np
 from ..physics.geometry import geometry_from_card
 from ..physics.models import three_ring
 from ..physics.selection import select_model
-from ..specs import dump_params
+from ..specs import as_params, as_specimen, dump_params
 from ..twin.simulate import TwinStream
 
 
@@ -19,8 +19,8 @@ class TwinBackend:
 
     Parameters
     ----------
-    card : SpecimenCard
-    params : ParameterSet
+    card : SpecimenCard or path
+    params : ParameterSet or path
     model : {"su", "1r", "3r", "auto"}
         ``auto`` picks the cheapest model within ``tolerance`` of 3R over the
         plan's own (stretch, voltage) envelope (:func:`select_model`).
@@ -41,9 +41,9 @@ class TwinBackend:
 
     def __init__(self, card, params, model="su", tolerance=0.01, realtime=False, block_seconds=None, seed=0,
                  clock=_time.monotonic, sleep=_time.sleep):
-        self.card = card
-        self.params = params
-        self.geom = geometry_from_card(card)
+        self.card = as_specimen(card)
+        self.params = as_params(params)
+        self.geom = geometry_from_card(self.card)
         self.requested = model
         self.tolerance = tolerance
         self.realtime = realtime

@@ -12,6 +12,8 @@ References
 
 from __future__ import annotations
 
+import os
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -324,6 +326,9 @@ def geometry_from_card(card) -> RollGeometry | StripGeometry:
         Appendix of [1]) or ``radii`` given directly, or a strip card
         (:class:`StripGeometry`).
     """
+    if isinstance(card, (str, os.PathLike)):
+        raise TypeError(f"geometry_from_card takes a SpecimenCard, not the path {str(card)!r}: physics reads no "
+                        "files; use rdea_lab.geometry(path) or rdea_lab.load_specimen(path)")
     if getattr(card, "kind", "roll") == "strip":
         e = card.electrode
         return StripGeometry(card.length, card.width, card.thickness, e.length if e else 0.0, e.width if e else 0.0)

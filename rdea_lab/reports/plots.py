@@ -117,6 +117,19 @@ def _title(ds) -> str:
             f"{a.get('status', '?')})")
 
 
+def _run_label(ds) -> str:
+    """What the run's line is: measured on a rig (or imported), or made by the twin."""
+    backend = str(ds.attrs.get("backend", ""))
+    if backend == "twin":
+        return f"run (twin, {ds.attrs.get('model', '?')})"
+    return "measured" + (" (emulator)" if str(ds.attrs.get("emulated", "")).startswith("yes") else "")
+
+
+def _prediction_label(prediction) -> str:
+    model = getattr(prediction, "attrs", {}).get("model") if prediction is not None else None
+    return f"prediction ({model})" if model else "prediction"
+
+
 def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
     """Time histories of a run and its force-displacement loop.
 
@@ -154,10 +167,12 @@ def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
         raise ValueError("plot_run: give ax= or fig=, not both")
     pred = _prediction(ds, prediction)
     t = ds["time"].values
+    own = _run_label(ds)
+    style = dict(PREDICTION, label=_prediction_label(prediction))
     if ax is not None:
-        ax.plot(t, ds["force"].values, lw=0.8, label="measured")
+        ax.plot(t, ds["force"].values, lw=0.8, label=own)
         if "force" in pred:
-            ax.plot(t, pred["force"], **PREDICTION)
+            ax.plot(t, pred["force"], **style)
             ax.legend(fontsize=8)
         ax.set_xlabel("time [s]")
         ax.set_ylabel("force [N]")
@@ -174,9 +189,9 @@ def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
         series.append(("capacitance", 1e12, "capacitance [pF]"))
     for i, (name, scale, label) in enumerate(series):
         a = fig.add_subplot(grid[i, 0])
-        a.plot(t, ds[name].values * scale, lw=0.8, label="measured")
+        a.plot(t, ds[name].values * scale, lw=0.8, label=own)
         if name in pred:
-            a.plot(t, pred[name] * scale, **PREDICTION)
+            a.plot(t, pred[name] * scale, **style)
             a.legend(fontsize=8)
         a.set_ylabel(label)
         a.grid(alpha=0.3)
@@ -184,9 +199,9 @@ def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
             a.set_xlabel("time [s]")
     a = fig.add_subplot(grid[:, 1])
     x = ds["position"].values * 1e3
-    a.plot(x, ds["force"].values, lw=0.8, label="measured")
+    a.plot(x, ds["force"].values, lw=0.8, label=own)
     if "force" in pred:
-        a.plot(x, pred["force"], **PREDICTION)
+        a.plot(x, pred["force"], **style)
         a.legend(fontsize=8)
     a.set_xlabel("displacement [mm]")
     a.set_ylabel("force [N]")

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -94,8 +95,15 @@ def scan_runs(folder: Path) -> tuple[list[Path], list[dict]]:
     return use, skipped
 
 
-def calibration_summary(params_path: Path) -> dict:
-    """Provenance of a parameter file: its hash and, if present, its calibration record in brief."""
+def calibration_summary(params_path) -> dict:
+    """Provenance of a parameter file: its hash and, if present, its calibration record in brief.
+
+    A parameter set given as an object (not a file) has neither: it says so.
+    """
+    if not isinstance(params_path, (str, os.PathLike)):
+        name = getattr(params_path, "name", "?")
+        return {"file": f"<ParameterSet {name}>", "sha256": "", "record": False, "specimens": [], "runs": [],
+                "summary": "parameters given as an object: no file, no calibration record"}
     text = Path(params_path).read_text()
     try:
         record = (yaml.safe_load(text) or {}).get("calibration")
@@ -255,8 +263,9 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
 
     Parameters
     ----------
-    params_path : path
-        Parameter file (a calibration record is one; its ``calibration`` section gives the provenance).
+    params_path : path or ParameterSet
+        Parameter file (a calibration record is one; its ``calibration`` section gives the provenance),
+        or a parameter set (then without provenance).
     datasets_folder : path
         Folder searched recursively for complete runs (``*.nc``).
     out : path
@@ -299,7 +308,7 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
         raise ReportInputError(f"{folder}: no complete runs found" + (
             f" ({len(skipped)} skipped: {skipped[0]['file']}: {skipped[0]['reason']})" if skipped else ""))
     evaluated.sort(key=lambda e: _sort_key(e["row"]))
-    cal = calibration_summary(Path(params_path))
+    cal = calibration_summary(params_path)
     for e in evaluated:
         e["row"]["role"], e["row"]["calibrated_on"] = _role(e["row"], cal)
     rows = [e["row"] for e in evaluated]

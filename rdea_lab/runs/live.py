@@ -177,6 +177,9 @@ class LivePlot:
         try:
             with os.fdopen(fd, "wb") as fh:
                 self.fig.savefig(fh, format="png", dpi=self.dpi)
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; the PNG is for anyone who may read the folder
             os.replace(tmp, self.path)
         except BaseException:
             Path(tmp).unlink(missing_ok=True)

@@ -5,6 +5,19 @@ models holding SI floats.
 The lowest layer of rdea-lab: it imports nothing else from the package. Every
 user mistake raises `SpecError`, whose ``str`` is one line
 ``"{source}: {field}: {message}"``.
+
+Loaders take a path (``load_specimen``, ``load_params``, ``load_protocol``,
+``load_truth``); ``as_specimen`` / ``as_params`` / ``as_protocol`` take an
+object or a path. ``limit_violations`` checks stretch and voltage arrays
+against a protocol's `Limits` (`LimitError`).
+
+Quick start (the whole library: see `rdea_lab`)::
+
+    import rdea_lab
+    card = rdea_lab.load_specimen("specimens/specimen2.yaml")
+    params = rdea_lab.load_params("params/paper2021_table3.yaml")
+    ds = rdea_lab.run_protocol("protocols/blocking_force.yaml", card, "twin", params=params, out="demo.nc")
+    twin = rdea_lab.predict(ds, params, "su")
 """
 
 from .coerce import as_params, as_protocol, as_specimen

@@ -6,6 +6,7 @@ import numpy as np
 
 from ..physics.geometry import geometry_from_card
 from ..physics.models import solve
+from ..specs import as_params, as_specimen
 
 #: Per-curve arrays, in output order.
 CURVE_FIELDS = ("stretch", "sigma1", "force", "lambda2b", "capacitance", "converged")
@@ -16,8 +17,8 @@ def quasi_static_curves(card, params, model, stretch, voltages) -> dict:
 
     Parameters
     ----------
-    card : SpecimenCard
-    params : ParameterSet
+    card : SpecimenCard or path
+    params : ParameterSet or path
     model : {"su", "1r", "3r"}
     stretch : array_like
         Axial stretches [-], >= 1.
@@ -32,6 +33,7 @@ def quasi_static_curves(card, params, model, stretch, voltages) -> dict:
         "summary"}]}``, SI units, NaN where a sample has no equilibrium
         (``converged`` false and ``summary`` saying why).
     """
+    card, params = as_specimen(card), as_params(params)
     geom = geometry_from_card(card)
     stretch = np.asarray(stretch, float)
     curves = []

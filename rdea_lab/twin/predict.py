@@ -9,24 +9,13 @@ import numpy as np
 import xarray as xr
 
 from ..physics.selection import select_model
-from ..specs import as_params, as_protocol, check_limits, params_from_yaml, specimen_from_yaml
-from ..specs.protocol import Limits
+from ..specs import as_params, params_from_yaml, specimen_from_yaml
 from .simulate import as_geometry, simulate
 
 #: A measured stretch below this is a compressed specimen (an error); between it
 #: and 1, encoder noise around the unloaded length (such samples get no prediction).
 MIN_STRETCH = 0.999
 MODELS = ("su", "1r", "3r", "auto")
-
-
-def _limits(protocol):
-    """``(Limits, source)`` of a protocol given as a spec, a path, a plan or bare Limits."""
-    if isinstance(protocol, Limits):
-        return protocol, "<limits>"
-    if hasattr(protocol, "limits") and hasattr(protocol, "source"):  # a Plan (protocols layer, duck-typed)
-        return protocol.limits, str(protocol.source)
-    spec = as_protocol(protocol)
-    return spec.limits, spec.origin
 
 
 def _history(history):
@@ -71,8 +60,9 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
     protocol : ProtocolSpec, Plan, Limits or path, optional
         When given, the history is first checked against its limits (stretch,
         voltage and the field estimate with the specimen's L3), and a
-        `~rdea_lab.specs.LimitError` names the first one it exceeds. Without it
-        this is a bare model evaluation and no limit applies.
+        `~rdea_lab.specs.LimitError` names the first one it exceeds (samples
+        within noise below 1 are not checked). Without it this is a bare model
+        evaluation and no limit applies.
     tolerance : float
         For ``auto``: allowed deviation from 3R relative to the peak stress [-].
 
@@ -107,16 +97,13 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
     params = as_params(params)
     geom = as_geometry(specimen)
     voltage = np.broadcast_to(np.asarray(voltage, float), stretch.shape)
-    if protocol is not None:
-        limits, source = _limits(protocol)
-        check_limits(limits, source, t, stretch, voltage, L3=geom.L3)
     noise = np.isfinite(stretch) & (stretch >= MIN_STRETCH) & (stretch < 1.0)
     used = np.where(noise, np.nan, stretch) if noise.any() else stretch
     choice = None
     if model == "auto":
         choice = select_model(geom, params, used, voltage, tolerance)
         model = choice.model
-    out = simulate(geom, params, t, used, voltage, model=model)
+    out = simulate(geom, params, t, used, voltage, model=model, protocol=protocol)
     out["stretch"] = ("time", np.array(stretch, float), out["stretch"].attrs)  # the history as given
     if ds is not None:
         out["time"].attrs.update(ds["time"].attrs)

@@ -12,7 +12,8 @@ from ..physics import viscoelastic
 from ..physics.geometry import RollGeometry, StripGeometry, geometry_from_card
 from ..physics.models import solve
 from ..physics.result import VALID
-from ..specs import as_params, as_specimen
+from ..specs import as_params, as_protocol, as_specimen, check_limits
+from ..specs.protocol import Limits
 
 #: CF attributes of the variables the twin writes.
 VARIABLES = {
@@ -77,7 +78,17 @@ def compose(geom, visco, t, stretch, sigma_rev, state=None):
     return sigma, sigma_irr, geom.carried_force(sigma * geom.area / stretch), state
 
 
-def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
+def history_limits(protocol):
+    """``(Limits, source)`` of a protocol given as a spec, a path, a plan or bare Limits."""
+    if isinstance(protocol, Limits):
+        return protocol, "<limits>"
+    if hasattr(protocol, "limits") and hasattr(protocol, "source"):  # a Plan (protocols layer, duck-typed)
+        return protocol.limits, str(protocol.source)
+    spec = as_protocol(protocol)
+    return spec.limits, spec.origin
+
+
+def simulate(specimen, params, t, stretch, voltage, model="su", *, protocol=None) -> xr.Dataset:
     """Run the twin over a time series.
 
     Parameters
@@ -95,6 +106,11 @@ def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
         Voltage [V].
     model : {"su", "1r", "3r"}
         Quasi-static model, Sections 3.1-3.3 of [1].
+    protocol : ProtocolSpec, Plan, Limits or path, optional
+        When given, the history is first checked against its limits (stretch,
+        voltage, the field estimate with the specimen's L3) and a
+        `~rdea_lab.specs.LimitError` names the first one exceeded; without it,
+        a bare model evaluation (no limit applies).
 
     Returns
     -------
@@ -108,6 +124,9 @@ def simulate(specimen, params, t, stretch, voltage, model="su") -> xr.Dataset:
     params = as_params(params)
     stretch = np.asarray(stretch, float)
     voltage = np.broadcast_to(np.asarray(voltage, float), stretch.shape)
+    if protocol is not None:
+        limits, source = history_limits(protocol)
+        check_limits(limits, source, t, stretch, voltage, L3=geom.L3)
     out = TwinStream(geom, params, model).step(t, stretch, voltage)  # the whole series as one block
     k, eta, eta_v0 = viscous(params)
     data = {

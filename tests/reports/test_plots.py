@@ -59,10 +59,19 @@ def test_plot_run_prediction_on_ax_is_a_dashed_twin_line_with_legend(run):
     fig, ax = plt.subplots()
     pred = prediction_of(run)
     plot_run(run, ax=ax, prediction=pred)
-    twin = [line for line in ax.lines if line.get_label() == "twin"]
+    twin = [line for line in ax.lines if line.get_label() == "prediction"]
     assert len(twin) == 1 and twin[0].get_linestyle() == "--"
     np.testing.assert_allclose(twin[0].get_ydata(), 1.05 * run["force"].values)
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["measured", "twin"]
+    # the shipped runs come from the emulator, and say so in the legend
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["measured (emulator)", "prediction"]
+
+
+def test_labels_say_what_made_each_line(run):
+    twin_run = run.assign_attrs(backend="twin", model="3r", emulated="")
+    pred = prediction_of(run).assign_attrs(model="su")
+    fig, ax = plt.subplots()
+    plot_run(twin_run, ax=ax, prediction=pred)
+    assert [t.get_text() for t in ax.get_legend().get_texts()] == ["run (twin, 3r)", "prediction (su)"]
 
 
 def test_plot_run_default_layout(run, cap_run):
@@ -89,9 +98,9 @@ def test_plot_run_into_a_given_figure(run):
 def test_plot_run_prediction_in_force_panel_loop_and_capacitance(cap_run):
     fig = plot_run(cap_run, fig=Figure(), prediction=prediction_of(cap_run, 0.9))
     labels = {ax.get_ylabel(): [line.get_label() for line in ax.lines] for ax in fig.axes}
-    assert labels["stretch λ1 [-]"] == ["measured"]
-    assert labels["capacitance [pF]"] == ["measured", "twin"]
-    assert [len([ln for ln in ax.lines if ln.get_label() == "twin"]) for ax in fig.axes] == [0, 0, 1, 1, 1]
+    assert labels["stretch λ1 [-]"] == ["measured (emulator)"]
+    assert labels["capacitance [pF]"] == ["measured (emulator)", "prediction"]
+    assert [len([ln for ln in ax.lines if ln.get_label() == "prediction"]) for ax in fig.axes] == [0, 0, 1, 1, 1]
     loop = fig.axes[-1]
     np.testing.assert_allclose(loop.lines[1].get_ydata(), 0.9 * cap_run["force"].values)
     assert loop.get_legend() is not None

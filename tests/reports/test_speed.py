@@ -5,7 +5,6 @@ import itertools
 import math
 from pathlib import Path
 
-import click
 import matplotlib.pyplot as plt
 import pytest
 

@@ -11,7 +11,6 @@ import re
 import shutil
 from pathlib import Path
 
-import click
 import matplotlib.pyplot as plt
 import pytest
 import xarray as xr
@@ -19,7 +18,6 @@ import yaml
 
 from rdea_lab.calibration import goodness, load_run, predict_force
 from rdea_lab.cli.errors import run
-from rdea_lab.cli.main import cli as main_cli
 from rdea_lab.cli.main import cli as main_cli
 from rdea_lab.reports.tables import latex_escape
 from rdea_lab.reports.validation import COLUMNS, ReportInputError, validation_report

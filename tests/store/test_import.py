@@ -14,7 +14,6 @@ import json
 import time
 from pathlib import Path
 
-import click
 import numpy as np
 import pytest
 import scipy.io

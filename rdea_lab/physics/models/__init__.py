@@ -6,6 +6,8 @@ of stretch and voltage and returns a :class:`~rdea_lab.physics.result.ModelResul
 
 from __future__ import annotations
 
+import os
+
 from . import one_ring, su, three_ring
 
 #: Model names, cheapest first.
@@ -18,4 +20,9 @@ def solve(model: str, geom, material, stretch, voltage):
         module = MODELS[model.lower()]
     except KeyError:
         raise ValueError(f"unknown model {model!r}; allowed: {', '.join(MODELS)}") from None
+    for name, value, loader in (("geom", geom, "rdea_lab.geometry(path)"), ("material", material,
+                                                                           "rdea_lab.load_params(path)")):
+        if isinstance(value, (str, os.PathLike)):
+            raise TypeError(f"solve: {name} must be an object, not the path {str(value)!r}: physics reads no files; "
+                            f"load it with {loader}")
     return module.solve(geom, material, stretch, voltage)
