@@ -28,8 +28,38 @@ campaigns), `calibration`, `reports`, `api`, `cli`.
 
 __version__ = "0.1.0"
 
+import importlib.abc  # noqa: E402
+import importlib.util  # noqa: E402
+import sys  # noqa: E402
+
 from . import api as _api  # noqa: E402
-from .api import accessor as _accessor  # noqa: E402,F401  (registers ds.rdea)
+
+
+class _RegisterAccessorWithXarray(importlib.abc.MetaPathFinder):
+    """Registers ``ds.rdea`` right after xarray is imported, so that ``import rdea_lab`` (and every
+    ``rdea-lab`` command that needs no dataset) does not pay for importing xarray."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "xarray":
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec("xarray")
+        if spec is None or spec.loader is None:
+            return spec
+        run = spec.loader.exec_module
+
+        def exec_module(module):
+            run(module)
+            importlib.import_module("rdea_lab.api.accessor")
+
+        spec.loader.exec_module = exec_module
+        return spec
+
+
+if "xarray" in sys.modules:
+    from .api import accessor as _accessor  # noqa: F401  (registers ds.rdea)
+elif not any(isinstance(f, _RegisterAccessorWithXarray) for f in sys.meta_path):
+    sys.meta_path.insert(0, _RegisterAccessorWithXarray())
 
 __all__ = ["__version__", *_api.__all__]
 

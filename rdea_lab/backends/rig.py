@@ -16,6 +16,7 @@ import time as _time
 
 import numpy as np
 
+from ..specs.errors import UserError
 from .base import BackendFailure
 
 COLUMNS = ("time", "stretch", "position", "voltage", "force", "capacitance", "stretch_setpoint",
@@ -23,7 +24,7 @@ COLUMNS = ("time", "stretch", "position", "voltage", "force", "capacitance", "st
 _ADDRESS = re.compile(r"^tcp://(?P<host>[A-Za-z0-9.\-]+|\[[0-9a-fA-F:]+\]):(?P<port>\d{1,5})$")
 
 
-class RigRefused(ValueError):
+class RigRefused(UserError):
     """The rig refused the run before anything moved (a limit, a bad configuration, a token)."""
 
 

@@ -14,7 +14,7 @@ import traceback
 
 import click
 
-from .. import api
+from ..specs import UserError
 
 EXIT_HELP = ("Exit status: 0 done, 1 internal error, 2 bad input (one line naming the file, the field and what is "
              "allowed), 3 a run ended by the rig or a limit (aborted), 130 interrupted.")
@@ -52,7 +52,7 @@ def run(group: click.Group, argv=None) -> int:
     except click.ClickException as exc:
         click.echo(f"rdea-lab: {_one_line(exc.format_message())}", err=True)
         return exc.exit_code
-    except api.USER_ERRORS as exc:
+    except UserError as exc:  # SpecError, LimitError, a rig refusing, a model that does not apply, ...
         click.echo(f"rdea-lab: {_one_line(exc)}", err=True)
         return 2
     except KeyboardInterrupt:

@@ -9,8 +9,7 @@ import click
 
 from .. import api
 from ..specs import load_specimen
-
-FORMATS, KINDS, MIN_STRETCH = api.IMPORT_FORMATS, api.IMPORT_KINDS, api.IMPORT_MIN_STRETCH
+from ..specs.importing import FORMATS, KINDS, MIN_STRETCH
 
 
 @click.command(name="import")

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..specs.errors import UserError
+
 #: Per-sample status codes of :class:`ModelResult`.
 OK = 0
 #: The voltage is past the limit point: there is no stable equilibrium in the
@@ -27,11 +29,11 @@ STATUS_NAMES = {OK: "ok", LIMIT_POINT: "past limit point", BAD_INPUT: "NaN or in
 VALID = (OK, SNAPPED)
 
 
-class ModelNotApplicable(ValueError):
+class ModelNotApplicable(UserError):
     """The model does not describe this specimen (e.g. 3R, a model of a roll's rings, on a strip)."""
 
 
-class StretchBelowOneError(ValueError):
+class StretchBelowOneError(UserError):
     """A stretch below 1: the roll is compressed, which Assumption 1 of [1] excludes."""
 
 

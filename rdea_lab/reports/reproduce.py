@@ -20,6 +20,7 @@ from ..calibration import calibrate, find_runs, initial_guess, load_run
 from ..calibration.record import write_record
 from ..runs import experiments, run_campaign
 from ..specs.campaign import load_campaign
+from ..specs.errors import UserError
 from .paper_models import reproduce_models
 from .speed import speed_study
 from .validation import validation_report
@@ -27,7 +28,7 @@ from .validation import validation_report
 CALIBRATION_SPECIMEN = "specimen-2"
 
 
-class ReproduceInputError(ValueError):
+class ReproduceInputError(UserError):
     """A campaign that reproduce cannot use (a user mistake: exit status 2)."""
 
 

@@ -26,7 +26,7 @@ import yaml
 
 from ..backends.rig import truth_name
 from ..calibration.objective import file_hash, load_run
-from ..specs import as_params
+from ..specs import UserError, as_params
 from ..twin import predict
 from ..store import open_run
 from . import tables
@@ -65,7 +65,7 @@ CSV_KEYS = ["experiment", "kind", "quantity", "voltage", "voltage_V", "specimen"
             "max_rel_error", "rms_error", "paper_max_rel_error", "window", "notes"]
 
 
-class ReportInputError(ValueError):
+class ReportInputError(UserError):
     """Bad input to a report (no runs, unknown model): one line, exit status 2 at the CLI."""
 
 

@@ -5,12 +5,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..backends.twin import TwinBackend
 from ..physics.geometry import geometry_from_card
 from ..protocols import first_violation, load_plan
 from ..specs import load_params, load_specimen
-from .app import DEFAULT_PARAMS, DEFAULT_TRUTH, check_outputs, check_seed, emulated_rig
-from .engine import RunResult, check_metadata, execute
+from .app import DEFAULT_PARAMS, DEFAULT_TRUTH, check_outputs, check_seed, emulated_rig, execute_setup, prepare_run
+from .engine import RunResult, check_metadata
 
 
 @dataclass(frozen=True)
@@ -48,8 +47,6 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
     specimen on loopback and stops it after that specimen's runs. Each run gets
     its own noise seed, ``spec.seed + i``.
     """
-    from ..backends.rig import RigBackend
-
     runs = experiments(spec, root, out_dir)
     metadata = check_metadata(metadata)
     check_seed(spec.seed + max(len(runs) - 1, 0))
@@ -65,19 +62,17 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
     if spec.backend == "twin":
         params = load_params(root / (spec.params or DEFAULT_PARAMS))
         for run in runs:
-            seed = seeds[id(run)]
-            backend = TwinBackend(run.card, params, model=spec.model, realtime=realtime, seed=seed)
-            record(execute(run.plan, run.card, backend, run.out, seed=seed, command=command, callbacks=callbacks,
-                           metadata=metadata))
+            setup = prepare_run(run.plan, run.card, "twin", params=params, model=spec.model, out=run.out,
+                                seed=seeds[id(run)], realtime=realtime)
+            record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command))
         return results
     from ..specs.truth import load_truth
 
     truth = load_truth(root / (spec.truth or DEFAULT_TRUTH))
     for card_id in dict.fromkeys(r.card.id for r in runs):
         mine = [r for r in runs if r.card.id == card_id]
-        with emulated_rig(mine[0].card, truth, realtime=realtime) as address:
+        with emulated_rig(mine[0].card, truth, realtime=realtime) as address:  # one rig per specimen
             for run in mine:
-                seed = seeds[id(run)]
-                record(execute(run.plan, run.card, RigBackend(address, run.card, seed=seed), run.out, seed=seed,
-                               command=command, callbacks=callbacks, metadata=metadata))
+                setup = prepare_run(run.plan, run.card, "rig", address=address, out=run.out, seed=seeds[id(run)])
+                record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command))
     return results

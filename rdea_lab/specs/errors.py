@@ -34,7 +34,15 @@ def show(value: object, limit: int = 60) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-class SpecError(ValueError):
+class UserError(ValueError):
+    """A user's mistake (input, options, a rig refusing a run): the CLI gives it exit status 2 and one line.
+
+    Every such error of the package derives from it; anything else reaching the
+    CLI is a bug (exit status 1).
+    """
+
+
+class SpecError(UserError):
     """A user mistake in a spec (specimen card, parameter set, ...).
 
     Parameters

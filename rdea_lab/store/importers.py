@@ -35,9 +35,8 @@ from .csvtable import read_csv
 from .journal import utc_now, write_dataset
 from .schema import TIME, VARIABLES
 from .tables import Table, read_mat, read_tdms
+from ..specs.importing import FORMATS, KINDS, MIN_STRETCH  # noqa: F401  (what import accepts; re-exported)
 
-FORMATS = ("csv", "tdms", "mat")
-KINDS = ("tensile", "blocking", "capacitance", "custom")
 #: mapped quantity -> (its dimension in pint's terms, name, SI unit, example unit)
 QUANTITIES = {
     "time": ("[time]", "time", "s", "s"),
@@ -47,9 +46,6 @@ QUANTITIES = {
     "capacitance": ("[capacitance]", "capacitance", "F", "pF"),
 }
 REQUIRED = ("time", "position", "force")
-#: Lowest stretch taken as noise around the unloaded length (positions a few
-#: micrometres below 0 at zero load); below it the position's zero or sign is wrong.
-MIN_STRETCH = 0.999
 _KEY = re.compile(r",\s*(?=[A-Za-z_][A-Za-z0-9_]*\s*=)")
 
 

@@ -12,9 +12,7 @@ from ..physics.selection import select_model
 from ..specs import as_params, params_from_yaml, specimen_from_yaml
 from .simulate import as_geometry, simulate
 
-#: A measured stretch below this is a compressed specimen (an error); between it
-#: and 1, encoder noise around the unloaded length (such samples get no prediction).
-MIN_STRETCH = 0.999
+from ..specs.importing import MIN_STRETCH  # below it a compressed specimen; between it and 1, noise
 MODELS = ("su", "1r", "3r", "auto")
 
 

@@ -44,3 +44,17 @@ def test_twin_functions_accept_paths():
     for ca, cb in zip(a["curves"], b["curves"]):
         np.testing.assert_array_equal(ca["force"], cb["force"])
     assert TwinBackend(card, params).card == rdea_lab.load_specimen(card)
+
+
+@pytest.mark.parametrize("order", ["rdea_lab first", "xarray first"])
+def test_ds_rdea_is_there_whichever_is_imported_first_and_import_rdea_lab_stays_light(order):
+    """``import rdea_lab`` does not import xarray (the CLI's start-up); ``ds.rdea`` works either way."""
+    import subprocess
+    import sys
+
+    first, second = ("rdea_lab", "xarray") if order == "rdea_lab first" else ("xarray", "rdea_lab")
+    code = (f"import sys; import {first}; light = 'xarray' not in sys.modules; import {second}; "
+            "import xarray as xr; ds = xr.Dataset(attrs={'metadata': '{\"operator\": \"ana\"}'}); "
+            "print(light, ds.rdea.metadata['operator'])")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == [str(order == "rdea_lab first"), "ana"]
