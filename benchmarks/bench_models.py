@@ -9,7 +9,8 @@ per-scene table adds the three paper specimens over the paper's envelope
 passive cores. The fsolve baseline solves the corrected six-equation system
 (27) sample by sample (``baseline_3r_fsolve.py``); speed-up and agreement are
 measured on the hollow core, where the baseline's first stationary point is
-the physical one. Timings are the best of ``repeat`` runs after one warm-up.
+the physical one. Rates are the median of ``repeat`` timed runs after one
+warm-up, with their spread (slowest and fastest run) beside them.
 """
 
 from __future__ import annotations
@@ -42,14 +43,22 @@ def _core(name):
     return RollGeometry(*CORES[name], L1=34e-3, L1e=34e-3, L3=48e-6)
 
 
-def _best(fn, repeat):
-    fn()  # warm-up
-    best = float("inf")
+def _times(fn, repeat, warm_up=True):
+    """Wall times [s] of ``repeat`` calls of ``fn`` (after one untimed warm-up call)."""
+    if warm_up:
+        fn()
+    out = []
     for _ in range(repeat):
         t0 = time.perf_counter()
         fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+        out.append(time.perf_counter() - t0)
+    return np.array(out)
+
+
+def _rate(n, times):
+    """``(median, slowest, fastest)`` samples per second of runs of ``n`` samples."""
+    r = n / np.asarray(times)
+    return float(np.median(r)), float(r.min()), float(r.max())
 
 
 def _envelope(n, stretch_max, voltage_max, seed=0):
@@ -61,29 +70,30 @@ def run(samples=100_000, baseline_samples=1000, repeat=5) -> dict:
     """Measure and return the figures as a JSON-able dict."""
     l1, v = _envelope(samples, 1.75, 3500.0)
     hollow = _core("hollow-core")
-    rate = {}
+    rate, spread = {}, {}
     for model in ("su", "1r", "3r"):
-        rate[model] = samples / _best(lambda: solve(model, hollow, RIZZELLO, l1, v), repeat)
+        rate[model], *spread[model] = _rate(samples, _times(lambda: solve(model, hollow, RIZZELLO, l1, v), repeat))
 
     scenes = {}
     table3 = load_params(ROOT / "params" / "paper2021_table3.yaml")
     pl1, pv = _envelope(samples, 1.5, 2600.0, seed=1)
     for i in (1, 2, 3):
         geom = geometry_from_card(load_specimen(ROOT / "specimens" / f"specimen{i}.yaml"))
-        scenes[f"specimen-{i}"] = {m: samples / _best(lambda: solve(m, geom, table3, pl1, pv), repeat)
+        scenes[f"specimen-{i}"] = {m: _rate(samples, _times(lambda: solve(m, geom, table3, pl1, pv), repeat))[0]
                                    for m in ("su", "1r", "3r")}
     for name in ("active-core", "passive-core"):
         geom = _core(name)
-        scenes[name] = {m: samples / _best(lambda: solve(m, geom, RIZZELLO, l1, v), repeat)
+        scenes[name] = {m: _rate(samples, _times(lambda: solve(m, geom, RIZZELLO, l1, v), repeat))[0]
                         for m in ("su", "1r", "3r")}
 
     bl1, bv = l1[:baseline_samples], v[:baseline_samples]
     Ri, Rie, Roe, Ro = CORES["hollow-core"]
     kw = dict(Ri=Ri, Rie=Rie, Roe=Roe, Ro=Ro, L3=48e-6, alpha_e1=1.0, C10=RIZZELLO.C10,
               C20=RIZZELLO.C20, C30=RIZZELLO.C30, eps_r=RIZZELLO.eps_r)
-    t0 = time.perf_counter()
     base = solve_3r_fsolve(bl1, bv, **kw)
-    t_base = time.perf_counter() - t0
+    base_times = _times(lambda: solve_3r_fsolve(bl1, bv, **kw), max(1, min(repeat, 3)), warm_up=False)
+    t_base = float(np.median(base_times))
+    speedups = _rate(baseline_samples, base_times)  # fsolve rates: median, slowest, fastest
     fast = solve("3r", hollow, RIZZELLO, bl1, bv)
     ok = base["converged"] & fast.converged
     diff = np.abs(base["sigma1"][ok] - fast.sigma1[ok])
@@ -92,7 +102,9 @@ def run(samples=100_000, baseline_samples=1000, repeat=5) -> dict:
     return {
         "calibration": calibration,
         "samples_per_s": {m: float(r) for m, r in rate.items()},
+        "samples_per_s_spread": {m: [float(a), float(b)] for m, (a, b) in spread.items()},
         "speedup_3r_vs_fsolve": float(rate["3r"] / (baseline_samples / t_base)),
+        "speedup_3r_vs_fsolve_spread": [float(spread["3r"][0] / speedups[2]), float(spread["3r"][1] / speedups[1])],
         "max_rel_diff_3r_vs_fsolve": max_rel,
         "fsolve_samples_per_s": float(baseline_samples / t_base),
         "baseline_samples": int(baseline_samples),
@@ -138,12 +150,15 @@ def bench_calibration() -> dict:
 
 
 def format_text(r: dict) -> str:
-    lines = [f"quasi-static solvers, {r['samples']} samples (hollow core, lambda1 1-1.75, 0-3.5 kV), best of runs:"]
+    lines = [f"quasi-static solvers, {r['samples']} samples (hollow core, lambda1 1-1.75, 0-3.5 kV), "
+             "median (slowest-fastest) of the runs:"]
     for m, x in r["samples_per_s"].items():
-        lines.append(f"  {m:<3} {x:12.3e} samples/s")
+        lo, hi = r["samples_per_s_spread"][m]
+        lines.append(f"  {m:<3} {x:12.3e} samples/s ({lo:.3g}-{hi:.3g})")
+    lo, hi = r["speedup_3r_vs_fsolve_spread"]
     lines.append(f"3R vs per-sample fsolve of (27) on {r['baseline_samples']} samples: "
-                 f"{r['speedup_3r_vs_fsolve']:.0f}x faster ({r['fsolve_samples_per_s']:.0f} samples/s), "
-                 f"max rel. diff {r['max_rel_diff_3r_vs_fsolve']:.1e}")
+                 f"{r['speedup_3r_vs_fsolve']:.0f}x faster ({lo:.0f}-{hi:.0f}x; fsolve "
+                 f"{r['fsolve_samples_per_s']:.0f} samples/s), max rel. diff {r['max_rel_diff_3r_vs_fsolve']:.1e}")
     c = r["calibration"]
     lines.append(f"calibration of specimen 2 (SU, 1 branch + eta_v0, emulator data): {c['specimen2_su_M1_seconds']:.2f} s, "
                  f"{c['evaluations']} evaluations, {c['evaluations_per_s']:.0f} evaluations/s "

@@ -223,7 +223,7 @@ def reproduce(out_dir, campaign_path, no_speed, quiet):
 @click.option("--baseline-samples", default=1000, show_default=True, type=click.IntRange(10, 100_000),
               help="Samples for the per-sample fsolve baseline of 3R.")
 @click.option("--repeat", default=5, show_default=True, type=click.IntRange(1, 100),
-              help="Timing repeats (the best is reported).")
+              help="Timing repeats (the median and the spread are reported).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 def bench(samples, baseline_samples, repeat, as_json):
     """Speed of the SU, 1R and 3R solvers, and of 3R against an fsolve baseline.
