@@ -29,7 +29,7 @@ campaigns), `calibration`, `reports`, `api`, `cli`.
 __version__ = "0.1.0"
 
 import importlib.abc  # noqa: E402
-import importlib.util  # noqa: E402
+import importlib.machinery  # noqa: E402
 import sys  # noqa: E402
 
 from . import api as _api  # noqa: E402
@@ -42,14 +42,15 @@ class _RegisterAccessorWithXarray(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path=None, target=None):
         if name != "xarray":
             return None
-        sys.meta_path.remove(self)
-        spec = importlib.util.find_spec("xarray")
-        if spec is None or spec.loader is None:
+        spec = importlib.machinery.PathFinder.find_spec(name, path)  # the ordinary search, without this hook
+        if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
             return spec
         run = spec.loader.exec_module
 
-        def exec_module(module):
+        def exec_module(module):  # only a real import gets here (a find_spec probe does not)
             run(module)
+            if self in sys.meta_path:
+                sys.meta_path.remove(self)
             importlib.import_module("rdea_lab.api.accessor")
 
         spec.loader.exec_module = exec_module

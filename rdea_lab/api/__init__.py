@@ -30,6 +30,7 @@ _EXPORTS = {
     "run_protocol": "rdea_lab.runs.app", "prepare_run": "rdea_lab.runs.app", "execute_setup": "rdea_lab.runs.app",
     "check_outputs": "rdea_lab.runs.app", "default_out": "rdea_lab.runs.app", "emulated_rig": "rdea_lab.runs.app",
     "project_default": "rdea_lab.runs.app", "check_seed": "rdea_lab.runs.app", "OutputInUse": "rdea_lab.runs.app",
+    "OutputError": "rdea_lab.runs.app", "check_writable": "rdea_lab.runs.app",
     "DEFAULT_PARAMS": "rdea_lab.runs.app", "DEFAULT_TRUTH": "rdea_lab.runs.app", "BACKENDS": "rdea_lab.runs.app",
     "run_campaign": "rdea_lab.runs.campaign", "experiments": "rdea_lab.runs.campaign",
     "RunResult": "rdea_lab.runs.engine", "EXIT_CODES": "rdea_lab.runs.engine", "execute": "rdea_lab.runs.engine",

@@ -132,6 +132,15 @@ class RigBackend:
         return out
 
     def start(self, plan) -> None:
+        try:
+            self._start(plan)
+        except BaseException as exc:
+            self.abort(f"start failed: {type(exc).__name__}")  # ABOR, in case INIT reached the rig
+            if isinstance(exc, ConnectionLost):  # a rig that does not answer is refused (exit 2)
+                raise RigRefused(f"rig {self.address}: no answer before the run started ({exc})") from None
+            raise
+
+    def _start(self, plan) -> None:
         from ..physics.geometry import geometry_from_card
 
         geom = geometry_from_card(self.card)

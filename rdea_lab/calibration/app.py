@@ -17,6 +17,7 @@ import numpy as np
 import xarray as xr
 
 from ..physics.selection import ORDER, select_model
+from ..runs.app import check_writable
 from ..specs import SpecError, ViscoBranch, as_params
 from .fit import CalibrationResult, calibrate, calibrate_growing, initial_guess
 from .objective import find_runs, load_run
@@ -85,7 +86,7 @@ def choose_model(runs, start, model: str, tolerance: float = 0.01) -> tuple[str,
 
 def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, eps_r=None, kinds=("tensile",),
                    metric="rms", max_evals=20000, max_time=300.0, tolerance=0.01, out=None, name=None,
-                   progress=None) -> CalibrationResult:
+                   progress=None, announce=None) -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters (eps_r fixed) to measured runs with Nelder-Mead.
 
     Parameters
@@ -117,6 +118,8 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         Name of the calibrated set in the record (default: ``out``'s stem).
     progress : callable, optional
         ``progress(evaluations, best, elapsed)``.
+    announce : callable, optional
+        ``announce(runs, model, reason, free)`` once everything is checked, before the fit starts.
 
     Returns
     -------
@@ -149,6 +152,10 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     if unknown:
         raise SpecError(ARGS, "free", f"{', '.join(unknown)} unknown; allowed: {', '.join(names)}")
     model, why = choose_model(runs, start, model, tolerance)
+    if out is not None:
+        check_writable(out)  # before a long fit, not after it
+    if announce is not None:
+        announce(runs, model, why, free)
     try:
         if init is None and M > 1:  # from the data: grow the branches one by one (they merge otherwise)
             result = calibrate_growing(runs, initial_guess(runs, 1, eps), M, model=model, free=free, metric=metric,

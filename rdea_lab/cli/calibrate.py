@@ -51,16 +51,18 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
         if show:
             click.echo(f"\r  evaluations {n:6d}  best {best:.6e}  elapsed {elapsed:6.1f} s", nl=False, err=True)
 
+    def announce(runs, chosen, reason, free):
+        if reason:
+            click.echo(f"model auto: {chosen} ({reason})")
+        click.echo(f"calibrating {', '.join(free)} ({chosen}, {metric}) on {len(runs)} runs: "
+                   + ", ".join(f"{r.specimen}/{r.protocol}" for r in runs))
+
     kinds = [k.strip() for k in kinds_text.split(",") if k.strip()]
     result = api.calibrate_runs(list(inputs), model=model.lower(), init=init_path, free=free_text, branches=M,
                                 eps_r=eps_r, kinds=kinds, metric=metric, max_evals=max_evals, max_time=max_time,
-                                out=out_path, name=name, progress=progress)
+                                out=out_path, name=name, progress=progress, announce=announce)
     if show:
         click.echo("", err=True)
-    if result.model_reason:
-        click.echo(f"model auto: {result.model} ({result.model_reason})")
-    click.echo(f"calibrated {', '.join(result.free_names)} ({result.model}, {result.metric}) on "
-               f"{len(result.run_data)} runs: " + ", ".join(f"{r.specimen}/{r.protocol}" for r in result.run_data))
     click.echo(api.format_result(result))
     files = result.record_files
     click.echo(f"wrote {files['params']}, {files['history']}, {files['plot']}")

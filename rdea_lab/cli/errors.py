@@ -20,6 +20,22 @@ EXIT_HELP = ("Exit status: 0 done, 1 internal error, 2 bad input (one line namin
              "allowed), 3 a run ended by the rig or a limit (aborted), 130 interrupted.")
 
 
+#: The library's argument names (in its messages: "arguments: seed: ...") as the CLI spells them.
+OPTIONS = {"address": "--rig", "token": "--token-file", "address/token": "--rig/--token-file", "faults": "--fault",
+           "faults/truth": "--fault/--truth", "truth": "--truth", "seed": "--seed", "params": "--params",
+           "model": "--model", "tolerance": "--tolerance", "backend": "--backend", "stall_timeout": "--stall-timeout",
+           "protocol_kind": "--protocol-kind", "free": "--free", "eps_r": "--eps-r", "branches": "--viscous-branches",
+           "metric": "--metric", "init": "--init"}
+
+
+def user_message(exc) -> str:
+    """One line for a user's mistake; the library's argument names become the CLI's options."""
+    source, field = getattr(exc, "source", None), getattr(exc, "field", None)
+    if source == "arguments" and field is not None:
+        return f"{OPTIONS.get(field, field)}: {exc.message}"
+    return str(exc)
+
+
 class UserInputError(click.ClickException):
     """A user mistake found by the CLI itself: exit status 2, one line."""
 
@@ -53,7 +69,7 @@ def run(group: click.Group, argv=None) -> int:
         click.echo(f"rdea-lab: {_one_line(exc.format_message())}", err=True)
         return exc.exit_code
     except UserError as exc:  # SpecError, LimitError, a rig refusing, a model that does not apply, ...
-        click.echo(f"rdea-lab: {_one_line(exc)}", err=True)
+        click.echo(f"rdea-lab: {_one_line(user_message(exc))}", err=True)
         return 2
     except KeyboardInterrupt:
         click.echo("rdea-lab: interrupted", err=True)

@@ -10,7 +10,17 @@ from .errors import die, headless
 MODELS = ("su", "1r", "3r", "auto")
 
 
-@click.group()
+class _ReportGroup(click.Group):
+    """``report`` holds two commands; options given to the group itself were ``report validation``'s."""
+
+    def parse_args(self, ctx, args):
+        if args and args[0].startswith("--") and args[0] not in ("--help", "-h"):
+            raise click.UsageError(f"{args[0]} belongs to a subcommand: 'rdea-lab report validation --params P "
+                                   "--datasets D' (the Table 4 analogue) or 'rdea-lab report speed'", ctx)
+        return super().parse_args(ctx, args)
+
+
+@click.group(cls=_ReportGroup)
 def report():
     """Reports: the twin against measured runs (validation), and speed against error (speed).
 

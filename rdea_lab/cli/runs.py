@@ -64,6 +64,7 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
             return [api.LivePlot()]
         if not live.lower().endswith(".png"):
             die(f"--live: {live!r}; allowed: table, plot or a FILE.png")
+        api.check_writable(live, "--live")
         headless()
         return [api.LivePlot(Path(live))]
     if quiet or not (sys.stdout.isatty() and sys.stderr.isatty()) or (seconds is not None and seconds <= 1.0):

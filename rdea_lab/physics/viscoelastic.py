@@ -151,7 +151,9 @@ def overstress_step(t, stretch, k, eta, eta_v0=0.0, *, q0=None, state=None):
     state : ViscoState, optional
         The end of the previous block: the interval from it to ``t[0]`` is
         integrated exactly too, so a series cut into blocks gives the numbers of
-        the whole series.
+        the whole series (except ``eta_v0``'s rate at a first block of a single
+        finite sample, which has no interval yet and reads 0, where the whole
+        series takes the first interval's slope).
 
     Returns
     -------

@@ -26,6 +26,7 @@ import yaml
 
 from ..backends.rig import truth_name
 from ..calibration.objective import file_hash, load_run
+from ..runs.app import check_writable
 from ..specs import UserError, as_params
 from ..twin import predict
 from ..store import open_run
@@ -296,6 +297,7 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
     folder = Path(datasets_folder)
     if not folder.is_dir():
         raise ReportInputError(f"{folder}: no such folder of datasets")
+    check_writable(Path(out) / "table4.md", "out")  # before the work, not after it
     params = as_params(params_path)
     paths, skipped = scan_runs(folder)
     evaluated = []

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import tempfile
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -36,8 +37,29 @@ MODELS = ("su", "1r", "3r", "auto")
 ARGS = "arguments"
 
 
-class OutputInUse(SpecError):
+class OutputError(SpecError):
+    """A dataset cannot be written where asked (a folder that is not writable, not a folder, ...)."""
+
+
+class OutputInUse(OutputError):
     """A dataset to be written exists (without overwrite), is written twice, or has a journal in the way."""
+
+
+def check_writable(path, what="out") -> None:
+    """Raise `OutputError` unless the file ``path`` can be created: its nearest existing folder is a
+    writable folder (the missing ones below it are made when the run writes)."""
+    path = Path(path)
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise OutputError(str(path), what, f"{folder} is not a folder")
+    try:  # a probe file: permissions, read-only mounts and pseudo file systems alike (root passes os.access)
+        with tempfile.TemporaryFile(dir=folder, prefix=".rdea-lab-probe-"):
+            pass
+    except OSError as exc:
+        raise OutputError(str(path), what, f"cannot write in the folder {folder} "
+                          f"({exc.strerror or type(exc).__name__})") from None
 
 
 def project_default(given, default: str, field_name: str):
@@ -51,17 +73,25 @@ def project_default(given, default: str, field_name: str):
 
 
 def default_out(card_id: str, plan_name: str, folder="datasets") -> Path:
-    """``datasets/<specimen>/<protocol>-<UTC time>.nc``."""
+    """``datasets/<specimen>/<protocol>-<UTC time>.nc`` (``-2``, ``-3``, ... after it if that is taken)."""
     stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-    return Path(folder) / card_id / f"{plan_name}-{stamp}.nc"
+    base = Path(folder) / card_id / f"{plan_name}-{stamp}"
+    out, k = base.with_name(base.name + ".nc"), 1
+    while out.exists() or journal_path(out).exists():
+        k += 1
+        out = base.with_name(f"{base.name}-{k}.nc")
+    return out
 
 
 def check_outputs(paths, overwrite: bool = False, names=None) -> None:
     """Check every dataset to be written before any run starts.
 
     Two runs writing one file, an unfinished run's journal in the way, or an
-    existing file without ``overwrite`` raise `OutputInUse`; with
-    ``overwrite`` existing files are removed (journals never are: recover them).
+    existing file without ``overwrite`` raise `OutputInUse`; a folder that
+    cannot be written raises `OutputError`. With ``overwrite`` an existing
+    file is replaced only when its run's new dataset is written (atomically),
+    so a run refused or failing before that keeps the old one; journals are
+    never replaced (recover them).
 
     Parameters
     ----------
@@ -88,9 +118,7 @@ def check_outputs(paths, overwrite: bool = False, names=None) -> None:
         if out.exists() and not overwrite:
             raise OutputInUse(str(out), "out", "exists; give --force (overwrite=True) to overwrite, "
                               "or choose another output")
-    for out in paths:
-        if out.exists():
-            out.unlink()
+        check_writable(out)
 
 
 def check_seed(seed) -> int:
@@ -281,8 +309,10 @@ def run_protocol(protocol, specimen, backend="twin", *, params=None, model="auto
     -------
     xarray.Dataset
         The run, read back from its file (``ds.encoding["source"]``); its
-        ``status`` attribute is ``complete``, ``aborted`` (by the rig or a limit)
-        or ``interrupted``.
+        ``status`` attribute is ``complete`` or ``aborted`` (by the rig or a
+        limit). Ctrl-C ends the run (voltage off, the dataset written with
+        status ``interrupted``) and then raises KeyboardInterrupt, whose message
+        names the file.
 
     Raises
     ------
@@ -297,6 +327,8 @@ def run_protocol(protocol, specimen, backend="twin", *, params=None, model="auto
     metadata = check_metadata(metadata)
     check_outputs([setup.out], overwrite)
     result = execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)
+    if result.status == "interrupted":  # Ctrl-C stops the caller too (a notebook loop), once the file is safe
+        raise KeyboardInterrupt(f"{result.reason}; {result.samples} samples kept in {result.path}")
     ds = open_run(result.path)
     ds.encoding["source"] = str(result.path)
     return ds

@@ -4,8 +4,9 @@ As Bluesky's RunEngine does with its callbacks, the engine knows nothing about
 what a subscriber does: a live table, a live plot, a progress bar or a user's
 own function are all the same to it. A subscriber is a callable
 ``cb(block: RunBlock)``; it may also have ``start(attrs)`` (called once,
-before the first block, with the dataset attributes) and ``stop(result)``
-(called once at the end, with the `RunResult`, whatever the status).
+before the backend starts, with the dataset attributes known then; one that
+raises stops the run before anything moves) and ``stop(result)`` (called once
+at the end, with the `RunResult`, whatever the status).
 
 A subscriber that raises aborts the run (voltage off, every sample kept,
 status ``aborted`` with the error as the reason) and the error is raised
@@ -91,6 +92,7 @@ class LiveTable:
         print(text, file=self._out(), flush=True)
 
     def start(self, attrs):
+        self._last = self._block = None  # each run of a campaign prints its first block
         head = [f"{c} [{self.UNITS.get(c, ('', 1))[0]}]" for c in self.columns]
         self._line(f"{attrs.get('protocol_name', '?')} on {attrs.get('specimen_id', '?')} "
                    f"({attrs.get('backend', '?')})")

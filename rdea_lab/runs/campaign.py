@@ -45,7 +45,8 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
     file, a journal in the way, an existing file without ``overwrite``) before
     the first run starts. The emulator backend starts one emulated rig per
     specimen on loopback and stops it after that specimen's runs. Each run gets
-    its own noise seed, ``spec.seed + i``.
+    its own noise seed, ``spec.seed + i``. A run ended by Ctrl-C (status
+    ``interrupted``) ends the campaign: the results so far are returned.
     """
     runs = experiments(spec, root, out_dir)
     metadata = check_metadata(metadata)
@@ -58,13 +59,15 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
         results.append(result)
         if on_result:
             on_result(result)
+        return result.status != "interrupted"  # Ctrl-C ends the campaign, not only the run
 
     if spec.backend == "twin":
         params = load_params(root / (spec.params or DEFAULT_PARAMS))
         for run in runs:
             setup = prepare_run(run.plan, run.card, "twin", params=params, model=spec.model, out=run.out,
                                 seed=seeds[id(run)], realtime=realtime)
-            record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command))
+            if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
+                break
         return results
     from ..specs.truth import load_truth
 
@@ -74,5 +77,6 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
         with emulated_rig(mine[0].card, truth, realtime=realtime) as address:  # one rig per specimen
             for run in mine:
                 setup = prepare_run(run.plan, run.card, "rig", address=address, out=run.out, seed=seeds[id(run)])
-                record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command))
+                if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
+                    return results
     return results

@@ -153,15 +153,24 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
         stopped the run) or ``interrupted`` (Ctrl-C, SIGTERM).
     """
     subscribers = _subscribers(callbacks)
+    started = False
     try:
         metadata = check_metadata(metadata)
         first_violation(plan, L3=geometry_from_card(card).L3)  # before anything moves, whoever calls
+        attrs = run_attrs(plan, card, backend, seed, command, metadata)
+        for cb in subscribers:  # a subscriber that cannot start stops the run before anything moves
+            start = getattr(cb, "start", None)
+            if start is not None:
+                start(dict(attrs))
         backend.start(plan)  # may refuse (its own limits, configuration) before anything moves
+        started = True
+        attrs.update(backend.attrs())  # what the backend knows once started (model choice, rig identity)
+        writer = JournalWriter(out, attrs, extra=backend.extra_variables)
     except BaseException:
+        if started:  # the journal could not be opened (a full disk, no permission): stop the rig
+            backend.abort("the run's journal could not be written")
         backend.close()
         raise
-    attrs = run_attrs(plan, card, backend, seed, command, metadata)
-    writer = JournalWriter(out, attrs, extra=backend.extra_variables)
     status, reason = "complete", ""
     previous = signal.getsignal(signal.SIGTERM)
     try:
@@ -187,7 +196,6 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
     try:
         max_force = plan.limits.max_force
         planned = plan.samples
-        notify("start", dict(attrs))
         while True:
             block = backend.read_block()
             if block is None:
@@ -205,16 +213,21 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
             if status != "complete":
                 break
     except (KeyboardInterrupt, RunInterrupted) as exc:
-        status, reason = "interrupted", f"interrupted by the user ({exc or 'Ctrl-C'})"
+        if status == "complete":  # a limit that already ended the run keeps its reason
+            status, reason = "interrupted", f"interrupted by the user ({str(exc) or 'Ctrl-C'})"
         backend.abort(reason)
     except BackendFailure as exc:
-        status, reason = "aborted", str(exc)
+        if status == "complete":
+            status, reason = "aborted", str(exc)
         backend.abort(reason)
     except _SubscriberFailed as exc:
-        status, reason, failure = "aborted", str(exc), exc.__cause__
+        if status == "complete":
+            status, reason = "aborted", str(exc)
+        failure = exc.__cause__
         backend.abort(reason)
     except BaseException as exc:
-        status, reason = "aborted", f"internal error: {type(exc).__name__}: {exc}"
+        if status == "complete":
+            status, reason = "aborted", f"internal error: {type(exc).__name__}: {exc}"
         backend.abort(reason)
         writer.finish(status, reason)
         raise

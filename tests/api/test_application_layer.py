@@ -254,7 +254,17 @@ def test_an_existing_file_is_refused_without_overwrite(tmp_path):
         check_outputs([out])
     assert out.read_bytes() == b"measured"
     check_outputs([out], overwrite=True)
-    assert not out.exists()
+    assert out.read_bytes() == b"measured"  # replaced only when the new run's dataset is written
+
+
+def test_overwrite_keeps_the_old_dataset_until_the_new_one_is_written(short_file, tmp_path):
+    out = tmp_path / "a.nc"
+    first = rdea_lab.run_protocol(short_file, CARD, "twin", out=out)
+    with pytest.raises(rdea_lab.RigRefused):  # nothing listens on port 1: the rig is refused, the old run stays
+        rdea_lab.run_protocol(short_file, CARD, "rig", address="tcp://127.0.0.1:1", out=out, overwrite=True)
+    assert rdea_lab.open_run(out).attrs["run_id"] == first.attrs["run_id"]
+    second = rdea_lab.run_protocol(short_file, CARD, "twin", out=out, overwrite=True)
+    assert rdea_lab.open_run(out).attrs["run_id"] == second.attrs["run_id"] != first.attrs["run_id"]
 
 
 def test_an_unfinished_journal_is_never_overwritten(tmp_path):

@@ -58,3 +58,12 @@ def test_ds_rdea_is_there_whichever_is_imported_first_and_import_rdea_lab_stays_
             "print(light, ds.rdea.metadata['operator'])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == [str(order == "rdea_lab first"), "ana"]
+
+
+def test_a_find_spec_probe_of_xarray_does_not_lose_ds_rdea():
+    import subprocess
+    import sys
+
+    code = ("import importlib.util, rdea_lab; assert importlib.util.find_spec('xarray') is not None; "
+            "import xarray as xr; print(xr.Dataset(attrs={'metadata': '{\"a\": \"b\"}'}).rdea.metadata['a'])")
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "b"
