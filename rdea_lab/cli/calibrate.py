@@ -24,7 +24,7 @@ from .errors import headless
 @click.option("--eps-r", type=float, default=None, help="Relative permittivity, fixed [default: --init's, or 2.8].")
 @click.option("--protocol-kind", "kinds_text", default="tensile", show_default=True,
               help="For folders: which runs, comma-separated from tensile, blocking, capacitance, custom.")
-@click.option("--metric", type=click.Choice(["rms", "max"]), default="rms", show_default=True,
+@click.option("--metric", type=click.Choice(["rms", "max"], case_sensitive=False), default="rms", show_default=True,
               help="Error metric on the peak-normalized force.")
 @click.option("--max-evals", type=click.IntRange(10, 10**7), default=20000, show_default=True)
 @click.option("--max-time", type=click.FloatRange(0.1, 86400), default=300.0, show_default=True,

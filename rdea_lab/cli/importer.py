@@ -25,7 +25,7 @@ from ..specs.importing import FORMATS, KINDS, MIN_STRETCH
                    "header '(unit)' or TDMS unit_string.")
 @click.option("--specimen", "card_path", required=True, type=click.Path(dir_okay=False),
               help="Specimen card (YAML); its unstretched length L1 gives stretch = 1 + position / L1.")
-@click.option("--protocol-kind", "kind", required=True, type=click.Choice(KINDS), help="What the test was.")
+@click.option("--protocol-kind", "kind", required=True, type=click.Choice(KINDS, case_sensitive=False), help="What the test was.")
 @click.option("--name", "protocol_name", help="Protocol name [default: the file's stem].")
 @click.option("--encoding", help="CSV text encoding [default: the first of utf-8, utf-8-sig, gbk, cp1252, "
                                  "latin-1 that decodes the file].")
@@ -58,6 +58,7 @@ def import_(files, fmt, map_text, units_text, card_path, kind, protocol_name, en
           --map "time=t,position=data[:, 0],force=data[:, 1]" --units time=s,position=mm,force=N \\
           --specimen specimens/specimen2.yaml --protocol-kind custom
     """
+    fmt = fmt.lower()  # choices in any case, as everywhere on the command line
     api.check_format(fmt, files[0])
     mapping = api.parse_map(map_text)
     units = api.parse_units(units_text, mapping)

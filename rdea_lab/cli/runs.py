@@ -75,7 +75,7 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
 @click.command(epilog=EXIT_HELP)
 @click.argument("protocol", type=click.Path(dir_okay=False))
 @click.option("--specimen", "card_path", required=True, type=click.Path(dir_okay=False), help="Specimen card (YAML).")
-@click.option("--backend", type=click.Choice(["twin", "rig", "emulator"]), default="twin", show_default=True,
+@click.option("--backend", type=click.Choice(["twin", "rig", "emulator"], case_sensitive=False), default="twin", show_default=True,
               help="twin: the physics model; rig: a rig server (--rig); emulator: a built-in emulated rig.")
 @click.option("--rig", "rig_address", metavar="tcp://HOST:PORT", help="Rig server, for --backend rig.")
 @click.option("--token-file", type=click.Path(dir_okay=False), help="Token presented to the rig server.")
@@ -164,6 +164,9 @@ def recover(paths):
     for t in targets:
         try:
             out = api.recover(t)
+        except api.RunInProgress as exc:  # a live run's journal: say so, leave it, go on with the others
+            click.echo(str(exc))
+            continue
         except (FileNotFoundError, FileExistsError, ValueError) as exc:
             die(str(exc))
         ds = api.open_run(out)

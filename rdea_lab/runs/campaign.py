@@ -17,10 +17,11 @@ class Experiment:
     card: object
     plan: object
     out: Path
+    entry: str = ""  # where in the campaign file: "specimens[1] (x.yaml) with protocols[0] (y.yaml)"
 
     @property
     def name(self) -> str:
-        return f"{self.card.id}/{self.plan.name}"
+        return self.entry or f"{self.card.id}/{self.plan.name}"
 
 
 def experiments(spec, root: Path, out_dir: Path | None = None) -> list[Experiment]:
@@ -28,12 +29,13 @@ def experiments(spec, root: Path, out_dir: Path | None = None) -> list[Experimen
     out_dir = Path(out_dir) if out_dir is not None else root / spec.out
     plans = [load_plan(root / p) for p in spec.protocols]
     runs = []
-    for rel in spec.specimens:
+    for i, rel in enumerate(spec.specimens):
         card = load_specimen(root / rel)
         L3 = geometry_from_card(card).L3
-        for plan in plans:
+        for j, plan in enumerate(plans):
             first_violation(plan, L3=L3)
-            runs.append(Experiment(card, plan, out_dir / card.id / f"{plan.name}.nc"))
+            entry = f"specimens[{i}] ({Path(rel).name}, id {card.id}) with protocols[{j}] ({Path(spec.protocols[j]).name})"
+            runs.append(Experiment(card, plan, out_dir / card.id / f"{plan.name}.nc", entry))
     return runs
 
 

@@ -105,6 +105,14 @@ def run_attrs(plan, card, backend, seed, command="", metadata=None) -> dict:
     return attrs
 
 
+def _differing(magnitude: float, limit: float, value: float) -> str:
+    """``value`` with enough digits that its magnitude reads differently from ``limit``."""
+    for digits in (4, 6, 9, 12, 17):
+        if f"{magnitude:.{digits}g}" != f"{limit:.{digits}g}":
+            break
+    return f"{value:.{digits}g}"
+
+
 def _raise_interrupted(signum, frame):
     raise RunInterrupted(f"signal {signal.Signals(signum).name}")
 
@@ -206,8 +214,8 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
             if over.size:
                 i = int(over[0])
                 status = "aborted"
-                reason = (f"force {block['force'][i]:.4g} N at t = {block['time'][i]:.4g} s is above the limit "
-                          f"max_force = {max_force:g} N")
+                reason = (f"force {_differing(abs(block['force'][i]), max_force, block['force'][i])} N at "
+                          f"t = {block['time'][i]:.6g} s is above the limit max_force = {max_force:g} N")
                 backend.abort(reason)
             notify(None, RunBlock(block, first, writer.samples, planned, "running"))
             if status != "complete":

@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from .journal import FORMAT
+from .journal import FORMAT, journal_writer
 
 
 def open_run(path: Path) -> xr.Dataset:
@@ -26,9 +26,12 @@ def _journal_row(folder: Path) -> dict:
     size = (folder / "samples.f8").stat().st_size if (folder / "samples.f8").exists() else 0
     n = size // (8 * len(header["columns"]))
     rate = float(a.get("sample_rate", 0.0)) or float("nan")
+    writer = journal_writer(folder)
+    status = (f"running (pid {writer.get('pid', '?')} on {writer.get('host', '?')})" if writer is not None
+              else "unfinished (rdea-lab recover)")
     return {"file": str(folder), "specimen": a.get("specimen_id", "?"), "protocol": a.get("protocol_name", "?"),
             "backend": a.get("backend", "?"), "model": a.get("model", "-"),
-            "status": "unfinished (rdea-lab recover)", "duration_s": (n - 1) / rate if n else 0.0,
+            "status": status, "duration_s": (n - 1) / rate if n else 0.0,
             "samples": int(n), "created": a.get("created", "?"), "metadata": metadata_text(user_metadata(a)),
             "_md": user_metadata(a)}
 

@@ -7,27 +7,77 @@ so samples are not streamed into it. While a run goes, ``<out>.part/`` holds
 * ``samples.f8``: rows of little-endian float64, one per sample, appended and
   ``fsync``-ed after every block (at most a second of samples).
 
+* ``writer.lock``: held with an OS lock (``flock``) by the writing process for
+  as long as it runs; the header names it (``writer``: pid, host, start time).
+
 When the run ends (complete, aborted, or interrupted by Ctrl-C or SIGTERM) the
 journal becomes ``<out>`` (compressed netCDF-4) by an atomic rename, and the
 journal is removed. If the process is killed outright (SIGKILL, power loss)
-the journal stays; :func:`recover` rebuilds the dataset from every whole row
-written, with ``status: interrupted``.
+the journal stays and the OS drops its lock; :func:`recover` rebuilds the
+dataset from every whole row written, with ``status: interrupted``. A journal
+whose writer still holds its lock is a run in progress: `recover` leaves it
+alone (`RunInProgress`) and the catalogue lists it as ``running``.
 """
 
 from __future__ import annotations
 
+import fcntl
 import json
+import math
 import os
 import shutil
+import socket
 from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
 
+from ..specs.errors import SpecError, UserError
 from .schema import EXTRA_VARIABLES, TIME, VARIABLES
 
 FORMAT = "rdea-lab-journal-1"
+LOCK = "writer.lock"
+
+
+class RunInProgress(UserError):
+    """The journal belongs to a run still going (its writer holds the lock): nothing to recover yet."""
+
+
+class JournalInUse(SpecError):
+    """Another run is writing this dataset (its journal exists)."""
+
+
+def _try_lock(folder: Path):
+    """An exclusive, non-blocking lock on a journal's ``writer.lock``: its file descriptor, or None if a
+    live process holds it. Journals older than the lock have none: None is never returned for them."""
+    fd = os.open(Path(folder) / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        return None
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def journal_writer(folder: Path) -> dict | None:
+    """The live writer of a journal (``pid``, ``host``, ``started``), or None when no process holds it."""
+    folder = Path(folder)
+    if not (folder / LOCK).exists():
+        return None
+    fd = _try_lock(folder)
+    if fd is not None:
+        os.close(fd)  # nobody held it: the writer is gone (the lock goes with the descriptor)
+        return None
+    try:
+        header = json.loads((folder / "header.json").read_text())
+        writer = header.get("writer") if isinstance(header, dict) else None
+    except (OSError, ValueError):
+        writer = None
+    return writer if isinstance(writer, dict) else {"pid": "?", "host": "?", "started": "?"}
 
 
 def utc_now() -> str:
@@ -59,8 +109,15 @@ class JournalWriter:
         self.dir = journal_path(self.out)
         self.columns = ["time", *VARIABLES, *extra]
         self.samples = 0
-        self.dir.mkdir(parents=True, exist_ok=False)
-        header = {"format": FORMAT, "columns": self.columns, "attrs": attrs}
+        self.out.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            self.dir.mkdir(exist_ok=False)
+        except FileExistsError:
+            raise JournalInUse(str(self.out), "out", f"another run is writing it (its journal {self.dir} "
+                               "exists); choose another output") from None
+        self._lock = _try_lock(self.dir)  # held until the dataset is written and the journal gone
+        self.writer = {"pid": os.getpid(), "host": socket.gethostname(), "started": utc_now()}
+        header = {"format": FORMAT, "columns": self.columns, "attrs": attrs, "writer": self.writer}
         tmp = self.dir / "header.json.tmp"
         tmp.write_text(json.dumps(header, indent=1))
         os.replace(tmp, self.dir / "header.json")
@@ -83,17 +140,29 @@ class JournalWriter:
         return n
 
     def close(self):
+        """Stop writing and let go of the journal (as a killed process would): `recover` may take it."""
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
+        self._release()
+
+    def _release(self):
+        if getattr(self, "_lock", None) is not None:
+            os.close(self._lock)
+            self._lock = None
 
     def finish(self, status: str, reason: str, history: str = "") -> Path:
-        """Close the journal and write the dataset with its final status."""
-        self.close()
-        ds = read_journal(self.dir)
-        ds.attrs.update(final_attrs(ds.attrs, status, reason, history))
-        write_dataset(ds, self.out)
-        shutil.rmtree(self.dir)
+        """Close the journal and write the dataset with its final status (the lock is kept until the end)."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+        try:
+            ds = read_journal(self.dir)
+            ds.attrs.update(final_attrs(ds.attrs, status, reason, history))
+            write_dataset(ds, self.out)
+            shutil.rmtree(self.dir)
+        finally:
+            self._release()
         return self.out
 
 
@@ -109,10 +178,21 @@ def final_attrs(attrs: dict, status: str, reason: str, history: str) -> dict:
 def read_journal(folder: Path) -> xr.Dataset:
     """The dataset a journal holds: every whole row written (a torn last row is dropped)."""
     folder = Path(folder)
-    header = json.loads((folder / "header.json").read_text())
-    if header.get("format") != FORMAT:
-        raise ValueError(f"{folder}: not an rdea-lab journal (format {header.get('format')!r})")
-    columns = header["columns"]
+    try:
+        header = json.loads((folder / "header.json").read_text())
+    except ValueError as exc:
+        raise ValueError(f"{folder}: header.json is not JSON ({exc})") from None
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        got = header.get("format") if isinstance(header, dict) else type(header).__name__
+        raise ValueError(f"{folder}: not an rdea-lab journal (format {got!r})")
+    columns = header.get("columns")
+    known = {"time", *VARIABLES, *EXTRA_VARIABLES}
+    if (not isinstance(columns, list) or not columns or columns[0] != "time"
+            or not all(isinstance(c, str) and c in known for c in columns) or len(set(columns)) != len(columns)):
+        raise ValueError(f"{folder}: header.json 'columns' must list 'time' first, then known variables "
+                         f"({', '.join(sorted(known))}), each once; got {str(columns)[:80]}")
+    if not isinstance(header.get("attrs"), dict):
+        raise ValueError(f"{folder}: header.json 'attrs' must be a mapping")
     raw = np.fromfile(folder / "samples.f8", dtype="<f8")
     n = raw.size // len(columns)
     rows = raw[: n * len(columns)].reshape(n, len(columns))
@@ -135,6 +215,7 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
     """Write ``ds`` to ``out`` atomically (temporary file, fsync, rename)."""
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
+    ds.attrs = netcdf_attrs(ds.attrs)
     tmp = out.with_name(out.name + ".tmp")
     encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
     encoding["time"] = {"zlib": True, "complevel": 4}
@@ -143,6 +224,27 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
         os.fsync(fh.fileno())
     os.replace(tmp, out)
     _fsync_dir(out.parent)
+
+
+def netcdf_attrs(attrs: dict) -> dict:
+    """Attributes as netCDF can store them: an integer outside int64, a bool, None, a list or a mapping
+    becomes text (JSON where it is structured), so no attribute's type can make a run unwritable."""
+    out = {}
+    for key, value in attrs.items():
+        if isinstance(value, bool):
+            value = int(value)
+        elif isinstance(value, int) and not -2**63 <= value < 2**63:
+            value = str(value)
+        elif isinstance(value, float) and not math.isfinite(value):
+            value = repr(value)
+        elif value is None:
+            value = ""
+        elif isinstance(value, (list, tuple, dict)):
+            value = json.dumps(value, default=str)
+        elif not isinstance(value, (str, int, float, np.generic, np.ndarray)):
+            value = str(value)
+        out[str(key)] = value
+    return out
 
 
 def recover(path: Path) -> Path:
@@ -155,16 +257,24 @@ def recover(path: Path) -> Path:
     folder = path if path.name.endswith(".part") else journal_path(path)
     if not (folder / "header.json").is_file():
         raise FileNotFoundError(f"{path}: no run journal here (expected {folder}/header.json)")
-    out = folder.with_name(folder.name[: -len(".part")])
-    if out.exists():
-        raise FileExistsError(f"{out} exists already; move it away to recover {folder}")
-    ds = read_journal(folder)
-    n = ds.attrs["samples"]
-    reason = (f"the process stopped without closing the run; {n} samples recovered from the journal "
-              f"by rdea-lab recover")
-    ds.attrs.update(final_attrs(ds.attrs, "interrupted", reason, "rdea-lab recover"))
-    write_dataset(ds, out)
-    shutil.rmtree(folder)
+    lock = _try_lock(folder)
+    if lock is None:
+        w = journal_writer(folder) or {}
+        raise RunInProgress(f"{folder}: a run is still writing it (pid {w.get('pid', '?')} on "
+                            f"{w.get('host', '?')} since {w.get('started', '?')}); left alone")
+    try:
+        out = folder.with_name(folder.name[: -len(".part")])
+        if out.exists():
+            raise FileExistsError(f"{out} exists already; move it away to recover {folder}")
+        ds = read_journal(folder)
+        n = ds.attrs["samples"]
+        reason = (f"the process stopped without closing the run; {n} samples recovered from the journal "
+                  f"by rdea-lab recover")
+        ds.attrs.update(final_attrs(ds.attrs, "interrupted", reason, "rdea-lab recover"))
+        write_dataset(ds, out)
+        shutil.rmtree(folder)
+    finally:
+        os.close(lock)
     return out
 
 

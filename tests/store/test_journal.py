@@ -8,7 +8,7 @@ import pytest
 import xarray as xr
 
 from rdea_lab.store import REQUIRED_ATTRS, VARIABLES, JournalWriter, catalog, journal_path, open_run, recover
-from rdea_lab.store.journal import read_journal
+from rdea_lab.store.journal import JournalInUse, RunInProgress, journal_writer, read_journal
 
 ATTRS = {"Conventions": "CF-1.8", "title": "t", "rdea_lab_version": "0", "run_id": "x", "backend": "twin",
          "specimen_id": "s", "specimen": "id: s\n", "protocol_name": "p", "protocol_kind": "tensile",
@@ -53,7 +53,7 @@ def test_a_killed_run_leaves_a_journal_that_recover_turns_into_an_interrupted_da
     w.append(block(1.0, 100))
     # simulate SIGKILL in the middle of the next write: half a row at the end of the file
     os.write(w._fd, np.arange(4, dtype="<f8").tobytes())
-    w._fd and os.close(w._fd)
+    w.close()  # the process is gone: its descriptors, and so its lock, with it
     assert not out.exists()
     rows = catalog(tmp_path)
     assert rows["status"][0].startswith("unfinished") and rows["samples"][0] == 200
@@ -82,7 +82,7 @@ def test_journal_header_is_plain_json_and_refuses_a_second_writer(tmp_path):
     w = JournalWriter(out, ATTRS)
     header = json.loads((journal_path(out) / "header.json").read_text())
     assert header["columns"][0] == "time" and header["attrs"]["status"] == "running"
-    with pytest.raises(FileExistsError):
+    with pytest.raises(JournalInUse, match="another run is writing it"):
         JournalWriter(out, ATTRS)
     w.close()
 
@@ -99,3 +99,70 @@ def test_catalog_lists_unreadable_files_without_failing(tmp_path):
     (tmp_path / "broken.nc").write_bytes(b"not netcdf")
     rows = catalog(tmp_path)
     assert rows["status"][0].startswith("unreadable")
+
+
+def test_recover_leaves_a_live_run_alone_and_the_catalogue_says_running(tmp_path):
+    """The writer holds an OS lock on its journal: recover (here in the same process, which flock keeps
+    apart just as it does two processes) must not take the journal of a run still going."""
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS)
+    w.append(block(0.0, 100))
+    writer = journal_writer(journal_path(out))
+    assert writer["pid"] == os.getpid() and writer["host"] and writer["started"]
+    with pytest.raises(RunInProgress, match=f"pid {os.getpid()}"):
+        recover(journal_path(out))
+    with pytest.raises(RunInProgress):
+        recover(out)
+    assert catalog(tmp_path)["status"][0].startswith("running")
+    from rdea_lab.cli.errors import run as run_cli
+    from rdea_lab.cli.main import cli
+    assert run_cli(cli, ["recover", str(tmp_path)]) == 0  # says so, and leaves it
+    assert (journal_path(out) / "header.json").is_file()
+    w.append(block(1.0, 100))  # the run goes on, undisturbed
+    w.finish("complete", "")
+    assert open_run(out).sizes["time"] == 200 and not journal_path(out).exists()
+
+
+def test_a_live_run_in_another_process_is_left_alone(tmp_path):
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "run.nc"
+    code = ("import sys, time, numpy as np; from rdea_lab.store import JournalWriter; "
+            f"w = JournalWriter({str(out)!r}, {ATTRS!r}); "
+            "w.append({'time': np.arange(10) / 100.0}); print('ready', flush=True); time.sleep(30)")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline().strip() == "ready"
+        with pytest.raises(RunInProgress, match=f"pid {proc.pid}"):
+            recover(journal_path(out))
+        assert journal_path(out).is_dir()
+    finally:
+        proc.kill()
+        proc.wait()
+    time.sleep(0.05)
+    path = recover(journal_path(out))  # killed: the OS dropped its lock, recover may take it now
+    assert open_run(path).sizes["time"] == 10
+
+
+def test_recover_refuses_a_malformed_journal_with_one_line(tmp_path):
+    for i, header in enumerate([{"format": "rdea-lab-journal-1", "attrs": {}},
+                                {"format": "rdea-lab-journal-1", "columns": ["time", "bogus"], "attrs": {}},
+                                {"format": "rdea-lab-journal-1", "columns": ["time"], "attrs": []},
+                                ["a", "list"]]):
+        folder = tmp_path / f"r{i}.nc.part"
+        folder.mkdir()
+        (folder / "header.json").write_text(json.dumps(header))
+        (folder / "samples.f8").write_bytes(b"")
+        with pytest.raises(ValueError, match="journal|columns|attrs"):
+            recover(folder)
+
+
+def test_an_attribute_netcdf_cannot_hold_never_makes_a_run_unrecoverable(tmp_path):
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, {**ATTRS, "seed": 2**64, "flag": True, "nested": {"a": [1, 2]}})
+    w.append(block(0.0, 10))
+    w.close()
+    ds = open_run(recover(journal_path(out)))
+    assert ds.attrs["seed"] == str(2**64) and ds.attrs["flag"] == 1 and json.loads(ds.attrs["nested"]) == {"a": [1, 2]}
