@@ -163,7 +163,18 @@ class RigBackend:
             self._command(command)
         self._upload("TRAJ:STR", plan.stretch)
         self._upload("TRAJ:VOLT", plan.voltage)
-        self._command("ARM")
+        reply = self._query("ARM")
+        if reply != "OK" and not reply.startswith("OK,"):
+            raise RigRefused(f"rig {self.address} refused ARM: {_error_text(reply)}")
+        if reply.startswith("OK,"):  # the rig says what it armed: it must be what was sent
+            from ..emulator.controller import armed_checksum
+
+            ours = armed_checksum(plan.sample_rate, [lim.max_voltage, lim.max_stretch, lim.max_force,
+                                                     lim.max_field], geom.L3, plan.stretch, plan.voltage)
+            if reply[3:].strip().lower() != ours:
+                self._query("ABOR")
+                raise RigRefused(f"rig {self.address} armed something else than was sent (checksum "
+                                 f"{reply[3:].strip()}, ours {ours}): refused, ABOR sent")
         self._command("INIT", refuse=False)
         self._rows = max(1, int(plan.sample_rate))  # at most a second of samples per block
         self._last_new = self._clock()

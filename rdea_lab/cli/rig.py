@@ -8,7 +8,7 @@ import threading
 import click
 
 from .. import api
-from ..specs import load_specimen, read_token
+from ..specs import Limits, load_specimen, read_token
 from .errors import die, flush_stdout
 
 
@@ -31,12 +31,22 @@ def rig():
               help="File holding the token clients must send first (SYST:AUTH <token>).")
 @click.option("--fault", "faults", multiple=True, metavar="KIND-at=SECONDS",
               help="Inject a fault at a run time: disconnect-at=, breakdown-at= or stall-at= (repeatable).")
-def serve(card_path, truth_path, host, port, realtime, token_file, faults):
+@click.option("--max-voltage", default="3 kV", show_default=True, help="The rig's own voltage limit.")
+@click.option("--max-field", default="80 V/um", show_default=True,
+              help="The rig's own field limit, checked with the card's thickness.")
+@click.option("--max-stretch", default="2", show_default=True, help="The rig's own stretch limit.")
+@click.option("--max-force", default="50 N", show_default=True, help="The rig's own force limit.")
+@click.option("--heartbeat", type=click.FloatRange(0.1, 3600), default=10.0, show_default=True,
+              help="Seconds a run may go without a command from its client before the rig aborts it.")
+def serve(card_path, truth_path, host, port, realtime, token_file, faults, max_voltage, max_field, max_stretch,
+          max_force, heartbeat):
     """Serve the built-in rig emulator (docs/rig-protocol.md) until Ctrl-C.
 
     The emulated roll has its own "true" physics and instrument effects
     (the truth file); every dataset it makes says so (*IDN? model
-    rig-emulator, SYST:TRUTH?).
+    rig-emulator, SYST:TRUTH?). The rig keeps its own limits (--max-*), which
+    no client can raise, and aborts a run whose client falls silent
+    (--heartbeat); any connection may stop a run (ABOR, *RST).
 
     \b
     Example:
@@ -45,7 +55,10 @@ def serve(card_path, truth_path, host, port, realtime, token_file, faults):
           --backend rig --rig tcp://127.0.0.1:5025
     """
     parsed = api.parse_faults(faults)
-    token = read_token(token_file, "--token-file") if token_file else None
+    limits = Limits.from_options({"max_voltage": max_voltage, "max_field": max_field, "max_stretch": max_stretch,
+                                  "max_force": max_force})
+    token = read_token(token_file, "--token-file", warn=lambda m: click.echo(f"rdea-lab: warning: {m}", err=True)) \
+        if token_file else None
     if token is None and not api.is_loopback(host):
         die(f"--host {host}: not a loopback address; give --token-file so that only clients "
             "with the token can drive the rig")
@@ -54,7 +67,7 @@ def serve(card_path, truth_path, host, port, realtime, token_file, faults):
     truth = api.load_truth(truth_path)
     try:
         server = api.RigServer(card, truth, host=host, port=port, token=token, realtime=realtime, faults=parsed,
-                               truth_source=truth_path)
+                               truth_source=truth_path, limits=limits, heartbeat=heartbeat)
         bound_host, bound_port = server.start()
     except OSError as exc:
         die(f"--host/--port: cannot listen on {host}:{port} ({exc.strerror or exc})")
@@ -66,7 +79,8 @@ def serve(card_path, truth_path, host, port, realtime, token_file, faults):
     shown = f"[{bound_host}]" if ":" in bound_host else bound_host
     try:
         click.echo(f"rig emulator: {card.id} (truth {truth.name}, {'realtime' if realtime else 'virtual time'}"
-                   f"{', faults ' + ', '.join(faults) if faults else ''}) listening on tcp://{shown}:{bound_port}",
+                   f"{', faults ' + ', '.join(faults) if faults else ''}; limits {max_voltage}, {max_field}, "
+                   f"stretch {max_stretch}, {max_force}) listening on tcp://{shown}:{bound_port}",
                    nl=True)
         flush_stdout()
         while not stop.wait(0.5):

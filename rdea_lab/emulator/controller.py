@@ -19,6 +19,7 @@ import collections
 import math
 import re
 import threading
+import zlib
 import time
 
 import numpy as np
@@ -111,12 +112,33 @@ class RigController:
         ``close_session(session)`` closes a session's connection (used by the
         realtime ``disconnect`` fault).
     clock : callable
-        Wall clock [s] for ``realtime``.
+        Wall clock [s] for ``realtime`` and the heartbeat.
+    limits : Limits, optional
+        The rig's own hard limits (``max_voltage``, ``max_stretch``,
+        ``max_force``, ``max_field``); no client command can raise them, a
+        client's ``LIM:*`` can only lower them. Default: `rdea_lab.specs.Limits()`
+        (3 kV, stretch 2, 50 N, 80 V/um). The field is checked with the rig's
+        own specimen thickness, whatever ``CONF:THIC`` says.
+    heartbeat : float
+        Seconds a run may go without a command from its controlling
+        connection before the rig aborts it (voltage to zero) [s].
     """
 
     def __init__(self, card, truth, *, realtime=False, faults=(), truth_source=None, close_session=None,
-                 clock=time.monotonic):
+                 clock=time.monotonic, limits=None, heartbeat=10.0):
+        from ..physics.geometry import geometry_from_card
+        from ..specs import Limits
+
         self.card, self.truth, self.truth_source = card, truth, truth_source
+        hard = limits if limits is not None else Limits()
+        self.hard_limits = {"volt": float(hard.max_voltage), "str": float(hard.max_stretch),
+                            "forc": float(hard.max_force), "fiel": float(hard.max_field)}
+        self.thickness = float(geometry_from_card(card).L3)  # the rig's own, for the field limit
+        if not (isinstance(heartbeat, (int, float)) and 0.1 <= heartbeat <= 3600):
+            raise ValueError(f"heartbeat {heartbeat!r} s; allowed: 0.1 to 3600 s")
+        self.heartbeat = float(heartbeat)
+        self._last_heard = clock()
+        self._watchdog: threading.Thread | None = None
         self.realtime = bool(realtime)
         self.faults = check_faults(faults)
         self.idn = f"rdea-lab,rig-emulator,{card.id},{__version__}"
@@ -139,8 +161,11 @@ class RigController:
             "LIM?": (self._lim_q, False), "TRAJ:STR": (self._traj("str"), True),
             "TRAJ:VOLT": (self._traj("volt"), True), "TRAJ:POIN?": (self._traj_poin, False),
             "ARM": (self._arm, True), "INIT": (self._init, True), "STAT?": (self._stat, False),
-            "FETC?": (self._fetch, True), "ABOR": (self._abor, True),
+            "FETC?": (self._fetch, True), "ABOR": (self._abor, False), "SYST:REL": (self._release, True),
+            "SYST:BEAT": (self._beat, False),
         }
+        #: commands any connection may send, whoever controls the rig: queries and the emergency stops
+        self._anyone = {h for h, (_, controls) in self._commands.items() if not controls} | {"*RST"}
         self._clear()
 
     # ------------------------------------------------------------- state
@@ -177,15 +202,14 @@ class RigController:
         if self.state == "RUNNING" and self.run is not None:
             self.run.abort(reason)
         if self.state in ("ARMED", "RUNNING"):
-            self.state, self.reason, self.owner = "ABORTED", reason, None
+            self.state, self.reason = "ABORTED", reason
         self._stop.set()
 
     def _sync_state(self) -> None:
         if self.state == "RUNNING" and self.run is not None and not self.run.running:
             self.state = "DONE" if self.run.state == "done" else "ABORTED"
             self.reason = self.run.reason
-            self.owner = None
-            self._stop.set()
+            self._stop.set()  # the controlling connection keeps control for its next run
 
     # ------------------------------------------------------- production
     def _caps(self) -> int:
@@ -263,9 +287,14 @@ class RigController:
             if block is not None and header not in ("TRAJ:STR", "TRAJ:VOLT"):
                 raise RigError(-108, f"parameter not allowed: {header} takes no binary block")
             with self._lock:
-                if controls and self.owner is not None and self.owner != session:
-                    raise RigError(-200, f"the rig is {self.state} for another connection; {header} refused "
-                                         "(only queries of the state are allowed meanwhile)")
+                if session == self.owner:
+                    self._last_heard = self._clock()  # any command of the controlling connection is a heartbeat
+                if header not in self._anyone:
+                    if self.owner is not None and self.owner != session:
+                        raise RigError(-200, f"another connection controls the rig ({self.state}); {header} "
+                                             "refused (queries, ABOR and *RST are allowed to anyone)")
+                    if self.owner is None:  # the first configuring command makes this the controlling connection
+                        self.owner, self._last_heard = session, self._clock()
                 return handler(session, arg.strip(), block)
         except (RigError, FramingError) as err:
             return self._error(session, err.code, err.message)
@@ -284,11 +313,13 @@ class RigController:
         return f'ERR {code},"{message}"'
 
     def session_closed(self, session) -> None:
-        """A connection ended: a run it armed or drives aborts (voltage off)."""
+        """A connection ended: a run it armed or drives aborts (voltage off), and it controls the rig no more."""
         with self._lock:
             self._errors.pop(session, None)
-            if self.owner == session and self.state in ("ARMED", "RUNNING"):
-                self._abort("client disconnected")
+            if self.owner == session:
+                if self.state in ("ARMED", "RUNNING"):
+                    self._abort("client disconnected")
+                self.owner = None
         self._stop_producer_if_ended()
 
     def _stop_producer_if_ended(self) -> None:
@@ -329,7 +360,23 @@ class RigController:
         self._no_arg("*RST", arg)
         self._abort("*RST")
         self._stop.set()  # the producer thread ends by itself (joining here, under the lock, would deadlock)
+        owner = self.owner
         self._clear()
+        if owner is not None and owner != session:  # an emergency stop from elsewhere: control is released
+            self.owner = None
+        else:
+            self.owner = session
+        return "OK"
+
+    def _release(self, session, arg, block):
+        self._no_arg("SYST:REL", arg)
+        if self.state in ("ARMED", "RUNNING"):
+            raise RigError(-221, f"settings conflict: SYST:REL while {self.state}; send ABOR first")
+        self.owner = None
+        return "OK"
+
+    def _beat(self, session, arg, block):
+        self._no_arg("SYST:BEAT", arg)
         return "OK"
 
     def _configurable(self, header: str) -> None:
@@ -396,17 +443,26 @@ class RigController:
                  "forc": (lambda x: x > 0, "must be > 0 N"), "fiel": (lambda x: x > 0, "must be > 0 V/m")}
         ok, rule = rules[key]
 
+        unit = {"volt": "V", "str": "", "forc": "N", "fiel": "V/m"}[key]
+
         def handler(session, arg, block):
             self._configurable(header)
             value = _number(arg, f"{header} limit")
-            self.limits[key] = _in_range(value, ok(value), f"{header} {value:g} {rule}")
+            value = _in_range(value, ok(value), f"{header} {value:g} {rule}")
+            hard = self.hard_limits[key]
+            if value > hard * (1.0 + 1e-12):
+                raise RigError(-222, f"{header} {value:g} {unit} is above the rig's own limit {hard:g} {unit}; "
+                                     "a client can only lower it".replace("  ", " "))
+            self.limits[key] = value
             return "OK"
 
         return handler
 
     def _lim_q(self, session, arg, block):
+        """The limits in force: the client's where it set one, else the rig's own."""
         self._no_arg("LIM?", arg)
-        return ",".join(repr(self.limits[k]) if self.limits[k] is not None else "nan" for k, _ in _LIMITS)
+        return ",".join(repr(self.limits[k] if self.limits[k] is not None else self.hard_limits[k])
+                        for k, _ in _LIMITS)
 
     def _traj(self, key: str):
         header = {"str": "TRAJ:STR", "volt": "TRAJ:VOLT"}[key]
@@ -442,6 +498,7 @@ class RigController:
         if missing:
             raise RigError(-221, f"no limit in force for {', '.join(c.split()[0] for c in missing)}: "
                                  f"set {' and '.join(missing)} before ARM")
+        lim = {k: min(self.limits[k], self.hard_limits[k]) for k, _ in _LIMITS}  # never above the rig's own
         for value, cmd in ((self.rate, "CONF:RATE <Hz>"), (self.L1, "CONF:LENG <m>"), (self.L3, "CONF:THIC <m>")):
             if value is None:
                 raise RigError(-221, f"set {cmd} before ARM")
@@ -450,9 +507,11 @@ class RigController:
             raise RigError(-221, "no trajectories: upload TRAJ:STR and TRAJ:VOLT before ARM")
         if x.size != v.size:
             raise RigError(-221, f"TRAJ:STR has {x.size} setpoints but TRAJ:VOLT {v.size}; need as many")
-        config = RunConfig(self.rate, x, v, L1=self.L1, L3=self.L3, max_voltage=self.limits["volt"],
-                           max_stretch=self.limits["str"], max_force=self.limits["forc"],
-                           max_field=self.limits["fiel"], measure=self.measure)
+        # the field is checked with the thinner of the rig's own thickness and the client's: CONF:THIC
+        # cannot talk the rig out of its field limit
+        config = RunConfig(self.rate, x, v, L1=self.L1, L3=min(self.L3, self.thickness), max_voltage=lim["volt"],
+                           max_stretch=lim["str"], max_force=lim["forc"], max_field=lim["fiel"],
+                           measure=self.measure)
         problem = limit_violation(config)
         if problem:
             raise RigError(-222, problem)
@@ -461,7 +520,7 @@ class RigController:
         self._rows.clear()
         self._buffered = self.fetched = 0
         self._disconnect_fired = False
-        return "OK"
+        return f"OK,{armed_checksum(self.rate, [self.limits[k] for k, _ in _LIMITS], self.L3, x, v)}"
 
     def _init(self, session, arg, block):
         self._no_arg("INIT", arg)
@@ -471,13 +530,34 @@ class RigController:
         self.run = EmulatedRig(self.card, self.truth, rng, self._armed, breakdown_at=self.faults.get("breakdown"),
                                truth_source=self.truth_source)
         self.state = "RUNNING"
-        self._t0 = self._clock()
+        self._t0 = self._last_heard = self._clock()
+        self._start_watchdog()
         if self.realtime:
             self._stop = threading.Event()
             self._thread = threading.Thread(target=self._producer, args=(self._stop,), daemon=True,
                                             name="rig-emulator-daq")
             self._thread.start()
         return "OK"
+
+    def _start_watchdog(self) -> None:
+        """A thread that aborts the run (voltage off) when its controlling connection falls silent."""
+        if self._watchdog is not None and self._watchdog.is_alive():
+            return
+
+        def watch():
+            while True:
+                time.sleep(min(0.2, self.heartbeat / 4))
+                with self._lock:
+                    if self.state != "RUNNING":
+                        return
+                    silent = self._clock() - self._last_heard
+                    if silent > self.heartbeat:
+                        self._abort(f"no command from the controlling connection for {silent:.3g} s "
+                                    f"(heartbeat {self.heartbeat:g} s)")
+                        return
+
+        self._watchdog = threading.Thread(target=watch, daemon=True, name="rig-emulator-heartbeat")
+        self._watchdog.start()
 
     def _stat(self, session, arg, block):
         self._no_arg("STAT?", arg)
@@ -526,7 +606,18 @@ class RigController:
         return "OK"
 
 
-__all__ = ["FAULTS", "CloseConnection", "RigController", "RigError", "check_faults"]
+def armed_checksum(rate, limits, thickness, stretch, voltage) -> str:
+    """CRC-32 (8 hex digits) of what the client configured and ARM armed: ``CONF:RATE``, the four
+    ``LIM:*`` values (VOLT, STR, FORC, FIEL), ``CONF:THIC`` and both trajectories, each as
+    little-endian float64, in that order. The driver computes the same from what it sent."""
+    head = np.array([rate, *limits, thickness], "<f8")
+    crc = zlib.crc32(head.tobytes())
+    crc = zlib.crc32(np.ascontiguousarray(stretch, "<f8").tobytes(), crc)
+    crc = zlib.crc32(np.ascontiguousarray(voltage, "<f8").tobytes(), crc)
+    return f"{crc:08x}"
+
+
+__all__ = ["FAULTS", "CloseConnection", "RigController", "RigError", "armed_checksum", "check_faults"]
 
 
 _FAULT_TEXT = re.compile(r"^(?P<kind>[a-z]+)-at=(?P<at>.+)$")

@@ -73,6 +73,13 @@ class RigServer:
         Injected faults at a run time [s]: ``disconnect`` (the connection
         is closed), ``breakdown`` (dielectric breakdown), ``stall`` (no new
         samples, the rig keeps saying RUNNING).
+    limits : Limits, optional
+        The rig's own hard limits, which no client can raise (default
+        `rdea_lab.specs.Limits()`: 3 kV, stretch 2, 50 N, 80 V/um); the field is
+        checked with the card's own thickness.
+    heartbeat : float
+        Seconds a run may go without a command from its controlling connection
+        before the rig aborts it [s].
     truth_source : str, optional
         Where `truth` came from, for messages.
 
@@ -85,7 +92,7 @@ class RigServer:
     """
 
     def __init__(self, card, truth, host="127.0.0.1", port=5025, token=None, realtime=False, faults=(), *,
-                 truth_source=None):
+                 truth_source=None, limits=None, heartbeat=10.0):
         if token is not None and (not isinstance(token, str) or not token.strip() or any(c.isspace() for c in token)):
             raise ValueError("the token must be a non-empty string without whitespace")
         if not is_loopback(host) and token is None:
@@ -100,7 +107,7 @@ class RigServer:
         self.host, self.port = host, port
         self._token = token
         self.controller = RigController(card, truth, realtime=realtime, faults=faults, truth_source=truth_source,
-                                        close_session=self._close_session)
+                                        close_session=self._close_session, limits=limits, heartbeat=heartbeat)
         self._server: _TCPServer | None = None
         self._thread: threading.Thread | None = None
         self._sessions: dict[int, socket.socket] = {}

@@ -121,6 +121,17 @@ class Limits(SpecModel):
     max_force: quantity("force", "N", gt=0.0) = 50.0
     max_field: quantity("electric_field", "V/um", gt=0.0) = 80e6
 
+    @classmethod
+    def from_options(cls, values: dict, source: str = "command line") -> "Limits":
+        """Limits from option texts (``{"max_voltage": "3 kV", ...}``); a bad one is a `SpecError` naming
+        the option (``--max-voltage``)."""
+        from .errors import SpecError
+
+        try:
+            return cls(**values)
+        except SpecError as err:
+            raise SpecError(source, "--" + err.field.replace("_", "-"), err.message) from None
+
 
 # ------------------------------------------------------------- segments
 def _segment_classes(channel: str, Value: Any, Amplitude: Any) -> dict[str, type[SpecModel]]:

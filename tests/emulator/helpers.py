@@ -3,6 +3,8 @@
 import socket
 from pathlib import Path
 
+import zlib
+
 import numpy as np
 
 from rdea_lab.specs.truth import truth_as_mapping, truth_from_mapping
@@ -82,11 +84,12 @@ class Client:
                         f"LIM:VOLT {volt!r}", f"LIM:STR {stretch!r}", f"LIM:FORC {force!r}",
                         f"LIM:FIEL {field!r}"):
             assert self.q(command) == "OK", command
+        self.sent = (rate, volt, stretch, force, field, L3)
 
     def start(self, x, v) -> None:
         assert self.upload("TRAJ:STR", x) == "OK"
         assert self.upload("TRAJ:VOLT", v) == "OK"
-        assert self.q("ARM") == "OK"
+        assert self.q("ARM") == f"OK,{crc_of_what_was_sent(self.sent, x, v)}"
         assert self.q("INIT") == "OK"
 
     def drain(self, rows=100) -> np.ndarray:
@@ -100,3 +103,10 @@ class Client:
                 if state in ("DONE", "ABORTED"):
                     return np.concatenate(out)
         raise AssertionError("the run never ended")
+
+
+def crc_of_what_was_sent(sent, x, v) -> str:
+    """docs/rig-protocol.md's ARM checksum, computed here from what the client sent (not by the server's code):
+    CRC-32 of rate, LIM:VOLT, LIM:STR, LIM:FORC, LIM:FIEL, CONF:THIC, then TRAJ:STR and TRAJ:VOLT, as <f8."""
+    data = np.array(sent, "<f8").tobytes() + np.asarray(x, "<f8").tobytes() + np.asarray(v, "<f8").tobytes()
+    return f"{zlib.crc32(data):08x}"

@@ -47,6 +47,39 @@ def test_bad_input_exits_2_with_one_line(capsys, args, words):
     assert words in err and err.count("\n") == 1
 
 
+@pytest.mark.parametrize("text, mode, words", [
+    ("short-token\n", 0o600, "the token has 11 characters; give at least 16"),
+    ("a-long-enough-token-0123\n", 0o622, "writable by others"),
+    ("a-long-enough-token-0123\n", 0o660, "writable by others"),
+])
+def test_weak_or_exposed_token_files_are_refused(capsys, tmp_path, text, mode, words):
+    token = tmp_path / "token"
+    token.write_text(text)
+    token.chmod(mode)
+    code, _, err = rig_cli(capsys, "serve", "--specimen", CARD, "--token-file", token, "--port", "0")
+    assert code == 2 and words in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_world_readable_token_file_is_taken_with_a_warning(capsys, tmp_path):
+    from rdea_lab.specs import read_token
+
+    token = tmp_path / "token"
+    token.write_text("a-long-enough-token-0123\n")
+    token.chmod(0o644)
+    said = []
+    assert read_token(token, warn=said.append) == "a-long-enough-token-0123"
+    assert len(said) == 1 and "readable by everyone" in said[0]
+
+
+@pytest.mark.parametrize("option, value, words", [
+    ("--max-voltage", "3 kg", "--max-voltage: '3 kg' is not a voltage"),
+    ("--max-field", "-1 V/um", "--max-field"),
+])
+def test_bad_hard_limits_exit_2(capsys, option, value, words):
+    code, _, err = rig_cli(capsys, "serve", "--specimen", CARD, option, value, "--port", "0")
+    assert code == 2 and words in err, err
+
+
 def test_empty_token_file(capsys, tmp_path):
     token = tmp_path / "token"
     token.write_text("  \n")
@@ -94,13 +127,14 @@ def test_serve_until_a_signal_then_exit_0(sig):
 
 def test_serve_with_a_token_file(tmp_path):
     token = tmp_path / "token"
-    token.write_text("letmein-42\n")
+    token.write_text("letmein-42-and-more\n")
+    token.chmod(0o600)
     proc, address = serve("--token-file", str(token))
     try:
         c = Client(address)
         assert c.q("*IDN?") == 'ERR -300,"token required"' and c.closed()
         c = Client(address)
-        assert c.q("SYST:AUTH letmein-42") == "OK" and c.q("*IDN?").startswith("rdea-lab,rig-emulator,")
+        assert c.q("SYST:AUTH letmein-42-and-more") == "OK" and c.q("*IDN?").startswith("rdea-lab,rig-emulator,")
         c.close()
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=20) == 0

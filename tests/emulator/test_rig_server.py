@@ -5,6 +5,7 @@ the truth: the server must deliver exactly those samples, once each, in order.
 """
 
 import json
+import re
 import time
 
 import numpy as np
@@ -75,7 +76,7 @@ def test_the_session_of_the_doc(card, truth, client):
     assert client.q("LIM?") == "3000.0,1.6,50.0,80000000.0"
     assert client.q("CONF:MEAS?") == "FORC,CAP" and client.q("CONF:RATE?") == "100.0"
     assert client.q("STAT?") == 'IDLE,0,0,""'
-    assert client.q("ARM") == "OK" and client.q("STAT?") == 'ARMED,0,0,""'
+    assert re.fullmatch(r"OK,[0-9a-f]{8}", client.q("ARM")) and client.q("STAT?") == 'ARMED,0,0,""'
     assert client.q("INIT") == "OK"
     first = client.fetch(1000)   # virtual time: the rows are made as they are asked for
     assert first.shape == (1000, 8)
@@ -228,7 +229,7 @@ def test_client_disconnecting_mid_run_aborts_it(server, client):
     assert not server.controller.voltage_on
 
 
-def test_a_second_client_may_only_look(server, client):
+def test_a_second_client_may_only_look_or_stop(server, client):
     client.configure()
     client.start(*trajectory())
     client.fetch(10)
@@ -236,11 +237,66 @@ def test_a_second_client_may_only_look(server, client):
     try:
         assert other.q("*IDN?").startswith("rdea-lab,rig-emulator,")
         assert other.q("STAT?") == 'RUNNING,10,10,""'
-        for command in ("FETC? 10", "ABOR", "*RST", "LIM:VOLT 1"):
-            assert other.q(command).startswith('ERR -200,"the rig is RUNNING for another connection')
+        for command in ("FETC? 10", "LIM:VOLT 1", "CONF:RATE 10", "ARM", "INIT"):
+            assert other.q(command).startswith('ERR -200,"another connection controls the rig (RUNNING)')
+        assert server.controller.voltage_on
+        assert other.q("ABOR") == "OK"  # the emergency stop: anyone may turn the voltage off
+        assert not server.controller.voltage_on
+        assert other.q("STAT?").startswith('ABORTED,')
+        assert other.q("LIM:VOLT 1").startswith('ERR -200')  # stopping the run gave it no control
     finally:
         other.close()
-    assert client.drain().shape == (N - 10, 8)
+
+
+def test_before_arm_a_second_connection_cannot_change_the_first_ones_setup(server, client):
+    client.configure(volt=2000.0)
+    other = Client(server.address)
+    try:
+        assert other.q("LIM:VOLT 2500").startswith('ERR -200,"another connection controls the rig (IDLE)')
+        assert other.upload("TRAJ:VOLT", np.full(10, 2500.0)).startswith("ERR -200")
+    finally:
+        other.close()
+    assert client.q("LIM?").startswith("2000.0,")
+    assert client.q("SYST:REL") == "OK"  # released: now another connection may take control
+    other = Client(server.address)
+    try:
+        assert other.q("LIM:VOLT 2500") == "OK"
+    finally:
+        other.close()
+
+
+def test_the_rig_keeps_its_own_limits_whatever_a_client_says(server, client):
+    """Hard limits (here the defaults: 3 kV, stretch 2, 50 N, 80 V/um) no client command can raise; the field
+    is checked with the rig's own card thickness (48 um), not CONF:THIC."""
+    for command, limit in (("LIM:VOLT 1e9", "3000"), ("LIM:FIEL 1e15", "8e+07"), ("LIM:STR 5", "2"),
+                           ("LIM:FORC 1e6", "50")):
+        reply = client.q(command)
+        assert reply.startswith("ERR -222") and "the rig's own limit" in reply and limit in reply, reply
+    client.configure(L3=1.0)  # a client claiming a 1 m thick membrane ...
+    x = np.full(N, 1.5)
+    v = np.full(N, 2900.0)  # ... 2.9 kV at stretch 1.5 on 48 um is 74 V/um: under 80, but ...
+    client.configure(L3=1.0, field=5e7)  # ... a client's lower LIM:FIEL still binds, with the rig's own L3
+    assert client.upload("TRAJ:STR", x) == "OK" and client.upload("TRAJ:VOLT", v) == "OK"
+    reply = client.q("ARM")
+    assert reply.startswith('ERR -222,"field estimate') and "4.8e-05" in reply, reply
+    assert not server.controller.voltage_on
+
+
+def test_a_silent_controlling_connection_is_aborted_after_the_heartbeat(truth, card):
+    from rdea_lab.emulator import RigServer
+
+    with RigServer(card, truth, port=0, heartbeat=0.3) as srv:
+        c = Client(srv.address)
+        try:
+            c.configure()
+            c.start(*trajectory())
+            c.fetch(10)
+            time.sleep(1.0)  # a frozen client: no command at all
+            assert not srv.controller.voltage_on
+            state = c.q("STAT?")
+            assert state.startswith("ABORTED,") and "heartbeat 0.3 s" in state
+        finally:
+            c.close()
 
 
 def test_rst_aborts_and_clears(server, client):
@@ -252,7 +308,7 @@ def test_rst_aborts_and_clears(server, client):
     assert not server.controller.voltage_on
     assert client.q("STAT?") == 'IDLE,0,0,""'
     assert client.q("TRAJ:POIN?") == "0"
-    assert client.q("LIM?") == "nan,nan,nan,nan"
+    assert client.q("LIM?") == "3000.0,2.0,50.0,80000000.0"  # nothing set: the rig's own limits are in force
 
 
 def test_truth_query_identifies_the_data(truth, client):
@@ -351,7 +407,7 @@ def test_pyvisa_session(card, truth, server):
         assert inst.read() == "OK"
         inst.write_binary_values("TRAJ:VOLT ", v, datatype="d", is_big_endian=False)
         assert inst.read() == "OK"
-        assert inst.query("ARM") == "OK" and inst.query("INIT") == "OK"
+        assert inst.query("ARM").startswith("OK,") and inst.query("INIT") == "OK"
         parts = []
         while True:
             data = inst.query_binary_values("FETC? 300", datatype="d", is_big_endian=False, container=np.array)
