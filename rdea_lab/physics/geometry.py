@@ -125,7 +125,8 @@ def radii_from_membrane(L2, L3, Lp1, L2e, Ri=0.0):
     if L_fa <= 0:
         raise ValueError(
             f"the electrode length L2e = {L2e:g} m is shorter than the partially "
-            f"active first turn ({L_pa:g} m): no fully active region"
+            f"active first turn ({L_pa:g} m): no fully active region; that turn's length comes from "
+            f"the thickness L3 = {L3:g} m and Lp1 = {Lp1:g} m, so check their units as well as L2e's"
         )
     if L_p2 < 0:
         raise ValueError(f"Lp1 + L2e = {Lp1 + L2e:g} m exceeds L2 = {L2:g} m")

@@ -92,6 +92,48 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+#: The most values a spec may expand to (aliases counted as often as they are used) and the deepest
+#: nesting: far above any real card, protocol or parameter file, far below a "billion laughs" bomb.
+MAX_NODES = 100_000
+MAX_DEPTH = 64
+
+
+def _check_size(data, source: str) -> None:
+    """Refuse a document that expands past `MAX_NODES` values or `MAX_DEPTH` levels, or that refers to
+    itself, counting each alias as often as it is used, in time linear in the document as written."""
+    size: dict[int, int] = {}
+    depth: dict[int, int] = {}
+    busy: set[int] = set()
+
+    def walk(node) -> tuple[int, int]:
+        if not isinstance(node, (dict, list)):
+            return 1, 0
+        key = id(node)
+        if key in size:
+            return size[key], depth[key]
+        if key in busy:
+            raise SpecError(source, DOCUMENT, "an alias refers to the node that holds it (a recursive document)")
+        busy.add(key)
+        children = list(node.values()) if isinstance(node, dict) else node
+        n, d = 1 + len(node) if isinstance(node, dict) else 1, 0
+        for child in children:
+            cn, cd = walk(child)
+            n, d = n + cn, max(d, cd + 1)
+            if n > MAX_NODES:
+                raise SpecError(source, DOCUMENT, f"expands to more than {MAX_NODES} values (aliases included); "
+                                "a spec is far smaller")
+            if d > MAX_DEPTH:
+                raise SpecError(source, DOCUMENT, f"nested more than {MAX_DEPTH} levels deep")
+        busy.discard(key)
+        size[key], depth[key] = n, d
+        return n, d
+
+    try:
+        walk(data)
+    except RecursionError:
+        raise SpecError(source, DOCUMENT, f"nested more than {MAX_DEPTH} levels deep") from None
+
+
 def parse_yaml_mapping(text: str, source: str = "<string>") -> dict:
     """Parse YAML `text` whose top level must be a mapping.
 
@@ -103,12 +145,15 @@ def parse_yaml_mapping(text: str, source: str = "<string>") -> dict:
     """
     try:
         data = yaml.load(text, Loader=_UniqueKeyLoader)
+    except RecursionError:
+        raise SpecError(source, DOCUMENT, f"nested too deeply (a spec needs at most {MAX_DEPTH} levels)") from None
     except yaml.YAMLError as exc:
         parts = [p for p in (getattr(exc, "context", None), getattr(exc, "problem", None)) if p]
         what = "; ".join(parts) or _one_line(exc)
         mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark else ""
         raise SpecError(source, DOCUMENT, f"not valid YAML: {what}{where}") from None
+    _check_size(data, source)
     if data is None:
         raise SpecError(source, DOCUMENT, "the document is empty; expected a mapping of keys")
     if not isinstance(data, dict):
@@ -330,6 +375,9 @@ _IDENTIFIER = re.compile(r"[A-Za-z0-9._-]+")
 
 
 def _check_identifier(value: str) -> str:
+    if value in (".", "..") or value.startswith("."):
+        raise SpecError("", "", f"{show(value)} is not a valid name: it may not start with '.' (ids name files "
+                        "and folders, e.g. datasets/<id>/); use letters, digits, '-', '_' and '.'")
     if not _IDENTIFIER.fullmatch(value):
         raise SpecError(
             "", "", f"{show(value)} is not a valid name; use letters, digits, '-', '_' and '.' only, "

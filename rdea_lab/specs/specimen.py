@@ -30,9 +30,11 @@ from pydantic import Field, field_validator, model_validator
 from .errors import DOCUMENT, Identifier, SpecError, SpecModel, read_yaml_mapping, parse_yaml_mapping, show
 from .units import format_quantity, quantity
 
-Length = quantity("length", "mm", gt=0.0)
-Thickness = quantity("length", "um", gt=0.0)
-Radius = quantity("length", "mm", ge=0.0)
+#: Specimen lengths: above 1 um and up to 10 m, thicknesses from 100 nm to 10 mm (anything outside is a
+#: unit mistake, and a value near 0 would divide by almost zero in the geometry).
+Length = quantity("length", "mm", gt=0.0, tiny=1e-6, le=10.0)
+Thickness = quantity("length", "um", gt=0.0, tiny=1e-7, le=1e-2)
+Radius = quantity("length", "mm", ge=0.0, tiny=1e-9, le=10.0)
 
 #: unit each length is written with
 _UNITS = {"L3": "um"}

@@ -43,6 +43,13 @@ _NUMBER = re.compile(
 )
 
 
+#: A unit is names (letters, µ, Ω, °) joined by spaces, ``*`` or ``/``, each with an optional one-digit
+#: exponent (``m^2``, ``s**-1``), optionally ``1/`` first: never an expression with numbers in it, which
+#: pint would evaluate (``kV*10**10**10`` does not finish).
+_UNIT_NAME = r"(?:[A-Za-zµμΩ°_]+|%)(?:(?:\^|\*\*)-?\d)?"
+_UNIT = re.compile(rf"(?:1\s*/\s*)?{_UNIT_NAME}(?:\s*[*/ ·⋅]\s*{_UNIT_NAME})*")
+
+
 def _example(dimension: str, number: str | None, example_unit: str | None) -> str:
     ex_number, _, ex_unit = _DIMENSIONS[dimension][2].partition(" ")
     unit = ex_unit if example_unit is None else example_unit
@@ -116,6 +123,11 @@ def parse_quantity(
         raise fail(f"{show(value)} is not a finite number; give a finite {name}")
     if not unit_text and dimension != "dimensionless":
         raise fail(f"{show(value)} has no unit; give a {name}, e.g. {_example(dimension, number, example_unit)}")
+    if unit_text and (len(unit_text) > 40 or not _UNIT.fullmatch(unit_text)):
+        raise fail(
+            f"{show(value)}: {show(unit_text)} is not a unit (names such as kV, V/um, kPa s; no arithmetic); "
+            f"give a {name}, e.g. {_example(dimension, number, example_unit)}"
+        )
     try:  # pint's parser raises many types (tokenize, ZeroDivision, Pint...)
         units = ureg.parse_units(unit_text) if unit_text else ureg.dimensionless
     except Exception:
@@ -214,18 +226,25 @@ def _number_or_quantity(dimension: str, example_unit: str | None):
     return validate
 
 
-def _bound(unit: str, gt: float | None, ge: float | None):
+def _bound(unit: str, gt: float | None, ge: float | None, le: float | None = None, tiny: float | None = None):
     def check(value: float) -> float:
         if gt is not None and not value > gt:
             raise SpecError("", "", f"must be > {format_quantity(gt, unit)}, got {format_quantity(value, unit)}")
         if ge is not None and not value >= ge:
             raise SpecError("", "", f"must be >= {format_quantity(ge, unit)}, got {format_quantity(value, unit)}")
+        if tiny is not None and 0.0 < abs(value) < tiny:
+            raise SpecError("", "", f"{format_quantity(value, unit)} is smaller than any real one "
+                            f"({format_quantity(tiny, unit)} at least); check the unit")
+        if le is not None and not value <= le:
+            raise SpecError("", "", f"must be <= {format_quantity(le, unit)}, got {format_quantity(value, unit)}; "
+                            "check the unit")
         return value
 
     return check
 
 
-def quantity(dimension: str, unit: str, *, gt: float | None = None, ge: float | None = None):
+def quantity(dimension: str, unit: str, *, gt: float | None = None, ge: float | None = None,
+             le: float | None = None, tiny: float | None = None):
     """A pydantic field type: an SI float parsed from a quantity with a unit.
 
     Parameters
@@ -236,6 +255,11 @@ def quantity(dimension: str, unit: str, *, gt: float | None = None, ge: float | 
         Display unit for messages and for writing back (``"mm"``).
     gt, ge : float, optional
         Lower bounds [SI], checked with a message that names the bound.
+    le : float, optional
+        Upper bound [SI] (a value past it is a unit mistake).
+    tiny : float, optional
+        Nonzero values smaller in magnitude than this [SI] are refused (a unit mistake, and a
+        division by almost zero downstream).
 
     Notes
     -----
@@ -245,7 +269,7 @@ def quantity(dimension: str, unit: str, *, gt: float | None = None, ge: float | 
     return Annotated[
         float,
         BeforeValidator(_number_or_quantity(dimension, unit or None)),
-        AfterValidator(_bound(unit, gt, ge)),
+        AfterValidator(_bound(unit, gt, ge, le, tiny)),
     ]
 
 

@@ -87,8 +87,10 @@ def test_error_names_source_field_and_allowed_unit():
         (float("inf"), "dimensionless", r"inf is not a finite number"),
         ("48 kg", "length", r"'48 kg' is not a length; give it with a length unit"),
         ("48 foo", "length", r"unknown unit 'foo'"),
-        ("48 m)", "length", r"unknown unit 'm\)'"),
-        ("48 m/0", "length", r"unknown unit"),
+        ("48 m)", "length", r"'m\)' is not a unit"),
+        ("48 m/0", "length", r"'m/0' is not a unit"),
+        ("3 kV*10**10**10", "voltage", r"is not a unit .*no arithmetic"),  # pint would evaluate it for ever
+        ("3 kV*1e300", "voltage", r"is not a unit"),
         ("86 kPa", "viscosity", r"is not a viscosity \(pressure times time\)"),
         ("2.8 kPa", "dimensionless", r"is not a dimensionless number; give a plain number"),
         ("1 rad/s", "frequency", r"angle unit"),
