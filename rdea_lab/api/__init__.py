@@ -45,6 +45,7 @@ _EXPORTS = {
     # physics and twin
     "predict": "rdea_lab.twin", "simulate": "rdea_lab.twin", "TwinStream": "rdea_lab.twin",
     "quasi_static_curves": "rdea_lab.twin", "CURVE_FIELDS": "rdea_lab.twin.curves",
+    "CURVE_MAX_FIELD": "rdea_lab.twin.curves",
     "geometry": "rdea_lab.api.helpers", "StretchBelowOneError": "rdea_lab.physics.result",
     "ModelNotApplicable": "rdea_lab.physics.result",
     # store

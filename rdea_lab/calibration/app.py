@@ -35,8 +35,10 @@ def parameter_names(M: int) -> list[str]:
     return ["C10", "C20", "C30", *[f"{p}_v{j}" for j in range(1, M + 1) for p in ("k", "eta")], "eta_v0"]
 
 
-def gather_runs(inputs, kinds=("tensile",)) -> list:
+def gather_runs(inputs, kinds=("tensile",), skipped=None) -> list:
     """`RunData` of every dataset named by ``inputs`` (paths, folders or Datasets in memory).
+
+    ``skipped``, a list, receives the files of a folder left out and why (unreadable, not complete).
 
     Raises
     ------
@@ -56,7 +58,7 @@ def gather_runs(inputs, kinds=("tensile",)) -> list:
         elif not Path(item).exists():
             raise SpecError(str(item), "<document>", "no such dataset or folder")
         else:
-            paths += find_runs([item], kinds)
+            paths += find_runs([item], kinds, skipped)
     if not paths:
         raise SpecError(", ".join(str(p) for p in inputs), "<document>",
                         f"no complete runs of kind {', '.join(kinds)} found")
@@ -119,14 +121,15 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     progress : callable, optional
         ``progress(evaluations, best, elapsed)``.
     announce : callable, optional
-        ``announce(runs, model, reason, free)`` once everything is checked, before the fit starts.
+        ``announce(runs, model, reason, free, skipped)`` once everything is checked, before the fit starts.
 
     Returns
     -------
     CalibrationResult
         Frozen; ``files`` of the record are in ``result.record_files`` when ``out`` was given.
     """
-    runs = gather_runs(inputs, kinds)
+    skipped = []
+    runs = gather_runs(inputs, kinds, skipped)
     init = as_params(init, "init") if init is not None else None
     eps = eps_r if eps_r is not None else (init.eps_r if init else DEFAULT_EPS_R)
     if not (isinstance(eps, (int, float)) and np.isfinite(eps) and eps >= 1.0):
@@ -155,7 +158,7 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     if out is not None:
         check_writable(out)  # before a long fit, not after it
     if announce is not None:
-        announce(runs, model, why, free)
+        announce(runs, model, why, free, tuple(skipped))
     try:
         if init is None and M > 1:  # from the data: grow the branches one by one (they merge otherwise)
             result = calibrate_growing(runs, initial_guess(runs, 1, eps), M, model=model, free=free, metric=metric,
@@ -167,11 +170,13 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         raise SpecError(ARGS, "<calibration>", f"cannot fit: {exc}") from None
     import dataclasses
 
-    extra = {"model_reason": why, "run_data": tuple(runs)}
+    extra = {"model_reason": why, "run_data": tuple(runs), "skipped": tuple(skipped)}
+    result = dataclasses.replace(result, **extra)
     if out is not None:
         out = Path(out)
-        extra["record_files"] = write_record(result, runs, out, name=name or out.stem.replace(" ", "_"))
-    return dataclasses.replace(result, **extra)
+        result = dataclasses.replace(result, record_files=write_record(result, runs, out,
+                                                                        name=name or out.stem.replace(" ", "_")))
+    return result
 
 
 def format_result(result: CalibrationResult) -> str:

@@ -66,6 +66,8 @@ class CalibrationResult:
         Why ``auto`` chose `model` (empty otherwise).
     run_data : tuple of RunData
         The runs fitted (set by `calibrate_runs`).
+    skipped : tuple of dict
+        Files of the input folders left out, with why (``file``, ``reason``).
     record_files : dict
         ``params``, ``history``, ``plot`` paths of the record, when one was written.
     """
@@ -100,6 +102,7 @@ class CalibrationResult:
     software: str = __version__
     model_reason: str = ""
     run_data: tuple = ()
+    skipped: tuple = ()
     record_files: dict = dataclasses.field(default_factory=dict)
 
 

@@ -117,18 +117,27 @@ def run_data(ds: xr.Dataset, path: Path | None = None, sha256: str | None = None
     return run
 
 
-def find_runs(paths, kinds=("tensile",)) -> list[Path]:
-    """Datasets named by ``paths``; a folder gives its runs (recursively) of the protocol ``kinds``."""
+def find_runs(paths, kinds=("tensile",), skipped=None) -> list[Path]:
+    """Datasets named by ``paths``; a folder gives its complete runs (recursively) of the protocol ``kinds``.
+
+    ``skipped``, a list, receives ``{"file", "reason"}`` for every ``*.nc`` in a folder left out
+    because it cannot be read or is not a complete run (other kinds are not listed).
+    """
     out = []
     for p in map(Path, paths):
         if p.is_dir():
             for f in sorted(p.rglob("*.nc")):
                 try:
                     with xr.open_dataset(f) as ds:
-                        if ds.attrs.get("protocol_kind") in kinds and ds.attrs.get("status") == "complete":
-                            out.append(f)
-                except (OSError, ValueError):
+                        kind, status = ds.attrs.get("protocol_kind"), ds.attrs.get("status")
+                except (OSError, ValueError) as exc:
+                    if skipped is not None:
+                        skipped.append({"file": str(f), "reason": f"unreadable ({type(exc).__name__})"})
                     continue
+                if kind in kinds and status == "complete":
+                    out.append(f)
+                elif kind in kinds and skipped is not None:
+                    skipped.append({"file": str(f), "reason": f"status {status}"})
         else:
             out.append(p)
     return out

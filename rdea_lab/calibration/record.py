@@ -43,6 +43,7 @@ def record_mapping(result, runs) -> dict:
         "parameters": params,
         "correlation": {"names": list(result.free_names), "matrix": corr},
         "runs": [{**g, "sha256": r.sha256} for g, r in zip(result.runs, runs)],
+        "skipped": [dict(s) for s in getattr(result, "skipped", ())],
         "statistics": {"ndata": result.ndata, "nfree": result.nfree, "chisqr": result.chisqr, "redchi": result.redchi,
                        "aic": result.aic, "bic": result.bic, "nfev": result.nfev, "nit": result.nit,
                        "restarts": result.restarts, "wall_time_s": round(result.wall_time, 3)},

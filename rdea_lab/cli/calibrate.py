@@ -51,7 +51,9 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
         if show:
             click.echo(f"\r  evaluations {n:6d}  best {best:.6e}  elapsed {elapsed:6.1f} s", nl=False, err=True)
 
-    def announce(runs, chosen, reason, free):
+    def announce(runs, chosen, reason, free, skipped):
+        for s in skipped:
+            click.echo(f"skipped {s['file']}: {s['reason']}")
         if reason:
             click.echo(f"model auto: {chosen} ({reason})")
         click.echo(f"calibrating {', '.join(free)} ({chosen}, {metric}) on {len(runs)} runs: "

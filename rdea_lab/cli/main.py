@@ -129,7 +129,9 @@ def _parse_voltages(text: str) -> list[float]:
               help="Voltages, comma-separated; bare numbers in V, or with a unit ('2.6 kV').")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON (SI units; null where no equilibrium).")
 @click.option("--csv", "as_csv", is_flag=True, help="Print CSV, one row per (voltage, stretch).")
-def curve(card, params_path, model, stretch_text, voltage_text, as_json, as_csv):
+@click.option("--no-field-check", is_flag=True,
+              help="Compute past a field estimate of 300 V/um (where any real membrane has broken down).")
+def curve(card, params_path, model, stretch_text, voltage_text, as_json, as_csv, no_field_check):
     """Quasi-static stress and force against stretch at fixed voltages.
 
     \b
@@ -141,7 +143,8 @@ def curve(card, params_path, model, stretch_text, voltage_text, as_json, as_csv)
         die("curve: give --json or --csv, not both")
     stretch = _parse_stretch(stretch_text)
     voltages = _parse_voltages(voltage_text)
-    result = api.quasi_static_curves(load_specimen(card), load_params(params_path), model.lower(), stretch, voltages)
+    result = api.quasi_static_curves(load_specimen(card), load_params(params_path), model.lower(), stretch, voltages,
+                                     max_field=None if no_field_check else api.CURVE_MAX_FIELD)
     if as_json:
         out = {"model": result["model"], "specimen": result["specimen"], "parameters": result["parameters"],
                "curves": [{k: c[k] for k in ("voltage", *api.CURVE_FIELDS, "summary")} for c in result["curves"]]}

@@ -29,6 +29,7 @@ def _finish(fig, path, created: bool, tight: bool = True):
     if tight and fig.get_layout_engine() is None:
         fig.tight_layout()
     if path is not None:
+        os.makedirs(os.path.dirname(os.path.abspath(os.fspath(path))), exist_ok=True)  # a new folder is fine
         fig.savefig(os.fspath(path), dpi=DPI)
         if created:
             import matplotlib.pyplot as plt

@@ -322,7 +322,9 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
                f"(Table 4 of Prechtl et al. 2021), twin model {model}, parameters {params.name}; "
                f"calibrated on: {', '.join(cal['specimens']) or NONE_RECORDED}. {origin}")
     files = {"markdown": out / "table4.md", "csv": out / "table4.csv", "latex": out / "table4.tex"}
-    files["markdown"].write_text(f"# Table 4 analogue\n\n{caption}\n\n{md}")
+    left_out = "".join(f"- `{sk['file']}`: {sk['reason']}\n" for sk in skipped)
+    files["markdown"].write_text(f"# Table 4 analogue\n\n{caption}\n\n{md}"
+                                 + (f"\nFiles left out:\n\n{left_out}" if left_out else ""))
     tables.write_csv(files["csv"], CSV_KEYS, rows)
     files["latex"].write_text(f"% {tables.latex_escape(caption)}\n" + tables.latex_tabular(COLUMNS, rows))
     figs = write_figures(evaluated, out) if figures else {}

@@ -22,7 +22,7 @@ Quick start (the whole library: see `rdea_lab`)::
 
 from .coerce import as_params, as_protocol, as_specimen
 from .errors import SpecError, UserError
-from .limits import LimitError, check_limits, limit_violations
+from .limits import LimitError, check_limits, field_estimate, limit_violations
 from .params import (
     ParameterSet,
     ViscoBranch,
@@ -65,7 +65,7 @@ from .tokens import read_token
 from .units import format_quantity, parse_quantity, ureg
 
 __all__ = [
-    "as_params", "as_protocol", "as_specimen", "LimitError", "check_limits", "limit_violations", "read_token",
+    "as_params", "as_protocol", "as_specimen", "LimitError", "check_limits", "field_estimate", "limit_violations", "read_token",
     "UserError", "Limits", "ProtocolSpec", "dump_protocol", "load_protocol", "protocol_from_mapping", "protocol_from_yaml",
     "Membrane", "ParameterSet", "Radii", "SpecError", "SpecimenCard", "ViscoBranch",
     "dump_params", "dump_specimen", "format_quantity", "load_params", "load_specimen",

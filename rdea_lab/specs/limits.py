@@ -38,6 +38,13 @@ def _shown(value: float, limit: float, fmt) -> str:
     return text
 
 
+def field_estimate(voltage, stretch, L3):
+    """The field estimate ``|v| sqrt(stretch) / L3`` [V/m] a limit is checked against (the membrane thins
+    as ``1 / sqrt(stretch)`` under uniaxial stretch)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        return np.abs(np.asarray(voltage, float)) * np.sqrt(np.maximum(np.asarray(stretch, float), 0.0)) / L3
+
+
 def limit_violations(limits: Limits, source: str, time, stretch, voltage, L3: float | None = None,
                      stretch_segment=None, voltage_segment=None) -> list[LimitError]:
     """Every limit violation of stretch and voltage arrays, one `LimitError` per check and segment.
@@ -105,7 +112,7 @@ def limit_violations(limits: Limits, source: str, time, stretch, voltage, L3: fl
         if L3 is not None:
             if not (math.isfinite(L3) and L3 > 0.0):
                 raise ValueError(f"L3 must be a finite thickness > 0 m, got {L3!r}")
-            E = av * np.sqrt(np.maximum(x, 0.0)) / L3
+            E = field_estimate(v, x, L3)
             report(3, E > lim.max_field * (1.0 + SLACK), E, "voltage", vs,
                    lambda k: f"field estimate |v| sqrt(stretch) / L3 = {_shown(E[k], lim.max_field, field)} "
                              f"(voltage {volts(v[k], 4)}, stretch {x[k]:.4g}, "

@@ -59,3 +59,34 @@ def test_an_unreachable_rig_address_is_exit_2(capsys, tmp_path):
     code, out, err = rdea(capsys, "run", ROOT / "protocols" / "blocking_force.yaml", "--specimen", CARD,
                           "--backend", "rig", "--rig", "tcp://127.0.0.1:1", "--out", tmp_path / "x.nc")
     assert code == 2 and "no answer" in err and len(err.strip().splitlines()) == 1
+
+
+def test_calibrate_names_every_file_it_leaves_out(tmp_path, capsys):
+    import shutil
+
+    for f in (ROOT / "datasets" / "paper2021" / "specimen-2").glob("tensile*.nc"):
+        shutil.copy(f, tmp_path)
+    (tmp_path / "broken.nc").write_text("not netCDF")
+    code, out, err = rdea(capsys, "calibrate", tmp_path, "--out", tmp_path / "c.yaml", "--max-evals", "20")
+    assert code == 0, err
+    assert f"skipped {tmp_path / 'broken.nc'}: unreadable" in out
+    assert "broken.nc" in (tmp_path / "c.yaml").read_text()  # and the record says so
+
+
+def test_curve_refuses_a_field_no_membrane_survives_unless_told(capsys):
+    args = ["curve", "--specimen", CARD, "--params", ROOT / "params" / "paper2021_table3.yaml", "--voltage", "3500 kV"]
+    code, out, err = rdea(capsys, *args)
+    assert code == 2 and "--voltage" in err and "--no-field-check" in err and out == ""
+    code, out, err = rdea(capsys, *args, "--no-field-check")
+    assert code == 0
+    # the paper's own Section 3.4 scene (96 V/um) is well within the default
+    code, out, err = rdea(capsys, "curve", "--specimen", ROOT / "specimens" / "passive_core.yaml", "--params",
+                          ROOT / "params" / "rizzello2020.yaml", "--stretch", "1:1.75:5", "--voltage", "3.5kV")
+    assert code == 0, err
+
+
+def test_a_plot_into_a_new_folder_is_written(tmp_path, capsys):
+    target = tmp_path / "new" / "folder" / "run.png"
+    code, out, err = rdea(capsys, "show", ROOT / "datasets" / "paper2021" / "specimen-2" / "blocking_force.nc",
+                          "--plot", target)
+    assert code == 0 and target.stat().st_size > 10_000, err
