@@ -142,7 +142,9 @@ def run(protocol, card_path, backend, rig_address, token_file, truth_path, fault
 
 @click.command()
 @click.argument("paths", nargs=-1, required=True, type=click.Path())
-def recover(paths):
+@click.option("--out", "out_path", type=click.Path(dir_okay=False),
+              help="Write the dataset here instead (one journal only), e.g. on another disk.")
+def recover(paths, out_path):
     """Rebuild the dataset of a run whose process died (SIGKILL, power loss) from its journal.
 
     PATHS are journals (``<run>.nc.part``), the datasets they were writing, or
@@ -161,9 +163,13 @@ def recover(paths):
     if not targets:
         click.echo("no unfinished runs found")
         return
+    if out_path and len(targets) > 1:
+        die(f"--out: {len(targets)} journals found; --out takes one (name the journal)")
+    if out_path:
+        api.check_writable(out_path, "--out")
     for t in targets:
         try:
-            out = api.recover(t)
+            out = api.recover(t, out_path)
         except api.RunInProgress as exc:  # a live run's journal: say so, leave it, go on with the others
             click.echo(str(exc))
             continue

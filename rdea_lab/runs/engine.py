@@ -25,7 +25,7 @@ from ..backends.base import BackendFailure, RunInterrupted
 from ..physics.geometry import geometry_from_card
 from ..protocols import first_violation
 from ..specs import SpecError, dump_specimen
-from ..store.journal import JournalWriter, utc_now
+from ..store.journal import DiskFull, JournalWriter, utc_now
 from .callbacks import RunBlock, subscriber_name
 
 #: Exit status of a run by its dataset status (the CLI's, and `RunResult.exit_code`).
@@ -227,6 +227,10 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
     except BackendFailure as exc:
         if status == "complete":
             status, reason = "aborted", str(exc)
+        backend.abort(reason)
+    except DiskFull:  # the journal holds every sample received; finish says so if it cannot write either
+        if status == "complete":
+            status, reason = "aborted", f"the disk filled up after {writer.samples} samples; the run was stopped"
         backend.abort(reason)
     except _SubscriberFailed as exc:
         if status == "complete":

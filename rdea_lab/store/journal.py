@@ -21,6 +21,7 @@ alone (`RunInProgress`) and the catalogue lists it as ``running``.
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import json
 import math
@@ -46,6 +47,26 @@ class RunInProgress(UserError):
 
 class JournalInUse(SpecError):
     """Another run is writing this dataset (its journal exists)."""
+
+
+class DiskFull(UserError):
+    """The disk (or quota) is full: every sample received so far is safe in the journal, which says so."""
+
+
+_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
+def _disk_full(exc: OSError, what, journal: Path, samples: int) -> DiskFull:
+    return DiskFull(f"disk full writing {what}; {samples} samples are safe in {journal}; free space and run "
+                    f"rdea-lab recover {journal} (or recover --out ELSEWHERE)")
+
+
+def _note_status(folder: Path, status: str, reason: str) -> None:
+    """Best effort: how the run ended, for `recover` (a few hundred bytes; may itself not fit)."""
+    try:
+        (folder / "status.json").write_text(json.dumps({"status": status, "status_reason": reason}))
+    except OSError:
+        pass
 
 
 def _try_lock(folder: Path):
@@ -132,10 +153,15 @@ class JournalWriter:
             rows[:, j] = block.get(name, np.nan)
         data = rows.tobytes()
         view = memoryview(data)
-        while view:
-            written = os.write(self._fd, view)
-            view = view[written:]
-        os.fsync(self._fd)
+        try:
+            while view:
+                written = os.write(self._fd, view)
+                view = view[written:]
+            os.fsync(self._fd)
+        except OSError as exc:  # a torn last row is dropped when the journal is read
+            if exc.errno in _FULL:
+                raise _disk_full(exc, self.dir, self.dir, self.samples) from None
+            raise
         self.samples += n
         return n
 
@@ -159,7 +185,13 @@ class JournalWriter:
         try:
             ds = read_journal(self.dir)
             ds.attrs.update(final_attrs(ds.attrs, status, reason, history))
-            write_dataset(ds, self.out)
+            try:
+                write_dataset(ds, self.out)
+            except OSError as exc:  # the journal stays, with how the run ended
+                _note_status(self.dir, status, reason)
+                if exc.errno in _FULL or "HDF error" in str(exc):
+                    raise _disk_full(exc, self.out, self.dir, int(ds.attrs["samples"])) from None
+                raise
             shutil.rmtree(self.dir)
         finally:
             self._release()
@@ -219,10 +251,14 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
     tmp = out.with_name(out.name + ".tmp")
     encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
     encoding["time"] = {"zlib": True, "complevel": 4}
-    ds.to_netcdf(tmp, engine="netcdf4", unlimited_dims=["time"], encoding=encoding)
-    with open(tmp, "rb") as fh:
-        os.fsync(fh.fileno())
-    os.replace(tmp, out)
+    try:
+        ds.to_netcdf(tmp, engine="netcdf4", unlimited_dims=["time"], encoding=encoding)
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, out)
+    except BaseException:
+        tmp.unlink(missing_ok=True)  # never a half-written file left behind
+        raise
     _fsync_dir(out.parent)
 
 
@@ -247,11 +283,14 @@ def netcdf_attrs(attrs: dict) -> dict:
     return out
 
 
-def recover(path: Path) -> Path:
+def recover(path: Path, out: Path | None = None) -> Path:
     """Rebuild the dataset of a run that died without closing its journal.
 
     ``path`` is the journal folder (``<out>.part``) or the dataset path whose
-    journal exists. Returns the dataset written, marked ``interrupted``.
+    journal exists; ``out`` writes the dataset elsewhere (e.g. another disk
+    when this one is full). Returns the dataset written, marked
+    ``interrupted``, or with the status the run recorded when it could not
+    write its dataset (a full disk).
     """
     path = Path(path)
     folder = path if path.name.endswith(".part") else journal_path(path)
@@ -263,15 +302,26 @@ def recover(path: Path) -> Path:
         raise RunInProgress(f"{folder}: a run is still writing it (pid {w.get('pid', '?')} on "
                             f"{w.get('host', '?')} since {w.get('started', '?')}); left alone")
     try:
-        out = folder.with_name(folder.name[: -len(".part")])
+        out = Path(out) if out is not None else folder.with_name(folder.name[: -len(".part")])
         if out.exists():
             raise FileExistsError(f"{out} exists already; move it away to recover {folder}")
         ds = read_journal(folder)
         n = ds.attrs["samples"]
-        reason = (f"the process stopped without closing the run; {n} samples recovered from the journal "
-                  f"by rdea-lab recover")
-        ds.attrs.update(final_attrs(ds.attrs, "interrupted", reason, "rdea-lab recover"))
-        write_dataset(ds, out)
+        status, reason = "interrupted", (f"the process stopped without closing the run; {n} samples recovered "
+                                         "from the journal by rdea-lab recover")
+        try:
+            noted = json.loads((folder / "status.json").read_text())
+            status = noted["status"]
+            reason = f"{noted['status_reason']}; {n} samples recovered from the journal by rdea-lab recover"
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+        ds.attrs.update(final_attrs(ds.attrs, status, reason, "rdea-lab recover"))
+        try:
+            write_dataset(ds, out)
+        except OSError as exc:
+            if exc.errno in _FULL or "HDF error" in str(exc):
+                raise _disk_full(exc, out, folder, n) from None
+            raise
         shutil.rmtree(folder)
     finally:
         os.close(lock)

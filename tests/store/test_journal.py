@@ -1,7 +1,9 @@
 """The store: journal streaming, crash recovery, the netCDF schema and its round trip."""
 
+import errno
 import json
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,6 +12,7 @@ import xarray as xr
 from rdea_lab.store import REQUIRED_ATTRS, VARIABLES, JournalWriter, catalog, journal_path, open_run, recover
 from rdea_lab.store.journal import JournalInUse, RunInProgress, journal_writer, read_journal
 
+ROOT = Path(__file__).resolve().parents[2]
 ATTRS = {"Conventions": "CF-1.8", "title": "t", "rdea_lab_version": "0", "run_id": "x", "backend": "twin",
          "specimen_id": "s", "specimen": "id: s\n", "protocol_name": "p", "protocol_kind": "tensile",
          "protocol": "name: p\n", "sample_rate": 100.0, "seed": 0, "created": "2026-01-01T00:00:00Z",
@@ -166,3 +169,57 @@ def test_an_attribute_netcdf_cannot_hold_never_makes_a_run_unrecoverable(tmp_pat
     w.close()
     ds = open_run(recover(journal_path(out)))
     assert ds.attrs["seed"] == str(2**64) and ds.attrs["flag"] == 1 and json.loads(ds.attrs["nested"]) == {"a": [1, 2]}
+
+
+def _full(*args, **kwargs):
+    raise OSError(errno.ENOSPC, "No space left on device")
+
+
+def test_a_full_disk_while_running_keeps_every_sample_and_says_where(tmp_path, monkeypatch):
+    """The disk fills during a block: the engine stops the run (voltage off), cannot write the dataset
+    either, and says, as a user's problem (exit 2), that every sample is safe in the journal; no .tmp is
+    left; once space is back, recover --out writes the dataset elsewhere with how the run ended."""
+    import rdea_lab
+    from rdea_lab.cli.errors import run as run_cli
+    from rdea_lab.cli.main import cli
+    from rdea_lab.store import journal as J
+
+    out = tmp_path / "run.nc"
+    seen = []
+
+    class Tracker:
+        def __call__(self, block):
+            seen.append(len(block))
+            if len(seen) == 2:  # from now on the disk is full
+                monkeypatch.setattr(J.os, "write", _full)
+                monkeypatch.setattr(J.xr.Dataset, "to_netcdf", _full)
+
+    card = ROOT / "specimens" / "specimen2.yaml"
+    with pytest.raises(J.DiskFull, match=r"samples are safe in .*run\.nc\.part; free space and run rdea-lab recover"):
+        rdea_lab.run_protocol(ROOT / "protocols" / "tensile_ramp_sine_0V.yaml", card, "twin", out=out,
+                              callbacks=[Tracker()])
+    assert not out.exists() and not list(tmp_path.glob("*.tmp"))
+    kept = sum(seen)
+    monkeypatch.undo()
+    elsewhere = tmp_path / "other" / "run.nc"
+    assert run_cli(cli, ["recover", str(journal_path(out)), "--out", str(elsewhere)]) == 0
+    ds = open_run(elsewhere)
+    assert ds.sizes["time"] == kept  # every sample the engine received before the disk filled
+    assert ds.attrs["status"] == "aborted" and "the disk filled up" in ds.attrs["status_reason"]
+
+
+def test_write_dataset_leaves_no_tmp_when_it_fails(tmp_path, monkeypatch):
+    from rdea_lab.store import journal as J
+
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS)
+    w.append(block(0.0, 10))
+
+    def half_then_full(self, path, *a, **k):
+        Path(path).write_bytes(b"half a file")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(J.xr.Dataset, "to_netcdf", half_then_full)
+    with pytest.raises(J.DiskFull):
+        w.finish("complete", "")
+    assert not list(tmp_path.glob("*.tmp")) and journal_path(out).is_dir()
