@@ -10,6 +10,7 @@ malformed input into a `FramingError` that the server answers with one
 from __future__ import annotations
 
 import socket
+import threading
 import time
 
 import numpy as np
@@ -45,6 +46,29 @@ def decode_block(payload: bytes) -> np.ndarray:
     return np.frombuffer(payload, dtype="<f8").astype(float)
 
 
+class ConnectionIdle(ConnectionClosed):
+    """Nothing arrived for the reader's idle timeout: the server closes the connection."""
+
+
+class ByteBudget:
+    """Bytes of block payload the server holds at once, over all connections (a total memory bound)."""
+
+    def __init__(self, total: int):
+        self.total, self.used = int(total), 0
+        self._lock = threading.Lock()
+
+    def take(self, n: int) -> bool:
+        with self._lock:
+            if self.used + n > self.total:
+                return False
+            self.used += n
+            return True
+
+    def give(self, n: int) -> None:
+        with self._lock:
+            self.used = max(0, self.used - n)
+
+
 class CommandReader:
     """Reads commands from a connected socket.
 
@@ -57,45 +81,64 @@ class CommandReader:
     max_block : int
         Largest block payload accepted [bytes].
     block_timeout : float
-        Seconds allowed for the rest of a block (and its newline) to arrive
-        once its header was read; then the block is refused.
+        Seconds a block (and its newline) may go without a byte arriving once
+        its header began; then the block is refused and the connection closed
+        (a client still sending could not be told where the next command
+        starts). A block arriving slowly but steadily is never cut off.
+    idle : callable, optional
+        ``idle()`` -> seconds to wait for the next command before the
+        connection is idle (`ConnectionIdle`), or None to wait for ever.
+    budget : ByteBudget, optional
+        Shared bound on the block bytes held by all connections at once.
     """
 
     def __init__(self, sock: socket.socket, *, max_line: int = 4096, max_block: int = 8 * 10_000_000,
-                 block_timeout: float = 2.0):
+                 block_timeout: float = 2.0, idle=None, budget: ByteBudget | None = None):
         self.sock = sock
         self.max_line = max_line
         self.max_block = max_block
         self.block_timeout = block_timeout
+        self.idle = idle
+        self.budget = budget
+        self._held = 0  # bytes of the budget this reader holds (until the next command is read)
         self._buf = bytearray()
         self._skip_line = False  # discard input up to the next newline
 
     # -------------------------------------------------------------- bytes
     def _fill(self, deadline: float | None = None) -> bool:
-        """Receive more bytes; False on timeout (only with a `deadline`)."""
+        """Receive more bytes; False on timeout (only with a `deadline`). Without one, waiting longer
+        than ``idle()`` for a command raises `ConnectionIdle`."""
+        idle = None
         if deadline is not None:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return False
             self.sock.settimeout(remaining)
+        elif self.idle is not None:
+            idle = self.idle()
+            self.sock.settimeout(idle)
         try:
             chunk = self.sock.recv(65536)
         except socket.timeout:
+            if deadline is None:
+                raise ConnectionIdle(f"no command for {idle:g} s") from None
             return False
         finally:
-            if deadline is not None:
+            if deadline is not None or idle is not None:
                 self.sock.settimeout(None)
         if not chunk:
             raise ConnectionClosed()
         self._buf += chunk
         return True
 
-    def _need(self, n: int, deadline: float, what: str) -> None:
+    def _need(self, n: int, what: str) -> None:
+        """Wait for ``n`` bytes, as long as they keep coming: at most `block_timeout` between two."""
         while len(self._buf) < n:
-            if not self._fill(deadline):
+            if not self._fill(time.monotonic() + self.block_timeout):
                 got = len(self._buf)
-                self._resync()
-                raise FramingError(-161, f"{what}: only {got} bytes arrived within {self.block_timeout:g} s")
+                self._buf.clear()
+                raise FramingError(-161, f"{what}: nothing arrived for {self.block_timeout:g} s after {got} bytes; "
+                                         "closing the connection", fatal=True)
 
     def _resync(self, quiet: float = 0.1, limit: float = 2.0) -> None:
         """Drop the buffer and whatever arrives until the line is quiet for `quiet` s."""
@@ -118,6 +161,9 @@ class CommandReader:
             than its header says, non-ASCII text.
         ConnectionClosed
         """
+        if self._held and self.budget is not None:  # the previous block has been handled: give its bytes back
+            self.budget.give(self._held)
+            self._held = 0
         while True:
             if self._skip_line:
                 nl = self._buf.find(b"\n")
@@ -159,8 +205,7 @@ class CommandReader:
 
     def _block(self, start: int) -> bytes:
         """Parse the block whose ``#`` is at `start`; consume it and its newline."""
-        deadline = time.monotonic() + self.block_timeout
-        self._need(start + 2, deadline, "block header")
+        self._need(start + 2, "block header")
         d = chr(self._buf[start + 1])
         if d == "0":
             self._drop_line(start)
@@ -170,7 +215,7 @@ class CommandReader:
             self._drop_line(start)
             raise FramingError(-161, f"invalid block header: {d!r} after '#' is not a digit 1-9")
         digits = int(d)
-        self._need(start + 2 + digits, deadline, "block header")
+        self._need(start + 2 + digits, "block header")
         size_text = bytes(self._buf[start + 2:start + 2 + digits])
         if not size_text.isdigit():
             self._drop_line(start)
@@ -180,12 +225,18 @@ class CommandReader:
             self._buf.clear()
             raise FramingError(-161, f"block of {size} bytes is larger than the largest accepted "
                                      f"({self.max_block} bytes)", fatal=True)
+        if self.budget is not None:
+            if not self.budget.take(size):
+                self._buf.clear()
+                raise FramingError(-161, f"server busy: blocks of other connections already hold "
+                                         f"{self.budget.used} of {self.budget.total} bytes; try again", fatal=True)
+            self._held = size
         begin = start + 2 + digits
-        self._need(begin + size, deadline, f"block data (header says {size} bytes)")
-        self._need(begin + size + 1, deadline, "newline after the block")
+        self._need(begin + size, f"block data (header says {size} bytes)")
+        self._need(begin + size + 1, "newline after the block")
         end = begin + size
         if self._buf[end:end + 1] == b"\r":
-            self._need(end + 2, deadline, "newline after the block")
+            self._need(end + 2, "newline after the block")
             end += 1
         if self._buf[end:end + 1] != b"\n":
             self._resync()
@@ -199,4 +250,12 @@ class CommandReader:
         self._skip_line = True
 
 
-__all__ = ["CommandReader", "ConnectionClosed", "FramingError", "decode_block", "encode_block"]
+    def release(self) -> None:
+        """Give back the budget this reader holds (its connection ends)."""
+        if self._held and self.budget is not None:
+            self.budget.give(self._held)
+        self._held = 0
+
+
+__all__ = ["ByteBudget", "CommandReader", "ConnectionClosed", "ConnectionIdle", "FramingError", "decode_block",
+           "encode_block"]

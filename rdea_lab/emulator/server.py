@@ -16,7 +16,7 @@ import socketserver
 import threading
 
 from .controller import CloseConnection, RigController, check_faults
-from .framing import CommandReader, ConnectionClosed, FramingError
+from .framing import ByteBudget, CommandReader, ConnectionClosed, FramingError
 from .truth import true_geometry
 
 LOOPBACK_NAMES = ("localhost",)
@@ -80,6 +80,17 @@ class RigServer:
     heartbeat : float
         Seconds a run may go without a command from its controlling connection
         before the rig aborts it [s].
+    max_connections : int
+        Connections served at once; one more is told so and closed.
+    auth_timeout : float
+        With a token: seconds a new connection has to authenticate [s].
+    idle_timeout : float
+        Seconds a connection that does not control the rig may stay silent [s].
+    block_timeout : float
+        Seconds a block upload may go without a byte arriving [s] (a slow but
+        steady upload is never cut off).
+    max_upload_bytes : int
+        Block bytes held at once over all connections (a bound on memory).
     truth_source : str, optional
         Where `truth` came from, for messages.
 
@@ -92,7 +103,8 @@ class RigServer:
     """
 
     def __init__(self, card, truth, host="127.0.0.1", port=5025, token=None, realtime=False, faults=(), *,
-                 truth_source=None, limits=None, heartbeat=10.0):
+                 truth_source=None, limits=None, heartbeat=10.0, max_connections=16, auth_timeout=5.0,
+                 idle_timeout=300.0, block_timeout=2.0, max_upload_bytes=256 * 2**20):
         if token is not None and (not isinstance(token, str) or not token.strip() or any(c.isspace() for c in token)):
             raise ValueError("the token must be a non-empty string without whitespace")
         if not is_loopback(host) and token is None:
@@ -108,6 +120,9 @@ class RigServer:
         self._token = token
         self.controller = RigController(card, truth, realtime=realtime, faults=faults, truth_source=truth_source,
                                         close_session=self._close_session, limits=limits, heartbeat=heartbeat)
+        self.max_connections, self.auth_timeout, self.idle_timeout = int(max_connections), auth_timeout, idle_timeout
+        self.block_timeout = block_timeout
+        self._budget = ByteBudget(max_upload_bytes)
         self._server: _TCPServer | None = None
         self._thread: threading.Thread | None = None
         self._sessions: dict[int, socket.socket] = {}
@@ -188,11 +203,26 @@ class RigServer:
         session = next(self._ids)
         with self._sessions_lock:
             self.connections += 1
-            self._sessions[session] = sock
+            full = len(self._sessions) >= self.max_connections
+            if not full:
+                self._sessions[session] = sock
+        if full:  # a cap on connections (and so on threads): say so and close
+            try:
+                _send(sock, f'ERR -310,"too many connections: {self.max_connections} already served"')
+                sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            return
         if self._closing:
             self._close_session(session)
-        reader = CommandReader(sock)
         authenticated = self._token is None
+
+        def idle():  # the controlling connection may be silent between runs; the heartbeat guards a run
+            if not authenticated:
+                return self.auth_timeout
+            return None if self.controller.owner == session else self.idle_timeout
+
+        reader = CommandReader(sock, idle=idle, budget=self._budget, block_timeout=self.block_timeout)
         try:
             while True:
                 try:
@@ -211,7 +241,7 @@ class RigServer:
                     if not self._authenticates(text):
                         _send(sock, 'ERR -300,"token required"')
                         break
-                    authenticated = True
+                    authenticated = True  # (the closure `idle` sees it)
                     _send(sock, "OK")
                     continue
                 try:
@@ -222,6 +252,7 @@ class RigServer:
         except (ConnectionClosed, OSError):
             pass
         finally:
+            reader.release()
             self.controller.session_closed(session)
             with self._sessions_lock:
                 self._sessions.pop(session, None)

@@ -68,13 +68,58 @@ def test_block_longer_than_its_header_then_in_step_again(pair):
     assert reader.read_command() == ("*IDN?", None)
 
 
-def test_block_shorter_than_its_header_times_out(pair):
+def test_block_shorter_than_its_header_times_out_and_the_connection_is_given_up(pair):
+    """The rest never comes: after block_timeout without a byte the block is refused, fatally (a client
+    that sent more later could not be told where its next command starts)."""
     client, reader = pair
     client.sendall(b"TRAJ:STR #224" + b"\x00" * 16 + b"\n")
-    with pytest.raises(FramingError, match=r"block data \(header says 24 bytes\): only"):
+    with pytest.raises(FramingError, match=r"block data \(header says 24 bytes\): nothing arrived for 0.3 s") as info:
         reader.read_command()
-    client.sendall(b"*IDN?\n")
-    assert reader.read_command() == ("*IDN?", None)
+    assert info.value.fatal
+
+
+def test_a_slow_but_steady_block_is_never_cut_off(pair):
+    """At 8 bytes every 0.1 s a 200-byte block takes 2.5 s, eight times block_timeout: it still arrives."""
+    import threading
+    import time
+
+    client, reader = pair
+    values = np.arange(25, dtype="<f8")
+    data = b"TRAJ:STR " + block(values) + b"\n"
+
+    def trickle():
+        for i in range(0, len(data), 8):
+            client.sendall(data[i:i + 8])
+            time.sleep(0.1)
+
+    t = threading.Thread(target=trickle)
+    t.start()
+    text, payload = reader.read_command()
+    t.join()
+    assert text.strip() == "TRAJ:STR" and np.array_equal(np.frombuffer(payload, "<f8"), values)
+
+
+def test_blocks_held_at_once_are_bounded_over_all_connections():
+    from rdea_lab.emulator.framing import ByteBudget
+
+    budget = ByteBudget(1000)
+    a, b = socket.socketpair()
+    c, d = socket.socketpair()
+    try:
+        first = CommandReader(b, budget=budget, block_timeout=0.3)
+        second = CommandReader(d, budget=budget, block_timeout=0.3)
+        a.sendall(b"TRAJ:STR " + block(np.zeros(100)) + b"\n")  # 800 bytes, held until its command is done
+        first.read_command()
+        c.sendall(b"TRAJ:STR " + block(np.zeros(50)) + b"\n")  # 400 more would pass 1000
+        with pytest.raises(FramingError, match="server busy") as info:
+            second.read_command()
+        assert info.value.fatal
+        a.sendall(b"*IDN?\n")
+        first.read_command()  # the first block's bytes are given back
+        assert budget.used == 0
+    finally:
+        for s_ in (a, b, c, d):
+            s_.close()
 
 
 @pytest.mark.parametrize("raw, words", [

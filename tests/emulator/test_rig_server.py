@@ -419,3 +419,48 @@ def test_pyvisa_session(card, truth, server):
     finally:
         inst.close()
         rm.close()
+
+
+def test_connections_are_capped(truth, card):
+    from rdea_lab.emulator import RigServer
+
+    with RigServer(card, truth, port=0, max_connections=3) as srv:
+        clients = [Client(srv.address) for _ in range(3)]
+        try:
+            for c in clients:
+                assert c.q("*IDN?").startswith("rdea-lab,")
+            extra = Client(srv.address)
+            assert extra.line() == 'ERR -310,"too many connections: 3 already served"' and extra.closed()
+            clients[0].close()
+            time.sleep(0.2)
+            again = Client(srv.address)  # a place is free again
+            assert again.q("*IDN?").startswith("rdea-lab,")
+            again.close()
+        finally:
+            for c in clients[1:]:
+                c.close()
+
+
+def test_a_connection_that_does_not_authenticate_in_time_is_closed(truth, card):
+    from rdea_lab.emulator import RigServer
+
+    with RigServer(card, truth, port=0, token="a-long-enough-token-0123", auth_timeout=0.3) as srv:
+        c = Client(srv.address)
+        t0 = time.monotonic()
+        assert c.closed()  # nothing sent: closed after the authentication timeout
+        assert 0.2 < time.monotonic() - t0 < 3.0
+
+
+def test_idle_connections_are_closed_but_not_the_controlling_one(truth, card):
+    from rdea_lab.emulator import RigServer
+
+    with RigServer(card, truth, port=0, idle_timeout=0.3) as srv:
+        owner, onlooker = Client(srv.address), Client(srv.address)
+        try:
+            assert owner.q("CONF:RATE 100") == "OK"  # now it controls the rig
+            assert onlooker.q("STAT?").startswith("IDLE")
+            time.sleep(0.8)
+            assert onlooker.closed()
+            assert owner.q("CONF:RATE?") == "100.0"  # still served
+        finally:
+            owner.close()
