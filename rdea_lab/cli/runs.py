@@ -170,7 +170,7 @@ def recover(paths, out_path):
     for t in targets:
         try:
             out = api.recover(t, out_path)
-        except api.RunInProgress as exc:  # a live run's journal: say so, leave it, go on with the others
+        except (api.RunInProgress, api.EmptyJournal) as exc:  # a live run's journal, or a run that never began
             click.echo(str(exc))
             continue
         except (FileNotFoundError, FileExistsError, ValueError) as exc:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from ..calibration import calibrate, find_runs, initial_guess, load_run
 from ..calibration.record import write_record
-from ..runs import experiments, run_campaign
+from ..runs import check_writable, experiments, run_campaign
 from ..specs.campaign import load_campaign
 from ..specs.errors import UserError
 from .paper_models import reproduce_models
@@ -51,6 +51,7 @@ def reproduce(root: Path, out: Path, *, campaign=None, speed=True, echo=print, p
         ``progress_factory(total, label)`` -> context manager with ``update(n)`` (a progress bar).
     """
     out = Path(out)
+    check_writable(out / "datasets" / "x.nc", "--out")  # before twelve runs, not after them
     t0 = time.perf_counter()
     spec, spec_root = load_campaign(campaign or root / "campaigns" / "paper2021.yaml")
     data = out / "datasets"

@@ -31,6 +31,7 @@ import matplotlib
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..runs import check_writable
 from ..physics.geometry import geometry_from_card
 from ..physics.models import solve
 from ..physics.selection import select_model
@@ -246,6 +247,7 @@ def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_
         ``rows`` (one per scene and model), ``auto`` (per scene: model and reason),
         ``reference_check``, ``figure8``, ``files``.
     """
+    check_writable(Path(out) / "speed.md", "--out")  # before the timing, not after it
     from ..paths import project_root
 
     root = Path(root) if root is not None else project_root()

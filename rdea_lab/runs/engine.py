@@ -161,11 +161,13 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
         stopped the run) or ``interrupted`` (Ctrl-C, SIGTERM).
     """
     subscribers = _subscribers(callbacks)
-    started = False
+    started, writer = False, None
     try:
         metadata = check_metadata(metadata)
         first_violation(plan, L3=geometry_from_card(card).L3)  # before anything moves, whoever calls
         attrs = run_attrs(plan, card, backend, seed, command, metadata)
+        # the output is claimed (journal folder and lock) before anything moves: a second run on it is refused
+        writer = JournalWriter(out, None, extra=backend.extra_variables)
         for cb in subscribers:  # a subscriber that cannot start stops the run before anything moves
             start = getattr(cb, "start", None)
             if start is not None:
@@ -173,10 +175,12 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
         backend.start(plan)  # may refuse (its own limits, configuration) before anything moves
         started = True
         attrs.update(backend.attrs())  # what the backend knows once started (model choice, rig identity)
-        writer = JournalWriter(out, attrs, extra=backend.extra_variables)
+        writer.begin(attrs)
     except BaseException:
-        if started:  # the journal could not be opened (a full disk, no permission): stop the rig
+        if started:  # the journal could not be written (a full disk, no permission): stop the rig
             backend.abort("the run's journal could not be written")
+        if writer is not None:
+            writer.abandon()
         backend.close()
         raise
     status, reason = "complete", ""

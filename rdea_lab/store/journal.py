@@ -49,6 +49,10 @@ class JournalInUse(SpecError):
     """Another run is writing this dataset (its journal exists)."""
 
 
+class EmptyJournal(FileNotFoundError):
+    """A journal folder claimed by a run that never started: nothing to recover (it is removed)."""
+
+
 class DiskFull(UserError):
     """The disk (or quota) is full: every sample received so far is safe in the journal, which says so."""
 
@@ -119,13 +123,15 @@ class JournalWriter:
     ----------
     out : Path
         The dataset to produce (``.nc``).
-    attrs : dict
-        Dataset attributes (strings and numbers only).
+    attrs : dict or None
+        Dataset attributes (strings and numbers only). None only claims the
+        journal (its folder and lock, so no other run can take this output) and
+        `begin` writes the header later; `abandon` gives a claim up.
     extra : sequence of str
         Extra variables (keys of :data:`EXTRA_VARIABLES`) the backend writes.
     """
 
-    def __init__(self, out: Path, attrs: dict, extra=()):
+    def __init__(self, out: Path, attrs: dict | None, extra=()):
         self.out = Path(out)
         self.dir = journal_path(self.out)
         self.columns = ["time", *VARIABLES, *extra]
@@ -138,12 +144,24 @@ class JournalWriter:
                                "exists); choose another output") from None
         self._lock = _try_lock(self.dir)  # held until the dataset is written and the journal gone
         self.writer = {"pid": os.getpid(), "host": socket.gethostname(), "started": utc_now()}
+        self._fd = None
+        if attrs is not None:
+            self.begin(attrs)
+
+    def begin(self, attrs: dict) -> None:
+        """Write the header (the attributes known once the run starts) and open the sample file."""
         header = {"format": FORMAT, "columns": self.columns, "attrs": attrs, "writer": self.writer}
         tmp = self.dir / "header.json.tmp"
         tmp.write_text(json.dumps(header, indent=1))
         os.replace(tmp, self.dir / "header.json")
         self._fd = os.open(self.dir / "samples.f8", os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
         _fsync_dir(self.dir)
+
+    def abandon(self) -> None:
+        """Give up a claim that never began (nothing was measured): the folder goes, the lock with it."""
+        if self._fd is None and not (self.dir / "header.json").exists():
+            shutil.rmtree(self.dir, ignore_errors=True)
+        self._release()
 
     def append(self, block: dict) -> int:
         """Write one block (arrays keyed by column name) and make it durable."""
@@ -295,6 +313,11 @@ def recover(path: Path, out: Path | None = None) -> Path:
     path = Path(path)
     folder = path if path.name.endswith(".part") else journal_path(path)
     if not (folder / "header.json").is_file():
+        if folder.is_dir() and (folder / LOCK).exists() and not (folder / "samples.f8").exists():
+            if journal_writer(folder) is not None:
+                raise RunInProgress(f"{folder}: a run is starting on it; left alone")
+            shutil.rmtree(folder, ignore_errors=True)  # a claim whose run never began (killed before it started)
+            raise EmptyJournal(f"{folder}: the claim of a run that never started (no samples); removed")
         raise FileNotFoundError(f"{path}: no run journal here (expected {folder}/header.json)")
     lock = _try_lock(folder)
     if lock is None:

@@ -55,12 +55,38 @@ class Spy(TwinBackend):
         super().close()
 
 
-def test_a_journal_that_cannot_be_written_after_start_aborts_the_backend(tmp_path):
+def test_an_output_that_cannot_be_claimed_is_refused_before_the_backend_starts(tmp_path):
     (tmp_path / "file").write_text("not a folder")
     spy = Spy(load_specimen(CARD), load_params(PARAMS))
     with pytest.raises(OSError):
         execute(expand(short()), load_specimen(CARD), spy, tmp_path / "file" / "x.nc")
+    assert spy.calls == ["close"]  # nothing started
+
+
+def test_a_journal_that_cannot_be_written_after_start_aborts_the_backend(tmp_path, monkeypatch):
+    from rdea_lab.store.journal import JournalWriter
+
+    def full(self, attrs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(JournalWriter, "begin", full)
+    spy = Spy(load_specimen(CARD), load_params(PARAMS))
+    with pytest.raises(OSError):
+        execute(expand(short()), load_specimen(CARD), spy, tmp_path / "x.nc")
     assert spy.calls == ["start", "abort", "close"]
+    assert not (tmp_path / "x.nc.part").exists()  # the claim is given up
+
+
+def test_a_second_run_on_the_same_output_is_refused_before_it_starts(tmp_path):
+    from rdea_lab.store.journal import JournalInUse, JournalWriter
+
+    claim = JournalWriter(tmp_path / "x.nc", None)  # the first run has claimed it
+    spy = Spy(load_specimen(CARD), load_params(PARAMS))
+    with pytest.raises(JournalInUse, match="another run is writing it"):
+        execute(expand(short()), load_specimen(CARD), spy, tmp_path / "x.nc")
+    assert spy.calls == ["close"]
+    claim.abandon()
+    assert not (tmp_path / "x.nc.part").exists()
 
 
 def test_an_unwritable_output_is_refused_before_anything_moves(tmp_path, capsys):

@@ -223,3 +223,16 @@ def test_write_dataset_leaves_no_tmp_when_it_fails(tmp_path, monkeypatch):
     with pytest.raises(J.DiskFull):
         w.finish("complete", "")
     assert not list(tmp_path.glob("*.tmp")) and journal_path(out).is_dir()
+
+
+def test_the_claim_of_a_run_that_never_started_is_removed_by_recover(tmp_path):
+    from rdea_lab.store.journal import EmptyJournal
+
+    out = tmp_path / "run.nc"
+    claim = JournalWriter(out, None)
+    with pytest.raises(RunInProgress):  # still held: a run about to start
+        recover(journal_path(out))
+    claim.close()  # its process died before the run began
+    with pytest.raises(EmptyJournal, match="never started"):
+        recover(journal_path(out))
+    assert not journal_path(out).exists()
