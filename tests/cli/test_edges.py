@@ -90,3 +90,24 @@ def test_a_plot_into_a_new_folder_is_written(tmp_path, capsys):
     code, out, err = rdea(capsys, "show", ROOT / "datasets" / "paper2021" / "specimen-2" / "blocking_force.nc",
                           "--plot", target)
     assert code == 0 and target.stat().st_size > 10_000, err
+
+
+def test_a_seed_past_2_63_is_exit_2_before_anything_runs(tmp_path, capsys):
+    code, out, err = rdea(capsys, "run", ROOT / "protocols" / "blocking_force.yaml", "--specimen", CARD,
+                          "--seed", str(2**64), "--out", tmp_path / "x.nc")
+    assert code == 2 and err.startswith("rdea-lab: --seed:") and not list(tmp_path.iterdir())
+
+
+def test_campaign_run_help_has_no_literal_backslash_b(capsys):
+    code, out, err = rdea(capsys, "campaign", "run", "--help")
+    assert code == 0 and "\\b" not in out and "Example:" in out
+
+
+def test_the_import_format_is_accepted_in_any_case(tmp_path, capsys):
+    csv = tmp_path / "t.csv"
+    csv.write_text("time,position,force\ns,mm,N\n" + "".join(f"{i * 0.1:.1f},{i * 0.5:.1f},{i * 0.01:.2f}\n"
+                                                          for i in range(20)))
+    code, out, err = rdea(capsys, "import", csv, "--format", "CSV", "--map", "time=0,position=1,force=2",
+                          "--specimen", ROOT / "specimens" / "vhb4910_strip.yaml", "--protocol-kind", "Tensile",
+                          "--out", tmp_path / "t.nc")
+    assert code == 0, err
