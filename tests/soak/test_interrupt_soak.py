@@ -10,7 +10,7 @@ held just before the kill (read from its file, not from the code under test):
 - every dataset readable, with status ``interrupted``;
 - a live run is never taken by recover (its process still running when a dataset for it appears).
 
-Bounded: about 5 minutes on 2 cores, so marked slow (``python3 -m pytest -m slow``). The figures
+Bounded: about 7 minutes on 2 cores (421 s measured), so marked slow (``python3 -m pytest -m slow``). The figures
 are printed (``-s``) and stated in the session note.
 """
 
