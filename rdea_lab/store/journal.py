@@ -65,6 +65,19 @@ def _disk_full(exc: OSError, what, journal: Path, samples: int) -> DiskFull:
                     f"rdea-lab recover {journal} (or recover --out ELSEWHERE)")
 
 
+def _is_full(exc: BaseException, out: Path, nbytes: int) -> bool:
+    """Whether writing failed for want of space: ENOSPC/EDQUOT, or netCDF's bare "HDF error" (what the
+    library reports then) on a file system with less free space than the dataset needs."""
+    if isinstance(exc, OSError) and exc.errno in _FULL:
+        return True
+    if "HDF error" in str(exc):
+        try:
+            return shutil.disk_usage(Path(out).parent).free < 2 * nbytes + 2**20
+        except OSError:
+            return False
+    return False
+
+
 def _note_status(folder: Path, status: str, reason: str) -> None:
     """Best effort: how the run ended, for `recover` (a few hundred bytes; may itself not fit)."""
     try:
@@ -205,9 +218,9 @@ class JournalWriter:
             ds.attrs.update(final_attrs(ds.attrs, status, reason, history))
             try:
                 write_dataset(ds, self.out)
-            except OSError as exc:  # the journal stays, with how the run ended
+            except (OSError, RuntimeError) as exc:  # the journal stays, with how the run ended
                 _note_status(self.dir, status, reason)
-                if exc.errno in _FULL or "HDF error" in str(exc):
+                if _is_full(exc, self.out, int(ds.attrs["samples"]) * 8 * len(self.columns)):
                     raise _disk_full(exc, self.out, self.dir, int(ds.attrs["samples"])) from None
                 raise
             shutil.rmtree(self.dir)
@@ -341,8 +354,8 @@ def recover(path: Path, out: Path | None = None) -> Path:
         ds.attrs.update(final_attrs(ds.attrs, status, reason, "rdea-lab recover"))
         try:
             write_dataset(ds, out)
-        except OSError as exc:
-            if exc.errno in _FULL or "HDF error" in str(exc):
+        except (OSError, RuntimeError) as exc:
+            if _is_full(exc, out, n * 8 * (len(ds.data_vars) + 1)):
                 raise _disk_full(exc, out, folder, n) from None
             raise
         shutil.rmtree(folder)

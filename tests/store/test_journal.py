@@ -236,3 +236,29 @@ def test_the_claim_of_a_run_that_never_started_is_removed_by_recover(tmp_path):
     with pytest.raises(EmptyJournal, match="never started"):
         recover(journal_path(out))
     assert not journal_path(out).exists()
+
+
+def test_netcdfs_hdf_error_on_a_full_file_system_is_a_full_disk(tmp_path, monkeypatch):
+    """netCDF reports a full disk as a bare RuntimeError 'NetCDF: HDF error'; with no free space left it is
+    reported as the full disk it is (and the journal kept); with space left it stays the error it was."""
+    import shutil as _shutil
+    from collections import namedtuple
+
+    from rdea_lab.store import journal as J
+
+    def hdf_error(self, path, *a, **k):
+        raise RuntimeError("NetCDF: HDF error")
+
+    usage = namedtuple("usage", "total used free")
+    monkeypatch.setattr(J.xr.Dataset, "to_netcdf", hdf_error)
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS)
+    w.append(block(0.0, 10))
+    monkeypatch.setattr(_shutil, "disk_usage", lambda p: usage(10**9, 10**9, 0))
+    with pytest.raises(J.DiskFull, match="10 samples are safe"):
+        w.finish("complete", "")
+    assert journal_path(out).is_dir()
+    monkeypatch.setattr(_shutil, "disk_usage", lambda p: usage(10**12, 0, 10**12))
+    with pytest.raises(RuntimeError, match="HDF error"):
+        recover(journal_path(out))
+    assert journal_path(out).is_dir()  # kept, for a later recover
