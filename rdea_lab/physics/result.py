@@ -23,9 +23,13 @@ NOT_CONVERGED = 3
 #: to the next stable state (e.g. the inner hole of a 3R roll with ``Ri = 0``
 #: opening abruptly at a subcritical bifurcation).
 SNAPPED = 4
+#: The inputs are finite but the stress or force is not representable (a stretch so large that the
+#: Yeoh energy overflows double precision, e.g. beyond about 1e51): no number, never a silent inf.
+OVERFLOW = 5
 
 STATUS_NAMES = {OK: "ok", LIMIT_POINT: "past limit point", BAD_INPUT: "NaN or infinite input",
-                NOT_CONVERGED: "not converged", SNAPPED: "reached by a snap-through"}
+                NOT_CONVERGED: "not converged", SNAPPED: "reached by a snap-through",
+                OVERFLOW: "stress overflows (stretch too large)"}
 VALID = (OK, SNAPPED)
 
 
@@ -105,7 +109,7 @@ class ModelResult:
         True where the sample has a stable equilibrium on the physical branch.
     status : numpy.ndarray of int8
         One of ``OK``, ``SNAPPED`` (both converged), ``LIMIT_POINT``,
-        ``BAD_INPUT``, ``NOT_CONVERGED``.
+        ``BAD_INPUT``, ``NOT_CONVERGED``, ``OVERFLOW``.
     critical_voltage : numpy.ndarray
         Voltage at the sample's stretch where the branch from the unloaded
         state folds [V], where ``status`` is ``LIMIT_POINT`` or ``SNAPPED``;
@@ -154,6 +158,10 @@ def finish(model, geom, l1, bad, shape, raw, sigma1, l2a, l2b, l2c, capacitance,
            critical_voltage, r_i) -> ModelResult:
     """Assemble a :class:`ModelResult`: force from stress, NaN where not converged."""
     status = np.where(bad, BAD_INPUT, status).astype(np.int8)
+    with np.errstate(invalid="ignore", over="ignore"):
+        force = np.asarray(sigma1, float) * geom.area / l1
+    unrepresentable = np.isin(status, VALID) & ~(np.isfinite(sigma1) & np.isfinite(force))
+    status = np.where(unrepresentable, OVERFLOW, status).astype(np.int8)
     ok = np.isin(status, VALID)
     out = {}
     for name, arr in (("sigma1", sigma1), ("lambda2a", l2a), ("lambda2b", l2b), ("lambda2c", l2c),

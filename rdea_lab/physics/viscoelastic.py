@@ -83,6 +83,8 @@ def branch_strains(t, stretch, tau, q0=None):
     if not np.all(tau > 0):
         raise ValueError(f"relaxation times must be > 0, got {tau.ravel()}")
     q = np.empty((tau.shape[0], t.size))
+    if t.size == 0:  # no samples, no strains
+        return q
     q[:, 0] = 0.0 if q0 is None else np.asarray(q0, float)
     if t.size < 2:
         return q

@@ -17,7 +17,7 @@ VARIABLES: dict[str, tuple[str, str]] = {
 #: Optional per-backend variables: name -> (units, long_name, netCDF dtype).
 EXTRA_VARIABLES: dict[str, tuple[str, str, str]] = {
     "model_status": ("1", "twin model status: 0 ok, 1 past limit point, 2 NaN input, 3 not converged, "
-                          "4 reached by a snap-through", "i1"),
+                          "4 reached by a snap-through, 5 stress overflows", "i1"),
 }
 
 TIME = ("s", "time since the start of the run")

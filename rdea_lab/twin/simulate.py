@@ -25,7 +25,7 @@ VARIABLES = {
     "sigma1_irr": ("Pa", "viscoelastic overstress, eq. (44)"),
     "lambda2b": ("1", "circumferential stretch of the active ring b"),
     "converged": ("1", "1 where the model has a stable equilibrium"),
-    "model_status": ("1", "0 ok, 1 past limit point, 2 NaN input, 3 not converged, 4 snap-through"),
+    "model_status": ("1", "0 ok, 1 past limit point, 2 NaN input, 3 not converged, 4 snap-through, 5 overflow"),
 }
 
 

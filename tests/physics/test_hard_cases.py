@@ -203,3 +203,36 @@ def test_nan_in_the_input_is_flagged_not_fatal(model):
 def test_stretch_below_one_is_a_clear_error(model):
     with pytest.raises(StretchBelowOneError, match=r"stretch 0\.99 at sample 1 is below 1.*tension"):
         solve(model, core("passive"), RIZZELLO, np.array([1.0, 0.99, 1.2]), 0.0)
+
+
+# ------------------------------------------------------------- overflow and empty input (issue 12, item 5)
+def test_a_stretch_whose_stress_overflows_is_flagged_never_ok():
+    """Past about 1e51 the Yeoh energy (which grows as lambda1**2 to the cube) overflows double precision:
+    the answer is no number with its own status, never an inf or NaN flagged ok."""
+    import numpy as np
+
+    from rdea_lab.physics.geometry import RollGeometry
+    from rdea_lab.physics.models import solve
+    from rdea_lab.physics.result import OVERFLOW, VALID
+    from rdea_lab.specs import ParameterSet
+
+    geom = RollGeometry(0.86e-3, 0.88e-3, 1.76e-3, 1.8e-3, L1=34e-3, L1e=34e-3, L3=48e-6)
+    material = ParameterSet(name="t", C10=242e3, C20=-69e3, C30=47e3, eps_r=2.8)
+    stretch = np.array([1.5, 1e52, 1e300])
+    for model in ("su", "1r", "3r"):
+        with np.errstate(all="ignore"):
+            res = solve(model, geom, material, stretch, 0.0)
+        assert res.status[0] in VALID and np.isfinite(res.force[0])
+        assert list(res.status[1:]) == [OVERFLOW, OVERFLOW], model
+        assert np.all(np.isnan(res.force[1:])) and not res.converged[1:].any()
+
+
+def test_viscoelastic_stress_of_empty_or_all_nan_input():
+    import numpy as np
+
+    from rdea_lab.physics.viscoelastic import branch_strains, overstress
+
+    assert overstress([], [], [1e5], [1e5], 10.0).shape == (0,)
+    assert branch_strains([], [], [1.0, 2.0]).shape == (2, 0)
+    sigma = overstress([0.0, 1.0], [np.nan, np.nan], [1e5], [1e5], 10.0)
+    assert sigma.shape == (2,) and np.all(np.isnan(sigma))
