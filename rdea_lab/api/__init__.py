@@ -30,7 +30,7 @@ _EXPORTS = {
     "run_protocol": "rdea_lab.runs.app", "prepare_run": "rdea_lab.runs.app", "execute_setup": "rdea_lab.runs.app",
     "check_outputs": "rdea_lab.runs.app", "default_out": "rdea_lab.runs.app", "emulated_rig": "rdea_lab.runs.app",
     "project_default": "rdea_lab.runs.app", "check_seed": "rdea_lab.runs.app", "OutputInUse": "rdea_lab.runs.app",
-    "OutputError": "rdea_lab.runs.app", "check_writable": "rdea_lab.runs.app",
+    "OutputError": "rdea_lab.store.outputs", "check_writable": "rdea_lab.store.outputs",
     "DEFAULT_PARAMS": "rdea_lab.runs.app", "DEFAULT_TRUTH": "rdea_lab.runs.app", "BACKENDS": "rdea_lab.runs.app",
     "run_campaign": "rdea_lab.runs.campaign", "experiments": "rdea_lab.runs.campaign",
     "RunResult": "rdea_lab.runs.engine", "EXIT_CODES": "rdea_lab.runs.engine", "execute": "rdea_lab.runs.engine",
@@ -54,11 +54,9 @@ _EXPORTS = {
     "journal_writer": "rdea_lab.store",
     "import_files": "rdea_lab.store.importers", "ImportOptions": "rdea_lab.store.importers",
     "check_format": "rdea_lab.store.importers", "parse_map": "rdea_lab.store.importers",
-    "parse_units": "rdea_lab.store.importers", "IMPORT_FORMATS": "rdea_lab.api.helpers",
-    "IMPORT_KINDS": "rdea_lab.api.helpers", "IMPORT_MIN_STRETCH": "rdea_lab.api.helpers",
-    # calibration
+    "parse_units": "rdea_lab.store.importers", # calibration
     "calibrate_runs": "rdea_lab.calibration.app", "format_result": "rdea_lab.calibration.app",
-    "CALIBRATION_KINDS": "rdea_lab.api.helpers", "CalibrationResult": "rdea_lab.calibration.fit",
+    "CalibrationResult": "rdea_lab.calibration.fit",
     # reports
     "validation_report": "rdea_lab.reports.validation", "ReportInputError": "rdea_lab.reports.validation",
     "speed_study": "rdea_lab.reports.speed", "reproduce": "rdea_lab.reports.reproduce",
@@ -68,8 +66,7 @@ _EXPORTS = {
     "RigServer": "rdea_lab.emulator", "is_loopback": "rdea_lab.emulator", "FAULTS": "rdea_lab.emulator",
     "parse_faults": "rdea_lab.emulator.controller", "RigRefused": "rdea_lab.backends.rig",
     # misc
-    "project_root": "rdea_lab.paths", "benchmarks_dir": "rdea_lab.paths", "USER_ERRORS": "rdea_lab.api.helpers",
-}
+    "project_root": "rdea_lab.paths", "benchmarks_dir": "rdea_lab.paths",}
 
 __all__ = sorted(_EXPORTS)
 

@@ -2,24 +2,11 @@
 
 from __future__ import annotations
 
-from ..backends.rig import RigRefused
-from ..calibration.app import KINDS as CALIBRATION_KINDS
 from ..physics.geometry import geometry_from_card
-from ..physics.result import ModelNotApplicable, StretchBelowOneError
 from ..protocols import first_violation
-from ..reports.reproduce import ReproduceInputError
-from ..reports.validation import ReportInputError
-from ..specs import SpecError, UserError, as_specimen
-from ..specs.importing import FORMATS as IMPORT_FORMATS
-from ..specs.importing import KINDS as IMPORT_KINDS
-from ..specs.importing import MIN_STRETCH as IMPORT_MIN_STRETCH
+from ..specs import SpecError, as_specimen
 
-#: A user's mistakes: the CLI gives them exit status 2 and one line (all derive from `UserError`).
-USER_ERRORS = (UserError,)
-assert all(issubclass(e, UserError) for e in (SpecError, StretchBelowOneError, ModelNotApplicable, RigRefused,
-                                              ReportInputError, ReproduceInputError))
-
-__all__ = ["check_plan", "CALIBRATION_KINDS", "IMPORT_FORMATS", "IMPORT_KINDS", "IMPORT_MIN_STRETCH", "USER_ERRORS", "geometry"]
+__all__ = ["check_plan", "geometry"]
 
 
 def geometry(specimen):

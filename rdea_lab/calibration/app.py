@@ -19,12 +19,12 @@ import xarray as xr
 from ..physics.selection import ORDER, select_model
 from ..runs.app import check_writable
 from ..specs import SpecError, ViscoBranch, as_params
+from ..specs.protocol import KINDS
 from .fit import CalibrationResult, calibrate, calibrate_growing, initial_guess
 from .objective import find_runs, load_run
 from .parameters import values_of
 from .record import write_record
 
-KINDS = ("tensile", "blocking", "capacitance", "custom")
 MODELS = ("su", "1r", "3r", "auto")
 DEFAULT_EPS_R = 2.8  # Table 1 of [1]
 ARGS = "arguments"

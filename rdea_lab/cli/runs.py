@@ -64,7 +64,6 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
             return [api.LivePlot()]
         if not live.lower().endswith(".png"):
             die(f"--live: {live!r}; allowed: table, plot or a FILE.png")
-        api.check_writable(live, "--live")
         headless()
         return [api.LivePlot(Path(live))]
     if quiet or not (sys.stdout.isatty() and sys.stderr.isatty()) or (seconds is not None and seconds <= 1.0):
@@ -165,8 +164,6 @@ def recover(paths, out_path):
         return
     if out_path and len(targets) > 1:
         die(f"--out: {len(targets)} journals found; --out takes one (name the journal)")
-    if out_path:
-        api.check_writable(out_path, "--out")
     for t in targets:
         try:
             out = api.recover(t, out_path)

@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -27,6 +26,7 @@ from ..physics.models import three_ring
 from ..protocols import as_plan, first_violation
 from ..specs import SpecError, as_params, as_specimen
 from ..store import journal_path, open_run
+from ..store.outputs import OutputError, check_writable  # noqa: F401  (part of this layer's API)
 from .engine import check_metadata, execute
 
 DEFAULT_PARAMS = "params/paper2021_table3.yaml"
@@ -37,29 +37,8 @@ MODELS = ("su", "1r", "3r", "auto")
 ARGS = "arguments"
 
 
-class OutputError(SpecError):
-    """A dataset cannot be written where asked (a folder that is not writable, not a folder, ...)."""
-
-
 class OutputInUse(OutputError):
     """A dataset to be written exists (without overwrite), is written twice, or has a journal in the way."""
-
-
-def check_writable(path, what="out") -> None:
-    """Raise `OutputError` unless the file ``path`` can be created: its nearest existing folder is a
-    writable folder (the missing ones below it are made when the run writes)."""
-    path = Path(path)
-    folder = path.parent
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
-    if not folder.is_dir():
-        raise OutputError(str(path), what, f"{folder} is not a folder")
-    try:  # a probe file: permissions, read-only mounts and pseudo file systems alike (root passes os.access)
-        with tempfile.TemporaryFile(dir=folder, prefix=".rdea-lab-probe-"):
-            pass
-    except OSError as exc:
-        raise OutputError(str(path), what, f"cannot write in the folder {folder} "
-                          f"({exc.strerror or type(exc).__name__})") from None
 
 
 def project_default(given, default: str, field_name: str):

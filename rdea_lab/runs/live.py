@@ -20,6 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..store.outputs import check_writable
+
 #: The channels kept and drawn: name, scale to the plotted unit, axis label.
 CHANNELS = (("force", 1.0, "force [N]"), ("stretch", 1.0, "stretch λ1 [-]"), ("voltage", 1e-3, "voltage [kV]"))
 
@@ -65,6 +67,8 @@ class LivePlot:
         if window_seconds is not None and not (math.isfinite(window_seconds) and window_seconds > 0):
             raise ValueError(f"live plot window_seconds {window_seconds!r} s must be > 0 s")
         self.path = None if path is None else Path(path)
+        if self.path is not None:
+            check_writable(self.path, "live")  # before the run, not at its first redraw
         self.interval = float(interval)
         self.clock = clock
         self.window_seconds = window_seconds

@@ -337,6 +337,10 @@ def recover(path: Path, out: Path | None = None) -> Path:
         w = journal_writer(folder) or {}
         raise RunInProgress(f"{folder}: a run is still writing it (pid {w.get('pid', '?')} on "
                             f"{w.get('host', '?')} since {w.get('started', '?')}); left alone")
+    if out is not None:
+        from .outputs import check_writable
+
+        check_writable(out)
     try:
         out = Path(out) if out is not None else folder.with_name(folder.name[: -len(".part")])
         if out.exists():

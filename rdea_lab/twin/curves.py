@@ -15,10 +15,10 @@ CURVE_FIELDS = ("stretch", "sigma1", "force", "lambda2b", "capacitance", "conver
 #: The field estimate a curve may reach by default [V/m]: 300 V/um, beyond the breakdown strength of any
 #: dielectric elastomer (silicones break down at about 50-150 V/um, VHB at 150-300), yet above the paper's
 #: own Section 3.4 scenes (3.5 kV on 48 um at stretch 1.75: 96 V/um).
-DEFAULT_MAX_FIELD = CURVE_MAX_FIELD = 300e6
+CURVE_MAX_FIELD = 300e6
 
 
-def quasi_static_curves(card, params, model, stretch, voltages, max_field=DEFAULT_MAX_FIELD) -> dict:
+def quasi_static_curves(card, params, model, stretch, voltages, max_field=CURVE_MAX_FIELD) -> dict:
     """Force-stretch curves of one model at several voltages.
 
     Parameters
