@@ -1,43 +1,68 @@
-"""Vectorized continuation of the physical equilibrium branch in one coordinate.
+"""Equilibria in one free coordinate: the rising-ramp rule and the history-aware path.
 
-Under voltage control the equilibria of the 1R and 3R models are the
+Under voltage control the equilibria of the 1R, 3R and CR models are the
 stationary points of the free enthalpy density (ERRATA)
 
     g(y) = psi(y) - K c(y),
 
 in one free coordinate ``y`` at fixed axial stretch, where ``psi`` is the
 elastic energy, ``c`` the normalized capacitance and ``K >= 0`` grows with
-the voltage squared. The physical equilibrium is the local minimum of ``g``
-that a quasi-static voltage ramp reaches from the unloaded state ``y0``:
-along that branch ``K = h(y) = psi_y / c_y`` increases with ``y``. Where
-``h`` reaches a maximum before reaching ``K`` the branch has folded and the
-roll snaps through to the next stable state, if there is one in the
-admissible range (a strain-stiffening material re-stabilizes); where there
-is none, the voltage is past the limit point (pull-in) and the model has no
-stable equilibrium to offer.
+the voltage squared. With ``c_y > 0``, ``g_y = c_y (h(y) - K)`` where
+``h = psi_y / c_y`` is the load at which ``y`` is an equilibrium: the stable
+equilibria (minima of ``g``) are where ``h`` crosses ``K`` upwards, the
+unstable ones where it crosses downwards, and the folds (limit points) are
+the extrema of ``h``. ``h`` depends on the stretch only, not on the voltage.
 
-The solver brackets each sample's root by stepping ``h`` over a scan in
-``y`` (stopping per sample as soon as it is bracketed, so the usual small
-loads cost a few evaluations), refines it by Newton's method safeguarded by
-bisection, and refines folds by golden-section search on ``h``. Every step
-is a numpy operation over all the samples still in work; the Python loops
-run over scan nodes and iterations, never over samples.
+Two rules pick the state:
+
+- :func:`follow_branch`, for a single (stretch, voltage) with no history: the
+  state a quasi-static voltage ramp reaches from the unloaded roll ``y0``,
+  i.e. the first upward crossing of ``K`` by ``h`` beyond ``y0`` (along the
+  branch ``h`` increases; where ``h`` has a maximum below ``K`` the branch
+  has folded and the roll snapped through to the next stable state). It
+  stops scanning each sample as soon as it is bracketed, so the usual small
+  loads cost a few evaluations.
+- :func:`follow_path`, for a time series: each sample's state is the local
+  minimum that descent of ``g`` reaches from the previous sample's state (the
+  overdamped quasi-static path), so a loop shows the hysteresis the physics
+  has and a snap-through is flagged at the sample where it happens, with the
+  voltage of the fold it crossed. Every sample's ``h`` is scanned over the
+  whole admissible range (folds refined by golden section), all crossings
+  are refined, and only the samples with more than one basin (an unstable
+  equilibrium exists) are resolved in sequence.
+
+When no stable state lies in the admissible range the sample is either
+*past a limit point* (a fold of ``h`` below ``K`` was crossed and ``h`` is
+still falling at the range's end: pull-in; the fold's voltage is reported)
+or *outside the solved range* (``h`` is rising at the range's end but has not
+reached ``K``: the branch continues beyond what the model is solved for; the
+largest voltage solved is reported, never as a critical voltage).
+
+Every step is a numpy operation over all samples still in work; Python loops
+run over scan nodes and iterations, and (in a path) over the rare samples
+with two basins, never over all samples.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Callable
+
 import numpy as np
 
-from .result import LIMIT_POINT, NOT_CONVERGED, OK, SNAPPED
+from .result import LIMIT_POINT, NOT_CONVERGED, OK, OUTSIDE_RANGE, SNAPPED
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)
 _EPS = np.finfo(float).eps
+#: Regular scan: fractions ``(k / N_SCAN)**2`` of the admissible range.
+N_SCAN = 24
 
 
-def follow_branch(terms, y0, y_max, K, *, pitchfork=False, n_scan=24, rtol=1e-14, max_iter=100):
-    """Find, per sample, the stable equilibrium a voltage ramp reaches from ``y0``.
+@dataclass
+class Problem:
+    """One model's equilibrium problem at fixed stretches (one entry per sample).
 
-    Parameters
+    Attributes
     ----------
     terms : callable
         ``terms(y, idx, second)`` returns ``(psi_y, psi_yy, c_y, c_yy)`` at
@@ -48,60 +73,116 @@ def follow_branch(terms, y0, y_max, K, *, pitchfork=False, n_scan=24, rtol=1e-14
     y_max : numpy.ndarray
         End of the admissible range; no equilibrium beyond it is sought.
     K : numpy.ndarray
-        Load parameter, >= 0 [same unit as psi].
+        Load parameter, >= 0 [unit of psi].
+    load : numpy.ndarray
+        ``K / v**2``: a load parameter ``K`` is the voltage ``sqrt(K / load)``.
     pitchfork : bool
-        True when ``y0`` is stationary for every ``K`` (``c_y(y0) = 0``,
-        the 3R model with ``Ri = 0``): ``y0`` stays the equilibrium until
-        ``K`` reaches ``psi_yy / c_yy`` at ``y0``, where a branch bifurcates.
+        True when ``y0`` is stationary for every ``K`` (``c_y(y0) = 0``, the
+        3R and CR models with ``Ri = 0``): ``y0`` stays an equilibrium, stable
+        until ``K`` reaches ``psi_yy / c_yy`` at ``y0``.
+    scale : float, optional
+        Length of the structure near ``y0`` (e.g. a small core's radius, in
+        ``y`` units): the scan adds nodes graded geometrically toward ``y0``
+        from a sixteenth of it, so structure at the core's own scale is
+        resolved however small the core is.
+    """
+
+    terms: Callable
+    y0: np.ndarray
+    y_max: np.ndarray
+    K: np.ndarray
+    load: np.ndarray
+    pitchfork: bool = False
+    scale: float | None = None
+
+    def voltage(self, K):
+        """The voltage [V] of load parameters ``K`` (NaN stays NaN)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.sqrt(K / self.load)
+
+    def h_start(self, idx):
+        """``h`` at ``y0``: 0, or at a pitchfork the bifurcation load ``psi_yy / c_yy``."""
+        if not self.pitchfork:
+            return np.zeros(idx.size)
+        _, p_yy, _, c_yy = self.terms(self.y0[idx], idx, True)
+        return p_yy / c_yy
+
+
+def scan_nodes(problem: Problem) -> np.ndarray:
+    """Scan nodes per sample, ``(n, m)``, increasing, in ``(y0, y_max]``.
+
+    ``N_SCAN`` nodes at fractions ``(k / N_SCAN)**2`` of the range and, with a
+    ``scale``, nodes ``y0 + scale 2**(j/2)`` (j >= -8) below the first of them.
+    """
+    span = problem.y_max - problem.y0
+    t = (np.arange(1, N_SCAN + 1) / N_SCAN) ** 2
+    Y = problem.y0[:, None] + span[:, None] * t
+    if problem.scale and span.size:
+        first = t[0] * float(np.max(span))
+        j_max = int(np.ceil(2.0 * np.log2(max(first / problem.scale, 1.0)))) + 1
+        offsets = problem.scale * 2.0 ** (np.arange(-8, j_max) / 2.0)
+        offsets = offsets[offsets < first]
+        if offsets.size:
+            extra = problem.y0[:, None] + np.minimum(offsets, 0.999 * span[:, None])
+            Y = np.sort(np.concatenate([extra, Y], axis=1), axis=1)
+    return Y
+
+
+def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
+    """Per sample, the stable equilibrium a voltage ramp reaches from ``y0`` (no history).
 
     Returns
     -------
     y : numpy.ndarray
-        Equilibrium coordinate.
+        Equilibrium coordinate (``y0`` where there is none).
     status : numpy.ndarray of int8
         ``OK``; ``SNAPPED`` where the branch folded on the way and the
         equilibrium is the next stable state (the first minimum of ``g``
-        beyond ``y0``); ``LIMIT_POINT`` where there is no stable state in
-        the admissible range; ``NOT_CONVERGED``.
+        beyond ``y0``); ``LIMIT_POINT`` where the branch folded and no stable
+        state follows in the admissible range (``h`` falls at its end);
+        ``OUTSIDE_RANGE`` where ``h`` rises at the range's end without having
+        reached ``K``; ``NOT_CONVERGED``.
     K_crit : numpy.ndarray
-        Load parameter at the first fold (or, without a fold, the largest
-        ``h`` in range) where ``status`` is ``SNAPPED`` or ``LIMIT_POINT``;
-        NaN elsewhere.
+        Load parameter at the first fold where ``status`` is ``SNAPPED`` or
+        ``LIMIT_POINT``; NaN elsewhere.
+    K_range : numpy.ndarray
+        ``h`` at the end of the range (the largest load solved) where
+        ``status`` is ``OUTSIDE_RANGE``; NaN elsewhere.
 
     Notes
     -----
-    The equilibrium is the first root of ``g_y`` where ``g_y`` turns from
-    negative to positive, i.e. the first scan node with ``h >= K``; in
-    between ``g`` decreases monotonically from ``y0``. A fold is a node
-    where ``h`` falls: the branch from ``y0`` ends there.
+    The equilibrium is the first scan node with ``h >= K``, refined between
+    it and the node before; in between ``g`` decreases monotonically from
+    ``y0``. A fold is a node where ``h`` falls: the branch from ``y0`` ends
+    there (refined by golden section; just below a fold ``h >= K`` may hold
+    only in a window narrower than the scan step, which is then searched).
     """
+    terms, y0, K = problem.terms, problem.y0, problem.K
     n = K.size
     y = y0.astype(float).copy()
     status = np.full(n, OK, dtype=np.int8)
     K_crit = np.full(n, np.nan)
-    if pitchfork:
-        _, p_yy, _, c_yy = terms(y0, np.arange(n), True)
-        h_start = p_yy / c_yy
-    else:
-        h_start = np.zeros(n)
+    K_range = np.full(n, np.nan)
+    h_start = problem.h_start(np.arange(n))
     idx = np.flatnonzero(K > h_start)
     if idx.size == 0:
-        return y, status, K_crit
+        return y, status, K_crit, K_range
 
+    Y = scan_nodes(problem)
     lo = np.empty(n)
     hi = np.empty(n)
     folded = np.zeros(n, dtype=bool)
     fold_lo = np.empty(n)
     fold_hi = np.empty(n)
     fold_h = np.empty(n)
-    t = (np.arange(1, n_scan + 1) / n_scan) ** 2
     y_prev2 = y0[idx].copy()
     y_prev = y0[idx].copy()
     h_prev = h_start[idx].copy()
-    for k in range(n_scan):
+    h_prev2 = h_prev.copy()
+    for k in range(Y.shape[1]):
         if idx.size == 0:
             break
-        yk = y0[idx] + (y_max[idx] - y0[idx]) * t[k]
+        yk = Y[idx, k]
         p_y, _, c_y, _ = terms(yk, idx, False)
         h = p_y / c_y
         fell = ~(h >= h_prev) & ~folded[idx]
@@ -115,13 +196,14 @@ def follow_branch(terms, y0, y_max, K, *, pitchfork=False, n_scan=24, rtol=1e-14
         lo[idx[found]] = y_prev[found]
         hi[idx[found]] = yk[found]
         keep = ~found
-        idx, y_prev2, y_prev, h_prev = idx[keep], y_prev[keep], yk[keep], h[keep]
+        idx, y_prev2, y_prev, h_prev2, h_prev = idx[keep], y_prev[keep], yk[keep], h_prev[keep], h[keep]
     if idx.size:  # no stable state within the admissible range
-        status[idx] = LIMIT_POINT
-        K_crit[idx] = np.where(folded[idx], np.nan, h_prev)
+        past = folded[idx] & (h_prev < h_prev2)  # beyond a fold, and still falling at the end
+        status[idx] = np.where(past, LIMIT_POINT, OUTSIDE_RANGE)
+        K_range[idx[~past]] = h_prev[~past]
     fi = np.flatnonzero(folded)
     if fi.size:
-        K_crit[fi], y_top = _fold(terms, fi, fold_lo[fi], fold_hi[fi], fold_h[fi], y0[fi], pitchfork)
+        K_crit[fi], y_top = _fold(terms, fi, fold_lo[fi], fold_hi[fi], fold_h[fi], y0[fi], problem.pitchfork)
         # Just below a fold, h >= K holds only in a window around the maximum that
         # can be narrower than the scan step: the scan then saw h fall. Such a
         # sample has not folded; its root lies between the node before and the top.
@@ -131,25 +213,279 @@ def follow_branch(terms, y0, y_max, K, *, pitchfork=False, n_scan=24, rtol=1e-14
             folded[b] = False
             status[b] = OK
             K_crit[b] = np.nan
+            K_range[b] = np.nan
             lo[b] = fold_lo[b]
             hi[b] = y_top[below]
+        K_crit[status == OUTSIDE_RANGE] = np.nan  # the branch goes on beyond the range: no fold to report
 
     todo = np.flatnonzero((status == OK) & (K > h_start))
-    y_new, ok = _refine_root(terms, todo, lo[todo], hi[todo], K[todo], y_max[todo] - y0[todo],
-                             rtol, max_iter)
+    y_new, ok = _refine_root(terms, todo, lo[todo], hi[todo], K[todo],
+                             problem.y_max[todo] - y0[todo], rtol, max_iter)
     y[todo] = y_new
     status[todo[folded[todo]]] = SNAPPED
     status[todo[~ok]] = NOT_CONVERGED
-    return y, status, K_crit
+    return y, status, K_crit, K_range
 
 
-def _refine_root(terms, idx, lo, hi, K, scale, rtol, max_iter):
-    """Newton's method on ``g_y = 0`` inside ``[lo, hi]``, bisection when it strays."""
+def follow_path(problem: Problem, start=None, *, origin=None, rtol=1e-14, max_iter=100):
+    """Per sample of a time series, the state descent of ``g`` reaches from the previous state.
+
+    Parameters
+    ----------
+    problem : Problem
+        Samples in time order.
+    start : float, optional
+        Coordinate of the state before the first sample (the previous block's
+        last state); default: the unloaded roll ``y0`` of the first sample, so
+        the first sample follows the rising-ramp rule of :func:`follow_branch`.
+    origin : numpy.ndarray, optional
+        Instead of a series: per sample, the coordinate each one descends from
+        (independent samples, e.g. a state followed to another stretch).
+
+    Returns
+    -------
+    y, status, K_crit, K_range : numpy.ndarray
+        As :func:`follow_branch`, except that ``SNAPPED`` marks the samples
+        where the state jumped across a fold since the previous sample
+        (``K_crit``: the load of the first fold crossed in the direction of
+        travel), and a sample without a stable state is ``LIMIT_POINT`` when
+        descent from the previous state crossed a fold of ``h`` on its way out
+        of the range, ``OUTSIDE_RANGE`` otherwise (a run of such samples keeps
+        the label of its first).
+    end : float
+        Coordinate to continue from (``y_max`` where no state was found).
+    """
+    terms, y0, K = problem.terms, problem.y0, problem.K
+    n = K.size
+    y = np.empty(n)
+    status = np.full(n, OK, dtype=np.int8)
+    K_crit = np.full(n, np.nan)
+    K_range = np.full(n, np.nan)
+    if n == 0:
+        return y, status, K_crit, K_range, start
+    scan = _full_scan(problem)
+    kx, kh, ext_y, ext_h, ext_max, end_rising = scan
+    # crossings of K between consecutive knots: up = stable root, down = unstable
+    Kc = K[:, None]
+    a_h, b_h = kh[:, :-1], kh[:, 1:]
+    up = (a_h < Kc) & (b_h >= Kc)
+    down = (a_h >= Kc) & (b_h < Kc)
+    at_start = K <= kh[:, 0]  # y0 itself is a (boundary) minimum
+    roots_lo, roots_hi, sign, owner, col = [], [], [], [], []
+    for mask, s in ((up, 1.0), (down, -1.0)):
+        r, c = np.nonzero(mask)
+        roots_lo.append(kx[r, c])
+        roots_hi.append(kx[r, c + 1])
+        sign.append(np.full(r.size, s))
+        owner.append(r)
+        col.append(c)
+    lo_, hi_, sg, own, cl = (np.concatenate(a) for a in (roots_lo, roots_hi, sign, owner, col))
+    root_y, ok = _refine_root(terms, own, lo_, hi_, K[own], problem.y_max[own] - y0[own], rtol, max_iter,
+                              sign=sg)
+    # per sample: stable roots S (y0 first where it is one) and unstable roots U, in order
+    stable = sg > 0
+    n_up = np.bincount(own[stable], minlength=n)
+    n_down = np.bincount(own[~stable], minlength=n)
+    n_stable = n_up + at_start
+    first_up = np.full(n, np.nan)
+    order = np.lexsort((cl[stable], own[stable]))
+    s_own, s_y = own[stable][order], root_y[stable][order]
+    head = np.flatnonzero(np.r_[True, s_own[1:] != s_own[:-1]]) if s_own.size else np.array([], int)
+    first_up[s_own[head]] = s_y[head]
+    first_stable = np.where(at_start, y0, first_up)
+    bad_root = np.zeros(n, dtype=bool)
+    np.logical_or.at(bad_root, own[~ok], True)
+
+    none = n_stable == 0
+    y_end = problem.y_max
+    # one basin: the state is its minimum whatever came before
+    single = (n_down == 0) & ~none
+    y[single] = first_stable[single]
+    y[none] = y_end[none]
+    lost = none.copy()
+    multi = np.flatnonzero(n_down > 0)
+    if origin is not None:
+        origin = np.asarray(origin, float)
+        if multi.size:
+            S, U = _roots_by_sample(multi, own, root_y, stable, cl, at_start, y0)
+            for i in multi.tolist():
+                j = int(np.searchsorted(U[i], origin[i], side="right"))
+                y[i] = S[i][j] if j < len(S[i]) else y_end[i]
+                lost[i] = j >= len(S[i])
+        multi = multi[:0]
+    if multi.size:
+        S, U = _roots_by_sample(multi, own, root_y, stable, cl, at_start, y0)
+        prev = float(y0[0]) if start is None else float(start)
+        for i in multi.tolist():  # in time order: each needs the state before it
+            yp = prev if i == 0 else float(y[i - 1])
+            s_i, u_i = S[i], U[i]
+            j = int(np.searchsorted(u_i, yp, side="right"))  # the basin yp lies in
+            if j < len(s_i):
+                y[i] = s_i[j]
+            else:  # above the last unstable root with no minimum beyond: out of the range
+                y[i] = y_end[i]
+                lost[i] = True
+    if origin is not None:
+        y_prev = origin
+    else:
+        y_prev = np.empty(n)
+        y_prev[0] = float(y0[0]) if start is None else float(start)
+        y_prev[1:] = y[:-1]
+
+    # snap-through: a fold of h lies strictly between the previous state and this one
+    lo_y = np.minimum(y_prev, y)
+    hi_y = np.maximum(y_prev, y)
+    has_ext = np.flatnonzero(np.any(np.isfinite(ext_y), axis=1))
+    snapped = np.zeros(n, dtype=bool)
+    if has_ext.size:
+        e_y, e_h, e_max = ext_y[has_ext], ext_h[has_ext], ext_max[has_ext]
+        rising = (y[has_ext] >= y_prev[has_ext])[:, None]
+        inside = (e_y > lo_y[has_ext, None]) & (e_y < hi_y[has_ext, None])
+        valid = ~lost[has_ext]
+        crossed = inside & valid[:, None]
+        any_c = np.any(crossed, axis=1)
+        # first fold met from the previous state in the direction of travel
+        dist = np.where(crossed, np.where(rising, e_y - y_prev[has_ext, None], y_prev[has_ext, None] - e_y), np.inf)
+        first = np.argmin(dist, axis=1)
+        rows = np.flatnonzero(any_c)
+        snapped[has_ext[rows]] = True
+        K_crit[has_ext[rows]] = e_h[rows, first[rows]]
+        # lost samples: past a limit point if descent crossed a fold (a maximum of h) on its way out
+        gone = ~valid
+        if np.any(gone):
+            beyond = (e_y > y_prev[has_ext, None]) & e_max & gone[:, None]
+            dist = np.where(beyond, e_y, np.inf)
+            first = np.argmin(dist, axis=1)
+            rows = np.flatnonzero(np.any(beyond, axis=1))
+            K_crit[has_ext[rows]] = e_h[rows, first[rows]]
+    status[snapped] = SNAPPED
+    status[lost] = np.where(np.isfinite(K_crit[lost]) & ~end_rising[lost], LIMIT_POINT, OUTSIDE_RANGE)
+    if origin is None:  # a run of lost samples keeps the label of its first
+        run_start = lost & ~np.r_[False, lost[:-1]]
+        label_idx = np.maximum.accumulate(np.where(run_start, np.arange(n), 0))
+        status[lost] = status[label_idx[lost]]
+    out = lost & (status == OUTSIDE_RANGE)
+    K_range[out] = kh[out, -1]
+    K_crit[out] = np.nan
+    fail = bad_root & ~lost
+    status[fail] = NOT_CONVERGED
+    return y, status, K_crit, K_range, float(y[-1])
+
+
+def _roots_by_sample(samples, own, root_y, stable, col, at_start, y0):
+    """Sorted stable and unstable roots (Python lists) of each sample in ``samples``."""
+    want = np.isin(own, samples)
+    o, ry, st, c = own[want], root_y[want], stable[want], col[want]
+    order = np.lexsort((c, o))
+    o, ry, st = o[order], ry[order], st[order]
+    S = {int(i): ([float(y0[i])] if at_start[i] else []) for i in samples}
+    U = {int(i): [] for i in samples}
+    for i, yy, s in zip(o.tolist(), ry.tolist(), st.tolist()):
+        (S if s else U)[i].append(yy)
+    return S, U
+
+
+def _full_scan(problem: Problem):
+    """``h`` over the whole range for every sample, with its extrema refined.
+
+    ``h`` depends on the stretch only, so samples that share a stretch share
+    one scan. Returns knots (nodes and extrema, sorted) ``kx, kh`` of shape
+    ``(n, m)`` (padded at the end with ``y_max``), the extrema ``ext_y,
+    ext_h`` (NaN-padded) with ``ext_max`` (True for a maximum of ``h``), and
+    whether ``h`` rises over the range's last interval.
+    """
+    terms, y0 = problem.terms, problem.y0
+    Y = np.concatenate([y0[:, None], scan_nodes(problem)], axis=1)
+    n, m = Y.shape
+    H = np.empty((n, m))
+    idx = np.arange(n)
+    H[:, 0] = problem.h_start(idx)
+    for k in range(1, m):
+        p_y, _, c_y, _ = terms(Y[:, k], idx, False)
+        H[:, k] = p_y / c_y
+    dH = np.diff(H, axis=1)
+    inc = dH >= 0.0
+    # interior extrema at node k: the slope changes sign between intervals k-1 and k
+    is_max = np.zeros((n, m), dtype=bool)
+    is_min = np.zeros((n, m), dtype=bool)
+    is_max[:, 1:-1] = inc[:, :-1] & ~inc[:, 1:]
+    is_min[:, 1:-1] = ~inc[:, :-1] & inc[:, 1:]
+    # a subcritical pitchfork: h falls right away from y0 (a maximum at y0 itself)
+    pf_max = ~inc[:, 0] if problem.pitchfork else np.zeros(n, dtype=bool)
+    r, c = np.nonzero(is_max | is_min)
+    e_y = np.empty(r.size)
+    e_h = np.empty(r.size)
+    e_is_max = is_max[r, c]
+    if r.size:
+        e_y, e_h = _extremum(terms, r, Y[r, c - 1], Y[r, c + 1], Y[r, c], H[r, c], e_is_max, y0[r],
+                             problem.pitchfork)
+    # the pitchfork maximum sits at y0; place it a hair above so that a move up from y0 crosses it
+    pr = np.flatnonzero(pf_max)
+    r = np.concatenate([r, pr])
+    e_y = np.concatenate([e_y, np.nextafter(y0[pr], np.inf)])
+    e_h = np.concatenate([e_h, H[pr, 0]])
+    e_is_max = np.concatenate([e_is_max, np.ones(pr.size, dtype=bool)])
+    counts = np.bincount(r, minlength=n)
+    e_max_n = int(counts.max()) if n else 0
+    ext_y = np.full((n, e_max_n), np.nan)
+    ext_h = np.full((n, e_max_n), np.nan)
+    ext_max = np.zeros((n, e_max_n), dtype=bool)
+    if r.size:
+        order = np.argsort(r, kind="stable")
+        rs = r[order]
+        slot = np.arange(rs.size) - np.searchsorted(rs, rs, side="left")
+        ext_y[rs, slot] = e_y[order]
+        ext_h[rs, slot] = e_h[order]
+        ext_max[rs, slot] = e_is_max[order]
+    # knots: nodes and extrema in order of y (the pitchfork's y0 hair-extremum replaces nothing)
+    kx = np.concatenate([Y, np.where(np.isfinite(ext_y), ext_y, Y[:, -1:])], axis=1)
+    kh = np.concatenate([H, np.where(np.isfinite(ext_y), ext_h, H[:, -1:])], axis=1)
+    order = np.argsort(kx, axis=1, kind="stable")
+    kx = np.take_along_axis(kx, order, axis=1)
+    kh = np.take_along_axis(kh, order, axis=1)
+    return kx, kh, ext_y, ext_h, ext_max, inc[:, -1]
+
+
+def _extremum(terms, idx, lo, hi, y_node, h_node, is_max, y0, pitchfork, iters=80):
+    """Extremum of ``h`` on ``[lo, hi]`` by golden section: ``(y, h)`` there."""
+    s = np.where(is_max, 1.0, -1.0)
+    a = np.where(lo <= y0, lo + 1e-12 * (hi - lo), lo) if pitchfork else lo.copy()
+    b = hi.copy()
+
+    def f(yy):
+        p_y, _, c_y, _ = terms(yy, idx, False)
+        return s * (p_y / c_y)
+
+    c = b - _GOLDEN * (b - a)
+    d = a + _GOLDEN * (b - a)
+    fc, fd = f(c), f(d)
+    for _ in range(iters):
+        left = fc > fd
+        b = np.where(left, d, b)
+        a = np.where(left, a, c)
+        c_new = b - _GOLDEN * (b - a)
+        d_new = a + _GOLDEN * (b - a)
+        c, d = np.where(left, c_new, d), np.where(left, c, d_new)
+        fc, fd = np.where(left, f(c_new), fd), np.where(left, fc, f(d_new))
+    top_c = fc >= fd
+    y_top = np.where(top_c, c, d)
+    f_top = np.where(top_c, fc, fd)
+    better = s * h_node > f_top  # the scan node itself (golden section can only improve on it)
+    return np.where(better, y_node, y_top), s * np.where(better, s * h_node, f_top)
+
+
+def _refine_root(terms, idx, lo, hi, K, scale, rtol, max_iter, sign=None):
+    """Newton's method on ``g_y = 0`` inside ``[lo, hi]``, bisection when it strays.
+
+    ``sign`` is +1 where ``g_y`` rises through the root (a minimum of ``g``:
+    the default) and -1 where it falls (a maximum).
+    """
     y = 0.5 * (lo + hi)
     out = np.empty_like(y)
     ok = np.zeros(y.size, dtype=bool)
     active = np.arange(y.size)
     tol = rtol * scale
+    sgn = np.ones(y.size) if sign is None else np.asarray(sign, float)
     for _ in range(max_iter):
         if active.size == 0:
             break
@@ -157,7 +493,7 @@ def _refine_root(terms, idx, lo, hi, K, scale, rtol, max_iter):
         Ka = K[active]
         g1 = p_y - Ka * c_y
         g2 = p_yy - Ka * c_yy
-        below = g1 < 0.0
+        below = sgn[active] * g1 < 0.0
         lo = np.where(below, y, lo)
         hi = np.where(below, hi, y)
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -10,9 +10,9 @@ from ..specs.errors import UserError
 
 #: Per-sample status codes of :class:`ModelResult`.
 OK = 0
-#: The voltage is past the limit point: there is no stable equilibrium in the
-#: admissible range that a quasi-static voltage ramp could reach.
-#: ``critical_voltage`` holds the voltage where the branch was lost.
+#: The voltage is past a limit point: the branch folded (a true fold, pull-in)
+#: and no stable equilibrium follows it in the admissible range.
+#: ``critical_voltage`` holds the fold's voltage.
 LIMIT_POINT = 1
 #: Stretch or voltage was NaN or infinite.
 BAD_INPUT = 2
@@ -26,11 +26,23 @@ SNAPPED = 4
 #: The inputs are finite but the stress or force is not representable (a stretch so large that the
 #: Yeoh energy overflows double precision, e.g. beyond about 1e51): no number, never a silent inf.
 OVERFLOW = 5
+#: No fold, but the equilibrium lies beyond the range the model is solved for (the
+#: active ring's hoop stretch above ``HOOP_STRETCH_CAP`` times the uniaxial value):
+#: ``range_voltage`` holds the largest voltage solved at that stretch. Not a limit point.
+OUTSIDE_RANGE = 6
+#: A valid state: the roll would push (its tensile force is negative), so it is slack,
+#: buckled at the clamps: force 0, stress 0, and the stretches and capacitance of the
+#: free (F = 0) state at ``free_stretch`` (Assumption 1 of [1]: a roll carries no compression).
+SLACK = 7
 
 STATUS_NAMES = {OK: "ok", LIMIT_POINT: "past limit point", BAD_INPUT: "NaN or infinite input",
                 NOT_CONVERGED: "not converged", SNAPPED: "reached by a snap-through",
-                OVERFLOW: "stress overflows (stretch too large)"}
-VALID = (OK, SNAPPED)
+                OVERFLOW: "stress overflows (stretch too large)", OUTSIDE_RANGE: "outside solved range",
+                SLACK: "slack (the roll would push)"}
+#: Statuses with a valid state.
+VALID = (OK, SNAPPED, SLACK)
+#: One line per status code, for the ``model_status`` variable's ``long_name``.
+STATUS_LEGEND = ", ".join(f"{code} {name.split(' (')[0]}" for code, name in sorted(STATUS_NAMES.items()))
 
 
 class ModelNotApplicable(UserError):
@@ -98,9 +110,13 @@ class ModelResult:
     stretch, voltage : numpy.ndarray
         The inputs [-], [V].
     sigma1 : numpy.ndarray
-        Axial true stress, eq. (16) [Pa]; NaN where ``converged`` is False.
+        Axial true stress, eq. (16) [Pa]; 0 where slack; NaN where ``converged`` is False.
     force : numpy.ndarray
-        Axial force ``sigma1 pi (Ro**2 - Ri**2) / lambda1`` [N].
+        Axial force ``sigma1 pi (Ro**2 - Ri**2) / lambda1`` [N], >= 0 for a roll.
+    tension : numpy.ndarray
+        The axial stress the equilibrium at the given stretch needs [Pa]: ``sigma1``
+        where taut, negative where slack (what a clamp would have to push with);
+        the quasi-static stress a viscoelastic overstress adds to.
     lambda2a, lambda2b, lambda2c : numpy.ndarray
         Circumferential stretch of rings a, b, c [-] (all equal for SU, 1R).
     capacitance : numpy.ndarray
@@ -108,15 +124,24 @@ class ModelResult:
     converged : numpy.ndarray of bool
         True where the sample has a stable equilibrium on the physical branch.
     status : numpy.ndarray of int8
-        One of ``OK``, ``SNAPPED`` (both converged), ``LIMIT_POINT``,
-        ``BAD_INPUT``, ``NOT_CONVERGED``, ``OVERFLOW``.
+        One of ``OK``, ``SNAPPED``, ``SLACK`` (all converged), ``LIMIT_POINT``,
+        ``OUTSIDE_RANGE``, ``BAD_INPUT``, ``NOT_CONVERGED``, ``OVERFLOW``.
     critical_voltage : numpy.ndarray
-        Voltage at the sample's stretch where the branch from the unloaded
-        state folds [V], where ``status`` is ``LIMIT_POINT`` or ``SNAPPED``;
-        NaN elsewhere.
+        Voltage of the fold [V] at the sample's stretch, where ``status`` is
+        ``LIMIT_POINT`` or ``SNAPPED`` (the fold crossed); NaN elsewhere: never
+        the end of the solved range.
+    range_voltage : numpy.ndarray
+        Where ``status`` is ``OUTSIDE_RANGE``: the largest voltage the admissible
+        range solves at that stretch [V]; NaN elsewhere.
+    free_stretch : numpy.ndarray
+        Axial stretch of the material [-]: the given stretch where taut, the
+        free (F = 0) stretch where slack.
     r_i : numpy.ndarray
         Deformed inner radius [m] (3R only; for SU and 1R it follows
         from the uniform ring, ``Ri lambda2``).
+    end : object or None
+        For a path (``solve(..., path=True)``): the state after the last sample,
+        to pass as ``start`` for the next block.
     """
 
     model: str
@@ -132,6 +157,10 @@ class ModelResult:
     status: np.ndarray
     critical_voltage: np.ndarray
     r_i: np.ndarray
+    tension: np.ndarray
+    range_voltage: np.ndarray
+    free_stretch: np.ndarray
+    end: object = None
 
     @property
     def all_converged(self) -> bool:
@@ -141,7 +170,7 @@ class ModelResult:
         """One line on the samples that have no valid equilibrium, or ``"all converged"``."""
         n = self.status.size
         parts = []
-        for code in (LIMIT_POINT, SNAPPED, BAD_INPUT, NOT_CONVERGED):
+        for code in (LIMIT_POINT, SNAPPED, OUTSIDE_RANGE, SLACK, BAD_INPUT, NOT_CONVERGED, OVERFLOW):
             sel = self.status == code
             if not np.any(sel):
                 continue
@@ -149,28 +178,51 @@ class ModelResult:
             if code in (LIMIT_POINT, SNAPPED):
                 i = int(np.flatnonzero(sel)[0])
                 text += (f" (first at sample {i}: stretch {self.stretch.flat[i]:.4g}, voltage "
-                         f"{self.voltage.flat[i]:.4g} V, critical voltage {self.critical_voltage.flat[i]:.4g} V)")
+                         f"{self.voltage.flat[i]:.4g} V, fold at {self.critical_voltage.flat[i]:.4g} V)")
+            elif code == OUTSIDE_RANGE:
+                i = int(np.flatnonzero(sel)[0])
+                text += (f" (first at sample {i}: stretch {self.stretch.flat[i]:.4g}, voltage "
+                         f"{self.voltage.flat[i]:.4g} V; solved up to {self.range_voltage.flat[i]:.4g} V there)")
             parts.append(text)
-        return "; ".join(parts) if parts else f"all {n} samples converged"
+        if not parts:
+            return f"all {n} samples converged"
+        return "; ".join(parts)
 
 
-def finish(model, geom, l1, bad, shape, raw, sigma1, l2a, l2b, l2c, capacitance, status,
-           critical_voltage, r_i) -> ModelResult:
-    """Assemble a :class:`ModelResult`: force from stress, NaN where not converged."""
+@dataclass(frozen=True)
+class PathEnd:
+    """Where a path left off: the model and its free coordinate after the last sample."""
+
+    model: str
+    y: float | None
+
+
+def finish(model, geom, l1, bad, shape, raw, fields, status, critical_voltage, range_voltage, free_stretch,
+           end=None) -> ModelResult:
+    """Assemble a :class:`ModelResult`: force from stress, NaN where not converged.
+
+    ``fields`` holds ``sigma1`` (0 where slack), ``tension``, ``lambda2a``,
+    ``lambda2b``, ``lambda2c``, ``capacitance`` and ``r_i`` per sample.
+    """
     status = np.where(bad, BAD_INPUT, status).astype(np.int8)
+    sigma1 = np.asarray(fields["sigma1"], float)
     with np.errstate(invalid="ignore", over="ignore"):
-        force = np.asarray(sigma1, float) * geom.area / l1
-    unrepresentable = np.isin(status, VALID) & ~(np.isfinite(sigma1) & np.isfinite(force))
+        force = sigma1 * geom.area / l1
+    unrepresentable = np.isin(status, VALID) & ~(np.isfinite(sigma1) & np.isfinite(force)
+                                                 & np.isfinite(fields["tension"]))
     status = np.where(unrepresentable, OVERFLOW, status).astype(np.int8)
     ok = np.isin(status, VALID)
     out = {}
-    for name, arr in (("sigma1", sigma1), ("lambda2a", l2a), ("lambda2b", l2b), ("lambda2c", l2c),
-                      ("capacitance", capacitance), ("r_i", r_i)):
-        arr = np.broadcast_to(np.asarray(arr, float), l1.shape)
+    for name in ("sigma1", "tension", "lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i"):
+        arr = np.broadcast_to(np.asarray(fields[name], float), l1.shape)
         out[name] = np.where(ok, arr, np.nan).reshape(shape)
     out["force"] = out["sigma1"] * geom.area / l1.reshape(shape)
+    on = {LIMIT_POINT, SNAPPED}
+    crit = np.where(np.isin(status, list(on)), np.asarray(critical_voltage, float), np.nan)
+    rng = np.where(status == OUTSIDE_RANGE, np.asarray(range_voltage, float), np.nan)
     return ModelResult(
         model=model, stretch=raw[0].reshape(shape), voltage=raw[1].reshape(shape),
         converged=ok.reshape(shape), status=status.reshape(shape),
-        critical_voltage=np.asarray(critical_voltage, float).reshape(shape), **out,
+        critical_voltage=crit.reshape(shape), range_voltage=rng.reshape(shape),
+        free_stretch=np.where(ok, free_stretch, np.nan).reshape(shape), end=end, **out,
     )

@@ -7,7 +7,8 @@ import pytest
 
 from rdea_lab.physics.models import solve, three_ring
 from rdea_lab.physics.models._common import HOOP_STRETCH_CAP, kappa
-from rdea_lab.physics.result import BAD_INPUT, LIMIT_POINT, OK, SNAPPED, StretchBelowOneError
+from rdea_lab.physics.result import (BAD_INPUT, LIMIT_POINT, OK, OUTSIDE_RANGE, SLACK, SNAPPED,
+                                     StretchBelowOneError)
 
 from conftest import RIZZELLO, TABLE3, core
 
@@ -71,8 +72,8 @@ def test_thin_shell():
     geom = core(radii)
     l1 = np.linspace(1.0, 1.75, 16)
     v = np.full(16, 3500.0)
-    r3 = solve("3r", geom, RIZZELLO, l1, v)
-    r1 = solve("1r", geom, RIZZELLO, l1, v)
+    r3 = solve("3r", geom, RIZZELLO, l1, v, slack=False)  # the equations, as fsolve solves them
+    r1 = solve("1r", geom, RIZZELLO, l1, v, slack=False)
     assert r3.all_converged and r1.all_converged
     assert np.max(np.abs(r3.sigma1 - r1.sigma1)) < 0.01 * np.max(np.abs(r1.sigma1))
     base = solve_3r_fsolve(l1, v, Ri=radii[0], Rie=radii[1], Roe=radii[2], Ro=radii[3], L3=48e-6, alpha_e1=1.0,
@@ -89,15 +90,24 @@ def test_stretch_exactly_one_and_one_plus_1e_12(model, any_core):
     l1 = 1.0 + 1e-12
     e = l1 - 1.0
     assert solve(model, any_core, TABLE3, l1, 0.0).sigma1 == pytest.approx(6 * TABLE3.C10 * e, rel=1e-6, abs=0)
-    r = solve(model, any_core, TABLE3, np.array([1.0, l1]), 2600.0)  # compressive under voltage
+    r = solve(model, any_core, TABLE3, np.array([1.0, l1]), 2600.0, slack=False)  # compressive under voltage
     assert r.all_converged and np.all(r.sigma1 < 0)
+    # ... which a roll cannot carry: it is slack, in its free state at a larger stretch with zero stress
+    s = solve(model, any_core, TABLE3, np.array([1.0, l1]), 2600.0)
+    assert np.all(s.status == SLACK) and np.all(s.force == 0.0) and np.all(s.sigma1 == 0.0)
+    np.testing.assert_array_equal(s.tension, r.sigma1)
+    assert np.all(s.free_stretch > np.array([1.0, l1]))
+    free = solve(model, any_core, TABLE3, s.free_stretch, 2600.0, slack=False)
+    assert np.all(np.abs(free.sigma1) <= 1e-6 * np.abs(r.sigma1))  # the free state carries no stress
+    np.testing.assert_allclose(s.capacitance, free.capacitance, rtol=1e-9)
+    np.testing.assert_allclose(s.lambda2b, free.lambda2b, rtol=1e-9)
 
 
 @pytest.mark.parametrize("model", MODELS)
 def test_stretch_three(model, any_core):
     l1 = np.linspace(1.0, 3.0, 41)
     for v in (0.0, 3500.0):
-        r = solve(model, any_core, TABLE3, l1, v)
+        r = solve(model, any_core, TABLE3, l1, v, slack=False)
         assert r.all_converged
         assert np.all(np.diff(r.sigma1) > 0)  # stress grows with stretch over the whole range
     r0 = [solve(m, any_core, TABLE3, 3.0, 0.0).sigma1 for m in MODELS]
@@ -105,57 +115,82 @@ def test_stretch_three(model, any_core):
 
 
 # A weakly stiffening material (admissible: C20^2 < 3 C10 C30 keeps dW/dI1 > 0) whose
-# 1R branch folds at a few kV, and a neo-Hookean one whose branch has an asymptote.
+# 1R branch folds at a few kV and re-stabilizes; a neo-Hookean one whose branch has an
+# asymptote (no fold); and a softening one without C30, whose branch folds for good.
 WEAK = SimpleNamespace(C10=242e3, C20=-20e3, C30=1e3, eps_r=2.8)
 NEO = SimpleNamespace(C10=242e3, C20=0.0, C30=0.0, eps_r=2.8)
+SOFT = SimpleNamespace(C10=242e3, C20=-20e3, C30=0.0, eps_r=2.8)
 
 
-def reference_fold_1r(geom, mat, l1):
+def reference_1r(geom, mat, l1):
     """Independent of the solver: along the 1R equilibria the voltage is explicit,
-    v(l2)^2 = psi_2 / (2 l2 kappa l1^2) (eq. 33); its first maximum is the fold."""
+    v(l2)^2 = psi_2 / (2 l2 kappa l1^2) (eq. 33), on a grid over the admissible range.
+    Returns the grid's v and the indices of its local maxima (folds) and minima."""
     l2 = np.linspace(l1**-0.5, HOOP_STRETCH_CAP * l1**-0.5, 2_000_001)
     x = l1**2 + l2**2 + (l1 * l2) ** -2 - 3
     W1 = mat.C10 + 2 * mat.C20 * x + 3 * mat.C30 * x**2
     psi_2 = W1 * (2 * l2 - 2 * l1**-2 * l2**-3)
-    v = np.sqrt(psi_2 / (2 * l2 * kappa(geom, mat) * l1**2))
-    falls = np.flatnonzero(np.diff(v) < 0)
-    return v[falls[0]] if falls.size else v[-1]
+    with np.errstate(invalid="ignore"):
+        v = np.sqrt(np.maximum(psi_2, 0) / (2 * l2 * kappa(geom, mat) * l1**2))
+    d = np.diff(v)
+    maxima = np.flatnonzero((d[:-1] > 0) & (d[1:] <= 0)) + 1
+    minima = np.flatnonzero((d[:-1] < 0) & (d[1:] >= 0)) + 1
+    return v, maxima, minima
 
 
 @pytest.mark.parametrize("l1", [1.0, 1.2, 1.5])
-def test_voltage_at_and_past_the_limit_point(l1):
+def test_fold_snap_and_the_end_of_the_solved_range(l1):
+    """WEAK folds at v_c and re-stabilizes: past v_c the ramp snaps to the expanded branch
+    (SNAPPED, critical voltage = the fold's); past the voltage at the range's end the state
+    is outside the solved range (no fold reported: the range is not a limit point)."""
     geom = core("hollow")
-    v_c = reference_fold_1r(geom, WEAK, l1)
-    below = solve("1r", geom, WEAK, l1, v_c * (1 - 1e-4))
+    v, maxima, minima = reference_1r(geom, WEAK, l1)
+    assert maxima.size == 1 and minima.size == 1  # one fold pair: an S-shaped branch
+    v_c, v_end = v[maxima[0]], v[-1]
+    below = solve("1r", geom, WEAK, l1, v_c * (1 - 1e-4), slack=False)
     assert below.status == OK and np.isfinite(below.sigma1)
-    past = solve("1r", geom, WEAK, l1, np.array([v_c * (1 + 1e-4), 1.5 * v_c, 10 * v_c]))
-    # past the fold there is no stable state on the branch: the result says so, with the voltage
-    assert np.all(np.isin(past.status, (SNAPPED, LIMIT_POINT)))
-    assert np.all(past.critical_voltage == pytest.approx(v_c, rel=1e-7, abs=0))  # grid step ~1e-6 in l2
-    assert np.all(np.isnan(past.sigma1[past.status == LIMIT_POINT]))
-    assert past.status[-1] == LIMIT_POINT and "past limit point" in past.summary()
+    past = solve("1r", geom, WEAK, l1, np.array([v_c * (1 + 1e-4), 1.5 * v_c, 0.999 * v_end]), slack=False)
+    assert np.all(past.status == SNAPPED)
+    assert np.all(past.critical_voltage == pytest.approx(v_c, rel=1e-7, abs=0))  # grid step ~5e-6 in l2
+    out = solve("1r", geom, WEAK, l1, 1.001 * v_end, slack=False)
+    assert out.status == OUTSIDE_RANGE and np.isnan(out.critical_voltage) and np.isnan(out.sigma1)
+    assert float(out.range_voltage) == pytest.approx(v_end, rel=1e-9)
+    assert "outside solved range" in out.summary() and "past limit point" not in out.summary()
+
+
+def test_a_fold_with_nothing_beyond_is_a_limit_point():
+    """SOFT (no strain stiffening) folds and never re-stabilizes: past the fold, pull-in."""
+    geom = core("hollow")
+    l1 = 1.2
+    v, maxima, _ = reference_1r(geom, SOFT, l1)
+    v_c = v[maxima[0]]
+    r = solve("1r", geom, SOFT, l1, np.array([0.99 * v_c, 1.01 * v_c, 3 * v_c]), slack=False)
+    assert r.status[0] == OK and np.all(r.status[1:] == LIMIT_POINT)
+    assert np.all(r.critical_voltage[1:] == pytest.approx(v_c, rel=1e-7, abs=0))
+    assert np.all(np.isnan(r.sigma1[1:])) and "past limit point" in r.summary()
 
 
 def test_neo_hookean_has_no_equilibrium_above_its_asymptote():
-    """Neo-Hookean 1R: K(l2) = C10 (1 - l1^-2 l2^-4) rises to C10, so no equilibrium
-    exists above v* = sqrt(C10 / kappa) / l1; we report the largest voltage with an
-    equilibrium below the hoop-stretch cap: v* sqrt(1 - l1^-2 (cap^2/l1)^-2... ) ~ v*."""
+    """Neo-Hookean 1R: K(l2) = C10 (1 - l1^-2 l2^-4) rises to C10 without a fold, so no
+    equilibrium exists above v* = sqrt(C10 / kappa) / l1. That is not a limit point: the
+    result says the state is outside the solved range, which ends at
+    v* sqrt(1 - l1^-2 cap^-4) (the hoop stretch cap / sqrt(l1))."""
     geom = core("hollow")
     l1 = 1.2
     v_star = np.sqrt(NEO.C10 / kappa(geom, NEO)) / l1
-    r = solve("1r", geom, NEO, l1, np.array([0.9 * v_star, 1.01 * v_star]))
-    assert r.status[0] == OK and r.status[1] == LIMIT_POINT
+    r = solve("1r", geom, NEO, l1, np.array([0.9 * v_star, 1.01 * v_star]), slack=False)
+    assert r.status[0] == OK and r.status[1] == OUTSIDE_RANGE and np.isnan(r.critical_voltage[1])
     cap = HOOP_STRETCH_CAP / np.sqrt(l1)
-    assert r.critical_voltage[1] == pytest.approx(v_star * np.sqrt(1 - l1**-2 * cap**-4), rel=1e-12, abs=0)
+    assert r.range_voltage[1] == pytest.approx(v_star * np.sqrt(1 - l1**-2 * cap**-4), rel=1e-12, abs=0)
 
 
-def test_3r_limit_point_matches_brute_force_enthalpy():
+def test_3r_fold_matches_brute_force_enthalpy():
     """3R on the weak material: just below the reported critical voltage a local minimum of
     g exists near the unloaded state (found on a grid), just above the branch is gone."""
     geom = core("hollow")
     l1 = 1.2
-    r = solve("3r", geom, WEAK, l1, 20e3)
-    assert r.status in (SNAPPED, LIMIT_POINT)
+    r = solve("3r", geom, WEAK, l1, 6e3, slack=False)
+    assert r.status == SNAPPED
     v_c = float(r.critical_voltage)
     xs = np.linspace(geom.Ri / np.sqrt(l1), 3 * geom.Ro, 400_001)
 
@@ -164,10 +199,12 @@ def test_3r_limit_point_matches_brute_force_enthalpy():
         i = np.flatnonzero((g[1:-1] <= g[:-2]) & (g[1:-1] <= g[2:]))
         return xs[i[0] + 1] if i.size else np.inf
 
-    before = solve("3r", geom, WEAK, l1, 0.99 * v_c)
+    before = solve("3r", geom, WEAK, l1, 0.99 * v_c, slack=False)
     assert before.status == OK
     assert first_local_min(0.99 * v_c) == pytest.approx(float(before.r_i), abs=2 * (xs[1] - xs[0]))
     assert first_local_min(1.01 * v_c) > 1.2 * float(before.r_i)  # the nearby minimum has vanished
+    assert first_local_min(1.01 * v_c) == pytest.approx(float(r.r_i) * 0 + float(
+        solve("3r", geom, WEAK, l1, 1.01 * v_c, slack=False).r_i), abs=2 * (xs[1] - xs[0]))
 
 
 @pytest.mark.parametrize("model", MODELS)

@@ -14,8 +14,19 @@ from . import one_ring, su, three_ring
 MODELS = {"su": su, "1r": one_ring, "3r": three_ring}
 
 
-def solve(model: str, geom, material, stretch, voltage):
-    """Solve the quasi-static model ``model`` (``"su"``, ``"1r"`` or ``"3r"``)."""
+def solve(model: str, geom, material, stretch, voltage, *, path=False, start=None, slack=True):
+    """Solve the quasi-static model ``model`` (``"su"``, ``"1r"`` or ``"3r"``).
+
+    With ``path=False`` (default) each (stretch, voltage) sample is solved on
+    its own, in the state a quasi-static voltage ramp from 0 V reaches from
+    the unloaded roll at that stretch. With ``path=True`` the samples are a
+    time series and each continues from the previous sample's state (from
+    ``start``, a previous block's ``ModelResult.end``, if given): loops show
+    hysteresis and snap-throughs are flagged at the samples where they happen.
+    A roll whose tension would be negative is slack (force 0, status
+    ``SLACK``, the free state's stretches); ``slack=False`` returns the
+    equilibrium at the given stretch with its negative stress instead.
+    """
     try:
         module = MODELS[model.lower()]
     except KeyError:
@@ -25,4 +36,4 @@ def solve(model: str, geom, material, stretch, voltage):
         if isinstance(value, (str, os.PathLike)):
             raise TypeError(f"solve: {name} must be an object, not the path {str(value)!r}: physics reads no files; "
                             f"load it with {loader}")
-    return module.solve(geom, material, stretch, voltage)
+    return module.solve(geom, material, stretch, voltage, path=path, start=start, slack=slack)

@@ -1,13 +1,24 @@
-"""Helpers shared by the three quasi-static models."""
+"""What the quasi-static models share: load factors, the solve driver, the slack state."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..branch import follow_branch, follow_path
 from ..constants import EPS0
+from ..result import NOT_CONVERGED, SLACK, SNAPPED, VALID, PathEnd, finish, prepare_inputs
 
 #: Upper end of the admissible range of the active ring's circumferential
-#: stretch, as a multiple of the uniaxial value ``lambda1**-0.5``. Voltage
-#: states beyond it are reported as past the limit point.
-HOOP_STRETCH_CAP = 4.0
+#: stretch, as a multiple of the uniaxial value ``lambda1**-0.5``. States
+#: beyond it are reported as outside the solved range (and a fold below it as
+#: past the limit point). At 10x the active layer would be thinned a
+#: hundredfold; no physical input of the paper's materials gets there.
+HOOP_STRETCH_CAP = 10.0
+
+#: Slack: largest axial stretch searched for the free (F = 0) state [-].
+FREE_STRETCH_MAX = 100.0
 
 
 def yeoh_coefficients(material):
@@ -24,3 +35,188 @@ def kappa(geom, material):
     paper leaves implicit").
     """
     return EPS0 * float(material.eps_r) * geom.alpha_e1 * geom.eta_b / (2.0 * geom.L3**2)
+
+
+@dataclass
+class Evaluation:
+    """A model's equilibria at the given stretches (one entry per sample), before slack.
+
+    ``fields``: ``sigma1`` (the equilibrium's axial stress at the given
+    stretch, signed), ``lambda2a``, ``lambda2b``, ``lambda2c``,
+    ``capacitance``, ``r_i``. ``critical_voltage`` / ``range_voltage`` as in
+    ModelResult; ``end`` the path's last coordinate.
+    """
+
+    status: np.ndarray
+    critical_voltage: np.ndarray
+    range_voltage: np.ndarray
+    fields: dict
+    end: float | None = None
+    y: np.ndarray | None = None
+
+
+def evaluate_free(problem, state, *, path=False, start=None, origin=None) -> Evaluation:
+    """Solve a one-coordinate problem (rising-ramp rule, the path, or descent from
+    ``origin`` per sample) and assemble its fields.
+
+    ``state(y)`` returns the fields dict at the equilibrium coordinates.
+    """
+    if origin is not None:
+        y, status, K_crit, K_range, end = follow_path(problem, origin=origin)
+    elif path:
+        y, status, K_crit, K_range, end = follow_path(problem, start)
+    else:
+        (y, status, K_crit, K_range), end = follow_branch(problem), None
+    return Evaluation(status, problem.voltage(K_crit), problem.voltage(K_range), state(y), end, y)
+
+
+def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False, start=None, slack=True):
+    """The solve of every model: inputs checked, equilibria, slack, one ModelResult.
+
+    ``evaluate(geom, material, l1, v, path=, start=)`` returns an
+    :class:`Evaluation` at 1-D clean inputs. Where the equilibrium's tension
+    is negative the roll is slack: force and stress 0, the other fields those
+    of the free state (:func:`free_state`), status ``SLACK``. With
+    ``slack=False`` the equilibrium at the given stretch is returned as it is,
+    a negative stress and force included (the paper's equations with
+    Assumption 1 taken as given: for comparing models and checking equations).
+    """
+    l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
+    if start is not None:
+        if not isinstance(start, PathEnd) or start.model != name:
+            raise ValueError(f"start: expected the end of a {name} path (ModelResult.end), got {start!r}")
+        start = start.y
+    ev = evaluate(geom, material, l1, v, path=path, start=start)
+    fields = dict(ev.fields)
+    fields["tension"] = fields["sigma1"]
+    status = ev.status.copy()
+    free = l1.copy()
+    with np.errstate(invalid="ignore"):
+        slack = np.flatnonzero(np.isin(status, VALID) & (fields["sigma1"] < 0.0) & ~bad) if slack else []
+    if len(slack):
+        # a path's free state continues the branch the clamped state is on
+        origin = ev.y[slack] if (path and ev.y is not None) else None
+        lam_f, st_f, f_free, crit_f, range_f = free_state(evaluate, geom, material, l1[slack], v[slack],
+                                                          fields["sigma1"][slack], origin=origin)
+        free[slack] = lam_f
+        # a snap-through stays the event it is; otherwise the sample is slack (or has no free state)
+        status[slack] = np.where(st_f == SLACK, np.where(status[slack] == SNAPPED, SNAPPED, SLACK), st_f)
+        sig = np.asarray(fields["sigma1"], float).copy()
+        sig[slack] = 0.0
+        fields["sigma1"] = sig
+        for key in ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i"):
+            arr = np.array(np.broadcast_to(np.asarray(fields[key], float), l1.shape))
+            arr[slack] = f_free[key]
+            fields[key] = arr
+        # where the free state has none, the labels are the free state's (at free_stretch: NaN)
+        crit, rng = ev.critical_voltage.copy(), ev.range_voltage.copy()
+        lost = st_f != SLACK
+        crit[slack[lost]] = crit_f[lost]
+        rng[slack[lost]] = range_f[lost]
+    else:
+        crit, rng = ev.critical_voltage, ev.range_voltage
+    end = PathEnd(name, ev.end) if path else None
+    return finish(name, geom, l1, bad, shape, raw, fields, status, crit, rng, free, end)
+
+
+def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rtol=1e-13, max_iter=200):
+    """The free (F = 0) state of a slack roll: the stretch above ``l1`` where the stress vanishes.
+
+    At fixed voltage the equilibrium stress rises with stretch; the free
+    stretch is bracketed by growing ``l1`` by 25 % steps, then found by the
+    Illinois variant of regula falsi. Each trial is the model itself: the
+    rising-ramp rule at the trial stretch, or with ``origin`` (a path's
+    coordinates) descent from it, so the free state stays on the path's branch.
+    A free stretch where the stress jumps (the free roll would snap) rather
+    than vanishes is ``NOT_CONVERGED``.
+
+    Returns
+    -------
+    stretch : numpy.ndarray
+        Free stretch [-] (NaN where there is none).
+    status : numpy.ndarray of int8
+        ``SLACK`` where found; the model's status at the stretch where it
+        lost its equilibrium (e.g. past a limit point: the free roll would
+        pull in), or ``NOT_CONVERGED``.
+    fields : dict
+        ``lambda2a``, ``lambda2b``, ``lambda2c``, ``capacitance``, ``r_i``
+        of the free state.
+    critical_voltage, range_voltage : numpy.ndarray
+        Where the search lost the equilibrium: the model's fold or range
+        voltage at the stretch where it did.
+    """
+    n = l1.size
+    status = np.full(n, SLACK, dtype=np.int8)
+    crit = np.full(n, np.nan)
+    rng = np.full(n, np.nan)
+    lo, s_lo = l1.astype(float).copy(), np.asarray(sigma_at_l1, float).copy()
+    hi = lo.copy()
+    s_hi = np.full(n, -np.inf)
+    open_ = np.arange(n)
+    while open_.size:
+        trial = np.minimum(hi[open_] * 1.25, FREE_STRETCH_MAX)
+        ev = _trial(evaluate, geom, material, trial, v[open_], origin, open_)
+        sig = ev.fields["sigma1"]
+        ok = np.isin(ev.status, VALID) & np.isfinite(sig)
+        status[open_[~ok]] = np.where(np.isin(ev.status[~ok], VALID), NOT_CONVERGED, ev.status[~ok])
+        crit[open_[~ok]] = ev.critical_voltage[~ok]
+        rng[open_[~ok]] = ev.range_voltage[~ok]
+        got = ok & (sig >= 0.0)
+        hi[open_[got]] = trial[got]
+        s_hi[open_[got]] = sig[got]
+        more = ok & ~got
+        lo[open_[more]] = trial[more]
+        s_lo[open_[more]] = sig[more]
+        stuck = more & (trial >= FREE_STRETCH_MAX)
+        status[open_[stuck]] = NOT_CONVERGED
+        hi[open_[more]] = trial[more]
+        open_ = open_[more & ~stuck]
+    work = np.flatnonzero(status == SLACK)
+    lam = np.full(n, np.nan)
+    side = np.zeros(n, dtype=np.int8)  # Illinois: which end was kept last time
+    a, b, fa, fb = lo[work], hi[work], s_lo[work], s_hi[work]
+    x = b.copy()
+    active = np.arange(work.size)
+    for _ in range(max_iter):
+        if active.size == 0:
+            break
+        xa, xb, ya, yb = a[active], b[active], fa[active], fb[active]
+        xn = (xa * yb - xb * ya) / (yb - ya)
+        xn = np.where((xn > xa) & (xn < xb), xn, 0.5 * (xa + xb))
+        ev = _trial(evaluate, geom, material, xn, v[work[active]], origin, work[active])
+        yn = ev.fields["sigma1"]
+        bad = ~(np.isin(ev.status, VALID) & np.isfinite(yn))
+        yn = np.where(bad, 0.0, yn)  # treat as the root: flagged below
+        status[work[active[bad]]] = NOT_CONVERGED
+        x[active] = xn
+        neg = yn < 0.0
+        s = side[work[active]]
+        # replace the end on the root's side; halve the kept end's value when it is kept twice
+        a[active] = np.where(neg, xn, xa)
+        fa[active] = np.where(neg, yn, np.where(s == 1, 0.5 * ya, ya))
+        b[active] = np.where(neg, xb, xn)
+        fb[active] = np.where(neg, np.where(s == -1, 0.5 * yb, yb), yn)
+        side[work[active]] = np.where(neg, -1, 1)
+        done = bad | (yn == 0.0) | (b[active] - a[active] <= rtol * b[active])
+        active = active[~done]
+    status[work[active]] = NOT_CONVERGED
+    lam[work] = x
+    keep = status == SLACK
+    lam[~keep] = np.nan
+    fields = {k: np.full(n, np.nan) for k in ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i")}
+    w = np.flatnonzero(keep)
+    if w.size:
+        ev = _trial(evaluate, geom, material, lam[w], v[w], origin, w)
+        scale = np.abs(np.asarray(sigma_at_l1, float)[w])
+        jump = ~(np.abs(ev.fields["sigma1"]) <= 1e-6 * scale + 1e-6)
+        status[w[jump]] = NOT_CONVERGED
+        lam[w[jump]] = np.nan
+        for key in fields:
+            fields[key][w] = np.broadcast_to(np.asarray(ev.fields[key], float), (w.size,))
+    return lam, status, fields, crit, rng
+
+
+def _trial(evaluate, geom, material, l1, v, origin, idx):
+    if origin is None:
+        return evaluate(geom, material, l1, v)
+    return evaluate(geom, material, l1, v, origin=origin[idx])

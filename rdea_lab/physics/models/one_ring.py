@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from .. import yeoh
-from ..branch import follow_branch
-from ..result import ModelResult, finish, prepare_inputs
-from ._common import HOOP_STRETCH_CAP, kappa, yeoh_coefficients
+from ..branch import Problem
+from ..result import ModelResult
+from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
 
 
 def enthalpy(geom, material, stretch, voltage, lambda2):
@@ -22,7 +22,37 @@ def enthalpy(geom, material, stretch, voltage, lambda2):
             - kappa(geom, material) * (l1 * l2 * np.asarray(voltage, float)) ** 2)
 
 
-def solve(geom, material, stretch, voltage) -> ModelResult:
+def problem(geom, material, l1, v) -> Problem:
+    """The 1R equilibrium in ``y = lambda2`` at clean 1-D inputs (eq. 33 as a stationary point)."""
+    C = yeoh_coefficients(material)
+    kap = kappa(geom, material)
+
+    def terms(y, idx, second):
+        p_y, p_yy = yeoh.d_psi_d_l2(l1[idx], y, C, second)
+        return p_y, p_yy, 2.0 * y, 2.0
+
+    y0 = 1.0 / np.sqrt(l1)
+    load = kap * l1 * l1
+    return Problem(terms, y0, HOOP_STRETCH_CAP * y0, load * v * v, load)
+
+
+def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None) -> Evaluation:
+    """1R equilibria at clean 1-D inputs: the rising-ramp rule, or the path from ``start``."""
+    C = yeoh_coefficients(material)
+    kap = kappa(geom, material)
+
+    def state(l2):
+        psi_1, _ = yeoh.gradient(l1, l2, C)
+        # one hollow cylinder: mean hoop stretch l2, radial stretch 1 / (l1 l2)
+        return {"sigma1": l1 * psi_1 - 2.0 * kap * (l1 * v) ** 2 * l2 * l2,
+                "lambda2a": l2, "lambda2b": l2, "lambda2c": l2,
+                "capacitance": geom.C0(material.eps_r) * (l1 * l2) ** 2,
+                "r_i": 0.5 * (l2 * (geom.Ro + geom.Ri) - (geom.Ro - geom.Ri) / (l1 * l2))}
+
+    return evaluate_free(problem(geom, material, l1, v), state, path=path, start=start, origin=origin)
+
+
+def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True) -> ModelResult:
     """Axial stress, force, circumferential stretch and capacitance of the 1R model.
 
     Parameters
@@ -35,6 +65,17 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
         Axial stretch ``lambda1`` [-], >= 1.
     voltage : array_like
         Voltage [V].
+    path : bool
+        False (default): every sample on its own, in the state a voltage ramp
+        from 0 V reaches at its stretch. True: the samples are a time series
+        and each continues from the previous one's state (hysteresis; snaps
+        flagged where they happen); see :mod:`rdea_lab.physics.branch`.
+    start : PathEnd, optional
+        With ``path``: the previous block's ``ModelResult.end``.
+    slack : bool
+        True (default): a roll whose tension would be negative is slack
+        (force 0, the free state). False: the equilibrium at the given
+        stretch, negative stress included.
 
     Returns
     -------
@@ -49,22 +90,4 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
     ``sigma1 = lambda1 d psi_m / d lambda1 - alpha_e1 eta_b eps E**2``;
     capacitance eq. (34), ``C = C0 lambda1**2 lambda2**2``.
     """
-    l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
-    C = yeoh_coefficients(material)
-    kap = kappa(geom, material)
-    K = kap * (l1 * v) ** 2
-
-    def terms(y, idx, second):
-        p_y, p_yy = yeoh.d_psi_d_l2(l1[idx], y, C, second)
-        return p_y, p_yy, 2.0 * y, 2.0
-
-    y0 = 1.0 / np.sqrt(l1)
-    l2, status, K_crit = follow_branch(terms, y0, HOOP_STRETCH_CAP * y0, K)
-    psi_1, _ = yeoh.gradient(l1, l2, C)
-    sigma1 = l1 * psi_1 - 2.0 * K * l2 * l2
-    cap = geom.C0(material.eps_r) * (l1 * l2) ** 2
-    with np.errstate(invalid="ignore"):
-        v_crit = np.sqrt(K_crit / (kap * l1 * l1))
-    # one hollow cylinder: mean hoop stretch l2, radial stretch 1 / (l1 l2)
-    r_i = 0.5 * (l2 * (geom.Ro + geom.Ri) - (geom.Ro - geom.Ri) / (l1 * l2))
-    return finish("1r", geom, l1, bad, shape, raw, sigma1, l2, l2, l2, cap, status, v_crit, r_i)
+    return solve_model("1r", evaluate, geom, material, stretch, voltage, path=path, start=start, slack=slack)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import yeoh
-from ..result import OK, ModelResult, finish, prepare_inputs
-from ._common import kappa, yeoh_coefficients
+from ..result import OK, ModelResult
+from ._common import Evaluation, kappa, solve_model, yeoh_coefficients
 
 
 def enthalpy(geom, material, stretch, voltage):
@@ -57,7 +57,17 @@ def stress_from_basis(stress_basis_, geom, material):
     return b * W1 - kappa(geom, material) * lv2
 
 
-def solve(geom, material, stretch, voltage) -> ModelResult:
+def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None) -> Evaluation:
+    """Closed-form SU state at clean 1-D inputs (no free coordinate: a path changes nothing)."""
+    sigma1 = stress_from_basis(stress_basis(l1, v), geom, material)
+    l2 = 1.0 / np.sqrt(l1)
+    n = l1.size
+    fields = {"sigma1": sigma1, "lambda2a": l2, "lambda2b": l2, "lambda2c": l2,
+              "capacitance": geom.C0(material.eps_r) * l1, "r_i": geom.Ri * l2}
+    return Evaluation(np.full(n, OK, np.int8), np.full(n, np.nan), np.full(n, np.nan), fields, None)
+
+
+def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True) -> ModelResult:
     """Axial stress, force and capacitance of the SU model.
 
     Parameters
@@ -70,6 +80,9 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
         Axial stretch ``lambda1`` [-], >= 1.
     voltage : array_like
         Voltage [V].
+    path, start
+        Accepted for the common interface; SU has no free coordinate, so its
+        state has no memory of the path.
 
     Returns
     -------
@@ -82,12 +95,9 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
     capacitance eq. (41), ``C = C0 lambda1``. With
     ``I1 - 3 = x = e**(2a) + 2 e**(-a) - 3``, ``a = ln lambda1``, the
     mechanical part is ``2 lambda1**2 W'(x) (1 - lambda1**-3)``. There is no
-    free coordinate at fixed stretch, hence no limit point.
+    free coordinate at fixed stretch, hence no limit point. Where the stress
+    would be negative the roll is slack (force 0) in its free state, the
+    stretch where eq. (39) vanishes.
     """
-    l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
-    sigma1 = stress_from_basis(stress_basis(l1, v), geom, material)
-    l2 = 1.0 / np.sqrt(l1)
-    cap = geom.C0(material.eps_r) * l1
-    n = l1.size
-    return finish("su", geom, l1, bad, shape, raw, sigma1, l2, l2, l2, cap,
-                  np.full(n, OK, np.int8), np.full(n, np.nan), geom.Ri * l2)
+    return solve_model("su", evaluate, geom, material, stretch, voltage,
+                       path=path, start=start, slack=slack)

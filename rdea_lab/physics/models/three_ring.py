@@ -29,9 +29,9 @@ from __future__ import annotations
 import numpy as np
 
 from .. import yeoh
-from ..branch import follow_branch
-from ..result import ModelNotApplicable, ModelResult, finish, prepare_inputs
-from ._common import HOOP_STRETCH_CAP, kappa, yeoh_coefficients
+from ..branch import Problem
+from ..result import ModelNotApplicable, ModelResult
+from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
 
 
 class _Rings:
@@ -150,7 +150,47 @@ def enthalpy(geom, material, stretch, voltage, r_i):
     return g - kappa(geom, material) * (l1 * l2b * np.asarray(voltage, float)) ** 2
 
 
-def solve(geom, material, stretch, voltage) -> ModelResult:
+def problem(geom, material, l1, v) -> Problem:
+    """The 3R equilibrium in ``xi = r_i / Ro`` at clean 1-D inputs."""
+    rings = _Rings(geom, l1)
+    load = kappa(geom, material) * l1 * l1
+    pitchfork = rings.rho_i == 0.0 and rings.has_a
+    return Problem(_terms(rings, yeoh_coefficients(material)), rings.rho_i / np.sqrt(l1),
+                   rings.xi_at_hoop_stretch(HOOP_STRETCH_CAP / np.sqrt(l1), l1), load * v * v, load,
+                   pitchfork=pitchfork, scale=rings.rho_ie if pitchfork else None)
+
+
+def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None) -> Evaluation:
+    """3R equilibria at clean 1-D inputs: the rising-ramp rule, or the path from ``start``."""
+    C = yeoh_coefficients(material)
+    kap = kappa(geom, material)
+    rings = _Rings(geom, l1)
+
+    def state(xi):
+        # sigma1 = lambda1 dg/dlambda1 at fixed xi
+        r_ie, r_oe, r_o = rings.radii(xi, l1)
+        dr_ie, dr_oe, dr_o = rings.radius_stretch_rates((r_ie, r_oe, r_o), l1)
+        l2b = (r_ie + r_oe) / rings.Sb
+        dl2b = (dr_ie + dr_oe) / rings.Sb
+        psi_1, psi_2 = yeoh.gradient(l1, l2b, C)
+        dg = geom.eta_b * (psi_1 + psi_2 * dl2b)
+        l2a = l2c = np.full_like(l1, np.nan)
+        if rings.has_a:
+            l2a = (xi + r_ie) / rings.Sa
+            psi_1, psi_2 = yeoh.gradient(l1, l2a, C)
+            dg = dg + geom.eta_a * (psi_1 + psi_2 * dr_ie / rings.Sa)
+        if rings.has_c:
+            l2c = (r_oe + r_o) / rings.Sc
+            psi_1, psi_2 = yeoh.gradient(l1, l2c, C)
+            dg = dg + geom.eta_c * (psi_1 + psi_2 * (dr_oe + dr_o) / rings.Sc)
+        return {"sigma1": l1 * dg - 2.0 * kap * v * v * l1 * l1 * l2b * (l2b + l1 * dl2b),
+                "lambda2a": l2a, "lambda2b": l2b, "lambda2c": l2c,
+                "capacitance": geom.C0(material.eps_r) * (l1 * l2b) ** 2, "r_i": xi * geom.Ro}
+
+    return evaluate_free(problem(geom, material, l1, v), state, path=path, start=start, origin=origin)
+
+
+def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True) -> ModelResult:
     """Axial stress, force, ring stretches and capacitance of the 3R model.
 
     Parameters
@@ -163,6 +203,17 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
         Axial stretch ``lambda1`` [-], >= 1.
     voltage : array_like
         Voltage [V].
+    path : bool
+        False (default): every sample on its own, in the state a voltage ramp
+        from 0 V reaches at its stretch. True: a time series, each sample
+        continuing from the previous one's state (hysteresis; snaps flagged
+        where they happen).
+    start : PathEnd, optional
+        With ``path``: the previous block's ``ModelResult.end``.
+    slack : bool
+        True (default): a roll whose tension would be negative is slack
+        (force 0, the free state). False: the equilibrium at the given
+        stretch, negative stress included.
 
     Returns
     -------
@@ -176,35 +227,4 @@ def solve(geom, material, stretch, voltage) -> ModelResult:
     stationary in ``r_i``); ``C = C0 lambda1**2 lambda2b**2``.
     """
     check_applicable(geom)
-    l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
-    C = yeoh_coefficients(material)
-    kap = kappa(geom, material)
-    K = kap * (l1 * v) ** 2
-    rings = _Rings(geom, l1)
-    y0 = rings.rho_i / np.sqrt(l1)
-    y_max = rings.xi_at_hoop_stretch(HOOP_STRETCH_CAP / np.sqrt(l1), l1)
-    pitchfork = rings.rho_i == 0.0 and rings.has_a
-    xi, status, K_crit = follow_branch(_terms(rings, C), y0, y_max, K, pitchfork=pitchfork)
-
-    # sigma1 = lambda1 dg/dlambda1 at fixed xi
-    r_ie, r_oe, r_o = rings.radii(xi, l1)
-    dr_ie, dr_oe, dr_o = rings.radius_stretch_rates((r_ie, r_oe, r_o), l1)
-    l2b = (r_ie + r_oe) / rings.Sb
-    dl2b = (dr_ie + dr_oe) / rings.Sb
-    psi_1, psi_2 = yeoh.gradient(l1, l2b, C)
-    dg = geom.eta_b * (psi_1 + psi_2 * dl2b)
-    l2a = l2c = np.full_like(l1, np.nan)
-    if rings.has_a:
-        l2a = (xi + r_ie) / rings.Sa
-        psi_1, psi_2 = yeoh.gradient(l1, l2a, C)
-        dg = dg + geom.eta_a * (psi_1 + psi_2 * dr_ie / rings.Sa)
-    if rings.has_c:
-        l2c = (r_oe + r_o) / rings.Sc
-        psi_1, psi_2 = yeoh.gradient(l1, l2c, C)
-        dg = dg + geom.eta_c * (psi_1 + psi_2 * (dr_oe + dr_o) / rings.Sc)
-    sigma1 = l1 * dg - 2.0 * kap * v * v * l1 * l1 * l2b * (l2b + l1 * dl2b)
-    cap = geom.C0(material.eps_r) * (l1 * l2b) ** 2
-    with np.errstate(invalid="ignore"):
-        v_crit = np.sqrt(K_crit / (kap * l1 * l1))
-    return finish("3r", geom, l1, bad, shape, raw, sigma1, l2a, l2b, l2c, cap, status, v_crit,
-                  xi * geom.Ro)
+    return solve_model("3r", evaluate, geom, material, stretch, voltage, path=path, start=start, slack=slack)
