@@ -148,13 +148,15 @@ def predict_force(run: RunData, params, model: str) -> np.ndarray:
 
     For SU, and for every model at 0 V (uniaxial kinematics), the quasi-static
     stress is linear in the Yeoh coefficients: a cached basis makes it three
-    vector operations. Otherwise the model is solved. The rest is the twin's
-    own composition of eqs. (43), (44) and (16) (:func:`rdea_lab.twin.compose`).
+    vector operations. Otherwise the model is solved along the run's path. The
+    rest is the twin's own composition of eqs. (43), (44) and (16)
+    (:func:`rdea_lab.twin.compose`), which clips a roll that would push to 0 N
+    (slack): a measured slack sample then says only that the model force is <= 0.
     """
     if model == "su" or run.zero_voltage:
         sigma_rev = su.stress_from_basis(run.su_basis(), run.geom, params)
     else:
-        sigma_rev = solve(model, run.geom, params, run.stretch, run.voltage).sigma1
+        sigma_rev = solve(model, run.geom, params, run.stretch, run.voltage, path=True).tension
     return compose(run.geom, viscous(params), run.t, run.stretch, sigma_rev)[2]
 
 

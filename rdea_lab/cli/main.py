@@ -121,7 +121,7 @@ def _parse_voltages(text: str) -> list[float]:
 @click.command()
 @click.option("--specimen", "card", required=True, type=click.Path(dir_okay=False), help="Specimen card (YAML).")
 @click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False), help="Parameter set (YAML).")
-@click.option("--model", type=click.Choice(["su", "1r", "3r"], case_sensitive=False), default="su",
+@click.option("--model", type=click.Choice(["su", "1r", "3r", "cr"], case_sensitive=False), default="su",
               show_default=True, help="Quasi-static model.")
 @click.option("--stretch", "stretch_text", default="1:1.5:51", show_default=True,
               help="Stretches START:STOP:N.")
@@ -229,7 +229,7 @@ def reproduce(out_dir, campaign_path, no_speed, quiet):
               help="Timing repeats (the median and the spread are reported).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 def bench(samples, baseline_samples, repeat, as_json):
-    """Speed of the SU, 1R and 3R solvers, and of 3R against an fsolve baseline.
+    """Speed of the SU, 1R, 3R and CR solvers, and of 3R against an fsolve baseline.
 
     \b
     Example:

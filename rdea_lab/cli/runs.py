@@ -87,10 +87,10 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
 @click.option("--params", "params_path", type=click.Path(dir_okay=False),
               help="Parameter set for the twin [default: params/paper2021_table3.yaml].")
 @click.option("--model", type=click.Choice(["su", "1r", "3r", "auto"], case_sensitive=False), default="auto",
-              show_default=True, help="Twin model; auto = cheapest within --tolerance of 3R on this run.")
+              show_default=True, help="Twin model; auto = cheapest within --tolerance of CR (the continuum model) on this run.")
 @click.option("--tolerance", type=click.FloatRange(0.0, 1.0, min_open=True, max_open=True), default=0.01,
               show_default=True,
-              help="For --model auto: allowed deviation from 3R, relative to the peak stress.")
+              help="For --model auto: allowed deviation from CR, relative to the peak stress.")
 @click.option("--out", "out_path", type=click.Path(dir_okay=False),
               help="Dataset to write [default: datasets/<specimen>/<protocol>-<UTC time>.nc].")
 @click.option("--force", "overwrite", is_flag=True, help="Overwrite an existing dataset.")

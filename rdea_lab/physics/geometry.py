@@ -213,8 +213,10 @@ class RollGeometry:
 
     @staticmethod
     def carried_force(force):
-        """The force the roll carries [N]: the model's (a roll stays in tension, Assumption 1)."""
-        return force
+        """The force the roll carries [N]: a roll clamped shorter than its free length
+        buckles instead of pushing (Assumption 1 of [1]: it is only ever in tension),
+        so a compressive model force reads 0 (slack)."""
+        return np.maximum(force, 0.0)
 
     def C0(self, eps_r: float) -> float:
         """Capacitance of the undeformed roll [F], eq. (29).

@@ -47,7 +47,7 @@ from .params import ParameterSet, _Viscoelastic, _Yeoh, dump_params, params_from
 from .units import format_quantity, quantity
 
 #: The true physics may be any of the quasi-static models.
-MODELS = ("su", "1r", "3r")
+MODELS = ("su", "1r", "3r", "cr")
 #: Open interval a radius factor must lie in: a tolerance, not another roll.
 FACTOR_RANGE = (0.5, 1.5)
 _MATERIAL_KEYS = ("name", "description", "source", "yeoh", "eps_r", "viscoelastic")
@@ -137,7 +137,7 @@ class TruthSpec(SpecModel):
     name : str
         Letters, digits, ``-``, ``_``, ``.``.
     model : str
-        The true quasi-static physics, ``"su"``, ``"1r"`` or ``"3r"``.
+        The true quasi-static physics, ``"su"``, ``"1r"``, ``"3r"`` or ``"cr"``.
     material : ParameterSet
         The true material (named like the truth).
     radii_factors : RadiiFactors

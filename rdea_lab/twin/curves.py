@@ -25,7 +25,7 @@ def quasi_static_curves(card, params, model, stretch, voltages, max_field=CURVE_
     ----------
     card : SpecimenCard or path
     params : ParameterSet or path
-    model : {"su", "1r", "3r"}
+    model : {"su", "1r", "3r", "cr"}
     stretch : array_like
         Axial stretches [-], >= 1.
     voltages : sequence of float
@@ -40,7 +40,11 @@ def quasi_static_curves(card, params, model, stretch, voltages, max_field=CURVE_
         ``{"model", "specimen", "parameters", "curves": [{"voltage", "stretch",
         "sigma1", "force", "lambda2b", "capacitance", "converged",
         "summary"}]}``, SI units, NaN where a sample has no equilibrium
-        (``converged`` false and ``summary`` saying why).
+        (``converged`` false and ``summary`` saying why). ``sigma1``,
+        ``lambda2b`` and ``capacitance`` are the equilibrium at each stretch
+        (the paper's curves: a negative stress where the roll would push);
+        ``force`` is what the roll carries, 0 where it is slack (the summary
+        counts those samples).
     """
     card, params = as_specimen(card), as_params(params)
     geom = geometry_from_card(card)
@@ -58,10 +62,11 @@ def quasi_static_curves(card, params, model, stretch, voltages, max_field=CURVE_
                             "broken down; give --no-field-check to compute it anyway")
     curves = []
     for v in voltages:
-        res = solve(model, geom, params, stretch, float(v))
+        res = solve(model, geom, params, stretch, float(v), slack=False)
+        carried = solve(model, geom, params, stretch, float(v))
         curves.append({
-            "voltage": float(v), "stretch": stretch, "sigma1": res.sigma1, "force": res.force,
+            "voltage": float(v), "stretch": stretch, "sigma1": res.sigma1, "force": carried.force,
             "lambda2b": res.lambda2b, "capacitance": res.capacitance, "converged": res.converged,
-            "summary": res.summary(),
+            "summary": carried.summary(),
         })
     return {"model": model, "specimen": card.id, "parameters": params.name, "curves": curves}

@@ -13,7 +13,7 @@ from ..specs import as_params, params_from_yaml, specimen_from_yaml
 from .simulate import as_geometry, simulate
 
 from ..specs.importing import MIN_STRETCH  # below it a compressed specimen; between it and 1, noise
-MODELS = ("su", "1r", "3r", "auto")
+MODELS = ("su", "1r", "3r", "cr", "auto")
 
 
 def _history(history):
@@ -50,8 +50,8 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
         ``(t, stretch, voltage)``.
     params : ParameterSet or path, optional
         Material; default: the run's own parameters (twin runs only).
-    model : {"su", "1r", "3r", "auto"}
-        Quasi-static model; ``auto`` is the cheapest within `tolerance` of 3R on
+    model : {"su", "1r", "3r", "cr", "auto"}
+        Quasi-static model; ``auto`` is the cheapest within `tolerance` of CR on
         this history (:func:`rdea_lab.physics.selection.select_model`).
     specimen : SpecimenCard, RollGeometry or path, optional
         The roll; default: the run's own card.
@@ -62,7 +62,7 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
         within noise below 1 are not checked). Without it this is a bare model
         evaluation and no limit applies.
     tolerance : float
-        For ``auto``: allowed deviation from 3R relative to the peak stress [-].
+        For ``auto``: allowed deviation from CR relative to the peak stress [-].
 
     Returns
     -------

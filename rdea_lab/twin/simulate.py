@@ -11,7 +11,7 @@ from .. import __version__
 from ..physics import viscoelastic
 from ..physics.geometry import RollGeometry, StripGeometry, geometry_from_card
 from ..physics.models import solve
-from ..physics.result import VALID
+from ..physics.result import OK, SLACK, STATUS_LEGEND, VALID
 from ..specs import as_params, as_protocol, as_specimen, check_limits
 from ..specs.protocol import Limits
 
@@ -25,7 +25,7 @@ VARIABLES = {
     "sigma1_irr": ("Pa", "viscoelastic overstress, eq. (44)"),
     "lambda2b": ("1", "circumferential stretch of the active ring b"),
     "converged": ("1", "1 where the model has a stable equilibrium"),
-    "model_status": ("1", "0 ok, 1 past limit point, 2 NaN input, 3 not converged, 4 snap-through, 5 overflow"),
+    "model_status": ("1", "model status: " + STATUS_LEGEND),
 }
 
 
@@ -68,14 +68,20 @@ def compose(geom, visco, t, stretch, sigma_rev, state=None):
     -------
     sigma1, sigma1_irr, force : numpy.ndarray
         ``sigma1 = sigma_rev + sigma_irr`` [Pa] (43), the overstress (44) [Pa], and
-        the force ``sigma1 pi (Ro**2 - Ri**2) / lambda1`` [N] (16), zero where a
-        strip would push (a membrane goes slack).
+        the force ``sigma1 pi (Ro**2 - Ri**2) / lambda1`` [N] (16); where that would
+        be compressive the specimen is slack (a roll buckles, a membrane wrinkles):
+        force and ``sigma1`` are 0. The overstress follows the clamps' stretch
+        throughout (a slack specimen's own, larger stretch is not tracked: an
+        approximation while it is slack).
     state : ViscoState or None
     """
     k, eta, eta_v0 = visco
     sigma_irr, state = viscoelastic.overstress_step(t, stretch, k, eta, eta_v0, state=state)
     sigma = sigma_rev + sigma_irr
-    return sigma, sigma_irr, geom.carried_force(sigma * geom.area / stretch), state
+    force = geom.carried_force(sigma * geom.area / stretch)
+    with np.errstate(invalid="ignore"):
+        sigma = np.where(force == 0.0, 0.0, sigma)
+    return sigma, sigma_irr, force, state
 
 
 def history_limits(protocol):
@@ -163,7 +169,8 @@ class TwinStream:
 
     Block by block it gives the same numbers as :func:`simulate` over the whole
     series (the branch update is exact over each interval, including the one
-    between two blocks).
+    between two blocks, and each block's equilibria continue the previous
+    block's path: ``solve(..., path=True)``, so loops show hysteresis).
 
     Parameters
     ----------
@@ -178,6 +185,7 @@ class TwinStream:
         self.model = model
         self._visco = viscous(self.params)
         self._state = None  # ViscoState at the end of the previous block
+        self._path = None  # the equilibrium's state at the end of the previous block (PathEnd)
 
     def step(self, t, stretch, voltage) -> dict:
         """Force [N], capacitance [F], stress [Pa] and model status for one block."""
@@ -185,7 +193,16 @@ class TwinStream:
         t = viscoelastic.check_time(t, stretch.shape)
         if self._state is not None and not t[0] > self._state.t:
             raise ValueError(f"block starts at t = {float(t[0])!r}, not after the previous block's end")
-        res = solve(self.model, self.geom, self.params, stretch, np.broadcast_to(voltage, stretch.shape))
-        sigma, sigma_irr, force, self._state = compose(self.geom, self._visco, t, stretch, res.sigma1, self._state)
+        res = solve(self.model, self.geom, self.params, stretch, np.broadcast_to(voltage, stretch.shape),
+                    path=True, start=self._path)
+        self._path = res.end
+        sigma, sigma_irr, force, self._state = compose(self.geom, self._visco, t, stretch, res.tension, self._state)
+        # slack where the total (quasi-static + viscous) force would be compressive; a quasi-static
+        # slack state the overstress pulls taut carries force (its stretches stay the free state's)
+        valid = np.isin(res.status, VALID)
+        with np.errstate(invalid="ignore"):
+            pushes = res.tension + sigma_irr < 0.0
+        status = np.where(valid & pushes & (res.status == OK), SLACK, res.status)
+        status = np.where(valid & (force > 0.0) & (res.status == SLACK), OK, status).astype(np.int8)
         return {"force": force, "capacitance": res.capacitance, "sigma1": sigma, "sigma1_irr": sigma_irr,
-                "lambda2b": res.lambda2b, "model_status": res.status, "summary": res.summary()}
+                "lambda2b": res.lambda2b, "model_status": status, "summary": res.summary()}

@@ -54,9 +54,10 @@ def test_force_is_the_true_model_without_instrument_effects(card, quiet):
     np.testing.assert_allclose(rows[:, COL["position"]], (x - 1.0) * 0.034, rtol=1e-15, atol=0)
     geom, m = factored(card, quiet), quiet.material
     res = solve("3r", geom, m, x, v)
-    sigma = res.sigma1 + viscoelastic.overstress(t, x, [b.k for b in m.branches], [b.eta for b in m.branches],
-                                                 m.eta_v0)
-    force = sigma * math.pi * (geom.Ro**2 - geom.Ri**2) / x
+    sigma = res.tension + viscoelastic.overstress(t, x, [b.k for b in m.branches], [b.eta for b in m.branches],
+                                                  m.eta_v0)
+    # a roll that would push is slack: the load cell reads 0 (Assumption 1)
+    force = np.maximum(sigma * math.pi * (geom.Ro**2 - geom.Ri**2) / x, 0.0)
     # same formulas, evaluated block-wise vs. at once: rounding only
     np.testing.assert_allclose(rows[:, COL["force"]], force, rtol=1e-12, atol=1e-12)
     at_0V = np.abs(v) < 1.0

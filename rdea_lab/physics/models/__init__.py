@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import os
 
-from . import one_ring, su, three_ring
+from . import continuum, one_ring, su, three_ring
 
 #: Model names, cheapest first.
-MODELS = {"su": su, "1r": one_ring, "3r": three_ring}
+MODELS = {"su": su, "1r": one_ring, "3r": three_ring, "cr": continuum}
 
 
 def solve(model: str, geom, material, stretch, voltage, *, path=False, start=None, slack=True):

@@ -86,7 +86,11 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
         if not isinstance(start, PathEnd) or start.model != name:
             raise ValueError(f"start: expected the end of a {name} path (ModelResult.end), got {start!r}")
         start = start.y
-    ev = evaluate(geom, material, l1, v, path=path, start=start)
+    if path and bad.any():  # a NaN sample has no state: the path runs on across it
+        good = np.flatnonzero(~bad)
+        ev = _expand(evaluate(geom, material, l1[good], v[good], path=True, start=start), good, l1.size, start)
+    else:
+        ev = evaluate(geom, material, l1, v, path=path, start=start)
     fields = dict(ev.fields)
     fields["tension"] = fields["sigma1"]
     status = ev.status.copy()
@@ -175,6 +179,7 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
     lam = np.full(n, np.nan)
     side = np.zeros(n, dtype=np.int8)  # Illinois: which end was kept last time
     a, b, fa, fb = lo[work], hi[work], s_lo[work], s_hi[work]
+    tol = 1e-10 * np.abs(np.asarray(sigma_at_l1, float)[work])  # the free state's stress, relative to the clamp's
     x = b.copy()
     active = np.arange(work.size)
     for _ in range(max_iter):
@@ -197,7 +202,7 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
         b[active] = np.where(neg, xb, xn)
         fb[active] = np.where(neg, np.where(s == -1, 0.5 * yb, yb), yn)
         side[work[active]] = np.where(neg, -1, 1)
-        done = bad | (yn == 0.0) | (b[active] - a[active] <= rtol * b[active])
+        done = bad | (np.abs(yn) <= tol[active]) | (b[active] - a[active] <= rtol * b[active])
         active = active[~done]
     status[work[active]] = NOT_CONVERGED
     lam[work] = x
@@ -220,3 +225,15 @@ def _trial(evaluate, geom, material, l1, v, origin, idx):
     if origin is None:
         return evaluate(geom, material, l1, v)
     return evaluate(geom, material, l1, v, origin=origin[idx])
+
+
+def _expand(ev: Evaluation, good, n, start) -> Evaluation:
+    """An evaluation of the samples ``good`` spread back over ``n`` samples (NaN elsewhere)."""
+    def spread(a, fill):
+        out = np.full(n, fill, dtype=np.asarray(a).dtype if fill is not np.nan else float)
+        out[good] = a
+        return out
+    fields = {k: spread(np.broadcast_to(np.asarray(a, float), (good.size,)), np.nan) for k, a in ev.fields.items()}
+    return Evaluation(spread(ev.status, NOT_CONVERGED).astype(np.int8), spread(ev.critical_voltage, np.nan),
+                      spread(ev.range_voltage, np.nan), fields, ev.end if good.size else start,
+                      None if ev.y is None else spread(ev.y, np.nan))
