@@ -32,11 +32,13 @@ Two rules pick the state:
   equilibrium exists) are resolved in sequence.
 
 When no stable state lies in the admissible range the sample is either
-*past a limit point* (a fold of ``h`` below ``K`` was crossed and ``h`` is
-still falling at the range's end: pull-in; the fold's voltage is reported)
-or *outside the solved range* (``h`` is rising at the range's end but has not
-reached ``K``: the branch continues beyond what the model is solved for; the
-largest voltage solved is reported, never as a critical voltage).
+*past a limit point* (a fold of ``h`` below ``K`` was crossed and nothing
+beyond it in the range reaches the fold's load again: pull-in as far as the
+model can tell; the fold's voltage is reported) or *outside the solved range*
+(``h`` climbs beyond any fold crossed but has not reached ``K`` at the
+range's end: the branch continues beyond what the model is solved for; the
+largest voltage solved in the range is reported, never as a critical
+voltage).
 
 Every step is a numpy operation over all samples still in work; Python loops
 run over scan nodes and iterations, and (in a path) over the rare samples
@@ -138,16 +140,15 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
     status : numpy.ndarray of int8
         ``OK``; ``SNAPPED`` where the branch folded on the way and the
         equilibrium is the next stable state (the first minimum of ``g``
-        beyond ``y0``); ``LIMIT_POINT`` where the branch folded and no stable
-        state follows in the admissible range (``h`` falls at its end);
-        ``OUTSIDE_RANGE`` where ``h`` rises at the range's end without having
-        reached ``K``; ``NOT_CONVERGED``.
+        beyond ``y0``); ``LIMIT_POINT`` where the branch folded and the rest
+        of the range never reaches the fold's load again; ``OUTSIDE_RANGE``
+        where no state lies in the range otherwise; ``NOT_CONVERGED``.
     K_crit : numpy.ndarray
         Load parameter at the first fold where ``status`` is ``SNAPPED`` or
         ``LIMIT_POINT``; NaN elsewhere.
     K_range : numpy.ndarray
-        ``h`` at the end of the range (the largest load solved) where
-        ``status`` is ``OUTSIDE_RANGE``; NaN elsewhere.
+        The largest load solved in the range where ``status`` is
+        ``OUTSIDE_RANGE``; NaN elsewhere.
 
     Notes
     -----
@@ -178,7 +179,7 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
     y_prev2 = y0[idx].copy()
     y_prev = y0[idx].copy()
     h_prev = h_start[idx].copy()
-    h_prev2 = h_prev.copy()
+    h_top = h_prev.copy()  # largest h scanned so far
     for k in range(Y.shape[1]):
         if idx.size == 0:
             break
@@ -196,11 +197,10 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
         lo[idx[found]] = y_prev[found]
         hi[idx[found]] = yk[found]
         keep = ~found
-        idx, y_prev2, y_prev, h_prev2, h_prev = idx[keep], y_prev[keep], yk[keep], h_prev[keep], h[keep]
-    if idx.size:  # no stable state within the admissible range
-        past = folded[idx] & (h_prev < h_prev2)  # beyond a fold, and still falling at the end
-        status[idx] = np.where(past, LIMIT_POINT, OUTSIDE_RANGE)
-        K_range[idx[~past]] = h_prev[~past]
+        h_top = np.fmax(h_top, h)
+        idx, y_prev2, y_prev, h_prev, h_top = idx[keep], y_prev[keep], yk[keep], h[keep], h_top[keep]
+    lost = idx  # no stable state within the admissible range
+    status[lost] = LIMIT_POINT
     fi = np.flatnonzero(folded)
     if fi.size:
         K_crit[fi], y_top = _fold(terms, fi, fold_lo[fi], fold_hi[fi], fold_h[fi], y0[fi], problem.pitchfork)
@@ -213,10 +213,18 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
             folded[b] = False
             status[b] = OK
             K_crit[b] = np.nan
-            K_range[b] = np.nan
             lo[b] = fold_lo[b]
             hi[b] = y_top[below]
-        K_crit[status == OUTSIDE_RANGE] = np.nan  # the branch goes on beyond the range: no fold to report
+    if lost.size:
+        # past a limit point when the fold crossed bounds every load the rest of the range reaches;
+        # otherwise the branch climbs past the fold again and leaves the range: outside it
+        still = status[lost] == LIMIT_POINT
+        lost, h_end, h_top = lost[still], h_prev[still], h_top[still]
+        past = folded[lost] & (K_crit[lost] >= h_end)
+        status[lost] = np.where(past, LIMIT_POINT, OUTSIDE_RANGE)
+        out = lost[~past]
+        K_range[out] = np.fmax(h_top[~past], K_crit[out])
+        K_crit[out] = np.nan
 
     todo = np.flatnonzero((status == OK) & (K > h_start))
     y_new, ok = _refine_root(terms, todo, lo[todo], hi[todo], K[todo],
@@ -250,8 +258,9 @@ def follow_path(problem: Problem, start=None, *, origin=None, rtol=1e-14, max_it
         (``K_crit``: the load of the first fold crossed in the direction of
         travel), and a sample without a stable state is ``LIMIT_POINT`` when
         descent from the previous state crossed a fold of ``h`` on its way out
-        of the range, ``OUTSIDE_RANGE`` otherwise (a run of such samples keeps
-        the label of its first).
+        of the range that the rest of the range never climbs above again,
+        ``OUTSIDE_RANGE`` otherwise (a run of such samples keeps the label of
+        its first).
     end : float
         Coordinate to continue from (``y_max`` where no state was found).
     """
@@ -264,7 +273,7 @@ def follow_path(problem: Problem, start=None, *, origin=None, rtol=1e-14, max_it
     if n == 0:
         return y, status, K_crit, K_range, start
     scan = _full_scan(problem)
-    kx, kh, ext_y, ext_h, ext_max, end_rising = scan
+    kx, kh, ext_y, ext_h, ext_max = scan
     # crossings of K between consecutive knots: up = stable root, down = unstable
     Kc = K[:, None]
     a_h, b_h = kh[:, :-1], kh[:, 1:]
@@ -359,13 +368,14 @@ def follow_path(problem: Problem, start=None, *, origin=None, rtol=1e-14, max_it
             rows = np.flatnonzero(np.any(beyond, axis=1))
             K_crit[has_ext[rows]] = e_h[rows, first[rows]]
     status[snapped] = SNAPPED
-    status[lost] = np.where(np.isfinite(K_crit[lost]) & ~end_rising[lost], LIMIT_POINT, OUTSIDE_RANGE)
+    # past a limit point when the fold crossed bounds every load the rest of the range reaches
+    status[lost] = np.where(np.isfinite(K_crit[lost]) & (K_crit[lost] >= kh[lost, -1]), LIMIT_POINT, OUTSIDE_RANGE)
     if origin is None:  # a run of lost samples keeps the label of its first
         run_start = lost & ~np.r_[False, lost[:-1]]
         label_idx = np.maximum.accumulate(np.where(run_start, np.arange(n), 0))
         status[lost] = status[label_idx[lost]]
     out = lost & (status == OUTSIDE_RANGE)
-    K_range[out] = kh[out, -1]
+    K_range[out] = np.max(kh[out], axis=1)  # the largest load solved in the range
     K_crit[out] = np.nan
     fail = bad_root & ~lost
     status[fail] = NOT_CONVERGED
@@ -390,9 +400,8 @@ def _full_scan(problem: Problem):
 
     ``h`` depends on the stretch only, so samples that share a stretch share
     one scan. Returns knots (nodes and extrema, sorted) ``kx, kh`` of shape
-    ``(n, m)`` (padded at the end with ``y_max``), the extrema ``ext_y,
-    ext_h`` (NaN-padded) with ``ext_max`` (True for a maximum of ``h``), and
-    whether ``h`` rises over the range's last interval.
+    ``(n, m)`` (padded at the end with ``y_max``), and the extrema ``ext_y,
+    ext_h`` (NaN-padded) with ``ext_max`` (True for a maximum of ``h``).
     """
     terms, y0 = problem.terms, problem.y0
     Y = np.concatenate([y0[:, None], scan_nodes(problem)], axis=1)
@@ -443,7 +452,7 @@ def _full_scan(problem: Problem):
     order = np.argsort(kx, axis=1, kind="stable")
     kx = np.take_along_axis(kx, order, axis=1)
     kh = np.take_along_axis(kh, order, axis=1)
-    return kx, kh, ext_y, ext_h, ext_max, inc[:, -1]
+    return kx, kh, ext_y, ext_h, ext_max
 
 
 def _extremum(terms, idx, lo, hi, y_node, h_node, is_max, y0, pitchfork, iters=80):
