@@ -108,7 +108,8 @@ def figure8(material, path, v=3500.0) -> list[dict]:
         geom = RollGeometry(f * 0.6e-3, 0.6e-3, 1.21e-3, 1.33e-3, L1=34e-3, L1e=34e-3, L3=48e-6)
         comp = compare_models(geom, material, voltages=(v,))[v]
         res = comp["results"]
-        rows.append({"Ri_over_Rie": float(f), **{f"max_dev_{m}_MPa": comp["max_dev_MPa"][m] for m in ("su", "1r", "cr")},
+        rows.append({"Ri_over_Rie": float(f),
+                     **{f"max_dev_{m}_MPa": comp["max_dev_MPa"][m] for m in ("su", "1r", "cr")},
                      **{f"max_dev_{m}_from_cr_MPa": comp["max_dev_from_cr_MPa"][m] for m in ("su", "1r", "3r")}})
         for m, style in (("1r", "-"), ("su", "--"), ("cr", ":")):
             ax.plot(STRETCH, (res[m].sigma1 - res["3r"].sigma1) / 1e6, style, color=cmap(i / 8),
@@ -164,7 +165,8 @@ def reproduce_models(root: Path, out: Path) -> dict:
         lines.append(f"| {name} | {d['su']:.4f} | {d['1r']:.4f} | {d['3r']:.4f} |")
     lines += ["", "(MPa, the equations' stresses; figures 5-7: `figure5_hollow-core.png`, `figure6_active-core.png`, "
               "`figure7_passive-core.png`)", "", "## Figure 8: Ri swept from 0.1 to 0.9 Rie at 3.5 kV", "",
-              "| Ri / Rie | SU from 3R | 1R from 3R | SU from CR | 1R from CR | 3R from CR |", "|---|---|---|---|---|---|"]
+              "| Ri / Rie | SU from 3R | 1R from 3R | SU from CR | 1R from CR | 3R from CR |",
+              "|---|---|---|---|---|---|"]
     lines += [f"| {r['Ri_over_Rie']:.1f} | " + " | ".join(
         f"{r[k]:.4f}" for k in ("max_dev_su_MPa", "max_dev_1r_MPa", "max_dev_su_from_cr_MPa",
                                  "max_dev_1r_from_cr_MPa", "max_dev_3r_from_cr_MPa")) + " |" for r in sweep]

@@ -132,9 +132,9 @@ def test_geometry_text_mentions_id():
 # --------------------------------------------------------------------- curve
 @pytest.fixture(scope="module")
 def curves():
-    """``curve --json`` of the three models on the passive core at 0 and 3.5 kV."""
+    """``curve --json`` of the four models on the passive core at 0 and 3.5 kV."""
     return {m: ok_json(*CURVE, "--model", m, "--stretch", "1:1.5:11", "--voltage", "0,3.5kV", "--json")
-            for m in ("su", "1r", "3r")}
+            for m in ("su", "1r", "3r", "cr")}
 
 
 def test_curve_json_structure(curves):
@@ -180,12 +180,21 @@ def test_curve_su_maxwell_stress(curves):
 
 def test_curve_models_agree_at_zero_volt(curves):
     su = np.array(curves["su"]["curves"][0]["sigma1"])
-    for model in ("1r", "3r"):
+    for model in ("1r", "3r", "cr"):
         other = np.array(curves[model]["curves"][0]["sigma1"])
         # at 0 V the 1R and 3R equilibria are the uniaxial state of SU (Section 3.4:
         # "at 0 V all three coincide"); 1e-8 leaves room for the iterative solvers'
         # stopping tolerance; abs 1e-3 Pa (4e-9 of C10) for lambda1 = 1 where sigma1 = 0
         np.testing.assert_allclose(other, su, rtol=1e-8, atol=1e-3, err_msg=model)
+
+
+def test_curve_cr_is_su_on_a_solid_roll(curves):
+    """The passive core has Ri = 0: CR pins r_i = 0 (an open hole costs infinite energy), so it is
+    the SU state at every voltage, to rounding (docs/models-cr.md)."""
+    for zero_or_high in (0, 1):
+        cr = np.array(curves["cr"]["curves"][zero_or_high]["sigma1"])
+        su = np.array(curves["su"]["curves"][zero_or_high]["sigma1"])
+        np.testing.assert_allclose(cr, su, rtol=1e-9, atol=1e-6)
 
 
 def test_curve_csv_rows():
@@ -275,8 +284,8 @@ def test_help_has_example(command):
 def test_bench_json():
     # about 1 s with these sizes, so not marked slow
     out = ok_json("bench", "--samples", 1000, "--baseline-samples", 10, "--repeat", 1, "--json")
-    assert set(out["samples_per_s"]) >= {"su", "1r", "3r"}
-    assert all(out["samples_per_s"][m] > 0 for m in ("su", "1r", "3r"))
+    assert set(out["samples_per_s"]) >= {"su", "1r", "3r", "cr"}
+    assert all(out["samples_per_s"][m] > 0 for m in ("su", "1r", "3r", "cr"))
     assert out["speedup_3r_vs_fsolve"] > 0
     # the fast 3R solver and the fsolve baseline solve the same equations (27);
     # 1e-6 is far above both solvers' convergence tolerances

@@ -137,5 +137,5 @@ def test_auto_model_is_recorded_with_its_deviation(tmp_path, card, params):
     import json
     sel = json.loads(ds.attrs["model_selection"])
     assert ds.attrs["model_requested"] == "auto" and ds.attrs["model"] == sel["model"] == "su"
-    # specimen 2 at 2.6 kV: the solid core keeps r_i = 0, so 3R is the SU state exactly
-    assert sel["deviation_from_3r"]["su"] < 1e-12
+    # specimen 2 (Ri = 0) is a solid roll: the reference, CR, is the SU state exactly
+    assert sel["reference"] == "cr" and sel["deviation_from_reference"]["su"] < 1e-12

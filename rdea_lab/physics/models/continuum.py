@@ -62,7 +62,6 @@ import functools
 
 import numpy as np
 
-from .. import yeoh
 from ..branch import Problem
 from ..result import OK, ModelNotApplicable, ModelResult
 from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
@@ -169,7 +168,6 @@ class _Roll:
         self.s, self.w, self.region = quadrature(geom, points)
         self.w_over_s = self.w / self.s
         # region averages: columns of weights summing to 1 over each present region
-        self.eta = (geom.eta_a, geom.eta_b, geom.eta_c)
         self.present = tuple(bool(np.any(self.region == j)) for j in range(3))
         avg = np.zeros((self.s.size, 3))
         for j in range(3):
@@ -259,12 +257,29 @@ def _energy(roll, C, l1, xi, xi0, x0):
 
 
 def enthalpy(geom, material, stretch, voltage, r_i, *, points=None):
-    """Free enthalpy density ``g = psi - kappa v**2 lambda1**2 c`` [Pa] at a deformed inner radius ``r_i`` [m].
+    """Free enthalpy density ``g = psi - kappa v**2 lambda1**2 c`` [Pa] at a deformed inner radius.
 
-    The equilibria of the CR model are its stationary points in ``r_i`` at
-    fixed stretch and voltage. With ``Ri = 0`` an open hole (``r_i > 0``)
-    costs infinite energy: ``g`` is ``inf`` there and the SU value at
-    ``r_i = 0``. Accurate (to :data:`QUAD_TOL`) for ``r_i >= Ri lambda1**-0.5``.
+    Parameters
+    ----------
+    geom : RollGeometry
+    material : parameter set
+        ``C10, C20, C30`` [Pa], ``eps_r`` [-].
+    stretch : array_like
+        Axial stretch ``lambda1`` [-].
+    voltage : array_like
+        Voltage [V].
+    r_i : array_like
+        Deformed inner radius [m]; the arguments broadcast.
+    points : int, optional
+        Gauss points per panel (default: the rule of :func:`quadrature`).
+
+    Notes
+    -----
+    The equilibria of the CR model are the stationary points of ``g`` in
+    ``r_i`` at fixed stretch and voltage. With ``Ri = 0`` an open hole
+    (``r_i > 0``) costs infinite energy: ``g`` is ``inf`` there and the SU
+    value at ``r_i = 0``. Accurate (to :data:`QUAD_TOL`) for
+    ``r_i >= Ri lambda1**-0.5``, the admissible range.
     """
     l1, v, r = np.broadcast_arrays(np.asarray(stretch, float), np.asarray(voltage, float), np.asarray(r_i, float))
     roll = _Roll(geom, l1, points)
