@@ -204,3 +204,20 @@ def test_carried_force_is_called_once_outside_physics():
             if "carried_force" in own_calls(fn):
                 callers.append((rel(path), name))
     assert callers == [(Path("twin") / "simulate.py", "compose")]
+
+
+def test_one_list_of_model_names():
+    """The models the physics implements are the names every layer accepts (specs.MODELS)."""
+    from rdea_lab.physics.models import MODELS as IMPLEMENTED
+    from rdea_lab.physics.selection import ORDER
+    from rdea_lab.specs import MODEL_CHOICES, MODELS
+
+    assert tuple(IMPLEMENTED) == MODELS == ORDER and MODEL_CHOICES == (*MODELS, "auto")
+    # no other module spells out its own list of allowed names
+    offenders = []
+    for path in modules():
+        for node in ast.walk(parse(path)):
+            if isinstance(node, ast.Assign) and isinstance(node.value, ast.Tuple) and any(
+                    isinstance(t, ast.Name) and t.id in ("MODELS", "MODEL_CHOICES", "ORDER") for t in node.targets):
+                offenders.append(rel(path))
+    assert set(offenders) == {Path("specs") / "truth.py"}

@@ -21,7 +21,7 @@ class TwinBackend:
     ----------
     card : SpecimenCard or path
     params : ParameterSet or path
-    model : {"su", "1r", "3r", "auto"}
+    model : {"su", "1r", "3r", "cr", "auto"}
         ``auto`` picks the cheapest model within ``tolerance`` of 3R over the
         plan's own (stretch, voltage) envelope (:func:`select_model`).
     tolerance : float

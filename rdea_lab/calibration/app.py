@@ -18,14 +18,14 @@ import xarray as xr
 
 from ..physics.selection import ORDER, select_model
 from ..runs.app import check_writable
-from ..specs import SpecError, ViscoBranch, as_params
+from ..specs import MODEL_CHOICES, SpecError, ViscoBranch, as_params
 from ..specs.protocol import KINDS
 from .fit import CalibrationResult, calibrate, calibrate_growing, initial_guess
 from .objective import find_runs, load_run
 from .parameters import values_of
 from .record import write_record
 
-MODELS = ("su", "1r", "3r", "auto")
+MODELS = MODEL_CHOICES
 DEFAULT_EPS_R = 2.8  # Table 1 of [1]
 ARGS = "arguments"
 
@@ -95,7 +95,7 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     ----------
     inputs : path, Dataset or sequence of them
         Datasets, or folders of datasets (their complete runs of ``kinds``).
-    model : {"su", "1r", "3r", "auto"}
+    model : {"su", "1r", "3r", "cr", "auto"}
         Quasi-static model; ``auto``: the most detailed that any specimen's
         runs need (:func:`~rdea_lab.physics.selection.select_model` within ``tolerance``).
     init : ParameterSet or path, optional

@@ -170,7 +170,7 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
         Measured runs (:func:`~rdea_lab.calibration.objective.load_run`).
     start : ParameterSet
         Start values, the number of branches, and the fixed eps_r.
-    model : {"su", "1r", "3r"}
+    model : {"su", "1r", "3r", "cr"}
     free : iterable of str, optional
         Parameters to fit (default: every Yeoh and viscoelastic parameter).
     metric : {"rms", "max"}

@@ -7,12 +7,13 @@ import sys
 import click
 
 from .. import api
+from ..specs import MODEL_CHOICES
 from .errors import headless
 
 
 @click.command()
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=False))
-@click.option("--model", type=click.Choice(["su", "1r", "3r", "auto"], case_sensitive=False), default="su",
+@click.option("--model", type=click.Choice(MODEL_CHOICES, case_sensitive=False), default="su",
               show_default=True, help="Quasi-static model of the twin.")
 @click.option("--init", "init_path", type=click.Path(dir_okay=False),
               help="Start values (a parameter file); default: estimated from the data.")

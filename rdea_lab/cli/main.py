@@ -13,7 +13,7 @@ import click
 import numpy as np
 
 from .. import __version__, api
-from ..specs import load_params, load_specimen, parse_quantity
+from ..specs import MODELS, load_params, load_specimen, parse_quantity
 from . import calibrate as calibrate_cmd
 from . import importer, report, rig, runs
 from .errors import EXIT_HELP, die, run
@@ -121,7 +121,7 @@ def _parse_voltages(text: str) -> list[float]:
 @click.command()
 @click.option("--specimen", "card", required=True, type=click.Path(dir_okay=False), help="Specimen card (YAML).")
 @click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False), help="Parameter set (YAML).")
-@click.option("--model", type=click.Choice(["su", "1r", "3r", "cr"], case_sensitive=False), default="su",
+@click.option("--model", type=click.Choice(MODELS, case_sensitive=False), default="su",
               show_default=True, help="Quasi-static model.")
 @click.option("--stretch", "stretch_text", default="1:1.5:51", show_default=True,
               help="Stretches START:STOP:N.")

@@ -5,9 +5,10 @@ from __future__ import annotations
 import click
 
 from .. import api
+from ..specs import MODEL_CHOICES
 from .errors import die, headless
 
-MODELS = ("su", "1r", "3r", "auto")
+MODELS = MODEL_CHOICES
 
 
 class _ReportGroup(click.Group):

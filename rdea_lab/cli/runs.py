@@ -10,7 +10,7 @@ from pathlib import Path
 import click
 
 from .. import api
-from ..specs import read_token
+from ..specs import MODEL_CHOICES, read_token
 from .errors import EXIT_HELP, die, headless
 
 LIVE_HELP = ("Live view of the samples: 'table' (a line a second), 'plot' (a matplotlib window) "
@@ -86,7 +86,7 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
               help="Seconds without a new sample before a rig run is aborted as stalled.")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False),
               help="Parameter set for the twin [default: params/paper2021_table3.yaml].")
-@click.option("--model", type=click.Choice(["su", "1r", "3r", "auto"], case_sensitive=False), default="auto",
+@click.option("--model", type=click.Choice(MODEL_CHOICES, case_sensitive=False), default="auto",
               show_default=True, help="Twin model; auto = cheapest within --tolerance of CR (the continuum model) on this run.")
 @click.option("--tolerance", type=click.FloatRange(0.0, 1.0, min_open=True, max_open=True), default=0.01,
               show_default=True,

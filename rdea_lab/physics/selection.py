@@ -19,10 +19,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..specs import MODELS
 from .models import solve
 
 #: Cheapest first; the last is the reference the others are measured against.
-ORDER = ("su", "1r", "3r", "cr")
+ORDER = MODELS
 REFERENCE = ORDER[-1]
 
 

@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 
 from ..physics.geometry import RollGeometry, geometry_from_card
 from ..physics.models import solve
-from ..specs import load_params, load_specimen
+from ..specs import MODELS, load_params, load_specimen
 
 #: Table 2 of [1] [mm].
 TABLE2 = {"specimen-1": (0.600, 1.206, 1.326), "specimen-2": (0.600, 1.615, 1.732),
@@ -30,8 +30,6 @@ PAPER_34 = {"hollow-core": ("su", 0.1), "active-core": ("1r", 0.1), "passive-cor
 STRETCH = np.linspace(1.0, 1.75, 151)
 VOLTAGES = (0.0, 3500.0)
 COLORS = {"3r": "black", "1r": "tab:blue", "su": "tab:red", "cr": "tab:green"}
-#: The models compared, cheapest first.
-MODELS = ("su", "1r", "3r", "cr")
 
 
 def table2(root: Path) -> list[dict]:

@@ -41,11 +41,11 @@ from ..physics.geometry import geometry_from_card
 from ..physics.models import continuum, solve
 from ..physics.selection import select_model
 from ..protocols import load_plan
-from ..specs import load_params, load_specimen
+from ..specs import MODEL_CHOICES, load_params, load_specimen
 from . import tables
 from .paper_models import figure8
 
-MODELS = ("su", "1r", "3r", "cr", "auto")
+MODELS = MODEL_CHOICES
 SPECIMENS = ("specimen1", "specimen2", "specimen3")
 #: The protocols of the paper's campaign (campaigns/paper2021.yaml).
 PROTOCOLS = ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV", "blocking_force", "capacitance_sweep")

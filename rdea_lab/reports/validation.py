@@ -27,7 +27,7 @@ import yaml
 from ..backends.rig import truth_name
 from ..calibration.objective import file_hash, load_run
 from ..runs.app import check_writable
-from ..specs import UserError, as_params
+from ..specs import MODEL_CHOICES, UserError, as_params
 from ..twin import predict
 from ..store import open_run
 from . import tables
@@ -43,7 +43,7 @@ PAPER_TABLE4 = {
 }
 #: A run's voltage matches a paper voltage within this [V] (5 % of 2.6 kV).
 VOLTAGE_MATCH = 130.0
-MODELS = ("su", "1r", "3r", "auto")
+MODELS = MODEL_CHOICES
 KIND_ORDER = ("tensile", "blocking", "capacitance", "custom")
 NONE_RECORDED = "none recorded"
 
@@ -271,7 +271,7 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
         Folder searched recursively for complete runs (``*.nc``).
     out : path
         Output folder (created).
-    model : {"su", "1r", "3r", "auto"}
+    model : {"su", "1r", "3r", "cr", "auto"}
         Quasi-static model of the twin; ``auto`` picks per run with :func:`select_model`.
     tolerance : float
         For ``auto``: allowed deviation from 3R relative to the peak stress [-].

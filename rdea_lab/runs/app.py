@@ -24,7 +24,7 @@ from ..paths import project_root
 from ..physics.geometry import geometry_from_card
 from ..physics.models import three_ring
 from ..protocols import as_plan, first_violation
-from ..specs import SpecError, as_params, as_specimen
+from ..specs import MODEL_CHOICES, SpecError, as_params, as_specimen
 from ..store import journal_path, open_run
 from ..store.outputs import OutputError, check_writable  # noqa: F401  (part of this layer's API)
 from .engine import check_metadata, execute
@@ -32,7 +32,7 @@ from .engine import check_metadata, execute
 DEFAULT_PARAMS = "params/paper2021_table3.yaml"
 DEFAULT_TRUTH = "truth/paper2021.yaml"
 BACKENDS = ("twin", "emulator", "rig")
-MODELS = ("su", "1r", "3r", "auto")
+MODELS = MODEL_CHOICES
 #: Where a user's arguments are named in messages.
 ARGS = "arguments"
 
@@ -215,7 +215,7 @@ def prepare_run(protocol, specimen, backend="twin", *, params=None, model="auto"
     if backend == "twin":
         if model not in MODELS:
             raise SpecError(ARGS, "model", f"{model!r}; allowed: {', '.join(MODELS)}")
-        if model == "3r":
+        if model in ("3r", "cr"):
             three_ring.check_applicable(geom)
         options.update(params=as_params(project_default(params, DEFAULT_PARAMS, "params")), model=model,
                        tolerance=check_tolerance(tolerance))
@@ -256,7 +256,7 @@ def run_protocol(protocol, specimen, backend="twin", *, params=None, model="auto
         loopback port, for this run; ``rig``: a rig server at ``address``.
     params : ParameterSet or path, optional
         For the twin; default the paper's Table 3 (``params/paper2021_table3.yaml``).
-    model : {"su", "1r", "3r", "auto"}
+    model : {"su", "1r", "3r", "cr", "auto"}
         For the twin; ``auto`` is the cheapest within ``tolerance`` of 3R on this run.
     tolerance : float
         For ``auto``: allowed deviation from 3R relative to the peak stress [-].

@@ -51,6 +51,8 @@ from .specimen import (
     specimen_from_yaml,
 )
 from .truth import (
+    MODEL_CHOICES,
+    MODELS,
     Instrument,
     RadiiFactors,
     TruthSpec,
@@ -71,6 +73,6 @@ __all__ = [
     "dump_params", "dump_specimen", "format_quantity", "load_params", "load_specimen",
     "material_problems", "params_from_mapping", "params_from_yaml", "parse_quantity",
     "specimen_from_mapping", "specimen_from_yaml", "ureg", "yeoh_slope_nonpositive_at",
-    "Instrument", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth", "truth_as_mapping",
+    "Instrument", "MODEL_CHOICES", "MODELS", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth", "truth_as_mapping",
     "truth_from_mapping", "truth_from_yaml", "truth_json",
 ]

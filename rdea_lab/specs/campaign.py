@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Literal
 
 from .errors import DOCUMENT, Identifier, SpecError, SpecModel, read_yaml_mapping, show
+from .truth import MODEL_CHOICES
 
 
 class CampaignSpec(SpecModel):
@@ -23,7 +24,7 @@ class CampaignSpec(SpecModel):
     backend: Literal["twin", "emulator"] = "emulator"
     truth: str | None = None
     params: str | None = None
-    model: Literal["su", "1r", "3r", "auto"] = "auto"
+    model: Literal[MODEL_CHOICES] = "auto"
     seed: int = 0
     out: str
     specimens: tuple[str, ...]

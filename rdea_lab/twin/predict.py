@@ -9,11 +9,11 @@ import numpy as np
 import xarray as xr
 
 from ..physics.selection import select_model
-from ..specs import as_params, params_from_yaml, specimen_from_yaml
+from ..specs import MODEL_CHOICES, as_params, params_from_yaml, specimen_from_yaml
 from .simulate import as_geometry, simulate
 
 from ..specs.importing import MIN_STRETCH  # below it a compressed specimen; between it and 1, noise
-MODELS = ("su", "1r", "3r", "cr", "auto")
+MODELS = MODEL_CHOICES
 
 
 def _history(history):

@@ -110,7 +110,7 @@ def simulate(specimen, params, t, stretch, voltage, model="su", *, protocol=None
         Axial stretch [-], >= 1.
     voltage : array_like, shape (n,)
         Voltage [V].
-    model : {"su", "1r", "3r"}
+    model : {"su", "1r", "3r", "cr"}
         Quasi-static model, Sections 3.1-3.3 of [1].
     protocol : ProtocolSpec, Plan, Limits or path, optional
         When given, the history is first checked against its limits (stretch,
@@ -176,7 +176,7 @@ class TwinStream:
     ----------
     specimen : SpecimenCard, RollGeometry or path
     params : ParameterSet or path
-    model : {"su", "1r", "3r"}
+    model : {"su", "1r", "3r", "cr"}
     """
 
     def __init__(self, specimen, params, model="su"):
