@@ -114,7 +114,8 @@ def scan_nodes(problem: Problem) -> np.ndarray:
     """Scan nodes per sample, ``(n, m)``, increasing, in ``(y0, y_max]``.
 
     ``N_SCAN`` nodes at fractions ``(k / N_SCAN)**2`` of the range and, with a
-    ``scale``, nodes ``y0 + scale 2**(j/2)`` (j >= -8) below the first of them.
+    ``scale``, nodes ``y0 + scale 2**(j/2)`` (j >= -8) below the first of them,
+    led by a probe at ``y0 + scale / 1000``.
     """
     span = problem.y_max - problem.y0
     t = (np.arange(1, N_SCAN + 1) / N_SCAN) ** 2
@@ -122,7 +123,9 @@ def scan_nodes(problem: Problem) -> np.ndarray:
     if problem.scale and span.size:
         first = t[0] * float(np.max(span))
         j_max = int(np.ceil(2.0 * np.log2(max(first / problem.scale, 1.0)))) + 1
-        offsets = problem.scale * 2.0 ** (np.arange(-8, j_max) / 2.0)
+        # a probe at a thousandth of the scale first: whether h falls right after y0 (a subcritical
+        # pitchfork whose window is narrower than the core) shows there as h below h(y0)
+        offsets = problem.scale * np.r_[1e-3, 2.0 ** (np.arange(-8, j_max) / 2.0)]
         offsets = offsets[offsets < first]
         if offsets.size:
             extra = problem.y0[:, None] + np.minimum(offsets, 0.999 * span[:, None])
@@ -179,26 +182,44 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
     y_prev2 = y0[idx].copy()
     y_prev = y0[idx].copy()
     h_prev = h_start[idx].copy()
+    s_prev = np.full(idx.size, np.nan)  # slope dh/dy at the last node (unknown at y0)
     h_top = h_prev.copy()  # largest h scanned so far
     for k in range(Y.shape[1]):
         if idx.size == 0:
             break
         yk = Y[idx, k]
-        p_y, _, c_y, _ = terms(yk, idx, False)
+        p_y, p_yy, c_y, c_yy = terms(yk, idx, True)
         h = p_y / c_y
-        fell = ~(h >= h_prev) & ~folded[idx]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            slope = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+        # h falls from the last node, or is falling at this one; or a shallow fold pair hides
+        # between two nodes that both rise (a cubic Hermite fit of h falls in between)
+        dip, t_dip = _hidden_dip(h_prev, s_prev, h, slope, yk - y_prev)
+        fell = ~((h >= h_prev) & (slope >= 0.0)) & ~folded[idx]
+        hidden = dip & ~fell & ~folded[idx]
+        if np.any(hidden):  # a fit is only a hint: h must really fall at the steepest point
+            hi_ = np.flatnonzero(hidden)
+            y_mid = y_prev[hi_] + t_dip[hi_] * (yk[hi_] - y_prev[hi_])
+            hidden[hi_] = _slope(terms, y_mid, idx[hi_]) < 0.0
         if np.any(fell):
             f = idx[fell]
             folded[f] = True
             fold_lo[f] = y_prev2[fell] if k else y_prev[fell]
             fold_hi[f] = yk[fell]
             fold_h[f] = h_prev[fell]
+        if np.any(hidden):  # the maximum lies before the steepest fall
+            f = idx[hidden]
+            folded[f] = True
+            fold_lo[f] = y_prev[hidden]
+            fold_hi[f] = y_prev[hidden] + t_dip[hidden] * (yk[hidden] - y_prev[hidden])
+            fold_h[f] = h_prev[hidden]
         found = h >= K[idx]
         lo[idx[found]] = y_prev[found]
         hi[idx[found]] = yk[found]
         keep = ~found
         h_top = np.fmax(h_top, h)
         idx, y_prev2, y_prev, h_prev, h_top = idx[keep], y_prev[keep], yk[keep], h[keep], h_top[keep]
+        s_prev = slope[keep]
     lost = idx  # no stable state within the admissible range
     status[lost] = LIMIT_POINT
     fi = np.flatnonzero(folded)
@@ -382,6 +403,28 @@ def follow_path(problem: Problem, start=None, *, origin=None, rtol=1e-14, max_it
     return y, status, K_crit, K_range, float(y[-1])
 
 
+def _slope(terms, y, idx):
+    """``dh/dy`` at ``y`` for the samples ``idx``."""
+    p_y, p_yy, c_y, c_yy = terms(y, idx, True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+
+
+def _hidden_dip(h_a, s_a, h_b, s_b, dy):
+    """Where a cubic Hermite fit of ``h`` on an interval (values ``h``, slopes ``s`` at its ends,
+    width ``dy``) has a falling stretch although both ends rise: returns (flag, t) with ``t`` in
+    (0, 1) the point of steepest fall (a fold pair straddles it), NaN where there is none."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        m0, m1, d = s_a * dy, s_b * dy, h_b - h_a
+        b = 6.0 * d - 4.0 * m0 - 2.0 * m1
+        a = 3.0 * m0 + 3.0 * m1 - 6.0 * d
+        t = np.where(a > 0, -b / (2.0 * a), np.nan)
+        inside = (t > 0.0) & (t < 1.0)
+        slope = m0 + b * t + a * t * t
+        dip = inside & (slope < 0.0) & (m0 >= 0) & (m1 >= 0)
+    return dip, np.where(dip, t, np.nan)
+
+
 def _roots_by_sample(samples, own, root_y, stable, col, at_start, y0):
     """Sorted stable and unstable roots (Python lists) of each sample in ``samples``."""
     want = np.isin(own, samples)
@@ -407,11 +450,15 @@ def _full_scan(problem: Problem):
     Y = np.concatenate([y0[:, None], scan_nodes(problem)], axis=1)
     n, m = Y.shape
     H = np.empty((n, m))
+    slopes = np.full((n, m), np.nan)  # h' at the nodes
     idx = np.arange(n)
     H[:, 0] = problem.h_start(idx)
     for k in range(1, m):
-        p_y, _, c_y, _ = terms(Y[:, k], idx, False)
+        p_y, p_yy, c_y, c_yy = terms(Y[:, k], idx, True)
         H[:, k] = p_y / c_y
+        with np.errstate(invalid="ignore", divide="ignore"):
+            slopes[:, k] = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+    rising = ~(slopes < 0.0)
     dH = np.diff(H, axis=1)
     inc = dH >= 0.0
     # interior extrema at node k: the slope changes sign between intervals k-1 and k
@@ -419,15 +466,47 @@ def _full_scan(problem: Problem):
     is_min = np.zeros((n, m), dtype=bool)
     is_max[:, 1:-1] = inc[:, :-1] & ~inc[:, 1:]
     is_min[:, 1:-1] = ~inc[:, :-1] & inc[:, 1:]
+    # a shallow fold pair between nodes whose values keep rising (or falling) shows in the slope at
+    # the node between: falling inside a rise = a maximum before it and a minimum after it
+    pair = np.zeros((n, m), dtype=bool)
+    pair[:, 1:-1] = (inc[:, :-1] & inc[:, 1:] & ~rising[:, 1:-1]) | (~inc[:, :-1] & ~inc[:, 1:] & rising[:, 1:-1])
     # a subcritical pitchfork: h falls right away from y0 (a maximum at y0 itself)
     pf_max = ~inc[:, 0] if problem.pitchfork else np.zeros(n, dtype=bool)
     r, c = np.nonzero(is_max | is_min)
+    lo_y, hi_y, node_y, node_h, e_is_max = Y[r, c - 1], Y[r, c + 1], Y[r, c], H[r, c], is_max[r, c]
+    # ... or inside one interval whose ends both rise (a cubic Hermite fit falls in between)
+    S = np.empty((n, m))
+    S[:, 0] = np.nan
+    with np.errstate(invalid="ignore", divide="ignore"):
+        S[:, 1:] = slopes[:, 1:]
+    dip, t_dip = _hidden_dip(H[:, :-1], S[:, :-1], H[:, 1:], S[:, 1:], np.diff(Y, axis=1))
+    dip &= inc
+    dr, dc = np.nonzero(dip)
+    if dr.size:  # a fit is only a hint: h must really fall at the steepest point
+        y_mid = Y[dr, dc] + t_dip[dr, dc] * (Y[dr, dc + 1] - Y[dr, dc])
+        real = _slope(terms, y_mid, dr) < 0.0
+        dr, dc, y_mid = dr[real], dc[real], y_mid[real]
+    if dr.size:
+        h_mid = H[dr, dc]  # a value on the rising side (golden section improves on it)
+        r = np.concatenate([r, dr, dr])
+        lo_y = np.concatenate([lo_y, Y[dr, dc], y_mid])
+        hi_y = np.concatenate([hi_y, y_mid, Y[dr, dc + 1]])
+        node_y = np.concatenate([node_y, Y[dr, dc], Y[dr, dc + 1]])
+        node_h = np.concatenate([node_h, h_mid, H[dr, dc + 1]])
+        e_is_max = np.concatenate([e_is_max, np.ones(dr.size, bool), np.zeros(dr.size, bool)])
+    pr_, pc_ = np.nonzero(pair)
+    if pr_.size:  # each pair: one extremum on each side of the node
+        first_max = ~rising[pr_, pc_]
+        r = np.concatenate([r, pr_, pr_])
+        lo_y = np.concatenate([lo_y, Y[pr_, pc_ - 1], Y[pr_, pc_]])
+        hi_y = np.concatenate([hi_y, Y[pr_, pc_], Y[pr_, pc_ + 1]])
+        node_y = np.concatenate([node_y, Y[pr_, pc_], Y[pr_, pc_]])
+        node_h = np.concatenate([node_h, H[pr_, pc_], H[pr_, pc_]])
+        e_is_max = np.concatenate([e_is_max, first_max, ~first_max])
     e_y = np.empty(r.size)
     e_h = np.empty(r.size)
-    e_is_max = is_max[r, c]
     if r.size:
-        e_y, e_h = _extremum(terms, r, Y[r, c - 1], Y[r, c + 1], Y[r, c], H[r, c], e_is_max, y0[r],
-                             problem.pitchfork)
+        e_y, e_h = _extremum(terms, r, lo_y, hi_y, node_y, node_h, e_is_max, y0[r], problem.pitchfork)
     # the pitchfork maximum sits at y0; place it a hair above so that a move up from y0 crosses it
     pr = np.flatnonzero(pf_max)
     r = np.concatenate([r, pr])
