@@ -446,15 +446,19 @@ def _full_scan(problem: Problem):
     ``(n, m)`` (padded at the end with ``y_max``), and the extrema ``ext_y,
     ext_h`` (NaN-padded) with ``ext_max`` (True for a maximum of ``h``).
     """
-    terms, y0 = problem.terms, problem.y0
-    Y = np.concatenate([y0[:, None], scan_nodes(problem)], axis=1)
+    terms = problem.terms
+    # one scan per distinct stretch (y0 and y_max are functions of it): `rows` are the samples scanned
+    _, rows, inverse = np.unique(np.stack([problem.y0, problem.y_max], axis=1), axis=0, return_index=True,
+                                 return_inverse=True)
+    inverse = inverse.ravel()
+    y0 = problem.y0[rows]
+    Y = np.concatenate([y0[:, None], scan_nodes(problem)[rows]], axis=1)
     n, m = Y.shape
     H = np.empty((n, m))
     slopes = np.full((n, m), np.nan)  # h' at the nodes
-    idx = np.arange(n)
-    H[:, 0] = problem.h_start(idx)
+    H[:, 0] = problem.h_start(rows)
     for k in range(1, m):
-        p_y, p_yy, c_y, c_yy = terms(Y[:, k], idx, True)
+        p_y, p_yy, c_y, c_yy = terms(Y[:, k], rows, True)
         H[:, k] = p_y / c_y
         with np.errstate(invalid="ignore", divide="ignore"):
             slopes[:, k] = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
@@ -484,7 +488,7 @@ def _full_scan(problem: Problem):
     dr, dc = np.nonzero(dip)
     if dr.size:  # a fit is only a hint: h must really fall at the steepest point
         y_mid = Y[dr, dc] + t_dip[dr, dc] * (Y[dr, dc + 1] - Y[dr, dc])
-        real = _slope(terms, y_mid, dr) < 0.0
+        real = _slope(terms, y_mid, rows[dr]) < 0.0
         dr, dc, y_mid = dr[real], dc[real], y_mid[real]
     if dr.size:
         h_mid = H[dr, dc]  # a value on the rising side (golden section improves on it)
@@ -506,7 +510,7 @@ def _full_scan(problem: Problem):
     e_y = np.empty(r.size)
     e_h = np.empty(r.size)
     if r.size:
-        e_y, e_h = _extremum(terms, r, lo_y, hi_y, node_y, node_h, e_is_max, y0[r], problem.pitchfork)
+        e_y, e_h = _extremum(terms, rows[r], lo_y, hi_y, node_y, node_h, e_is_max, y0[r], problem.pitchfork)
     # the pitchfork maximum sits at y0; place it a hair above so that a move up from y0 crosses it
     pr = np.flatnonzero(pf_max)
     r = np.concatenate([r, pr])
@@ -531,7 +535,7 @@ def _full_scan(problem: Problem):
     order = np.argsort(kx, axis=1, kind="stable")
     kx = np.take_along_axis(kx, order, axis=1)
     kh = np.take_along_axis(kh, order, axis=1)
-    return kx, kh, ext_y, ext_h, ext_max
+    return kx[inverse], kh[inverse], ext_y[inverse], ext_h[inverse], ext_max[inverse]
 
 
 def _extremum(terms, idx, lo, hi, y_node, h_node, is_max, y0, pitchfork, iters=80):
