@@ -80,7 +80,7 @@ class Problem:
         ``K / v**2``: a load parameter ``K`` is the voltage ``sqrt(K / load)``.
     pitchfork : bool
         True when ``y0`` is stationary for every ``K`` (``c_y(y0) = 0``, the
-        3R and CR models with ``Ri = 0``): ``y0`` stays an equilibrium, stable
+        3R model with ``Ri = 0``): ``y0`` stays an equilibrium, stable
         until ``K`` reaches ``psi_yy / c_yy`` at ``y0``.
     scale : float, optional
         Length of the structure near ``y0`` (e.g. a small core's radius, in

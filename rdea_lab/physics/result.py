@@ -106,7 +106,7 @@ class ModelResult:
     Attributes
     ----------
     model : str
-        ``"su"``, ``"1r"`` or ``"3r"``.
+        ``"su"``, ``"1r"``, ``"3r"`` or ``"cr"``.
     stretch, voltage : numpy.ndarray
         The inputs [-], [V].
     sigma1 : numpy.ndarray

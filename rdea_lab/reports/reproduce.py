@@ -7,7 +7,7 @@ Steps (each written under ``out``):
 2. ``params/calibrated.yaml``: Nelder-Mead calibration on specimen 2's tensile
    runs (SU, one Maxwell branch and the parallel damper, eps_r fixed at 2.8);
 3. ``validation/``: the Table 4 analogue, the figures and ``index.html``;
-4. ``speed/``: time per sample against error for SU, 1R, 3R and auto;
+4. ``speed/``: time per sample against error for SU, 1R, 3R, CR and auto;
 5. ``models/``: Table 2 and Section 3.4 (Figures 5-8).
 """
 
@@ -84,7 +84,7 @@ def reproduce(root: Path, out: Path, *, campaign=None, speed=True, echo=print, p
     result = {"campaign": [str(r.path) for r in results], "calibration": files, "calibration_result": fit,
               "validation": report}
     if speed:
-        echo("[4/5] speed against error: SU, 1R, 3R and auto on the paper's scenes and the Section 3.4 cores")
+        echo("[4/5] speed against error: SU, 1R, 3R, CR and auto on the paper's scenes and the Section 3.4 cores")
         result["speed"] = speed_study(out / "speed", root)
     else:
         echo("[4/5] speed study skipped")

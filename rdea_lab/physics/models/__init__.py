@@ -1,7 +1,8 @@
-"""The three quasi-static RDEA models of [1]: SU, 1R and 3R.
+"""The quasi-static RDEA models: SU, 1R and 3R of [1], and CR, their continuum limit.
 
-Each ``solve(geom, material, stretch, voltage)`` is vectorized over arrays
-of stretch and voltage and returns a :class:`~rdea_lab.physics.result.ModelResult`.
+Each ``solve(geom, material, stretch, voltage, *, path=False, start=None,
+slack=True)`` is vectorized over arrays of stretch and voltage and returns a
+:class:`~rdea_lab.physics.result.ModelResult` (``docs/models-cr.md`` derives CR).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ MODELS = {"su": su, "1r": one_ring, "3r": three_ring, "cr": continuum}
 
 
 def solve(model: str, geom, material, stretch, voltage, *, path=False, start=None, slack=True):
-    """Solve the quasi-static model ``model`` (``"su"``, ``"1r"`` or ``"3r"``).
+    """Solve the quasi-static model ``model`` (``"su"``, ``"1r"``, ``"3r"`` or ``"cr"``).
 
     With ``path=False`` (default) each (stretch, voltage) sample is solved on
     its own, in the state a quasi-static voltage ramp from 0 V reaches from
