@@ -413,17 +413,20 @@ def _slope(terms, y, idx):
 def _hidden_dip(h_a, s_a, h_b, s_b, dy):
     """Where a cubic Hermite fit of ``h`` on an interval (values ``h``, slopes ``s`` at its ends,
     width ``dy``) has a falling stretch although both ends rise: returns (flag, t) with ``t`` in
-    (0, 1) the point of steepest fall (a fold pair straddles it), NaN where there is none."""
-    with np.errstate(invalid="ignore", divide="ignore"):
+    (0, 1) the point of steepest fall (a fold pair straddles it), NaN where there is none.
+
+    With ``m = s dy`` and ``d = h_b - h_a`` the fit's slope is ``m0 + b t + a t**2``,
+    ``b = 6 d - 4 m0 - 2 m1``, ``a = 3 m0 + 3 m1 - 6 d``: it dips below 0 inside the interval
+    where ``a > 0``, ``0 < -b < 2 a`` and ``b**2 > 4 a m0``.
+    """
+    with np.errstate(invalid="ignore", over="ignore"):
         m0, m1, d = s_a * dy, s_b * dy, h_b - h_a
         b = 6.0 * d - 4.0 * m0 - 2.0 * m1
         a = 3.0 * m0 + 3.0 * m1 - 6.0 * d
-        t = np.where(a > 0, -b / (2.0 * a), np.nan)
-        inside = (t > 0.0) & (t < 1.0)
-        slope = m0 + b * t + a * t * t
-        dip = inside & (slope < 0.0) & (m0 >= 0) & (m1 >= 0)
-    return dip, np.where(dip, t, np.nan)
-
+        dip = (b < 0.0) & (-b < 2.0 * a) & (b * b > 4.0 * a * m0) & (m0 >= 0.0) & (m1 >= 0.0)
+    t = np.full(np.shape(dip), np.nan)
+    t[dip] = -b[dip] / (2.0 * a[dip])
+    return dip, t
 
 def _roots_by_sample(samples, own, root_y, stable, col, at_start, y0):
     """Sorted stable and unstable roots (Python lists) of each sample in ``samples``."""
