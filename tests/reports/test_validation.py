@@ -241,7 +241,7 @@ def test_auto_names_its_model_per_run(twin_folder, tmp_path):
 
 
 def test_library_refuses_an_unknown_model(twin_folder, tmp_path):
-    with pytest.raises(ReportInputError, match="'5r' is not a model; allowed: su, 1r, 3r, auto"):
+    with pytest.raises(ReportInputError, match="'5r' is not a model; allowed: su, 1r, 3r, cr, auto"):
         validation_report(TABLE3, twin_folder, tmp_path, model="5r")
 
 
