@@ -178,20 +178,21 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
     folded = np.zeros(n, dtype=bool)
     fold_lo = np.empty(n)
     fold_hi = np.empty(n)
+    fold_y = np.empty(n)  # the scan node the fold's maximum is searched around
     fold_h = np.empty(n)
+    # the largest h scanned (for a sample left without a state): its node and the nodes either side
+    top_y, top_h, top_lo, top_hi = y0.astype(float).copy(), h_start.copy(), y0.astype(float).copy(), np.full(n, np.nan)
     y_prev2 = y0[idx].copy()
     y_prev = y0[idx].copy()
     h_prev = h_start[idx].copy()
     s_prev = np.full(idx.size, np.nan)  # slope dh/dy at the last node (unknown at y0)
-    h_top = h_prev.copy()  # largest h scanned so far
     for k in range(Y.shape[1]):
         if idx.size == 0:
             break
         yk = Y[idx, k]
         p_y, p_yy, c_y, c_yy = terms(yk, idx, True)
         h = p_y / c_y
-        with np.errstate(invalid="ignore", divide="ignore"):
-            slope = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+        slope = _h_slope(p_y, p_yy, c_y, c_yy)
         # h falls from the last node, or is falling at this one; or a shallow fold pair hides
         # between two nodes that both rise (a cubic Hermite fit of h falls in between)
         dip, t_dip = _hidden_dip(h_prev, s_prev, h, slope, yk - y_prev)
@@ -206,25 +207,32 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
             folded[f] = True
             fold_lo[f] = y_prev2[fell] if k else y_prev[fell]
             fold_hi[f] = yk[fell]
+            fold_y[f] = y_prev[fell]
             fold_h[f] = h_prev[fell]
         if np.any(hidden):  # the maximum lies before the steepest fall
             f = idx[hidden]
             folded[f] = True
             fold_lo[f] = y_prev[hidden]
             fold_hi[f] = y_prev[hidden] + t_dip[hidden] * (yk[hidden] - y_prev[hidden])
+            fold_y[f] = y_prev[hidden]
             fold_h[f] = h_prev[hidden]
+        pending = np.isnan(top_hi[idx])
+        top_hi[idx[pending]] = yk[pending]  # the node after the top so far
+        new_top = h > top_h[idx]
+        t = idx[new_top]
+        top_y[t], top_h[t], top_lo[t], top_hi[t] = yk[new_top], h[new_top], y_prev[new_top], np.nan
         found = h >= K[idx]
         lo[idx[found]] = y_prev[found]
         hi[idx[found]] = yk[found]
         keep = ~found
-        h_top = np.fmax(h_top, h)
-        idx, y_prev2, y_prev, h_prev, h_top = idx[keep], y_prev[keep], yk[keep], h[keep], h_top[keep]
+        idx, y_prev2, y_prev, h_prev = idx[keep], y_prev[keep], yk[keep], h[keep]
         s_prev = slope[keep]
     lost = idx  # no stable state within the admissible range
     status[lost] = LIMIT_POINT
     fi = np.flatnonzero(folded)
     if fi.size:
-        K_crit[fi], y_top = _fold(terms, fi, fold_lo[fi], fold_hi[fi], fold_h[fi], y0[fi], problem.pitchfork)
+        y_top, K_crit[fi] = _extremum(terms, fi, fold_lo[fi], fold_hi[fi], fold_y[fi], fold_h[fi],
+                                      np.ones(fi.size, bool), y0[fi], problem.pitchfork)
         # Just below a fold, h >= K holds only in a window around the maximum that
         # can be narrower than the scan step: the scan then saw h fall. Such a
         # sample has not folded; its root lies between the node before and the top.
@@ -237,15 +245,17 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
             lo[b] = fold_lo[b]
             hi[b] = y_top[below]
     if lost.size:
-        # past a limit point when the fold crossed bounds every load the rest of the range reaches;
-        # otherwise the branch climbs past the fold again and leaves the range: outside it
-        still = status[lost] == LIMIT_POINT
-        lost, h_end, h_top = lost[still], h_prev[still], h_top[still]
-        past = folded[lost] & (K_crit[lost] >= h_end)
-        status[lost] = np.where(past, LIMIT_POINT, OUTSIDE_RANGE)
-        out = lost[~past]
-        K_range[out] = np.fmax(h_top[~past], K_crit[out])
+        # past a limit point where the largest load in range is a fold's (pull-in there); outside
+        # the solved range where it is the range end's (the branch climbs on beyond the range)
+        lost = lost[status[lost] == LIMIT_POINT]
+        interior = np.isfinite(top_hi[lost])
+        past, out = lost[interior], lost[~interior]
+        status[out] = OUTSIDE_RANGE
+        K_range[out] = top_h[out]
         K_crit[out] = np.nan
+        if past.size:
+            _, K_crit[past] = _extremum(terms, past, top_lo[past], top_hi[past], top_y[past], top_h[past],
+                                        np.ones(past.size, bool), y0[past], problem.pitchfork)
 
     todo = np.flatnonzero((status == OK) & (K > h_start))
     y_new, ok = _refine_root(terms, todo, lo[todo], hi[todo], K[todo],
@@ -256,7 +266,7 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
     return y, status, K_crit, K_range
 
 
-def follow_path(problem: Problem, start=None, *, origin=None, rtol=1e-14, max_iter=100):
+def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, rtol=1e-14, max_iter=100):
     """Per sample of a time series, the state descent of ``g`` reaches from the previous state.
 
     Parameters
@@ -267,6 +277,9 @@ def follow_path(problem: Problem, start=None, *, origin=None, rtol=1e-14, max_it
         Coordinate of the state before the first sample (the previous block's
         last state); default: the unloaded roll ``y0`` of the first sample, so
         the first sample follows the rising-ramp rule of :func:`follow_branch`.
+    start_label : tuple, optional
+        ``(status, K_crit)`` when the previous block ended without a state
+        (a run of lost samples continues with that label).
     origin : numpy.ndarray, optional
         Instead of a series: per sample, the coordinate each one descends from
         (independent samples, e.g. a state followed to another stretch).
@@ -277,13 +290,14 @@ def follow_path(problem: Problem, start=None, *, origin=None, rtol=1e-14, max_it
         As :func:`follow_branch`, except that ``SNAPPED`` marks the samples
         where the state jumped across a fold since the previous sample
         (``K_crit``: the load of the first fold crossed in the direction of
-        travel), and a sample without a stable state is ``LIMIT_POINT`` when
-        descent from the previous state crossed a fold of ``h`` on its way out
-        of the range that the rest of the range never climbs above again,
-        ``OUTSIDE_RANGE`` otherwise (a run of such samples keeps the label of
-        its first).
-    end : float
-        Coordinate to continue from (``y_max`` where no state was found).
+        travel), and a sample without a stable state is ``LIMIT_POINT`` where
+        the highest load beyond the previous state is at a fold (``K_crit``:
+        that pull-in load), ``OUTSIDE_RANGE`` where it is at the range's end (a
+        run of such samples keeps the label and load of its first).
+    end : tuple
+        ``(y, label)``: the coordinate to continue from (``y_max`` where no
+        state was found) and, if the last sample had none, its
+        ``(status, K_crit)`` for ``start_label``.
     """
     terms, y0, K = problem.terms, problem.y0, problem.K
     n = K.size
@@ -292,7 +306,7 @@ def follow_path(problem: Problem, start=None, *, origin=None, rtol=1e-14, max_it
     K_crit = np.full(n, np.nan)
     K_range = np.full(n, np.nan)
     if n == 0:
-        return y, status, K_crit, K_range, start
+        return y, status, K_crit, K_range, (start, start_label)
     scan = _full_scan(problem)
     kx, kh, ext_y, ext_h, ext_max = scan
     # crossings of K between consecutive knots: up = stable root, down = unstable
@@ -380,34 +394,46 @@ def follow_path(problem: Problem, start=None, *, origin=None, rtol=1e-14, max_it
         rows = np.flatnonzero(any_c)
         snapped[has_ext[rows]] = True
         K_crit[has_ext[rows]] = e_h[rows, first[rows]]
-        # lost samples: past a limit point if descent crossed a fold (a maximum of h) on its way out
-        gone = ~valid
-        if np.any(gone):
-            beyond = (e_y > y_prev[has_ext, None]) & e_max & gone[:, None]
-            dist = np.where(beyond, e_y, np.inf)
-            first = np.argmin(dist, axis=1)
-            rows = np.flatnonzero(np.any(beyond, axis=1))
-            K_crit[has_ext[rows]] = e_h[rows, first[rows]]
     status[snapped] = SNAPPED
-    # past a limit point when the fold crossed bounds every load the rest of the range reaches
-    status[lost] = np.where(np.isfinite(K_crit[lost]) & (K_crit[lost] >= kh[lost, -1]), LIMIT_POINT, OUTSIDE_RANGE)
-    if origin is None:  # a run of lost samples keeps the label of its first
-        run_start = lost & ~np.r_[False, lost[:-1]]
-        label_idx = np.maximum.accumulate(np.where(run_start, np.arange(n), 0))
-        status[lost] = status[label_idx[lost]]
-    out = lost & (status == OUTSIDE_RANGE)
-    K_range[out] = np.max(kh[out], axis=1)  # the largest load solved in the range
-    K_crit[out] = np.nan
+    # lost samples: past a limit point where the highest load beyond the previous state is a fold's
+    # (pull-in there), outside the solved range where it is the range end's (the branch goes on)
+    li = np.flatnonzero(lost)
+    if li.size:
+        ahead = np.where(kx[li] >= np.minimum(y_prev[li], problem.y_max[li])[:, None], kh[li], -np.inf)
+        top = np.argmax(ahead, axis=1)
+        at_end = kx[li, top] >= problem.y_max[li]
+        K_top = ahead[np.arange(li.size), top]
+        status[li] = np.where(at_end, OUTSIDE_RANGE, LIMIT_POINT)
+        K_crit[li] = np.where(at_end, np.nan, K_top)
+        K_range[li] = np.where(at_end, np.max(kh[li], axis=1), np.nan)  # the largest load solved in range
+    if origin is None:  # a run of lost samples keeps the label (and fold) of its first
+        first_label = None if start_label is None else start_label
+        run_start = lost & ~np.r_[first_label is not None, lost[:-1]]
+        label_idx = np.maximum.accumulate(np.where(run_start, np.arange(n), -1))
+        inherit = lost & (label_idx >= 0)
+        status[inherit] = status[label_idx[inherit]]
+        K_crit[inherit] = K_crit[label_idx[inherit]]
+        K_range[inherit] = np.where(status[inherit] == OUTSIDE_RANGE, K_range[inherit], np.nan)
+        carried = lost & (label_idx < 0)  # the run began in the previous block
+        if np.any(carried):
+            status[carried] = first_label[0]
+            K_crit[carried] = first_label[1] if first_label[0] == LIMIT_POINT else np.nan
+            K_range[carried] = np.where(first_label[0] == OUTSIDE_RANGE, K_range[carried], np.nan)
     fail = bad_root & ~lost
     status[fail] = NOT_CONVERGED
-    return y, status, K_crit, K_range, float(y[-1])
+    end_label = (int(status[-1]), float(K_crit[-1])) if lost[-1] else None
+    return y, status, K_crit, K_range, (float(y[-1]), end_label)
+
+
+def _h_slope(p_y, p_yy, c_y, c_yy):
+    """``dh/dy`` of ``h = psi_y / c_y``: ``(psi_yy c_y - psi_y c_yy) / c_y**2``."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
 
 
 def _slope(terms, y, idx):
     """``dh/dy`` at ``y`` for the samples ``idx``."""
-    p_y, p_yy, c_y, c_yy = terms(y, idx, True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+    return _h_slope(*terms(y, idx, True))
 
 
 def _hidden_dip(h_a, s_a, h_b, s_b, dy):
@@ -463,8 +489,7 @@ def _full_scan(problem: Problem):
     for k in range(1, m):
         p_y, p_yy, c_y, c_yy = terms(Y[:, k], rows, True)
         H[:, k] = p_y / c_y
-        with np.errstate(invalid="ignore", divide="ignore"):
-            slopes[:, k] = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+        slopes[:, k] = _h_slope(p_y, p_yy, c_y, c_yy)
     rising = ~(slopes < 0.0)
     dH = np.diff(H, axis=1)
     inc = dH >= 0.0
@@ -606,42 +631,3 @@ def _refine_root(terms, idx, lo, hi, K, scale, rtol, max_iter, sign=None):
     out[active] = y
     return out, ok
 
-
-def _fold(terms, idx, lo, hi, h_guess, y0, pitchfork, iters=80):
-    """The fold: maximum of ``h`` on ``[lo, hi]`` by golden section.
-
-    Returns the load parameter at the maximum and where it is.
-    """
-    K = h_guess.copy()
-    y_top = lo.copy()
-    if pitchfork:
-        # a subcritical pitchfork folds at y0 itself: h_start is the critical load
-        rest = ~((lo <= y0) & (h_guess > 0))
-    else:
-        rest = np.ones(idx.size, dtype=bool)
-    sel = np.flatnonzero(rest)
-    if sel.size == 0:
-        return K, y_top
-    a, b, ids = lo[sel].copy(), hi[sel].copy(), idx[sel]
-    a = np.where(a <= y0[sel], a + 1e-12 * (b - a), a)  # h is 0/0 exactly at a pitchfork's y0
-
-    def h(yy):
-        p_y, _, c_y, _ = terms(yy, ids, False)
-        return p_y / c_y
-
-    c = b - _GOLDEN * (b - a)
-    d = a + _GOLDEN * (b - a)
-    hc, hd = h(c), h(d)
-    for _ in range(iters):
-        left = hc > hd
-        b = np.where(left, d, b)
-        a = np.where(left, a, c)
-        c_new = b - _GOLDEN * (b - a)
-        d_new = a + _GOLDEN * (b - a)
-        # reuse the surviving interior point
-        c, d = np.where(left, c_new, d), np.where(left, c, d_new)
-        hc, hd = np.where(left, h(c_new), hd), np.where(left, hc, h(d_new))
-    top_c = hc >= hd
-    K[sel] = np.maximum(np.where(top_c, hc, hd), h_guess[sel])
-    y_top[sel] = np.where(top_c, c, d)
-    return K, y_top

@@ -191,10 +191,12 @@ class ModelResult:
 
 @dataclass(frozen=True)
 class PathEnd:
-    """Where a path left off: the model and its free coordinate after the last sample."""
+    """Where a path left off: the model, its free coordinate after the last sample and,
+    if that sample had no state, its ``(status, K_crit)`` (a lost run goes on with it)."""
 
     model: str
     y: float | None
+    label: tuple | None = None
 
 
 def finish(model, geom, l1, bad, shape, raw, fields, status, critical_voltage, range_voltage, free_stretch,

@@ -64,7 +64,8 @@ def evaluate_free(problem, state, *, path=False, start=None, origin=None) -> Eva
     if origin is not None:
         y, status, K_crit, K_range, end = follow_path(problem, origin=origin)
     elif path:
-        y, status, K_crit, K_range, end = follow_path(problem, start)
+        y_start, label = start if start is not None else (None, None)
+        y, status, K_crit, K_range, end = follow_path(problem, y_start, start_label=label)
     else:
         (y, status, K_crit, K_range), end = follow_branch(problem), None
     return Evaluation(status, problem.voltage(K_crit), problem.voltage(K_range), state(y), end, y)
@@ -83,9 +84,12 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
     """
     l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
     if start is not None:
+        if not path:
+            raise ValueError("start: a path's end continues a path; give path=True (without it every sample "
+                             "is solved from the unloaded roll)")
         if not isinstance(start, PathEnd) or start.model != name:
             raise ValueError(f"start: expected the end of a {name} path (ModelResult.end), got {start!r}")
-        start = start.y
+        start = (start.y, start.label)
     if path and bad.any():  # a NaN sample has no state: the path runs on across it
         good = np.flatnonzero(~bad)
         ev = _expand(evaluate(geom, material, l1[good], v[good], path=True, start=start), good, l1.size, start)
@@ -119,7 +123,10 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
         rng[slack[lost]] = range_f[lost]
     else:
         crit, rng = ev.critical_voltage, ev.range_voltage
-    end = PathEnd(name, ev.end) if path else None
+    end = None
+    if path:
+        y_end, label = ev.end if isinstance(ev.end, tuple) else (ev.end, None)
+        end = PathEnd(name, y_end, label)
     return finish(name, geom, l1, bad, shape, raw, fields, status, crit, rng, free, end)
 
 
@@ -235,5 +242,5 @@ def _expand(ev: Evaluation, good, n, start) -> Evaluation:
         return out
     fields = {k: spread(np.broadcast_to(np.asarray(a, float), (good.size,)), np.nan) for k, a in ev.fields.items()}
     return Evaluation(spread(ev.status, NOT_CONVERGED).astype(np.int8), spread(ev.critical_voltage, np.nan),
-                      spread(ev.range_voltage, np.nan), fields, ev.end if good.size else start,
+                      spread(ev.range_voltage, np.nan), fields, ev.end if good.size else (start or (None, None)),
                       None if ev.y is None else spread(ev.y, np.nan))
