@@ -156,7 +156,8 @@ def predict_force(run: RunData, params, model: str) -> np.ndarray:
     if model == "su" or run.zero_voltage:
         sigma_rev = su.stress_from_basis(run.su_basis(), run.geom, params)
     else:
-        sigma_rev = solve(model, run.geom, params, run.stretch, run.voltage, path=True).tension
+        # the equilibrium's tension is all compose needs (it clips); no free states to search
+        sigma_rev = solve(model, run.geom, params, run.stretch, run.voltage, path=True, slack=False).sigma1
     return compose(run.geom, viscous(params), run.t, run.stretch, sigma_rev)[2]
 
 

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..physics.result import LIMIT_POINT, STATUS_NAMES, VALID
+from ..physics.result import LIMIT_POINT, OUTSIDE_RANGE, STATUS_NAMES, VALID
 from ..twin.simulate import TwinStream
 from .instruments import FirstOrderLag, lcr_bridge, load_cell, tau_of_bandwidth
 from .truth import true_geometry
@@ -330,9 +330,13 @@ class EmulatedRig:
         lost = ~np.isin(status, VALID)
         if lost.any():
             i = int(np.argmax(lost))
-            what = "pull-in" if status[i] == LIMIT_POINT else STATUS_NAMES.get(int(status[i]), "no state")
-            events.append(_Event(i, i, fmt(i) + f"; {what}: no stable equilibrium at {voltage[i]:.4g} V, "
-                                                f"stretch {stretch[i]:.4g})"))
+            if status[i] == LIMIT_POINT:
+                what = "pull-in: no stable equilibrium"
+            elif status[i] == OUTSIDE_RANGE:
+                what = "the state lies beyond the model's solved range"
+            else:
+                what = f"no state ({STATUS_NAMES.get(int(status[i]), 'unknown')})"
+            events.append(_Event(i, i, fmt(i) + f"; {what} at {voltage[i]:.4g} V, stretch {stretch[i]:.4g})"))
         high = np.abs(force) > self.config.max_force
         if high.any():
             i = int(np.argmax(high))

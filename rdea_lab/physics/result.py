@@ -32,7 +32,9 @@ OVERFLOW = 5
 OUTSIDE_RANGE = 6
 #: A valid state: the roll would push (its tensile force is negative), so it is slack,
 #: buckled at the clamps: force 0, stress 0, and the stretches and capacitance of the
-#: free (F = 0) state at ``free_stretch`` (Assumption 1 of [1]: a roll carries no compression).
+#: free (F = 0) state at ``free_stretch`` (Assumption 1 of [1]: a roll carries no compression);
+#: where the free state lies beyond what the model solves, those of the clamped state, and
+#: ``free_stretch`` NaN.
 SLACK = 7
 
 STATUS_NAMES = {OK: "ok", LIMIT_POINT: "past limit point", BAD_INPUT: "NaN or infinite input",
@@ -135,7 +137,8 @@ class ModelResult:
         range solves at that stretch [V]; NaN elsewhere.
     free_stretch : numpy.ndarray
         Axial stretch of the material [-]: the given stretch where taut, the
-        free (F = 0) stretch where slack.
+        free (F = 0) stretch where slack (NaN where that lies beyond what the
+        model solves).
     r_i : numpy.ndarray
         Deformed inner radius [m] (3R only; for SU and 1R it follows
         from the uniform ring, ``Ri lambda2``).

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -205,4 +206,5 @@ class TwinStream:
         status = np.where(valid & pushes & (res.status == OK), SLACK, res.status)
         status = np.where(valid & (force > 0.0) & (res.status == SLACK), OK, status).astype(np.int8)
         return {"force": force, "capacitance": res.capacitance, "sigma1": sigma, "sigma1_irr": sigma_irr,
-                "lambda2b": res.lambda2b, "model_status": status, "summary": res.summary()}
+                "lambda2b": res.lambda2b, "model_status": status,
+                "summary": dataclasses.replace(res, status=status).summary()}

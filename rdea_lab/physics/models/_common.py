@@ -104,25 +104,22 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
     if len(slack):
         # a path's free state continues the branch the clamped state is on
         origin = ev.y[slack] if (path and ev.y is not None) else None
-        lam_f, st_f, f_free, crit_f, range_f = free_state(evaluate, geom, material, l1[slack], v[slack],
-                                                          fields["sigma1"][slack], origin=origin)
-        free[slack] = lam_f
-        # a snap-through stays the event it is; otherwise the sample is slack (or has no free state)
-        status[slack] = np.where(st_f == SLACK, np.where(status[slack] == SNAPPED, SNAPPED, SLACK), st_f)
+        lam_f, st_f, f_free, _, _ = free_state(evaluate, geom, material, l1[slack], v[slack],
+                                               fields["sigma1"][slack], origin=origin)
+        # slack either way (force 0: the clamped state pushes); a snap-through stays the event it is.
+        # Where the free state lies beyond what the model solves (outside its range, past a fold, or
+        # past FREE_STRETCH_MAX) the stretches and capacitance stay the clamped state's, free_stretch NaN.
+        status[slack] = np.where(status[slack] == SNAPPED, SNAPPED, SLACK)
         sig = np.asarray(fields["sigma1"], float).copy()
         sig[slack] = 0.0
         fields["sigma1"] = sig
+        found = st_f == SLACK
         for key in ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i"):
             arr = np.array(np.broadcast_to(np.asarray(fields[key], float), l1.shape))
-            arr[slack] = f_free[key]
+            arr[slack[found]] = f_free[key][found]
             fields[key] = arr
-        # where the free state has none, the labels are the free state's (at free_stretch: NaN)
-        crit, rng = ev.critical_voltage.copy(), ev.range_voltage.copy()
-        lost = st_f != SLACK
-        crit[slack[lost]] = crit_f[lost]
-        rng[slack[lost]] = range_f[lost]
-    else:
-        crit, rng = ev.critical_voltage, ev.range_voltage
+        free[slack] = lam_f
+    crit, rng = ev.critical_voltage, ev.range_voltage
     end = None
     if path:
         y_end, label = ev.end if isinstance(ev.end, tuple) else (ev.end, None)
