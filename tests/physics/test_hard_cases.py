@@ -203,8 +203,9 @@ def test_3r_fold_matches_brute_force_enthalpy():
     assert before.status == OK
     assert first_local_min(0.99 * v_c) == pytest.approx(float(before.r_i), abs=2 * (xs[1] - xs[0]))
     assert first_local_min(1.01 * v_c) > 1.2 * float(before.r_i)  # the nearby minimum has vanished
-    assert first_local_min(1.01 * v_c) == pytest.approx(float(r.r_i) * 0 + float(
-        solve("3r", geom, WEAK, l1, 1.01 * v_c, slack=False).r_i), abs=2 * (xs[1] - xs[0]))
+    # ... and the snapped state is the first minimum beyond it
+    assert first_local_min(1.01 * v_c) == pytest.approx(
+        float(solve("3r", geom, WEAK, l1, 1.01 * v_c, slack=False).r_i), abs=2 * (xs[1] - xs[0]))
 
 
 @pytest.mark.parametrize("model", MODELS)

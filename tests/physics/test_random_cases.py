@@ -34,7 +34,6 @@ small-core cases run under ``-m slow`` (measured here: 1R 4-7 min, 3R 7-10 min).
 
 from __future__ import annotations
 
-import inspect
 import time
 from collections import Counter
 from types import SimpleNamespace
@@ -50,15 +49,8 @@ from rdea_lab.physics.models import solve, three_ring
 import brute_force as bf
 from conftest import RIZZELLO, TABLE3, core
 
-# status codes; the rewrite adds OUTSIDE_RANGE and SLACK (fallbacks until it lands)
-OK = getattr(_result, "OK", 0)
-LIMIT_POINT = getattr(_result, "LIMIT_POINT", 1)
-BAD_INPUT = getattr(_result, "BAD_INPUT", 2)
-NOT_CONVERGED = getattr(_result, "NOT_CONVERGED", 3)
-SNAPPED = getattr(_result, "SNAPPED", 4)
-OVERFLOW = getattr(_result, "OVERFLOW", 5)
-OUTSIDE_RANGE = getattr(_result, "OUTSIDE_RANGE", 6)
-SLACK = getattr(_result, "SLACK", 7)
+OK, LIMIT_POINT, BAD_INPUT, NOT_CONVERGED = _result.OK, _result.LIMIT_POINT, _result.BAD_INPUT, _result.NOT_CONVERGED
+SNAPPED, OVERFLOW, OUTSIDE_RANGE, SLACK = _result.SNAPPED, _result.OVERFLOW, _result.OUTSIDE_RANGE, _result.SLACK
 NAMES = {OK: "OK", LIMIT_POINT: "LIMIT_POINT", BAD_INPUT: "BAD_INPUT", NOT_CONVERGED: "NOT_CONVERGED",
          SNAPPED: "SNAPPED", OVERFLOW: "OVERFLOW", OUTSIDE_RANGE: "OUTSIDE_RANGE", SLACK: "SLACK"}
 assert (bf.OK, bf.LIMIT_POINT, bf.SNAPPED, bf.OUTSIDE_RANGE) == (OK, LIMIT_POINT, SNAPPED, OUTSIDE_RANGE)
@@ -66,7 +58,7 @@ assert (bf.OK, bf.LIMIT_POINT, bf.SNAPPED, bf.OUTSIDE_RANGE) == (OK, LIMIT_POINT
 #: The rule under test is the equilibrium at the given stretch. Where the solver can clip a
 #: roll that would push (status SLACK: the state of the free stretch instead, with its own
 #: status), ask it for the equations' state, ``slack=False``.
-TAUT = {"slack": False} if "slack" in inspect.signature(solve).parameters else {}
+TAUT = {"slack": False}
 
 SEED = 20211105
 N_GENERAL, N_SMALL = 2400, 800
@@ -184,8 +176,7 @@ def compare_case(model, case, counts, failures):
     status = np.asarray(res.status).astype(int)
     y_pkg = _coordinate(model, case.geom, res)
     crit = np.asarray(res.critical_voltage, float)
-    has_range_voltage = hasattr(res, "range_voltage")
-    rng_v = np.asarray(getattr(res, "range_voltage", np.full(status.shape, np.nan)), float)
+    rng_v = np.asarray(res.range_voltage, float)
     for k, s in enumerate(states):
         st = int(status[k])
         counts["samples"] += 1
@@ -247,7 +238,7 @@ def compare_case(model, case, counts, failures):
                      f"; pull-in {s.max_voltage:.8g} V")
             elif not np.isnan(crit[k]):
                 fail("OUTSIDE_RANGE with a critical voltage")
-            elif has_range_voltage and not abs(rng_v[k] - s.max_voltage) <= V_RTOL * s.max_voltage:
+            elif not abs(rng_v[k] - s.max_voltage) <= V_RTOL * s.max_voltage:
                 fail("range voltage is not the largest voltage with a state in range",
                      f"; {rng_v[k]:.8g} vs {s.max_voltage:.8g} V")
             else:
@@ -443,10 +434,8 @@ def test_reference_range_end_is_the_hoop_stretch_cap():
         geom = core(name)
         for l1 in (1.0, 1.4):
             land = bf.landscape("3r", geom, TABLE3, l1)
-            rings = getattr(three_ring, "_Rings", None)
-            if rings is not None and hasattr(rings, "xi_at_hoop_stretch"):
-                xi = rings(geom, np.asarray([l1])).xi_at_hoop_stretch(bf.HOOP_FACTOR / np.sqrt(l1), l1)
-                assert land.y_end == pytest.approx(float(np.ravel(xi)[0]), rel=1e-12, abs=0)
+            xi = three_ring._Rings(geom, np.asarray([l1])).xi_at_hoop_stretch(bf.HOOP_FACTOR / np.sqrt(l1), l1)
+            assert land.y_end == pytest.approx(float(np.ravel(xi)[0]), rel=1e-12, abs=0)
             # c grows as lambda2b**2: at the range end it is 100 times c(y0)
             assert (land.c0 + land.dc[-1]) / land.c0 == pytest.approx(bf.HOOP_FACTOR**2, rel=1e-12, abs=0)
 
