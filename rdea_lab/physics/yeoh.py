@@ -45,6 +45,12 @@ def slope(x, C):
     return C10 + x * (2.0 * C20 + 3.0 * C30 * x), 2.0 * C20 + 6.0 * C30 * x
 
 
+def energy_of(x, C):
+    """Yeoh energy ``W(x) = C10 x + C20 x**2 + C30 x**3`` [Pa] of ``x = I1 - 3``."""
+    C10, C20, C30 = C
+    return x * (C10 + x * (C20 + x * C30))
+
+
 def energy(l1, l2, C):
     """Yeoh free-energy density ``psi_m`` [Pa = J/m^3].
 
@@ -61,9 +67,8 @@ def energy(l1, l2, C):
     -----
     Eq. (22) in [1].
     """
-    C10, C20, C30 = C
     x, _, _ = _invariant_terms(np.asarray(l1, float), np.asarray(l2, float))
-    return x * (C10 + x * (C20 + x * C30))
+    return energy_of(x, C)
 
 
 def gradient(l1, l2, C):

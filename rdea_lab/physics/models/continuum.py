@@ -62,8 +62,10 @@ import functools
 
 import numpy as np
 
+from .. import yeoh
 from ..branch import Problem
 from ..result import OK, ModelNotApplicable, ModelResult
+from . import su
 from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
 
 #: Target relative accuracy of one region's quadrature, used to choose its points (see :func:`quadrature`).
@@ -176,10 +178,9 @@ class _Roll:
                 avg[sel, j] = self.w[sel] / self.w[sel].sum()
         self.avg = avg
         # the unloaded state: r_i = Ri lambda1**-1/2, and I1 - 3 there in a form exact near lambda1 = 1
-        a = np.log(l1)
         self.xi0 = np.sqrt(self.s_i / l1)
-        self.x0 = np.expm1(2.0 * a) + 2.0 * np.expm1(-a)
-        self.lx0p = -2.0 * l1 * l1 * np.expm1(-3.0 * a)  # lambda1 dx0/dlambda1
+        # the SU basis: lambda1 dx0/dlambda1 and x0 (su.basis keeps their digits near lambda1 = 1)
+        self.lx0p, self.x0 = su.basis(l1)
 
     def opening(self, xi, xi0):
         """``A = xi**2 - s_i / lambda1``, factored so that it keeps its digits near the unloaded state."""
@@ -197,7 +198,6 @@ def _terms(roll, C):
     ``d2_delta/dA2 = 2 lambda1 (1 - t) / (s + B)**2``, ``t = B / (s + B)``;
     ``dA/dxi = 2 xi``. ``c = 1 / lambda1 + A Lb`` is linear in ``A``.
     """
-    C10, C20, C30 = C
     s, ws, w = roll.s, roll.w_over_s, roll.w
     inv_s = 1.0 / s
     ws2 = ws * inv_s
@@ -209,12 +209,11 @@ def _terms(roll, C):
         inv = 1.0 / (s + B)
         t = B * inv
         x = roll.x0[idx][:, None] + A[:, None] * t * inv_s
-        W1 = C10 + x * (2.0 * C20 + 3.0 * C30 * x)
+        W1, W2 = yeoh.slope(x, C)
         tt = t * (2.0 - t)
         p_A = (W1 * tt) @ ws
         if not second:
             return p_A, None
-        W2 = 2.0 * C20 + 6.0 * C30 * x
         return p_A, (W2 * tt * tt) @ ws2 + 2.0 * l1 * (((W1 * (1.0 - t)) * inv * inv) @ w)
 
     def terms(xi, idx, second):
@@ -253,7 +252,7 @@ def _energy(roll, C, l1, xi, xi0, x0):
     B = (l1 * A)[..., None]
     t = B / (roll.s + B)
     x = x0[..., None] + A[..., None] * t / roll.s
-    return (x * (C[0] + x * (C[1] + x * C[2]))) @ roll.w
+    return yeoh.energy_of(x, C) @ roll.w
 
 
 def enthalpy(geom, material, stretch, voltage, r_i, *, points=None):
@@ -316,7 +315,6 @@ def _problem(roll, geom, material, l1, v):
 def _mechanics(roll, C):
     """``block(xi, l1, xi0, x0, lx0p)``: the elastic stress ``lambda1 dpsi/dlambda1`` at fixed ``xi``
     and the volume-averaged hoop stretch of regions a, b, c."""
-    C10, C20, C30 = C
     s, w = roll.s, roll.w
     s_i_over_s = roll.s_i / s
 
@@ -326,7 +324,7 @@ def _mechanics(roll, C):
         inv = 1.0 / (s + B)
         t = B * inv
         x = x0[:, None] + A[:, None] * t / s
-        W1 = C10 + x * (2.0 * C20 + 3.0 * C30 * x)
+        W1, _ = yeoh.slope(x, C)
         # lambda1 d(I1 - 3)/dlambda1 at fixed xi: x0, B and A (through s_i / lambda1) all move
         L = l1[:, None]
         dx = lx0p[:, None] + L * (A[:, None] * inv) ** 2 + t * (2.0 - t) * s_i_over_s / L
