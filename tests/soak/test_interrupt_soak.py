@@ -102,7 +102,8 @@ def test_interrupt_soak(tmp_path):
                 "--backend", backend, "--realtime", "--quiet", "--seed", str(i), "--out", str(out)]
         if backend == "twin":
             args += ["--model", "su"]
-        proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # as at a terminal
         with lock:
             alive[out] = proc
         part = out.with_name(out.name + ".part")
