@@ -407,8 +407,7 @@ def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, 
         K_crit[li] = np.where(at_end, np.nan, K_top)
         K_range[li] = np.where(at_end, np.max(kh[li], axis=1), np.nan)  # the largest load solved in range
     if origin is None:  # a run of lost samples keeps the label (and fold) of its first
-        first_label = None if start_label is None else start_label
-        run_start = lost & ~np.r_[first_label is not None, lost[:-1]]
+        run_start = lost & ~np.r_[start_label is not None, lost[:-1]]
         label_idx = np.maximum.accumulate(np.where(run_start, np.arange(n), -1))
         inherit = lost & (label_idx >= 0)
         status[inherit] = status[label_idx[inherit]]
@@ -416,9 +415,9 @@ def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, 
         K_range[inherit] = np.where(status[inherit] == OUTSIDE_RANGE, K_range[inherit], np.nan)
         carried = lost & (label_idx < 0)  # the run began in the previous block
         if np.any(carried):
-            status[carried] = first_label[0]
-            K_crit[carried] = first_label[1] if first_label[0] == LIMIT_POINT else np.nan
-            K_range[carried] = np.where(first_label[0] == OUTSIDE_RANGE, K_range[carried], np.nan)
+            status[carried] = start_label[0]
+            K_crit[carried] = start_label[1] if start_label[0] == LIMIT_POINT else np.nan
+            K_range[carried] = np.where(start_label[0] == OUTSIDE_RANGE, K_range[carried], np.nan)
     fail = bad_root & ~lost
     status[fail] = NOT_CONVERGED
     end_label = (int(status[-1]), float(K_crit[-1])) if lost[-1] else None

@@ -104,8 +104,8 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
     if len(slack):
         # a path's free state continues the branch the clamped state is on
         origin = ev.y[slack] if (path and ev.y is not None) else None
-        lam_f, st_f, f_free, _, _ = free_state(evaluate, geom, material, l1[slack], v[slack],
-                                               fields["sigma1"][slack], origin=origin)
+        lam_f, st_f, f_free = free_state(evaluate, geom, material, l1[slack], v[slack], fields["sigma1"][slack],
+                                         origin=origin)
         # slack either way (force 0: the clamped state pushes); a snap-through stays the event it is.
         # Where the free state lies beyond what the model solves (outside its range, past a fold, or
         # past FREE_STRETCH_MAX) the stretches and capacitance stay the clamped state's, free_stretch NaN.
@@ -119,12 +119,12 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
             arr[slack[found]] = f_free[key][found]
             fields[key] = arr
         free[slack] = lam_f
-    crit, rng = ev.critical_voltage, ev.range_voltage
     end = None
     if path:
         y_end, label = ev.end if isinstance(ev.end, tuple) else (ev.end, None)
         end = PathEnd(name, y_end, label)
-    return finish(name, geom, l1, bad, shape, raw, fields, status, crit, rng, free, end)
+    return finish(name, geom, l1, bad, shape, raw, fields, status, ev.critical_voltage, ev.range_voltage, free,
+                  end)
 
 
 def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rtol=1e-13, max_iter=200):
@@ -149,14 +149,9 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
     fields : dict
         ``lambda2a``, ``lambda2b``, ``lambda2c``, ``capacitance``, ``r_i``
         of the free state.
-    critical_voltage, range_voltage : numpy.ndarray
-        Where the search lost the equilibrium: the model's fold or range
-        voltage at the stretch where it did.
     """
     n = l1.size
     status = np.full(n, SLACK, dtype=np.int8)
-    crit = np.full(n, np.nan)
-    rng = np.full(n, np.nan)
     lo, s_lo = l1.astype(float).copy(), np.asarray(sigma_at_l1, float).copy()
     hi = lo.copy()
     s_hi = np.full(n, -np.inf)
@@ -167,8 +162,6 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
         sig = ev.fields["sigma1"]
         ok = np.isin(ev.status, VALID) & np.isfinite(sig)
         status[open_[~ok]] = np.where(np.isin(ev.status[~ok], VALID), NOT_CONVERGED, ev.status[~ok])
-        crit[open_[~ok]] = ev.critical_voltage[~ok]
-        rng[open_[~ok]] = ev.range_voltage[~ok]
         got = ok & (sig >= 0.0)
         hi[open_[got]] = trial[got]
         s_hi[open_[got]] = sig[got]
@@ -222,7 +215,7 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
         lam[w[jump]] = np.nan
         for key in fields:
             fields[key][w] = np.broadcast_to(np.asarray(ev.fields[key], float), (w.size,))
-    return lam, status, fields, crit, rng
+    return lam, status, fields
 
 
 def _trial(evaluate, geom, material, l1, v, origin, idx):

@@ -80,9 +80,9 @@ def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=Tru
         Axial stretch ``lambda1`` [-], >= 1.
     voltage : array_like
         Voltage [V].
-    path, start
-        Accepted for the common interface; SU has no free coordinate, so its
-        state has no memory of the path.
+    path, start, slack
+        See :func:`rdea_lab.physics.models.solve`; SU has no free coordinate,
+        so its state has no memory of the path.
 
     Returns
     -------

@@ -203,17 +203,9 @@ def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=Tru
         Axial stretch ``lambda1`` [-], >= 1.
     voltage : array_like
         Voltage [V].
-    path : bool
-        False (default): every sample on its own, in the state a voltage ramp
-        from 0 V reaches at its stretch. True: a time series, each sample
-        continuing from the previous one's state (hysteresis; snaps flagged
-        where they happen).
-    start : PathEnd, optional
-        With ``path``: the previous block's ``ModelResult.end``.
-    slack : bool
-        True (default): a roll whose tension would be negative is slack
-        (force 0, the free state). False: the equilibrium at the given
-        stretch, negative stress included.
+    path, start, slack
+        The equilibrium rule, a path's continuation and slack: see
+        :func:`rdea_lab.physics.models.solve`.
 
     Returns
     -------
