@@ -193,7 +193,9 @@ def format_result(result: CalibrationResult) -> str:
                      + ("" if p.free else "  (fixed)") + (f"  [{', '.join(flags)}]" if flags else ""))
     for g in result.runs:
         lines.append(f"  {g['specimen']}/{g['protocol']}: rms {g['rms_error_N']:.4g} N, R2 {g['r2']:.5f}, "
-                     f"max rel. error {100 * g['max_rel_error']:.2f} %")
+                     f"max rel. error {100 * g['max_rel_error']:.2f} %, rms/peak "
+                     f"{100 * g.get('rms_rel_error', float('nan')):.2f} %, p99/peak "
+                     f"{100 * g.get('p99_rel_error', float('nan')):.2f} %")
     lines.append(f"  AIC {result.aic:.1f}, BIC {result.bic:.1f}")
     return "\n".join(lines)
 

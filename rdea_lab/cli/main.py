@@ -209,7 +209,8 @@ def reproduce(out_dir, campaign_path, no_speed, quiet):
     v = result["validation"]
     click.echo("")
     click.echo(f"Table 4 analogue ({v['origin']})")
-    click.echo(v["markdown"])
+    click.echo(v["markdown"], nl=False)
+    click.echo(v["legend"] + "\n")
     click.echo("outputs:")
     click.echo(f"  datasets        {out / 'datasets'}/<specimen>/<protocol>.nc")
     click.echo(f"  parameters      {result['calibration']['params']} (+ .history.csv, .history.png)")

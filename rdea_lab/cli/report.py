@@ -62,6 +62,7 @@ def validation(params_path, datasets, out_dir, model, tolerance, no_figures):
                                    figures=not no_figures)
     click.echo(result["caption"])
     click.echo(result["markdown"], nl=False)
+    click.echo(result["legend"])
     for s in result["skipped"]:
         click.echo(f"skipped {s['file']}: {s['reason']}")
     click.echo(f"wrote {result['files']['html']} (tables table4.md, table4.csv, table4.tex; "

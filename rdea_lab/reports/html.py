@@ -77,7 +77,9 @@ def write_validation_index(path: Path, result: dict, columns) -> Path:
     cal = result["params"]
     parts = [f"<p class=\"banner\">Data origin: {esc(result['origin'])}</p>\n",
              f"<h2>Table 4 analogue</h2>\n<p>{esc(result['caption'])}</p>\n",
-             table(columns, result["rows"], numeric=("samples", "max_rel_error", "paper_max_rel_error")),
+             table(columns, result["rows"], numeric=("samples", "max_rel_error", "paper_max_rel_error",
+                                                     "rms_rel_error", "p99_rel_error")),
+             f"<p class=\"legend\">{esc(result.get('legend', ''))}</p>\n" if result.get("legend") else "",
              "<p>Files: <code>table4.md</code>, <code>table4.csv</code>, <code>table4.tex</code>.</p>\n"]
     if result["figures"]:
         parts += ["<h2>Figures (measured in colour, twin dashed black)</h2>\n",

@@ -25,7 +25,7 @@ import xarray as xr
 import yaml
 
 from ..backends.rig import truth_name
-from ..calibration.objective import file_hash, load_run
+from ..calibration.objective import error_measures, file_hash, load_run
 from ..runs.app import check_writable
 from ..specs import MODEL_CHOICES, UserError, as_params
 from ..twin import predict
@@ -58,12 +58,18 @@ COLUMNS = [
     ("samples", "samples", tables.text),
     ("max_rel_error", "max. rel. error [%]", tables.percent),
     ("paper_max_rel_error", "paper [%]", tables.percent),
+    ("rms_rel_error", "rms/peak [%]", tables.percent),
+    ("p99_rel_error", "p99/peak [%]", tables.percent),
     ("rms_text", "rms error", tables.text),
     ("notes", "notes", tables.text),
 ]
 CSV_KEYS = ["experiment", "kind", "quantity", "voltage", "voltage_V", "specimen", "protocol", "file", "sha256",
             "role", "calibrated_on", "model", "model_reason", "samples", "excluded", "peak", "unit",
-            "max_rel_error", "rms_error", "paper_max_rel_error", "window", "notes"]
+            "max_rel_error", "rms_error", "paper_max_rel_error", "rms_rel_error", "p99_rel_error", "window", "notes"]
+#: The line under every rendering of the table that says which error measure is which.
+LEGEND = ("Errors relative to the run's largest measured force or capacitance (peak): max. rel. error = "
+          "max |predicted - measured| / peak (Table 4's metric); rms/peak = rms(predicted - measured) / peak; "
+          "p99/peak = 99th percentile of |predicted - measured| / peak; rms error in the quantity's unit.")
 
 
 class ReportInputError(UserError):
@@ -149,7 +155,9 @@ def experiment(kind: str, protocol: str, voltage: np.ndarray, has_capacitance: b
 
 
 def compare(measured: np.ndarray, predicted: np.ndarray) -> dict:
-    """Table 4's metric: ``max |pred - meas| / max |meas|``, and the rms error, over the finite predictions.
+    """Table 4's metric: ``max |pred - meas| / max |meas|``, the rms error, and the rms and 99th
+    percentile of the error over the same peak (:func:`rdea_lab.calibration.error_measures`), over the
+    finite predictions.
 
     The same numbers as :func:`rdea_lab.calibration.goodness` when every
     prediction is finite; samples without an equilibrium are counted in
@@ -159,9 +167,10 @@ def compare(measured: np.ndarray, predicted: np.ndarray) -> dict:
     r = predicted[ok] - measured[ok]
     peak = float(np.max(np.abs(measured)))
     if not ok.any() or peak == 0.0:
-        return {"max_rel_error": math.nan, "rms_error": math.nan, "peak": peak, "excluded": int((~ok).sum())}
-    return {"max_rel_error": float(np.max(np.abs(r)) / peak), "rms_error": float(np.sqrt(np.mean(r**2))),
-            "peak": peak, "excluded": int((~ok).sum())}
+        return {"max_rel_error": math.nan, "rms_rel_error": math.nan, "p99_rel_error": math.nan,
+                "rms_error": math.nan, "peak": peak, "excluded": int((~ok).sum())}
+    return {**error_measures(r, peak), "rms_error": float(np.sqrt(np.mean(r**2))), "peak": peak,
+            "excluded": int((~ok).sum())}
 
 
 def _voltage_window(voltage: np.ndarray) -> np.ndarray:
@@ -282,8 +291,8 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
     -------
     dict
         ``rows`` (one dict per run, keys of :data:`CSV_KEYS` and ``rms_text``),
-        ``markdown`` (the table), ``files``, ``runs`` (provenance), ``params``,
-        ``skipped``, ``origin``, ``model``.
+        ``markdown`` (the table), ``legend`` (the line under it: which measure is which),
+        ``files``, ``runs`` (provenance), ``params``, ``skipped``, ``origin``, ``model``.
 
     Raises
     ------
@@ -323,12 +332,13 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
                f"calibrated on: {', '.join(cal['specimens']) or NONE_RECORDED}. {origin}")
     files = {"markdown": out / "table4.md", "csv": out / "table4.csv", "latex": out / "table4.tex"}
     left_out = "".join(f"- `{sk['file']}`: {sk['reason']}\n" for sk in skipped)
-    files["markdown"].write_text(f"# Table 4 analogue\n\n{caption}\n\n{md}"
+    files["markdown"].write_text(f"# Table 4 analogue\n\n{caption}\n\n{md}\n{LEGEND}\n"
                                  + (f"\nFiles left out:\n\n{left_out}" if left_out else ""))
     tables.write_csv(files["csv"], CSV_KEYS, rows)
-    files["latex"].write_text(f"% {tables.latex_escape(caption)}\n" + tables.latex_tabular(COLUMNS, rows))
+    files["latex"].write_text(f"% {tables.latex_escape(caption)}\n% {tables.latex_escape(LEGEND)}\n"
+                              + tables.latex_tabular(COLUMNS, rows))
     figs = write_figures(evaluated, out) if figures else {}
-    result = {"rows": rows, "markdown": md, "caption": caption, "model": model, "params": cal,
+    result = {"rows": rows, "markdown": md, "caption": caption, "legend": LEGEND, "model": model, "params": cal,
               "params_name": params.name, "runs": [e["provenance"] for e in evaluated], "skipped": skipped,
               "origin": origin, "figures": [str(f) for f in figs],
               "figure_captions": {Path(f).name: c for f, c in figs.items()},

@@ -12,6 +12,7 @@ import shutil
 from pathlib import Path
 
 import matplotlib.pyplot as plt
+import numpy as np
 import pytest
 import xarray as xr
 import yaml
@@ -277,3 +278,38 @@ def test_cli_invalid_params_file_exits_2(report_cli, twin_folder, tmp_path, caps
     bad.write_text(TABLE3.read_text().replace("C10: 242 kPa", "C10: -5 kPa"))
     code = run(report_cli, ["report", "validation", "--params", str(bad), "--datasets", str(twin_folder), "--out", str(tmp_path)])
     _one_line_exit_2(capsys, code, r"bad.yaml: yeoh.C10")
+
+
+def test_robust_measures_beside_table4s_are_numpy_formulas_on_the_runs_residual(twin_folder, plus10):
+    """rms/peak and p99/peak (issue 13) against numpy on the twin's residual of the run, read again."""
+    params = load_params(Path(plus10["files"]["csv"]).parents[1] / "p.yaml")  # the fixture's C10 x 1.1
+    for r in plus10["rows"]:
+        if r["quantity"] != "force" or r["kind"] == "blocking":
+            continue
+        run = load_run(r["file"])
+        res = np.abs(predict_force(run, params, "su") - run.force)
+        peak = np.max(np.abs(run.force))
+        assert r["rms_rel_error"] == pytest.approx(np.sqrt(np.mean(res**2)) / peak, rel=1e-9)
+        assert r["p99_rel_error"] == pytest.approx(np.percentile(res, 99) / peak, rel=1e-9)
+        assert r["max_rel_error"] == pytest.approx(res.max() / peak, rel=1e-9)
+        assert r["rms_rel_error"] <= r["p99_rel_error"] <= r["max_rel_error"]  # a smooth error: no outliers
+    for r in plus10["rows"]:  # C10 moves every force (the 0 V capacitance does not depend on it)
+        assert (r["rms_rel_error"] > 0 and r["p99_rel_error"] > 0) == (r["quantity"] == "force")
+
+
+def test_every_rendering_has_the_new_columns_and_the_legend(same):
+    md = Path(same["files"]["markdown"]).read_text()
+    header = next(ln for ln in md.splitlines() if ln.startswith("| experiment"))
+    assert "| max. rel. error [%] |" in header and "| rms/peak [%] |" in header and "| p99/peak [%] |" in header
+    table_end = md.index(same["markdown"]) + len(same["markdown"])
+    assert md[table_end:].lstrip("\n").startswith(same["legend"])  # the line right under the table
+    for word in ("max. rel. error", "rms/peak", "p99/peak", "Table 4"):
+        assert word in same["legend"]
+    with open(same["files"]["csv"], newline="") as fh:
+        back = list(csv.DictReader(fh))
+    for b, r in zip(back, same["rows"]):
+        assert float(b["rms_rel_error"]) == r["rms_rel_error"] and float(b["p99_rel_error"]) == r["p99_rel_error"]
+    tex = Path(same["files"]["latex"]).read_text()
+    assert r"rms/peak [\%]" in tex and r"p99/peak [\%]" in tex and latex_escape(same["legend"]) in tex
+    page = Path(same["files"]["html"]).read_text()
+    assert "<th>p99/peak [%]</th>" in page and "legend" in page and "99th percentile" in page
