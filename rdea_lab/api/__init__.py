@@ -17,7 +17,8 @@ Quick start (a notebook cell)::
 Runs: `run_protocol`, `prepare_run`, `run_campaign`, callbacks `LiveTable`,
 `LivePlot`. Data: `open_run`, `catalog` (a DataFrame), `recover`,
 `import_files`. Model: `predict`, `simulate`, `quasi_static_curves`,
-`geometry`. Calibration: `calibrate_runs`, `format_result`. Reports:
+`geometry`. Calibration: `calibrate_runs`, `format_result`, `cross_validate`,
+`format_cv`, `envelope`, `beyond`. Reports:
 `validation_report`, `speed_study`, `reproduce`. Rig: `RigServer`.
 """
 
@@ -57,6 +58,9 @@ _EXPORTS = {
     "parse_units": "rdea_lab.store.importers", # calibration
     "calibrate_runs": "rdea_lab.calibration.app", "format_result": "rdea_lab.calibration.app",
     "CalibrationResult": "rdea_lab.calibration.fit",
+    "cross_validate": "rdea_lab.calibration.crossval", "format_cv": "rdea_lab.calibration.crossval",
+    "CrossValidation": "rdea_lab.calibration.crossval", "CV_CHOICES": "rdea_lab.calibration.crossval",
+    "envelope": "rdea_lab.calibration.envelope", "beyond": "rdea_lab.calibration.envelope",
     # reports
     "validation_report": "rdea_lab.reports.validation", "ReportInputError": "rdea_lab.reports.validation",
     "speed_study": "rdea_lab.reports.speed", "reproduce": "rdea_lab.reports.reproduce",

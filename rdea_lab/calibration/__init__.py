@@ -4,6 +4,8 @@
   discovery, start values, branch growth, model choice; returns the frozen
   `CalibrationResult` and writes the record if ``out`` is given.
 - `calibrate`: the Nelder-Mead fit itself on `RunData`; `load_run`, `find_runs`.
+- `cross_validate` (inputs, cv= or holdout=): fit some runs, predict the others, with the
+  error measures of `error_measures` and the flags of `beyond` against the fitted runs' `envelope`.
 - The objective predicts the force through the twin's one composition
   (:func:`rdea_lab.twin.compose`), with a cached SU stress basis.
 
@@ -16,7 +18,11 @@ Quick start::
 
 from .app import calibrate_runs, format_result, gather_runs
 from .fit import CalibrationResult, calibrate, initial_guess
-from .objective import RunData, find_runs, goodness, load_run, predict_force
+from .objective import RunData, error_measures, find_runs, goodness, load_run, predict_force
+from .envelope import Envelope, beyond, envelope, run_envelope
+from .crossval import CrossValidation, Fold, cross_validate, format_cv
 
-__all__ = ["CalibrationResult", "RunData", "calibrate", "calibrate_runs", "find_runs", "format_result",
-           "gather_runs", "goodness", "initial_guess", "load_run", "predict_force"]
+__all__ = ["CalibrationResult", "CrossValidation", "Envelope", "Fold", "RunData", "beyond", "calibrate",
+           "calibrate_runs", "cross_validate", "envelope", "error_measures", "find_runs", "format_cv",
+           "format_result", "gather_runs", "goodness", "initial_guess", "load_run", "predict_force",
+           "run_envelope"]

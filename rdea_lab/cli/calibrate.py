@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import sys
 
 import click
@@ -27,15 +28,25 @@ from .errors import headless
               help="For folders: which runs, comma-separated from tensile, blocking, capacitance, custom.")
 @click.option("--metric", type=click.Choice(["rms", "max"], case_sensitive=False), default="rms", show_default=True,
               help="Error metric on the peak-normalized force.")
+@click.option("--method", type=click.Choice(["nelder-mead", "least-squares"], case_sensitive=False),
+              default="nelder-mead", show_default=True,
+              help="Minimizer: Nelder-Mead with restarts, or bounded least squares (--metric rms only).")
 @click.option("--max-evals", type=click.IntRange(10, 10**7), default=20000, show_default=True)
 @click.option("--max-time", type=click.FloatRange(0.1, 86400), default=300.0, show_default=True,
               help="Wall-time budget [s].")
 @click.option("--name", help="Name of the calibrated parameter set [default: from --out].")
-@click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False),
-              help="Record to write (a parameter file with a calibration section).")
+@click.option("--out", "out_path", required=True, type=click.Path(),
+              help="Record to write (a parameter file with a calibration section); with --cv a folder.")
 @click.option("--quiet", is_flag=True, help="No progress line.")
-def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric, max_evals, max_time, name,
-              out_path, quiet):
+@click.option("--holdout", multiple=True, type=click.Path(), metavar="FILE",
+              help="A run among INPUTS to predict instead of fit (repeatable); its errors and envelope flags "
+                   "are printed, written to <out stem>.holdout.csv and under calibration.validation in --out.")
+@click.option("--cv", metavar="leave-one-out|by-rate|by-stretch",
+              help="Cross-validate: one run per fold, or the runs grouped by nominal stretch rate or by maximum "
+                   "stretch; each fold fits the others and predicts its own. --out is then a folder: cv.csv, "
+                   "cv.md, fold-<k>.yaml.")
+def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric, method, max_evals, max_time, name,
+              out_path, quiet, holdout, cv):
     """Fit the Yeoh and viscoelastic parameters to measured runs with Nelder-Mead.
 
     INPUTS are datasets or folders of datasets (a folder gives its complete
@@ -44,6 +55,8 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
     \b
     Example:
       rdea-lab calibrate datasets/paper2021/specimen-2 --model su --out params/calibrated.yaml
+      rdea-lab calibrate datasets/vhb4910 --model 1r --holdout datasets/vhb4910/0d05_3d0.nc --out vhb.yaml
+      rdea-lab calibrate datasets/vhb4910 --model 1r --cv by-rate --out reports/vhb4910-cv
     """
     headless()
     show = not quiet and sys.stderr.isatty()
@@ -60,12 +73,30 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
         click.echo(f"calibrating {', '.join(free)} ({chosen}, {metric}) on {len(runs)} runs: "
                    + ", ".join(f"{r.specimen}/{r.protocol}" for r in runs))
 
+    def announce_fold(k, count, label, fitted, predicted):
+        click.echo(f"fold {k}/{count} (held out: {label}): fitting {', '.join(fitted)}")
+
+    cross = cv is not None or bool(holdout)
+    if not cross:  # a record file, as the option's type said before --cv made it a folder too
+        ctx = click.get_current_context()
+        param = next(p for p in ctx.command.params if p.name == "out_path")
+        click.Path(dir_okay=False).convert(out_path, param, ctx)
+    fit = (functools.partial(api.cross_validate, cv=cv, holdout=list(holdout) or None, announce_fold=announce_fold)
+           if cross else api.calibrate_runs)
     kinds = [k.strip() for k in kinds_text.split(",") if k.strip()]
-    result = api.calibrate_runs(list(inputs), model=model.lower(), init=init_path, free=free_text, branches=M,
-                                eps_r=eps_r, kinds=kinds, metric=metric, max_evals=max_evals, max_time=max_time,
-                                out=out_path, name=name, progress=progress, announce=announce)
+    result = fit(list(inputs), model=model.lower(), init=init_path, free=free_text, branches=M,
+                 eps_r=eps_r, kinds=kinds, metric=metric, max_evals=max_evals, max_time=max_time,
+                 out=out_path, name=name, progress=progress, announce=announce, method=method.lower())
     if show:
         click.echo("", err=True)
+    if cross:
+        for s in result.skipped:
+            click.echo(f"skipped {s['file']}: {s['reason']}")
+        if holdout:
+            click.echo(api.format_result(result.folds[0].result))
+        click.echo(api.format_cv(result), nl=False)
+        click.echo("wrote " + ", ".join(str(f) for f in result.files.values()))
+        return
     click.echo(api.format_result(result))
     files = result.record_files
     click.echo(f"wrote {files['params']}, {files['history']}, {files['plot']}")

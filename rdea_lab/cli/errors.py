@@ -25,7 +25,8 @@ OPTIONS = {"address": "--rig", "token": "--token-file", "address/token": "--rig/
            "faults/truth": "--fault/--truth", "truth": "--truth", "seed": "--seed", "params": "--params",
            "model": "--model", "tolerance": "--tolerance", "backend": "--backend", "stall_timeout": "--stall-timeout",
            "protocol_kind": "--protocol-kind", "free": "--free", "eps_r": "--eps-r", "branches": "--viscous-branches",
-           "metric": "--metric", "init": "--init"}
+           "metric": "--metric", "init": "--init", "cv": "--cv", "holdout": "--holdout",
+           "method": "--method"}
 
 
 def user_message(exc) -> str:
