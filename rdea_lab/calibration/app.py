@@ -21,6 +21,7 @@ from ..runs.app import check_writable
 from ..specs import MODEL_CHOICES, SpecError, ViscoBranch, as_params
 from ..specs.protocol import KINDS
 from .fit import CalibrationResult, calibrate, calibrate_growing, initial_guess
+from .methods import METHODS
 from .objective import find_runs, load_run
 from .parameters import values_of
 from .record import write_record
@@ -88,8 +89,8 @@ def choose_model(runs, start, model: str, tolerance: float = 0.01) -> tuple[str,
 
 def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, eps_r=None, kinds=("tensile",),
                    metric="rms", max_evals=20000, max_time=300.0, tolerance=0.01, out=None, name=None,
-                   progress=None, announce=None) -> CalibrationResult:
-    """Fit the Yeoh and viscoelastic parameters (eps_r fixed) to measured runs with Nelder-Mead.
+                   progress=None, announce=None, method="nelder-mead") -> CalibrationResult:
+    """Fit the Yeoh and viscoelastic parameters (eps_r fixed) to measured runs (Nelder-Mead or least squares).
 
     Parameters
     ----------
@@ -112,7 +113,7 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         For folders: which protocol kinds.
     metric : {"rms", "max"}
     max_evals, max_time : int, float
-        Budgets (evaluations, seconds).
+        Budgets (evaluations, seconds), over all restarts and branch-growth stages.
     out : path, optional
         Write the record there (a parameter file with a ``calibration``
         section, plus ``.history.csv`` / ``.history.png``).
@@ -122,6 +123,8 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         ``progress(evaluations, best, elapsed)``.
     announce : callable, optional
         ``announce(runs, model, reason, free, skipped)`` once everything is checked, before the fit starts.
+    method : {"nelder-mead", "least-squares"}
+        The minimizer (:func:`~rdea_lab.calibration.fit.calibrate`); least squares minimizes the rms only.
 
     Returns
     -------
@@ -139,6 +142,11 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         raise SpecError(ARGS, "branches", f"{M!r}; allowed: an integer from 0 to 6")
     if metric not in ("rms", "max"):
         raise SpecError(ARGS, "metric", f"{metric!r}; allowed: rms, max")
+    if method not in METHODS:
+        raise SpecError(ARGS, "method", f"{method!r}; allowed: {', '.join(METHODS)}")
+    if method == "least-squares" and metric != "rms":
+        raise SpecError(ARGS, "method", f"least-squares minimizes the rms error only, not metric {metric}; "
+                                        "allowed with metric max: nelder-mead")
     if init is None:
         start = initial_guess(runs, M, eps)
     else:
@@ -162,10 +170,10 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     try:
         if init is None and M > 1:  # from the data: grow the branches one by one (they merge otherwise)
             result = calibrate_growing(runs, initial_guess(runs, 1, eps), M, model=model, free=free, metric=metric,
-                                       max_evals=max_evals, max_time=max_time, progress=progress)
+                                       method=method, max_evals=max_evals, max_time=max_time, progress=progress)
         else:
-            result = calibrate(runs, start, model=model, free=free, metric=metric, max_evals=max_evals,
-                               max_time=max_time, progress=progress)
+            result = calibrate(runs, start, model=model, free=free, metric=metric, method=method,
+                               max_evals=max_evals, max_time=max_time, progress=progress)
     except ValueError as exc:
         raise SpecError(ARGS, "<calibration>", f"cannot fit: {exc}") from None
     import dataclasses
@@ -180,9 +188,13 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
 
 
 def format_result(result: CalibrationResult) -> str:
-    """The fit report: message, budget, each parameter with its standard error and flags, per-run fit, AIC/BIC."""
-    lines = [f"{result.message}; objective {result.objective:.4e} after {result.nfev} evaluations, "
+    """The fit report: method, message, budget, each parameter with its standard error and flags, per-run fit,
+    AIC/BIC, and the evaluations of each stage when there were several."""
+    lines = [f"{result.method}: {result.message}; objective {result.objective:.4e} after {result.nfev} evaluations, "
              f"{result.restarts} restarts, {result.wall_time:.2f} s"]
+    if len(result.stages) > 1:
+        lines.append("  stages: " + "; ".join(f"{st['label']}{'' if st['kept'] else ' (dropped)'}: {st['nfev']} "
+                                              f"evaluations, {st['objective']:.4g}" for st in result.stages))
     for p in result.parameters:
         v = result.values[p.name]
         se = result.stderr.get(p.name)
@@ -196,7 +208,8 @@ def format_result(result: CalibrationResult) -> str:
                      f"max rel. error {100 * g['max_rel_error']:.2f} %, rms/peak "
                      f"{100 * g.get('rms_rel_error', float('nan')):.2f} %, p99/peak "
                      f"{100 * g.get('p99_rel_error', float('nan')):.2f} %")
-    lines.append(f"  AIC {result.aic:.1f}, BIC {result.bic:.1f}")
+    lines.append(f"  AIC {result.aic:.1f}, BIC {result.bic:.1f}" if result.metric == "rms"
+                 else f"  standard errors, AIC and BIC: not applicable (metric {result.metric})")
     return "\n".join(lines)
 
 

@@ -1,4 +1,4 @@
-"""Nelder-Mead calibration with restarts, budgets and uncertainty (Section 4.2 of [1])."""
+"""Calibration with budgets and uncertainty: Nelder-Mead as in Section 4.2 of [1], or bounded least squares."""
 
 from __future__ import annotations
 
@@ -7,59 +7,70 @@ import time as _time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize
 
 from .. import __version__
-from ..specs import ParameterSet, SpecError
+from ..specs import ParameterSet
+from .methods import METHODS, Objective, OutOfBudget, bounded_least_squares, nelder_mead
 from .objective import goodness, predict_force, residuals
 from .parameters import fit_parameters, values_of, with_values
-
-
-class _OutOfBudget(Exception):
-    pass
-
-
-#: Objective values closer than this are equal: the normalized force error has
-#: reached the rounding floor of double precision.
-_F_FLOOR = 1e-14
 
 
 @dataclass(frozen=True)
 class CalibrationResult:
     """What a calibration found, with the numbers to judge it (fixed fields).
 
+    The statistics have lmfit's names and meanings.
+
     Attributes
     ----------
     params, start : ParameterSet
-        Best and starting parameter sets.
+        Best and starting parameter sets (of the last stage when branches were grown).
     parameters : tuple of FitParameter
-        Names, bounds, transforms, which were free.
+        Names, start values (lmfit's ``init_value``), bounds, transforms, which were free.
     values : dict
         Best values [SI], every parameter.
     stderr : dict
         Standard errors [SI] of the free parameters (NaN where the data cannot
-        identify the parameter).
-    correlation : numpy.ndarray
-        Correlation matrix of the free parameters, in `free_names` order.
+        identify the parameter, and for every parameter under ``metric="max"``,
+        where they do not apply).
+    correlation, covar : numpy.ndarray
+        Correlation and covariance matrices [SI^2] of the free parameters, in
+        `free_names` order (NaN where not identifiable, all NaN under ``metric="max"``).
     free_names : tuple of str
     at_bound, unmoved, unidentifiable : tuple of str
         Flags: ended within 1e-6 of a bound; never moved from the start
-        (relative change < 1e-9); standard error above half the value or
-        correlation beyond 0.999 with another parameter.
+        (relative change < 1e-9); a Jacobian column that is zero, correlation
+        beyond 0.999 with another parameter, or (``metric="rms"``) a standard
+        error above half the value.
     model, metric : str
+    method : {"nelder-mead", "least-squares"}
     objective : float
         Best objective (rms or max of the normalized force error).
     chisqr, redchi, aic, bic : float
-        Statistics of the normalized residuals (each run counts equally).
-    ndata, nfree, nfev, nit, restarts : int
+        Sum of squared normalized residuals (each run counts equally),
+        ``chisqr / nfree``, and the information criteria (NaN under ``metric="max"``).
+    ndata, nvarys, nfree : int
+        Residuals (samples of all runs), free parameters, ``ndata - nvarys``.
+    nfev, nit, restarts : int
+        Evaluations, iterations and restarts of the minimizer, summed over every stage.
     wall_time : float [s]
+        Of the whole calibration (every stage and candidate).
     converged : bool
-        The last restart did not improve, within the budgets.
+        Nelder-Mead: the last restart did not improve; least squares: a
+        tolerance was met; in both cases within the budgets.
     message : str
     runs : tuple of dict
-        Per-run goodness of fit (rms error [N], R^2, max relative error).
-    history : numpy.ndarray, shape (k, 2)
-        (evaluation, best objective so far) at every improvement.
+        Per-run goodness of fit (rms error [N], R^2, relative errors).
+    history : numpy.ndarray, shape (k, 3)
+        (evaluation, best objective so far in its stage, stage) at every
+        improvement; evaluations are counted over all stages.
+    stages : tuple of dict
+        One per fit (``stage``, ``label``, ``branches``, ``nfev``, ``wall_time_s``,
+        ``objective``, ``restarts``, ``converged``, ``kept``, ``message``).
+    budgets : dict
+        ``max_evals``, ``max_time_s`` (over all stages), ``max_restarts``, ``step`` and ``tolerances``.
+    versions : dict
+        rdea-lab, numpy, scipy (and numba if installed) versions.
     software : str
         rdea-lab version.
     model_reason : str
@@ -78,18 +89,21 @@ class CalibrationResult:
     values: dict
     stderr: dict
     correlation: np.ndarray
+    covar: np.ndarray
     free_names: tuple
     at_bound: tuple
     unmoved: tuple
     unidentifiable: tuple
     model: str
     metric: str
+    method: str
     objective: float
     chisqr: float
     redchi: float
     aic: float
     bic: float
     ndata: int
+    nvarys: int
     nfree: int
     nfev: int
     nit: int
@@ -99,6 +113,9 @@ class CalibrationResult:
     message: str
     runs: tuple
     history: np.ndarray
+    stages: tuple
+    budgets: dict
+    versions: dict = dataclasses.field(default_factory=lambda: versions())
     software: str = __version__
     model_reason: str = ""
     run_data: tuple = ()
@@ -106,61 +123,35 @@ class CalibrationResult:
     record_files: dict = dataclasses.field(default_factory=dict)
 
 
-class Objective:
-    """Objective over runs; counts evaluations, keeps the best point and its history."""
+def versions() -> dict:
+    """Versions of rdea-lab and the numerical libraries a calibration ran on (numba if installed)."""
+    import importlib.metadata
+    import importlib.util
 
-    def __init__(self, runs, start, parameters, model, metric, max_evals, max_time, progress=None,
-                 clock=_time.monotonic):
-        self.runs, self.start, self.parameters = runs, start, parameters
-        self.model, self.metric = model, metric
-        self.free = [p for p in parameters if p.free]
-        self.fixed = {p.name: p.start for p in parameters if not p.free}
-        self.max_evals, self.max_time = max_evals, max_time
-        self.nfev = 0
-        self.best = (np.inf, None)
-        self.history = []
-        self.progress = progress
-        self._clock = clock
-        self.t0 = clock()
-        self._last_report = self.t0
+    import scipy
 
-    def values(self, z) -> dict:
-        v = dict(self.fixed)
-        v.update({p.name: p.to_physical(zi) for p, zi in zip(self.free, z)})
-        return v
-
-    def paramset(self, values) -> ParameterSet | None:
+    out = {"rdea-lab": __version__, "numpy": np.__version__, "scipy": scipy.__version__}
+    if importlib.util.find_spec("numba") is not None:  # its version without the cost of importing it
         try:
-            return with_values(self.start, values, self.start.M)
-        except SpecError:
-            return None  # the physics refuses it: the objective is infinite there
-
-    def score(self, params) -> float:
-        if params is None:
-            return np.inf
-        r = residuals(self.runs, params, self.model)
-        if not np.all(np.isfinite(r)):
-            return np.inf
-        return float(np.sqrt(np.mean(r * r))) if self.metric == "rms" else float(np.max(np.abs(r)))
-
-    def __call__(self, z) -> float:
-        if self.nfev >= self.max_evals or self._clock() - self.t0 > self.max_time:
-            raise _OutOfBudget
-        self.nfev += 1
-        values = self.values(z)
-        f = self.score(self.paramset(values))
-        if f < self.best[0]:
-            self.best = (f, np.array(z, float))
-            self.history.append((self.nfev, f))
-        now = self._clock()
-        if self.progress is not None and now - self._last_report > 0.5:
-            self._last_report = now
-            self.progress(self.nfev, self.best[0], now - self.t0)
-        return f
+            out["numba"] = importlib.metadata.version("numba")
+        except importlib.metadata.PackageNotFoundError:
+            pass
+    return out
 
 
-def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms", max_evals=20000,
-              max_time=300.0, max_restarts=20, step=0.1, xatol=1e-9, ftol=1e-10,
+def check_method(method: str, metric: str) -> None:
+    """Raise ValueError unless ``method`` is known and can minimize ``metric``."""
+    if method not in METHODS:
+        raise ValueError(f"method {method!r}; allowed: {', '.join(METHODS)}")
+    if metric not in ("rms", "max"):
+        raise ValueError(f"metric {metric!r}; allowed: rms, max")
+    if method == "least-squares" and metric != "rms":
+        raise ValueError(f"least-squares minimizes the rms error only, not metric {metric!r}; "
+                         "allowed with metric max: nelder-mead")
+
+
+def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms", method="nelder-mead",
+              max_evals=20000, max_time=300.0, max_restarts=20, step=0.1, xatol=1e-9, ftol=1e-10,
               progress=None) -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters of ``start`` to measured forces.
 
@@ -176,8 +167,12 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     metric : {"rms", "max"}
         rms or max of the force error, each run normalized by its peak measured
         force and counted equally.
+    method : {"nelder-mead", "least-squares"}
+        Nelder-Mead with restarts (the paper's), or bounded least squares
+        (rms only).
     max_evals, max_time : int, float
-        Budgets (evaluations, seconds of wall time) over all restarts.
+        Budgets (evaluations, seconds of wall time) over all restarts; every
+        residual evaluation counts, a finite-difference Jacobian's too.
     max_restarts : int
         Nelder-Mead restarts from the best point while they still improve.
     step : float
@@ -186,21 +181,27 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     xatol, ftol : float
         Nelder-Mead stops when the simplex spans less than ``xatol`` in the
         internal variables and its objective values less than ``ftol`` times
-        the objective at the restart's start.
+        the objective at the restart's start. Least squares stops when a step
+        changes the variables by less than ``xatol`` (relative) or the sum of
+        squares by less than ``ftol`` (relative), or the scaled gradient is
+        below ``ftol``.
     progress : callable, optional
         ``progress(evaluations, best, elapsed)``, called at most twice a second.
 
     Notes
     -----
-    Nelder-Mead (scipy, adaptive) on the transformed parameters of
-    :mod:`~rdea_lab.calibration.parameters`; a parameter set the physics
-    refuses scores infinity. Standard errors and correlations come from the
-    Jacobian of the residuals at the optimum (central differences),
-    ``cov = s^2 (J^T J)^-1``; residuals of a time series are correlated, so
-    they are optimistic lower bounds.
+    Both methods work in the transformed parameters of
+    :mod:`~rdea_lab.calibration.parameters`: Nelder-Mead (scipy, adaptive)
+    through their sine map onto the bounds; least squares (scipy's
+    trust-region reflective, ``x_scale="jac"``, forward-difference Jacobian)
+    on the log/asinh variables scaled onto [0, 1], whose bounds it keeps
+    natively. A parameter set the physics refuses scores infinity. Standard
+    errors and correlations come from the Jacobian of the residuals at the
+    optimum (central differences), ``covar = s^2 (J^T J)^-1`` with
+    ``s^2 = redchi``; residuals of a time series are correlated, so they are
+    optimistic lower bounds; under ``metric="max"`` they do not apply.
     """
-    if metric not in ("rms", "max"):
-        raise ValueError(f"metric {metric!r}; allowed: rms, max")
+    check_method(method, metric)
     names_all = [p for p in values_of(start)]
     free = set(names_all if free is None else free)
     unknown = free - set(names_all)
@@ -212,70 +213,76 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     if not np.isfinite(f0):
         raise ValueError("the start parameters give no finite force prediction on these runs "
                          "(a model without equilibrium somewhere); choose another start or model")
-    z = np.array([p.to_internal(p.start) for p in obj.free])
-    obj.best, obj.history = (f0, z.copy()), [(0, f0)]
+    z0 = np.array([p.to_internal(p.start) for p in obj.free])
+    obj.best_f, obj.best_values, obj.best_x = f0, obj.values(z0), z0
+    obj.history = [(0, f0)]
     restarts, nit, converged, message = 0, 0, False, ""
     if obj.free:
         try:
-            f_prev = f0
-            while True:
-                simplex = np.vstack([z] + [z + step * np.eye(z.size)[i] for i in range(z.size)])
-                res = minimize(obj, z, method="Nelder-Mead",
-                               options={"adaptive": True, "initial_simplex": simplex, "xatol": xatol,
-                                        "fatol": max(ftol * f_prev, _F_FLOOR),
-                                        "maxfev": max(1, max_evals - obj.nfev), "maxiter": 10**9})
-                nit += int(res.nit)
-                z = obj.best[1]
-                f_new = obj.best[0]
-                if obj.nfev >= max_evals:
-                    raise _OutOfBudget
-                improved = f_new < f_prev * (1 - 1e-9) - _F_FLOOR
-                if not improved or restarts >= max_restarts:
-                    converged = not improved
-                    message = ("no further improvement from a restart" if converged
-                               else f"stopped after {max_restarts} restarts, still improving")
-                    break
-                f_prev = f_new
-                restarts += 1
-        except _OutOfBudget:
+            if method == "nelder-mead":
+                restarts, nit, converged, message = nelder_mead(obj, f0, max_restarts=max_restarts, step=step,
+                                                                xatol=xatol, ftol=ftol)
+            else:
+                restarts, nit, converged, message = bounded_least_squares(obj, xtol=xatol, ftol=ftol, gtol=ftol)
+        except OutOfBudget:
             message = (f"evaluation budget {max_evals} reached" if obj.nfev >= max_evals
                        else f"time budget {max_time:g} s reached")
-            z = obj.best[1]
     else:
         converged, message = True, "no free parameters"
-    values = obj.values(obj.best[1])
+    if method == "nelder-mead":
+        tolerances = {"xatol": xatol, "fatol": f"{ftol:g} x the objective at each restart's start"}
+        restart_budget = max_restarts
+    else:
+        tolerances = {"xtol": xatol, "ftol": ftol, "gtol": ftol}
+        restart_budget = "not used by least-squares"
+    budgets = {"max_evals": int(max_evals), "max_time_s": float(max_time), "max_restarts": restart_budget,
+               "step": step if method == "nelder-mead" else "not used by least-squares", "tolerances": tolerances}
+    values = obj.best_values
     best = with_values(start, values, start.M)
-    return _finish(obj, parameters, best, values, model, metric, restarts, nit, converged, message)
+    return _finish(obj, parameters, best, values, model, metric, method, restarts, nit, converged, message,
+                   budgets)
 
 
-def _finish(obj, parameters, best, values, model, metric, restarts, nit, converged, message):
+def _finish(obj, parameters, best, values, model, metric, method, restarts, nit, converged, message, budgets):
     free = [p for p in parameters if p.free]
     r = residuals(obj.runs, best, model)
     n, k = r.size, len(free)
     chisqr = float(np.sum(r * r))
-    stderr, corr, unident = _uncertainty(obj, best, values, free, chisqr, n, model)
+    stderr, corr, covar, unident = _uncertainty(obj, best, values, free, chisqr, n, model, metric)
     wall = obj._clock() - obj.t0
     start_values = values_of(obj.start)
+    if metric == "max":  # an information criterion needs a likelihood: Gaussian residuals, least squares
+        aic = bic = float("nan")
+    else:
+        aic = float(n * np.log(chisqr / n) + 2 * k) if chisqr > 0 else -np.inf
+        bic = float(n * np.log(chisqr / n) + k * np.log(n)) if chisqr > 0 else -np.inf
+    stage = {"stage": 0, "label": f"M = {start_branches(obj.start)}", "branches": start_branches(obj.start),
+             "nfev": obj.nfev, "wall_time_s": float(wall), "objective": float(obj.best_f), "restarts": restarts,
+             "converged": bool(converged), "kept": True, "message": message}
+    history = np.array([(e, f, 0) for e, f in obj.history], float).reshape(-1, 3)
     return CalibrationResult(
         params=best, start=obj.start, parameters=tuple(parameters), values=values, stderr=stderr,
-        correlation=corr, free_names=tuple(p.name for p in free),
+        correlation=corr, covar=covar, free_names=tuple(p.name for p in free),
         at_bound=tuple(p.name for p in free if p.at_bound(values[p.name])),
         unmoved=tuple(p.name for p in free
                       if abs(values[p.name] - start_values[p.name]) <= 1e-9 * max(abs(start_values[p.name]), 1e-300)),
-        unidentifiable=tuple(unident), model=model, metric=metric, objective=float(obj.best[0]), chisqr=chisqr,
-        redchi=chisqr / max(n - k, 1), aic=float(n * np.log(chisqr / n) + 2 * k) if chisqr > 0 else -np.inf,
-        bic=float(n * np.log(chisqr / n) + k * np.log(n)) if chisqr > 0 else -np.inf, ndata=int(n), nfree=k,
+        unidentifiable=tuple(unident), model=model, metric=metric, method=method, objective=float(obj.best_f),
+        chisqr=chisqr, redchi=chisqr / max(n - k, 1), aic=aic, bic=bic, ndata=int(n), nvarys=k, nfree=int(n - k),
         nfev=obj.nfev, nit=nit, restarts=restarts, wall_time=float(wall), converged=bool(converged),
         message=message, runs=tuple(goodness(run, predict_force(run, best, model)) for run in obj.runs),
-        history=np.array(obj.history, float).reshape(-1, 2),
+        history=history, stages=(stage,), budgets=budgets,
     )
 
 
-def _uncertainty(obj, best, values, free, chisqr, n, model):
-    """Standard errors and correlations from the Jacobian at the optimum."""
+def start_branches(params) -> int:
+    return len(getattr(params, "branches", ()) or ())
+
+
+def _uncertainty(obj, best, values, free, chisqr, n, model, metric):
+    """Standard errors, correlations and covariance from the Jacobian at the optimum."""
     k = len(free)
     if k == 0:
-        return {}, np.zeros((0, 0)), []
+        return {}, np.zeros((0, 0)), np.zeros((0, 0)), []
     J = np.empty((n, k))
     for i, p in enumerate(free):
         x = values[p.name]
@@ -297,6 +304,7 @@ def _uncertainty(obj, best, values, free, chisqr, n, model):
     ok = np.all(np.isfinite(J), axis=0) & (np.linalg.norm(J, axis=0) > 0)
     stderr = {name: float("nan") for name in names}
     corr = np.full((k, k), np.nan)
+    covar = np.full((k, k), np.nan)
     unident = [names[i] for i in range(k) if not ok[i]]
     if np.any(ok):
         Jo = J[:, ok]
@@ -308,11 +316,16 @@ def _uncertainty(obj, best, values, free, chisqr, n, model):
         with np.errstate(invalid="ignore", divide="ignore"):
             c = cov / np.outer(sd, sd)
         corr[np.ix_(idx, idx)] = c
+        covar[np.ix_(idx, idx)] = cov
         for a, i in enumerate(idx):
             others = np.abs(np.delete(c[a], a))
-            if sd[a] > 0.5 * abs(values[names[i]]) or (others.size and np.nanmax(others) > 0.999):
+            if (metric == "rms" and sd[a] > 0.5 * abs(values[names[i]])) or (others.size and np.nanmax(others) > 0.999):
                 unident.append(names[i])
-    return stderr, corr, sorted(set(unident), key=names.index)
+    if metric == "max":  # s^2 (J^T J)^-1 is the covariance of a least-squares estimate, not of a minimax one
+        stderr = {name: float("nan") for name in names}
+        corr = np.full((k, k), np.nan)
+        covar = np.full((k, k), np.nan)
+    return stderr, corr, covar, sorted(set(unident), key=names.index)
 
 
 def initial_guess(runs, M: int, eps_r: float, name="start-from-data") -> ParameterSet:
@@ -347,7 +360,8 @@ def initial_guess(runs, M: int, eps_r: float, name="start-from-data") -> Paramet
                         description="start values estimated from the data by rdea-lab calibrate")
 
 
-def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=None, **kwargs) -> CalibrationResult:
+def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=None, max_evals=20000,
+                      max_time=300.0, **kwargs) -> CalibrationResult:
     """Fit M Maxwell branches one at a time, each from the previous optimum.
 
     Nelder-Mead started with M branches at once tends to merge them into one time
@@ -355,28 +369,55 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
     than the slowest and, separately, 10 times faster than the fastest (its
     stiffness a tenth of C10), both fitted, and the better kept; ``start`` supplies
     the first branch. ``free`` names parameters of the final set (default: all).
+    ``max_evals`` and ``max_time`` are budgets for all the fits together: each
+    gets what the ones before it left (a fit left nothing stops at its start).
+    Other keywords go to `calibrate` (``model``, ``metric``, ``method``, ...).
 
     Returns
     -------
     CalibrationResult
-        Of the final fit with M branches; its ``message`` says how it grew.
+        The final fit with M branches; ``nfev``, ``nit``, ``restarts`` and
+        ``wall_time`` count every stage and candidate, ``stages`` has one entry
+        each, ``history`` all of theirs (evaluations numbered across stages, a
+        stage column); ``message`` says how it grew.
     """
     from ..specs import ViscoBranch
 
-    def fit(params):
-        names = [n for n in values_of(params)]
-        return calibrate(runs, params, free=[n for n in names if free is None or n in free],
-                         progress=progress, **kwargs)
+    t0 = _time.monotonic()
+    stages, done = [], []
 
-    first = start.replace(branches=start.branches[:1])
-    best = fit(first)
-    path = [f"M = 1: {best.objective:.4g}"]
+    def fit(params, label):
+        spent = sum(r.nfev for r in done)
+        names = [n for n in values_of(params)]
+        res = calibrate(runs, params, free=[n for n in names if free is None or n in free], progress=progress,
+                        max_evals=max(0, max_evals - spent), max_time=max(0.0, max_time - (_time.monotonic() - t0)),
+                        **kwargs)
+        stages.append({**res.stages[0], "stage": len(done), "label": label, "kept": False})
+        done.append(res)
+        return len(done) - 1
+
+    kept = [fit(start.replace(branches=start.branches[:1]), "M = 1")]
     for m in range(2, M + 1):
-        taus = [b.tau for b in best.params.branches]
-        k_new = 0.1 * best.params.C10
-        candidates = []
-        for tau in (10 * max(taus), 0.1 * min(taus)):
-            candidates.append(fit(best.params.replace(branches=best.params.branches + (ViscoBranch(k=k_new, eta=k_new * tau),))))
-        best = min(candidates, key=lambda r: r.objective)
-        path.append(f"M = {m}: {best.objective:.4g}")
-    return dataclasses.replace(best, message=f"{best.message} (grown branch by branch: {'; '.join(path)})")
+        prev = done[kept[-1]].params
+        taus = [b.tau for b in prev.branches]
+        k_new = 0.1 * prev.C10
+        candidates = [fit(prev.replace(branches=prev.branches + (ViscoBranch(k=k_new, eta=k_new * tau),)),
+                          f"M = {m}, new branch {side} (tau {tau:.3g} s)")
+                      for side, tau in (("slower", 10 * max(taus)), ("faster", 0.1 * min(taus)))]
+        kept.append(min(candidates, key=lambda i: done[i].objective))
+    for i in kept:
+        stages[i]["kept"] = True
+    best = done[kept[-1]]
+    offset, history = 0, []
+    for i, res in enumerate(done):
+        h = res.history[:, :2].copy()
+        h[:, 0] += offset
+        history.append(np.column_stack([h, np.full(len(h), i)]))
+        offset += res.nfev
+    path = "; ".join(f"M = {m}: {done[i].objective:.4g}" for m, i in enumerate(kept, start=1))
+    budgets = {**best.budgets, "max_evals": int(max_evals), "max_time_s": float(max_time),
+               "scope": "max_evals and max_time cover every stage and candidate together"}
+    return dataclasses.replace(
+        best, nfev=sum(r.nfev for r in done), nit=sum(r.nit for r in done), restarts=sum(r.restarts for r in done),
+        wall_time=float(_time.monotonic() - t0), history=np.vstack(history), stages=tuple(stages), budgets=budgets,
+        message=f"{best.message} (grown branch by branch: {path}; {len(done)} fits)")

@@ -20,36 +20,64 @@ def _q(value: float, unit: str) -> str | None:
     return f"{value / _SCALE[unit]:.6g} {_UNIT[unit]}"
 
 
+def _na(result) -> str | None:
+    """Why standard errors, covariance and information criteria are missing, or None if they apply."""
+    return f"not applicable (metric {result.metric})" if result.metric != "rms" else None
+
+
 def record_mapping(result, runs) -> dict:
-    """The ``calibration`` section of the record (YAML-ready)."""
+    """The ``calibration`` section of the record (YAML-ready), with lmfit's names for the statistics."""
+    na = _na(result)
     params = {}
     for p in result.parameters:
-        entry = {"value": _q(result.values[p.name], p.unit), "start": _q(p.start, p.unit), "free": p.free}
+        entry = {"value": _q(result.values[p.name], p.unit), "init_value": _q(p.start, p.unit), "free": p.free}
         if p.free:
-            entry["stderr"] = _q(result.stderr.get(p.name, float("nan")), p.unit) or "not identifiable"
+            entry["stderr"] = na or _q(result.stderr.get(p.name, float("nan")), p.unit) or "not identifiable"
             entry["bounds"] = [_q(p.lo, p.unit), _q(p.hi, p.unit)]
             flags = [f for f, names in (("at bound", result.at_bound), ("never moved from start", result.unmoved),
                                         ("not identifiable", result.unidentifiable)) if p.name in names]
             if flags:
                 entry["flags"] = flags
         params[p.name] = entry
-    corr = [[None if not math.isfinite(c) else round(float(c), 4) for c in row] for row in result.correlation]
+    units = {p.name: p.unit for p in result.parameters}
+
+    def matrix(m, digits):
+        return [[None if not math.isfinite(c) else float(f"{c:.{digits}g}") for c in row] for row in m]
+
+    if na:
+        corr = covar = na
+    else:
+        corr = {"names": list(result.free_names), "matrix": matrix(result.correlation, 4)}
+        covar = {"names": list(result.free_names), "matrix": matrix(result.covar, 6),
+                 "units": "SI: entry (i, j) in the unit of names[i] times that of names[j] ("
+                          + ", ".join(f"{n} {units[n]}" for n in result.free_names) + ")"}
+    stats = {"ndata": result.ndata, "nvarys": result.nvarys, "nfree": result.nfree, "chisqr": result.chisqr,
+             "redchi": result.redchi, "aic": None if na else result.aic, "bic": None if na else result.bic,
+             "nfev": result.nfev, "nit": result.nit, "restarts": result.restarts,
+             "wall_time_s": round(result.wall_time, 3)}
+    notes = ["standard errors and covar from the Jacobian at the optimum, covar = redchi (J^T J)^-1; residuals "
+             "of a time series are correlated, so they are lower bounds"]
+    if na:
+        notes = [f"stderr, covar, correlation, aic and bic: {na}: they describe a least-squares (rms) estimate"]
+    stages = [{k: (round(v, 3) if k == "wall_time_s" else v) for k, v in st.items()} for st in result.stages]
     return {
         "model": result.model,
         "metric": result.metric,
+        "method": result.method,
         "objective": float(result.objective),
         "converged": result.converged,
         "message": result.message,
         "parameters": params,
-        "correlation": {"names": list(result.free_names), "matrix": corr},
+        "correlation": corr,
+        "covar": covar,
         "runs": [{**g, "sha256": r.sha256} for g, r in zip(result.runs, runs)],
         "skipped": [dict(s) for s in getattr(result, "skipped", ())],
-        "statistics": {"ndata": result.ndata, "nfree": result.nfree, "chisqr": result.chisqr, "redchi": result.redchi,
-                       "aic": result.aic, "bic": result.bic, "nfev": result.nfev, "nit": result.nit,
-                       "restarts": result.restarts, "wall_time_s": round(result.wall_time, 3)},
-        "notes": ("standard errors from the Jacobian at the optimum; residuals of a time series are correlated, "
-                  "so they are lower bounds"),
+        "statistics": stats,
+        "stages": stages,
+        "budgets": dict(result.budgets),
+        "notes": "; ".join(notes),
         "software": f"rdea-lab {result.software}",
+        "versions": dict(result.versions),
     }
 
 
@@ -68,8 +96,8 @@ def write_record(result, runs, out: Path, name: str | None = None) -> dict[str, 
     hist = out.with_name(out.stem + ".history.csv")
     with open(hist, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(["evaluation", "best_objective"])
-        w.writerows([[int(n), repr(float(f))] for n, f in result.history])
+        w.writerow(["evaluation", "best_objective", "stage"])
+        w.writerows([[int(n), repr(float(f)), int(st)] for n, f, st in result.history])
     png = out.with_name(out.stem + ".history.png")
     _plot_history(result, png)
     return {"params": out, "history": hist, "plot": png}
@@ -81,10 +109,14 @@ def _plot_history(result, path: Path) -> None:
     fig = Figure(figsize=(6, 3.5))
     ax = fig.subplots()
     h = result.history
-    ax.semilogy(h[:, 0], h[:, 1], drawstyle="steps-post")
-    ax.set_xlabel("objective evaluations")
+    for st in result.stages:
+        mine = h[h[:, 2] == st["stage"]]
+        ax.semilogy(mine[:, 0], mine[:, 1], drawstyle="steps-post", label=st["label"] + ("" if st["kept"] else " (dropped)"))
+    if len(result.stages) > 1:
+        ax.legend(fontsize="small")
+    ax.set_xlabel("objective evaluations (all stages)")
     ax.set_ylabel(f"best {result.metric} normalized force error [-]")
-    ax.set_title(f"calibration ({result.model}, {result.nfev} evaluations, {result.restarts} restarts)")
+    ax.set_title(f"calibration ({result.model}, {result.method}, {result.nfev} evaluations, {result.restarts} restarts)")
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
     fig.savefig(path, dpi=120)

@@ -120,11 +120,13 @@ def test_record_round_trip_and_history(clean, tmp_path):
     for k in FREE:
         assert values(back)[k] == pytest.approx(values(res.params)[k], rel=1e-12, abs=0)
     text = files["params"].read_text()
-    for key in ("calibration:", "stderr:", "start:", "correlation:", "sha256:", "aic:", "bic:", "nfev:",
-                "restarts:", "wall_time_s:", "max_rel_error:", "r2:", "software: rdea-lab"):
+    for key in ("calibration:", "stderr:", "init_value:", "correlation:", "covar:", "sha256:", "aic:", "bic:",
+                "nfev:", "nvarys:", "nfree:", "ndata:", "method: nelder-mead", "budgets:", "max_evals: 400",
+                "tolerances:", "restarts:", "wall_time_s:", "max_rel_error:", "r2:", "software: rdea-lab",
+                "versions:", "numpy:", "scipy:"):
         assert key in text, key
     rows = files["history"].read_text().splitlines()
-    assert rows[0] == "evaluation,best_objective" and len(rows) >= 2
+    assert rows[0] == "evaluation,best_objective,stage" and len(rows) >= 2
     best = [float(r.split(",")[1]) for r in rows[1:]]
     assert all(b2 <= b1 for b1, b2 in zip(best, best[1:]))  # the best objective never rises
     assert files["plot"].stat().st_size > 5000
@@ -168,3 +170,13 @@ def test_growing_branch_by_branch_recovers_two_time_scales():
     taus = sorted(b.tau for b in res.params.branches)
     assert taus[0] == pytest.approx(0.3, rel=0.05, abs=0) and taus[1] == pytest.approx(15.0, rel=0.05, abs=0)
     assert res.objective < 1e-3 and "grown branch by branch" in res.message
+    # every stage and candidate counts: M = 1, then the slower and the faster second branch
+    assert len(res.stages) == 3 and sum(st["kept"] for st in res.stages) == 2
+    assert res.nfev == sum(st["nfev"] for st in res.stages) <= 8000  # one budget for all of them
+    assert res.wall_time >= sum(st["wall_time_s"] for st in res.stages)
+    stage_of = res.history[:, 2]
+    assert set(stage_of) == {0, 1, 2} and np.all(np.diff(res.history[:, 0]) >= 0)  # numbered across stages
+    for st in res.stages:  # a stage's evaluations lie in its own range
+        ev = res.history[stage_of == st["stage"], 0]
+        before = sum(s["nfev"] for s in res.stages[:st["stage"]])
+        assert before <= ev.min() and ev.max() <= before + st["nfev"]

@@ -1,0 +1,289 @@
+"""The minimizers of a calibration: Nelder-Mead with restarts, and bounded least squares.
+
+Both work on one `Objective`, which counts every evaluation against the
+budgets, keeps the best point and its history, and builds each trial
+parameter set without revalidating it (the physics' own check of the set is
+kept; pydantic's parsing of fields that are already floats is not).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import time as _time
+
+import numpy as np
+from scipy.optimize import least_squares, minimize
+
+from ..specs import ParameterSet, SpecError
+from ..specs.params import yeoh_slope_nonpositive_at
+from .objective import residuals
+from .parameters import values_of, with_values
+
+#: The methods `calibrate` offers.
+METHODS = ("nelder-mead", "least-squares")
+
+#: Objective values closer than this are equal: the normalized force error has
+#: reached the rounding floor of double precision.
+_F_FLOOR = 1e-14
+
+
+class OutOfBudget(Exception):
+    """The evaluation or time budget is spent (raised by `Objective` before an evaluation)."""
+
+
+def _yeoh_admissible(C10, C20, C30) -> bool:
+    """False where `~rdea_lab.specs.params.material_problems` certainly finds a Yeoh problem (cheap test).
+
+    True does not mean physical: the set's own check decides then.
+    """
+    if not (math.isfinite(C10) and math.isfinite(C20) and math.isfinite(C30)) or C10 <= 0.0 or C30 < 0.0:
+        return False
+    return yeoh_slope_nonpositive_at(C10, C20, C30) is None
+
+
+def _fast_builder(start: ParameterSet, M: int):
+    """``build(values)``: the set `with_values` would give, without pydantic revalidation, or None.
+
+    Names follow `values_of`: ``<field>_v<j>`` (j >= 1) is field ``<field>`` of
+    branch j, any other name a field of the set. The result is the start's
+    frozen copy with those fields changed, checked by the set's own physical
+    check (``_physical``, the model validator that calls
+    :func:`~rdea_lab.specs.params.material_problems`) and each changed
+    branch's, which raise SpecError as validation would. None when ``start``
+    does not follow that pattern (another law's layout): the caller then keeps
+    the validated path.
+    """
+    names = values_of(start)
+    slots = {}
+    for name in names:
+        m = re.fullmatch(r"(.+)_v([1-9][0-9]*)", name)
+        slots[name] = (int(m.group(2)) - 1, m.group(1)) if m else (None, name)
+    try:
+        ok = (M == start.M and all(
+            float(getattr(start if j is None else start.branches[j], f)) == names[n] for n, (j, f) in slots.items()))
+    except (AttributeError, IndexError, TypeError, ValueError):
+        ok = False
+    check_set = getattr(type(start), "_physical", None)
+    if not ok or not callable(check_set):
+        return None
+    yeoh = all(n in names for n in ("C10", "C20", "C30"))
+
+    def build(values):
+        if yeoh and not _yeoh_admissible(values["C10"], values["C20"], values["C30"]):
+            raise SpecError("", "yeoh", "not physical")  # what _physical would say, without formatting it
+        top, per_branch = {}, {}
+        for name, (j, f) in slots.items():
+            if j is None:
+                top[f] = float(values[name])
+            else:
+                per_branch.setdefault(j, {})[f] = float(values[name])
+        branches = tuple(b.model_copy(update=per_branch[j]) if j in per_branch else b
+                         for j, b in enumerate(start.branches))
+        for j in per_branch:
+            check = getattr(branches[j], "_physical", None)
+            if callable(check):
+                check()
+        ps = start.model_copy(update={**top, "branches": branches})
+        ps._physical()
+        return ps
+
+    return build
+
+
+class Objective:
+    """Objective over runs; counts evaluations, keeps the best point and its history.
+
+    Parameters
+    ----------
+    runs : list of RunData
+    start : ParameterSet
+    parameters : list of FitParameter
+    model, metric : str
+    max_evals : int
+        Evaluations before `OutOfBudget` (every residual evaluation counts,
+        those of a finite-difference Jacobian too).
+    max_time : float
+        Seconds of wall time before `OutOfBudget`.
+    progress : callable, optional
+        ``progress(evaluations, best, elapsed)``, at most twice a second.
+    """
+
+    def __init__(self, runs, start, parameters, model, metric, max_evals, max_time, progress=None,
+                 clock=_time.monotonic):
+        self.runs, self.start, self.parameters = runs, start, parameters
+        self.model, self.metric = model, metric
+        self.free = [p for p in parameters if p.free]
+        self.fixed = {p.name: p.start for p in parameters if not p.free}
+        self.max_evals, self.max_time = max_evals, max_time
+        self.nfev = 0
+        self.best_f, self.best_values, self.best_x = np.inf, None, None
+        self.history = []
+        self.progress = progress
+        self._clock = clock
+        self.t0 = clock()
+        self._last_report = self.t0
+        self._build = _fast_builder(start, start.M)
+        self.ndata = int(sum(r.n for r in runs))
+        self._last = None
+
+    # ---- variables
+    def values(self, z) -> dict:
+        """Values [SI] of every parameter from the sine-mapped internal variables (Nelder-Mead's)."""
+        v = dict(self.fixed)
+        v.update({p.name: p.to_physical(zi) for p, zi in zip(self.free, z)})
+        return v
+
+    def values_unit(self, u) -> dict:
+        """Values [SI] from the free parameters' log/asinh variables scaled onto [0, 1] (no sine map).
+
+        ``u = (g(x) - g(lo)) / (g(hi) - g(lo))`` with ``g`` the parameter's log or
+        asinh map: an affine image of that variable, so [0, 1] are its bounds.
+        """
+        return self.values(np.arcsin(np.clip(2.0 * np.asarray(u, float) - 1.0, -1.0, 1.0)))
+
+    def unit_of(self, values) -> np.ndarray:
+        """Inverse of `values_unit` for the free parameters."""
+        return np.array([(np.sin(p.to_internal(values[p.name])) + 1.0) * 0.5 for p in self.free])
+
+    # ---- evaluation
+    def paramset(self, values) -> ParameterSet | None:
+        """The parameter set of ``values``, or None where the physics refuses it."""
+        try:
+            if self._build is not None:
+                return self._build(values)
+            return with_values(self.start, values, self.start.M)
+        except SpecError:
+            return None  # the physics refuses it: the objective is infinite there
+
+    def score_residuals(self, r) -> float:
+        if r is None or not np.all(np.isfinite(r)):
+            return np.inf
+        return float(np.sqrt(np.mean(r * r))) if self.metric == "rms" else float(np.max(np.abs(r)))
+
+    def score(self, params) -> float:
+        """The objective of a parameter set (not counted)."""
+        return self.score_residuals(None if params is None else residuals(self.runs, params, self.model))
+
+    def evaluate(self, values, x=None):
+        """One counted evaluation: ``(objective, residuals or None)``; raises OutOfBudget first if spent.
+
+        ``x``, the minimizer's own variables, is kept with the best point (``best_x``).
+        """
+        if self.nfev >= self.max_evals or self._clock() - self.t0 > self.max_time:
+            raise OutOfBudget
+        self.nfev += 1
+        params = self.paramset(values)
+        r = None if params is None else residuals(self.runs, params, self.model)
+        f = self.score_residuals(r)
+        if f < self.best_f:
+            self.best_f, self.best_values, self.best_x = f, values, np.array(x, float) if x is not None else None
+            self.history.append((self.nfev, f))
+        now = self._clock()
+        if self.progress is not None and now - self._last_report > 0.5:
+            self._last_report = now
+            self.progress(self.nfev, self.best_f, now - self.t0)
+        return f, r
+
+    def __call__(self, z) -> float:
+        """Nelder-Mead's objective of the sine-mapped internal variables."""
+        return self.evaluate(self.values(z), z)[0]
+
+    def residual_vector(self, u) -> np.ndarray:
+        """Least squares' residuals of `values_unit` variables (infinite where the physics refuses)."""
+        _, r = self.evaluate(self.values_unit(u), u)
+        r = np.full(self.ndata, np.inf) if r is None else r
+        self._last = (np.array(u, float), r)
+        return r
+
+    def last_residuals(self, u) -> np.ndarray:
+        """`residual_vector` at ``u``, reusing the last evaluation when it was there."""
+        if self._last is not None and np.array_equal(self._last[0], u):
+            return self._last[1]
+        return self.residual_vector(u)
+
+
+def nelder_mead(obj: Objective, f0: float, *, max_restarts, step, xatol, ftol):
+    """Nelder-Mead (scipy, adaptive) from ``obj.best_x`` (sine-mapped variables), restarted from the best
+    while it improves.
+
+    Returns ``(restarts, nit, converged, message)``; OutOfBudget propagates.
+    """
+    z = obj.best_x
+    restarts, nit = 0, 0
+    f_prev = f0
+    while True:
+        simplex = np.vstack([z] + [z + step * np.eye(z.size)[i] for i in range(z.size)])
+        res = minimize(obj, z, method="Nelder-Mead",
+                       options={"adaptive": True, "initial_simplex": simplex, "xatol": xatol,
+                                "fatol": max(ftol * f_prev, _F_FLOOR),
+                                "maxfev": max(1, obj.max_evals - obj.nfev), "maxiter": 10**9})
+        nit += int(res.nit)
+        z = obj.best_x
+        f_new = obj.best_f
+        if obj.nfev >= obj.max_evals:
+            raise OutOfBudget
+        improved = f_new < f_prev * (1 - 1e-9) - _F_FLOOR
+        if not improved or restarts >= max_restarts:
+            converged = not improved
+            message = ("no further improvement from a restart" if converged
+                       else f"stopped after {max_restarts} restarts, still improving")
+            return restarts, nit, converged, message
+        f_prev = f_new
+        restarts += 1
+
+
+def _jacobian(obj: Objective):
+    """Forward-difference Jacobian of `Objective.residual_vector` in [0, 1] variables, every probe counted.
+
+    Step ``sqrt(eps)`` (the variables are of order 1), backward at the upper bound or
+    where the forward probe is refused by the physics; a column both sides refuse is 0
+    (the trust region then leaves that variable alone).
+    """
+    h = np.sqrt(np.finfo(float).eps)
+
+    def jac(u):
+        u = np.asarray(u, float)
+        r0 = obj.last_residuals(u)
+        J = np.zeros((r0.size, u.size))
+        for i in range(u.size):
+            for sign in ((1.0, -1.0) if u[i] + h <= 1.0 else (-1.0, 1.0)):
+                ui = u.copy()
+                ui[i] = np.clip(u[i] + sign * h, 0.0, 1.0)
+                if ui[i] == u[i]:
+                    continue
+                r = obj.residual_vector(ui)
+                if np.all(np.isfinite(r)):
+                    J[:, i] = (r - r0) / (ui[i] - u[i])
+                    break
+        return J
+
+    return jac
+
+
+def bounded_least_squares(obj: Objective, *, xtol, ftol, gtol):
+    """scipy's trust-region reflective least squares on the residual vector, bounds native.
+
+    The variables are the free parameters' log/asinh variables scaled onto
+    [0, 1] (`Objective.values_unit`), bounds [0, 1]; ``x_scale="jac"``; the
+    Jacobian by forward differences (`_jacobian`), each of whose evaluations
+    counts. The Yeoh admissibility limit (``C20 > -sqrt(3 C10 C30)``) is no box
+    bound: where trf's steps run into it, they shrink until a tolerance stops
+    them there; such an end is not reported as converged.
+    Returns ``(restarts, nit, converged, message)``; OutOfBudget propagates.
+    """
+    u0 = np.clip(obj.unit_of(obj.best_values), 0.0, 1.0)
+    res = least_squares(obj.residual_vector, u0, jac=_jacobian(obj), bounds=(0.0, 1.0), method="trf",
+                        x_scale="jac", xtol=xtol, ftol=ftol, gtol=gtol, max_nfev=max(1, obj.max_evals))
+    converged = res.status > 0
+    message = "least squares: " + res.message.rstrip(".").replace("`", "")
+    v = obj.best_values
+    if converged and all(n in v for n in ("C10", "C20", "C30")) and v["C20"] < 0 and not _yeoh_admissible(
+            v["C10"], v["C20"] * (1 + 1e-6), v["C30"]):
+        converged = False
+        message += ("; but it stopped at the Yeoh admissibility limit C20 = -sqrt(3 C10 C30), which least "
+                    "squares cannot follow: not a converged optimum (try nelder-mead, or a start nearer the optimum)")
+    return 0, int(res.nfev), converged, message
+
+
+__all__ = ["METHODS", "Objective", "OutOfBudget", "bounded_least_squares", "nelder_mead"]
