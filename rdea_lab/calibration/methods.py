@@ -276,7 +276,7 @@ def bounded_least_squares(obj: Objective, *, xtol, ftol, gtol):
     res = least_squares(obj.residual_vector, u0, jac=_jacobian(obj), bounds=(0.0, 1.0), method="trf",
                         x_scale="jac", xtol=xtol, ftol=ftol, gtol=gtol, max_nfev=max(1, obj.max_evals))
     converged = res.status > 0
-    message = "least squares: " + res.message.rstrip(".").replace("`", "")
+    message = res.message.rstrip(".").replace("`", "")
     v = obj.best_values
     if converged and all(n in v for n in ("C10", "C20", "C30")) and v["C20"] < 0 and not _yeoh_admissible(
             v["C10"], v["C20"] * (1 + 1e-6), v["C30"]):
