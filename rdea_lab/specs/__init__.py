@@ -24,6 +24,8 @@ from .coerce import as_params, as_protocol, as_specimen
 from .errors import SpecError, UserError
 from .limits import LimitError, check_limits, field_estimate, limit_violations
 from .params import (
+    LAWS,
+    MODULUS,
     ParameterSet,
     ViscoBranch,
     dump_params,

@@ -8,7 +8,14 @@ YAML form (quantities with units)::
     viscoelastic: {branches: [{k: 8271 kPa, eta: 86 kPa s}], eta_v0: 0 kPa s}
 
 `viscoelastic` is optional (no branches, ``eta_v0 = 0``); so are each of its
-keys. The Python model is flat and SI: ``ParameterSet.C10`` [Pa], ...
+keys. ``law: linear`` (the default) is eq. (44) of [1], each branch a spring
+``k`` and a damper ``eta``; ``law: finite_strain`` makes each branch a
+neo-Hookean spring of shear modulus ``mu`` in series with a Newtonian dashpot
+of shear viscosity ``eta`` (:mod:`rdea_lab.physics.viscoelastic`; at small
+strain eq. (44) with ``k = 3 mu`` and ``eta = 3 eta``)::
+
+    viscoelastic: {law: finite_strain, branches: [{mu: 2757 kPa, eta: 28.7 kPa s}]}
+ The Python model is flat and SI: ``ParameterSet.C10`` [Pa], ...
 """
 
 from __future__ import annotations
@@ -16,7 +23,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, Literal
 
 import yaml
 from pydantic import model_validator
@@ -80,10 +87,11 @@ def yeoh_slope_nonpositive_at(C10: float, C20: float, C30: float) -> float | Non
     return C10 / (-C20 + root)
 
 
-def _branch_problems(k: float, eta: float, prefix: str) -> list[tuple[str, str]]:
+def _branch_problems(k: float, eta: float, prefix: str, name: str = "k") -> list[tuple[str, str]]:
     problems = []
     if not math.isfinite(k) or k <= 0.0:
-        problems.append((f"{prefix}k", f"k = {_kpa(k)} must be a finite stiffness > 0 kPa"))
+        what = "stiffness" if name == "k" else "shear modulus"
+        problems.append((f"{prefix}{name}", f"{name} = {_kpa(k)} must be a finite {what} > 0 kPa"))
     if not math.isfinite(eta) or eta <= 0.0:
         problems.append((f"{prefix}eta", f"eta = {_kpas(eta)} must be a finite viscosity > 0 kPa s"))
     return problems
@@ -165,25 +173,50 @@ def material_problems(
     return problems
 
 
-class ViscoBranch(SpecModel):
-    """One Maxwell branch: a spring `k` [Pa] in series with a damper `eta` [Pa s].
+#: The viscoelastic laws (:mod:`rdea_lab.physics.viscoelastic`), and the name of each one's spring modulus.
+LAWS = ("linear", "finite_strain")
+MODULUS = {"linear": "k", "finite_strain": "mu"}
 
-    Eq. (43)-(44) in [1]; Table 3 calls them ``k_v1`` and ``eta_v1``.
+
+class ViscoBranch(SpecModel):
+    """One Maxwell branch: a spring in series with a damper `eta` [Pa s].
+
+    The spring is `k` [Pa] under the linear law (eq. (43)-(44) in [1]; Table 3
+    calls them ``k_v1`` and ``eta_v1``) or a neo-Hookean spring of shear modulus
+    `mu` [Pa] under the finite-strain law; a branch has exactly one of them.
     """
 
-    k: Pressure
+    k: Pressure | None = None
+    mu: Pressure | None = None
     eta: Viscosity
 
     @model_validator(mode="after")
     def _physical(self) -> "ViscoBranch":
-        for field, message in _branch_problems(self.k, self.eta, ""):
+        if (self.k is None) == (self.mu is None):
+            raise SpecError("", "k", "give the spring as k (law linear) or mu (law finite_strain), exactly one")
+        for field, message in _branch_problems(self.modulus, self.eta, "", MODULUS[self.law]):
             raise SpecError("", field, message)
         return self
 
+    @classmethod
+    def of(cls, law: str, modulus: float, eta: float) -> "ViscoBranch":
+        """A branch of ``law`` with spring modulus ``modulus`` (k or mu) [Pa] and damper ``eta`` [Pa s]."""
+        return cls(**{MODULUS[law]: modulus, "eta": eta})
+
+    @property
+    def law(self) -> str:
+        """The law the branch's spring belongs to."""
+        return "linear" if self.k is not None else "finite_strain"
+
+    @property
+    def modulus(self) -> float:
+        """Spring modulus [Pa]: ``k`` or ``mu``."""
+        return self.k if self.k is not None else self.mu
+
     @property
     def tau(self) -> float:
-        """Relaxation time ``eta / k`` [s]."""
-        return self.eta / self.k
+        """Relaxation time ``eta / k`` (or ``eta / mu``) [s]."""
+        return self.eta / self.modulus
 
 
 class ParameterSet(SpecModel):
@@ -197,8 +230,10 @@ class ParameterSet(SpecModel):
         Yeoh coefficients [Pa].
     eps_r : float
         Relative permittivity [-].
+    law : {"linear", "finite_strain"}
+        Viscoelastic law of the branches (eq. (44) of [1], or its finite-strain form).
     branches : tuple of ViscoBranch
-        Maxwell branches (M = len(branches)).
+        Maxwell branches (M = len(branches)), each with the spring of `law`.
     eta_v0 : float
         Parallel damping [Pa s].
     description, source : str or None
@@ -207,7 +242,7 @@ class ParameterSet(SpecModel):
 
     _yaml_paths = {
         "C10": "yeoh.C10", "C20": "yeoh.C20", "C30": "yeoh.C30",
-        "branches": "viscoelastic.branches", "eta_v0": "viscoelastic.eta_v0",
+        "branches": "viscoelastic.branches", "eta_v0": "viscoelastic.eta_v0", "law": "viscoelastic.law",
     }
 
     name: Identifier
@@ -215,6 +250,7 @@ class ParameterSet(SpecModel):
     C20: Pressure
     C30: Pressure
     eps_r: Number
+    law: Literal["linear", "finite_strain"] = "linear"
     branches: tuple[ViscoBranch, ...] = ()
     eta_v0: Viscosity = 0.0
     description: str | None = None
@@ -224,10 +260,15 @@ class ParameterSet(SpecModel):
     def _physical(self) -> "ParameterSet":
         problems = material_problems(
             self.C10, self.C20, self.C30, self.eps_r,
-            [b.k for b in self.branches], [b.eta for b in self.branches], self.eta_v0,
+            [b.modulus for b in self.branches], [b.eta for b in self.branches], self.eta_v0,
         )
         if problems:
             raise SpecError("", *problems[0])
+        for i, b in enumerate(self.branches):
+            if b.law != self.law:
+                raise SpecError("", f"viscoelastic.branches[{i}].{MODULUS[b.law]}",
+                                f"a {MODULUS[b.law]} spring under law {self.law}; the branches of law {self.law} "
+                                f"give {MODULUS[self.law]} (and eta)")
         return self
 
     @property
@@ -256,6 +297,7 @@ class _Yeoh(SpecModel):
 
 
 class _Viscoelastic(SpecModel):
+    law: Literal["linear", "finite_strain"] = "linear"
     branches: tuple[ViscoBranch, ...] = ()
     eta_v0: Viscosity = 0.0
 
@@ -285,7 +327,7 @@ def params_from_mapping(mapping: Any, source: str = "<mapping>") -> ParameterSet
         return ParameterSet(
             name=f.name, description=f.description, source=f.source,
             C10=f.yeoh.C10, C20=f.yeoh.C20, C30=f.yeoh.C30, eps_r=f.eps_r,
-            branches=f.viscoelastic.branches, eta_v0=f.viscoelastic.eta_v0,
+            law=f.viscoelastic.law, branches=f.viscoelastic.branches, eta_v0=f.viscoelastic.eta_v0,
         )
     except SpecError as err:
         raise err.with_source(source) from None
@@ -318,13 +360,14 @@ def dump_params(ps: ParameterSet) -> str:
     data["yeoh"] = {k: _kpa(getattr(ps, k)) for k in ("C10", "C20", "C30")}
     data["eps_r"] = ps.eps_r
     data["viscoelastic"] = {
-        "branches": [{"k": _kpa(b.k), "eta": _kpas(b.eta)} for b in ps.branches],
+        "law": ps.law,
+        "branches": [{MODULUS[ps.law]: _kpa(b.modulus), "eta": _kpas(b.eta)} for b in ps.branches],
         "eta_v0": _kpas(ps.eta_v0),
     }
     return yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=1000)
 
 
 __all__ = [
-    "ParameterSet", "ViscoBranch", "dump_params", "load_params", "material_problems",
+    "LAWS", "MODULUS", "ParameterSet", "ViscoBranch", "dump_params", "load_params", "material_problems",
     "params_from_mapping", "params_from_yaml", "yeoh_slope_nonpositive_at",
 ]

@@ -13,7 +13,7 @@ from ..physics import viscoelastic
 from ..physics.geometry import RollGeometry, StripGeometry, geometry_from_card
 from ..physics.models import solve
 from ..physics.result import OK, SLACK, STATUS_LEGEND, VALID
-from ..specs import as_params, as_protocol, as_specimen, check_limits
+from ..specs import MODULUS, as_params, as_protocol, as_specimen, check_limits
 from ..specs.protocol import Limits
 
 #: CF attributes of the variables the twin writes.
@@ -23,7 +23,7 @@ VARIABLES = {
     "force": ("N", "axial force"),
     "capacitance": ("F", "capacitance"),
     "sigma1": ("Pa", "axial true stress (reversible + viscoelastic)"),
-    "sigma1_irr": ("Pa", "viscoelastic overstress, eq. (44)"),
+    "sigma1_irr": ("Pa", "viscoelastic overstress, eq. (44) or its finite-strain form (attribute viscoelastic_law)"),
     "lambda2b": ("1", "circumferential stretch of the active ring b"),
     "converged": ("1", "1 where the model has a stable equilibrium"),
     "model_status": ("1", "model status: " + STATUS_LEGEND),
@@ -37,15 +37,20 @@ def as_geometry(specimen):
     return geometry_from_card(as_specimen(specimen))
 
 
-def viscous(params) -> tuple[np.ndarray, np.ndarray, float]:
-    """``(k [Pa], eta [Pa s], eta_v0 [Pa s])`` of a parameter set's Maxwell branches and damper."""
+def viscous(params) -> tuple[np.ndarray, np.ndarray, float, str]:
+    """``(modulus [Pa], eta [Pa s], eta_v0 [Pa s], law)`` of a parameter set's Maxwell branches and damper.
+
+    ``modulus`` is each branch's ``k`` (law linear) or ``mu`` (law finite_strain).
+    """
     branches = tuple(getattr(params, "branches", ()) or ())
-    return (np.array([b.k for b in branches], float), np.array([b.eta for b in branches], float),
-            float(getattr(params, "eta_v0", 0.0) or 0.0))
+    return (np.array([b.modulus for b in branches], float), np.array([b.eta for b in branches], float),
+            float(getattr(params, "eta_v0", 0.0) or 0.0), str(getattr(params, "law", "linear")))
 
 
 def compose(geom, visco, t, stretch, sigma_rev, state=None):
     """Total stress and force from the quasi-static stress and the history: eqs. (43), (44) and (16) of [1].
+
+    (Eq. (44) or its finite-strain form, by the parameter set's ``law``.)
 
     The one composition of the twin: `TwinStream` (and so `simulate`,
     `predict`, the twin backend and the emulator) and the calibration objective
@@ -55,7 +60,7 @@ def compose(geom, visco, t, stretch, sigma_rev, state=None):
     ----------
     geom : RollGeometry or StripGeometry
     visco : tuple
-        ``(k, eta, eta_v0)`` of :func:`viscous`.
+        ``(modulus, eta, eta_v0, law)`` of :func:`viscous`.
     t : numpy.ndarray, shape (n,)
         Sample times [s].
     stretch : numpy.ndarray, shape (n,)
@@ -76,8 +81,8 @@ def compose(geom, visco, t, stretch, sigma_rev, state=None):
         approximation while it is slack).
     state : ViscoState or None
     """
-    k, eta, eta_v0 = visco
-    sigma_irr, state = viscoelastic.overstress_step(t, stretch, k, eta, eta_v0, state=state)
+    k, eta, eta_v0, law = visco
+    sigma_irr, state = viscoelastic.overstress_step(t, stretch, k, eta, eta_v0, state=state, law=law)
     sigma = sigma_rev + sigma_irr
     force = geom.carried_force(sigma * geom.area / stretch)
     with np.errstate(invalid="ignore"):
@@ -135,7 +140,7 @@ def simulate(specimen, params, t, stretch, voltage, model="su", *, protocol=None
         limits, source = history_limits(protocol)
         check_limits(limits, source, t, stretch, voltage, L3=geom.L3)
     out = TwinStream(geom, params, model).step(t, stretch, voltage)  # the whole series as one block
-    k, eta, eta_v0 = viscous(params)
+    k, eta, eta_v0, law = viscous(params)
     data = {
         "stretch": stretch,
         "voltage": voltage,
@@ -154,11 +159,12 @@ def simulate(specimen, params, t, stretch, voltage, model="su", *, protocol=None
     )
     ds.attrs.update({
         "model": model,
+        "viscoelastic_law": law,
         "model_summary": out["summary"],
         "geometry": json.dumps(geom.as_dict(params.eps_r)),
         "parameters": json.dumps({
-            "C10": params.C10, "C20": params.C20, "C30": params.C30, "eps_r": params.eps_r,
-            "branches": [{"k": float(a), "eta": float(b)} for a, b in zip(k, eta)], "eta_v0": eta_v0,
+            "C10": params.C10, "C20": params.C20, "C30": params.C30, "eps_r": params.eps_r, "law": law,
+            "branches": [{MODULUS[law]: float(a), "eta": float(b)} for a, b in zip(k, eta)], "eta_v0": eta_v0,
         }),
         "rdea_lab_version": __version__,
     })

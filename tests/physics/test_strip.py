@@ -105,7 +105,7 @@ def test_a_strip_and_a_roll_go_slack_instead_of_pushing():
                      soft, t, lam, 0.0, model="1r")
     geom = geometry_from_card(specimen_from_yaml(CARD))
     roll = simulate(geom, soft, t, lam, 0.0, model="1r")
-    k, eta, eta_v0 = viscous(soft)
+    k, eta, eta_v0, _ = viscous(soft)
     for ds, g in ((strip, geometry_from_card(specimen_from_yaml(
             "{id: v, kind: strip, length: 80 mm, width: 22 mm, thickness: 1 mm}"))), (roll, geom)):
         # the model's stress, composed by hand: quasi-static (equations) + overstress (eq. 44)
