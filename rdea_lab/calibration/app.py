@@ -18,12 +18,12 @@ import xarray as xr
 
 from ..physics.selection import ORDER, select_model
 from ..runs.app import check_writable
-from ..specs import MODEL_CHOICES, SpecError, ViscoBranch, as_params
+from ..specs import LAWS, MODEL_CHOICES, SpecError, ViscoBranch, as_params
 from ..specs.protocol import KINDS
 from .fit import CalibrationResult, calibrate, calibrate_growing, initial_guess
 from .methods import METHODS
 from .objective import find_runs, load_run
-from .parameters import values_of
+from .parameters import names_for, values_of
 from .record import write_record
 
 MODELS = MODEL_CHOICES
@@ -31,9 +31,9 @@ DEFAULT_EPS_R = 2.8  # Table 1 of [1]
 ARGS = "arguments"
 
 
-def parameter_names(M: int) -> list[str]:
-    """The names a calibration with M branches can free: Yeoh, each branch's k and eta, the damper."""
-    return ["C10", "C20", "C30", *[f"{p}_v{j}" for j in range(1, M + 1) for p in ("k", "eta")], "eta_v0"]
+def parameter_names(M: int, law: str = "linear") -> list[str]:
+    """The names a calibration with M branches can free: Yeoh, each branch's k (or mu) and eta, the damper."""
+    return names_for(M, law)
 
 
 def gather_runs(inputs, kinds=("tensile",), skipped=None) -> list:
@@ -89,7 +89,7 @@ def choose_model(runs, start, model: str, tolerance: float = 0.01) -> tuple[str,
 
 def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, eps_r=None, kinds=("tensile",),
                    metric="rms", max_evals=20000, max_time=300.0, tolerance=0.01, out=None, name=None,
-                   progress=None, announce=None, method="nelder-mead") -> CalibrationResult:
+                   progress=None, announce=None, method="nelder-mead", law=None) -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters (eps_r fixed) to measured runs (Nelder-Mead or least squares).
 
     Parameters
@@ -125,6 +125,9 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         ``announce(runs, model, reason, free, skipped)`` once everything is checked, before the fit starts.
     method : {"nelder-mead", "least-squares"}
         The minimizer (:func:`~rdea_lab.calibration.fit.calibrate`); least squares minimizes the rms only.
+    law : {"linear", "finite_strain"}, optional
+        Viscoelastic law of the branches; default ``init``'s, or linear (eq. (44) of [1]). An ``init`` of
+        the other law starts from the same relaxation times with ``mu = k / 3`` (the small-strain map).
 
     Returns
     -------
@@ -147,15 +150,22 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     if method == "least-squares" and metric != "rms":
         raise SpecError(ARGS, "method", f"least-squares minimizes the rms error only, not metric {metric}; "
                                         "allowed with metric max: nelder-mead")
+    law = law if law is not None else (init.law if init else "linear")
+    if law not in LAWS:
+        raise SpecError(ARGS, "law", f"{law!r}; allowed: {', '.join(LAWS)}")
     if init is None:
-        start = initial_guess(runs, M, eps)
+        start = initial_guess(runs, M, eps, law=law)
     else:
+        if init.law != law:  # the same branches at small strain: k = 3 mu, eta(44) = 3 eta
+            f = 1 / 3 if law == "finite_strain" else 3.0
+            init = init.replace(law=law, branches=tuple(ViscoBranch.of(law, b.modulus * f, b.eta * f)
+                                                        for b in init.branches))
         padded = list(init.branches[:M])
         while len(padded) < M:  # more branches than the start has: slower ones, same stiffness
-            last = padded[-1] if padded else ViscoBranch(k=init.C10, eta=init.C10)
-            padded.append(ViscoBranch(k=last.k, eta=last.eta * 30))
+            last = padded[-1] if padded else ViscoBranch.of(law, init.C10, init.C10)
+            padded.append(ViscoBranch.of(law, last.modulus, last.eta * 30))
         start = init.replace(eps_r=eps, branches=tuple(padded))
-    names = parameter_names(M)
+    names = parameter_names(M, law)
     if isinstance(free, str):
         free = [f.strip() for f in free.split(",") if f.strip()]
     free = list(names if free is None else free)
@@ -169,7 +179,7 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         announce(runs, model, why, free, tuple(skipped))
     try:
         if init is None and M > 1:  # from the data: grow the branches one by one (they merge otherwise)
-            result = calibrate_growing(runs, initial_guess(runs, 1, eps), M, model=model, free=free, metric=metric,
+            result = calibrate_growing(runs, initial_guess(runs, 1, eps, law=law), M, model=model, free=free, metric=metric,
                                        method=method, max_evals=max_evals, max_time=max_time, progress=progress)
         else:
             result = calibrate(runs, start, model=model, free=free, metric=metric, method=method,

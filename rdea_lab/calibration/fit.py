@@ -328,7 +328,7 @@ def _uncertainty(obj, best, values, free, chisqr, n, model, metric):
     return stderr, corr, covar, sorted(set(unident), key=names.index)
 
 
-def initial_guess(runs, M: int, eps_r: float, name="start-from-data") -> ParameterSet:
+def initial_guess(runs, M: int, eps_r: float, name="start-from-data", law="linear") -> ParameterSet:
     """A start from the data alone, for any material.
 
     C10 from the small-strain slope: near lambda1 = 1 an incompressible solid
@@ -336,7 +336,8 @@ def initial_guess(runs, M: int, eps_r: float, name="start-from-data") -> Paramet
     C10 = slope / 6, fitted by least squares on samples with lambda1 - 1 < 5 %
     (of the 0 V runs when there are any). C20 = 0, C30 = C10 / 20. The M relaxation
     times are spread log-evenly from ten sample intervals to a third of the
-    longest run; each branch starts with k = C10.
+    longest run; each branch starts with k = C10 (law linear) or mu = C10 / 3
+    (finite strain: the same branch at small strain).
     """
     zero = [r for r in runs if r.zero_voltage] or list(runs)
     x, y = [], []
@@ -355,8 +356,9 @@ def initial_guess(runs, M: int, eps_r: float, name="start-from-data") -> Paramet
     else:  # one branch in the geometric middle of the range; none for M = 0
         taus = np.array([np.sqrt(10 * dt * max(T / 3, 20 * dt))])[:M]
     from ..specs import ViscoBranch
-    return ParameterSet(name=name, C10=C10, C20=0.0, C30=C10 / 20, eps_r=eps_r,
-                        branches=tuple(ViscoBranch(k=C10, eta=C10 * tau) for tau in taus), eta_v0=0.0,
+    modulus = C10 if law == "linear" else C10 / 3  # the same small-strain branch under either law (k = 3 mu)
+    return ParameterSet(name=name, C10=C10, C20=0.0, C30=C10 / 20, eps_r=eps_r, law=law,
+                        branches=tuple(ViscoBranch.of(law, modulus, modulus * tau) for tau in taus), eta_v0=0.0,
                         description="start values estimated from the data by rdea-lab calibrate")
 
 
@@ -400,8 +402,8 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
     for m in range(2, M + 1):
         prev = done[kept[-1]].params
         taus = [b.tau for b in prev.branches]
-        k_new = 0.1 * prev.C10
-        candidates = [fit(prev.replace(branches=prev.branches + (ViscoBranch(k=k_new, eta=k_new * tau),)),
+        k_new = 0.1 * prev.C10 if prev.law == "linear" else 0.1 * prev.C10 / 3
+        candidates = [fit(prev.replace(branches=prev.branches + (ViscoBranch.of(prev.law, k_new, k_new * tau),)),
                           f"M = {m}, new branch {side} (tau {tau:.3g} s)")
                       for side, tau in (("slower", 10 * max(taus)), ("faster", 0.1 * min(taus)))]
         kept.append(min(candidates, key=lambda i: done[i].objective))

@@ -8,6 +8,7 @@ kept; pydantic's parsing of fields that are already floats is not).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import time as _time
@@ -134,17 +135,42 @@ class Objective:
         v.update({p.name: p.to_physical(zi) for p, zi in zip(self.free, z)})
         return v
 
+    def _margin_slot(self):
+        """Index of C20 among the free parameters when least squares fits it as the Yeoh margin, else None."""
+        names = [p.name for p in self.free]
+        if "C20" not in names or not all(n in {p.name for p in self.parameters} for n in ("C10", "C30")):
+            return None
+        return names.index("C20")
+
+    def _margin_parameter(self):
+        p = next(q for q in self.free if q.name == "C20")
+        return dataclasses.replace(p, name="C20 + sqrt(3 C10 C30)", lo=1e-9 * max(p.scale, 1.0), hi=2 * p.hi)
+
     def values_unit(self, u) -> dict:
         """Values [SI] from the free parameters' log/asinh variables scaled onto [0, 1] (no sine map).
 
         ``u = (g(x) - g(lo)) / (g(hi) - g(lo))`` with ``g`` the parameter's log or
-        asinh map: an affine image of that variable, so [0, 1] are its bounds.
+        asinh map: an affine image of that variable, so [0, 1] are its bounds. C20
+        enters as the Yeoh margin ``m = C20 + sqrt(3 C10 C30) > 0`` (asinh, positive
+        bounds): the admissibility limit of :func:`~rdea_lab.specs.params.material_problems`,
+        which no box on C20 can express, is then a box bound that trf follows.
         """
-        return self.values(np.arcsin(np.clip(2.0 * np.asarray(u, float) - 1.0, -1.0, 1.0)))
+        u = np.asarray(u, float)
+        v = self.values(np.arcsin(np.clip(2.0 * u - 1.0, -1.0, 1.0)))
+        i = self._margin_slot()
+        if i is not None:
+            m = self._margin_parameter().to_physical(float(np.arcsin(np.clip(2.0 * u[i] - 1.0, -1.0, 1.0))))
+            v["C20"] = m - math.sqrt(3.0 * v["C10"] * v["C30"])
+        return v
 
     def unit_of(self, values) -> np.ndarray:
         """Inverse of `values_unit` for the free parameters."""
-        return np.array([(np.sin(p.to_internal(values[p.name])) + 1.0) * 0.5 for p in self.free])
+        u = np.array([(np.sin(p.to_internal(values[p.name])) + 1.0) * 0.5 for p in self.free])
+        i = self._margin_slot()
+        if i is not None:
+            m = values["C20"] + math.sqrt(3.0 * values["C10"] * values["C30"])
+            u[i] = (np.sin(self._margin_parameter().to_internal(m)) + 1.0) * 0.5
+        return u
 
     # ---- evaluation
     def paramset(self, values) -> ParameterSet | None:

@@ -1,6 +1,6 @@
 """Fit parameters: names, bounds and the change of variables Nelder-Mead works in.
 
-Positive parameters (C10, k_vj, eta_vj) are fitted in log space; signed or
+Positive parameters (C10, k_vj or mu_vj, eta_vj) are fitted in log space; signed or
 non-negative ones (C20, C30, eta_v0) through ``asinh(x / scale)``, which is
 linear near zero and logarithmic far from it. Bounds then enter through a
 sine map of that variable onto its bounded interval (as lmfit does), so the
@@ -13,10 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..specs import ParameterSet, SpecError, ViscoBranch
+from ..specs import MODULUS, ParameterSet, SpecError, ViscoBranch
 
 #: Units of each kind of parameter, for records.
-UNITS = {"C": "Pa", "k": "Pa", "eta": "Pa s"}
+UNITS = {"C": "Pa", "k": "Pa", "mu": "Pa", "eta": "Pa s"}
 
 
 @dataclass(frozen=True)
@@ -26,7 +26,8 @@ class FitParameter:
     Attributes
     ----------
     name : str
-        ``C10``, ``C20``, ``C30``, ``k_v<j>``, ``eta_v<j>`` or ``eta_v0``.
+        ``C10``, ``C20``, ``C30``, ``k_v<j>`` (law linear) or ``mu_v<j>`` (finite strain), ``eta_v<j>`` or
+        ``eta_v0``.
     start : float
         Start value [SI].
     lo, hi : float
@@ -70,21 +71,25 @@ class FitParameter:
         return bool(min(abs(self._u(x) - self._u(self.lo)), abs(self._u(self.hi) - self._u(x))) <= rtol * span)
 
 
-def names_for(M: int) -> list[str]:
-    """Parameter names of a Yeoh material with ``M`` Maxwell branches and the parallel damper."""
-    return ["C10", "C20", "C30", *[f"{p}_v{j}" for j in range(1, M + 1) for p in ("k", "eta")], "eta_v0"]
+def names_for(M: int, law: str = "linear") -> list[str]:
+    """Parameter names of a Yeoh material with ``M`` Maxwell branches of ``law`` and the parallel damper."""
+    spring = MODULUS[law]
+    return ["C10", "C20", "C30", *[f"{p}_v{j}" for j in range(1, M + 1) for p in (spring, "eta")], "eta_v0"]
 
 
 def values_of(params: ParameterSet) -> dict[str, float]:
+    spring = MODULUS[params.law]
     out = {"C10": params.C10, "C20": params.C20, "C30": params.C30, "eta_v0": params.eta_v0}
     for j, b in enumerate(params.branches, start=1):
-        out[f"k_v{j}"], out[f"eta_v{j}"] = b.k, b.eta
+        out[f"{spring}_v{j}"], out[f"eta_v{j}"] = b.modulus, b.eta
     return out
 
 
 def with_values(base: ParameterSet, values: dict[str, float], M: int, name: str | None = None) -> ParameterSet:
-    """A new parameter set; raises SpecError if it is not physical."""
-    branches = tuple(ViscoBranch(k=values[f"k_v{j}"], eta=values[f"eta_v{j}"]) for j in range(1, M + 1))
+    """A new parameter set (of ``base``'s law); raises SpecError if it is not physical."""
+    spring = MODULUS[base.law]
+    branches = tuple(ViscoBranch.of(base.law, values[f"{spring}_v{j}"], values[f"eta_v{j}"])
+                     for j in range(1, M + 1))
     return base.replace(C10=values["C10"], C20=values["C20"], C30=values["C30"], branches=branches,
                         eta_v0=values["eta_v0"], **({"name": name} if name else {}))
 
@@ -94,7 +99,7 @@ def fit_parameters(start: ParameterSet, free: set[str]) -> list[FitParameter]:
     values = values_of(start)
     c_scale = max(0.1 * start.C10, 1.0)
     out = []
-    for name in names_for(start.M):
+    for name in names_for(start.M, start.law):
         x = values[name]
         if name == "C10":
             p = FitParameter(name, x, 1e2, 1e9, "log", 1.0, name in free, UNITS["C"])
@@ -103,7 +108,7 @@ def fit_parameters(start: ParameterSet, free: set[str]) -> list[FitParameter]:
             p = FitParameter(name, x, lo, 1e9, "asinh", c_scale, name in free, UNITS["C"])
         elif name == "eta_v0":
             p = FitParameter(name, x, 0.0, 1e10, "asinh", 1e3, name in free, UNITS["eta"])
-        elif name.startswith("k_v"):
+        elif name.startswith(("k_v", "mu_v")):
             p = FitParameter(name, x, 1e2, 1e11, "log", 1.0, name in free, UNITS["k"])
         else:
             p = FitParameter(name, x, 1e-3, 1e11, "log", 1.0, name in free, UNITS["eta"])

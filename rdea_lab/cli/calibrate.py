@@ -31,6 +31,9 @@ from .errors import headless
 @click.option("--method", type=click.Choice(["nelder-mead", "least-squares"], case_sensitive=False),
               default="nelder-mead", show_default=True,
               help="Minimizer: Nelder-Mead with restarts, or bounded least squares (--metric rms only).")
+@click.option("--law", type=click.Choice(["linear", "finite_strain"], case_sensitive=False), default=None,
+              help="Viscoelastic law of the branches: eq. (44) of the paper, or neo-Hookean springs with "
+                   "Newtonian dashpots (fit names mu_v<j>, eta_v<j>) [default: --init's, or linear].")
 @click.option("--max-evals", type=click.IntRange(10, 10**7), default=20000, show_default=True)
 @click.option("--max-time", type=click.FloatRange(0.1, 86400), default=300.0, show_default=True,
               help="Wall-time budget [s].")
@@ -45,9 +48,9 @@ from .errors import headless
               help="Cross-validate: one run per fold, or the runs grouped by nominal stretch rate or by maximum "
                    "stretch; each fold fits the others and predicts its own. --out is then a folder: cv.csv, "
                    "cv.md, fold-<k>.yaml.")
-def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric, method, max_evals, max_time, name,
+def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric, method, law, max_evals, max_time, name,
               out_path, quiet, holdout, cv):
-    """Fit the Yeoh and viscoelastic parameters to measured runs with Nelder-Mead.
+    """Fit the Yeoh and viscoelastic parameters to measured runs (Nelder-Mead, or least squares).
 
     INPUTS are datasets or folders of datasets (a folder gives its complete
     runs of --protocol-kind, by default the tensile tests, as in the paper).
@@ -86,7 +89,8 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
     kinds = [k.strip() for k in kinds_text.split(",") if k.strip()]
     result = fit(list(inputs), model=model.lower(), init=init_path, free=free_text, branches=M,
                  eps_r=eps_r, kinds=kinds, metric=metric, max_evals=max_evals, max_time=max_time,
-                 out=out_path, name=name, progress=progress, announce=announce, method=method.lower())
+                 out=out_path, name=name, progress=progress, announce=announce, method=method.lower(),
+                 law=law.lower() if law else None)
     if show:
         click.echo("", err=True)
     if cross:
