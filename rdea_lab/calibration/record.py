@@ -62,6 +62,7 @@ def record_mapping(result, runs) -> dict:
     stages = [{k: (round(v, 3) if k == "wall_time_s" else v) for k, v in st.items()} for st in result.stages]
     return {
         "model": result.model,
+        "viscoelastic_law": result.params.law,
         "metric": result.metric,
         "method": result.method,
         "objective": float(result.objective),
