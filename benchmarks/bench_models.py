@@ -71,8 +71,8 @@ def _envelope(n, stretch_max, voltage_max, seed=0):
     return rng.uniform(1.0, stretch_max, n), rng.uniform(0.0, voltage_max, n)
 
 
-def run(samples=100_000, baseline_samples=1000, repeat=5) -> dict:
-    """Measure and return the figures as a JSON-able dict."""
+def run(samples=100_000, baseline_samples=1000, repeat=5, vhb=True) -> dict:
+    """Measure and return the figures as a JSON-able dict (``vhb=False``: without the VHB calibrations)."""
     l1, v = _envelope(samples, 1.75, 3500.0)
     hollow = _core("hollow-core")
     rate, spread = {}, {}
@@ -103,7 +103,7 @@ def run(samples=100_000, baseline_samples=1000, repeat=5) -> dict:
     ok = base["converged"] & fast.converged
     diff = np.abs(base["sigma1"][ok] - fast.sigma1[ok])
     max_rel = float(np.max(diff / np.max(np.abs(fast.sigma1[ok]))))
-    calibration = bench_calibration()
+    calibration = bench_calibration(max(1, min(repeat, 3)), vhb=vhb)
     return {
         "calibration": calibration,
         "samples_per_s": {m: float(r) for m, r in rate.items()},
@@ -124,15 +124,18 @@ def run(samples=100_000, baseline_samples=1000, repeat=5) -> dict:
     }
 
 
-def bench_calibration() -> dict:
-    """Specimen 2's two tensile tests on the emulator, then SU with one branch and eta_v0
-    (6 free parameters) from a start estimated from the data, as `rdea-lab calibrate` does."""
+def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
+    """Calibration speed: specimen 2's two tensile tests on the emulator, SU with one branch and eta_v0
+    (6 free parameters) from a start estimated from the data, as `rdea-lab calibrate` does, Nelder-Mead and
+    least squares; and, where the shared VHB 4910 files are present, two finite-strain branches grown on all
+    five (0 V, uniaxial) by both methods. Times are `wall_time` of the fit (data already loaded): median and
+    spread of ``repeat`` runs (Nelder-Mead on VHB: one run, it takes tens of seconds)."""
     import tempfile
 
     from rdea_lab.runs import execute
     from rdea_lab.runs import emulated_rig as _emulator
     from rdea_lab.backends.rig import RigBackend
-    from rdea_lab.calibration import calibrate, initial_guess, load_run
+    from rdea_lab.calibration import calibrate, calibrate_runs, initial_guess, load_run
     from rdea_lab.protocols import load_plan
     from rdea_lab.specs.truth import load_truth
 
@@ -146,12 +149,36 @@ def bench_calibration() -> dict:
             paths.append(out)
         runs = [load_run(p) for p in paths]
     start = initial_guess(runs, 1, 2.8)
-    t0 = time.perf_counter()
-    res = calibrate(runs, start, model="su")
-    seconds = time.perf_counter() - t0
-    return {"specimen2_su_M1_seconds": seconds, "evaluations": res.nfev, "evaluations_per_s": res.nfev / seconds,
-            "samples_per_evaluation": int(sum(r.n for r in runs)), "objective": res.objective,
-            "restarts": res.restarts, "converged": res.converged}
+    calibrate(runs, start, model="su", max_evals=20)  # warm-up: the compiled kernels load from their cache
+
+    def timed(fn, n):
+        results = [fn() for _ in range(n)]
+        secs = sorted(r.wall_time for r in results)
+        return results[0], {"seconds": float(np.median(secs)), "seconds_spread": [secs[0], secs[-1]], "runs": n,
+                            "evaluations": results[0].nfev, "objective": results[0].objective,
+                            "converged": results[0].converged}
+
+    res, nm = timed(lambda: calibrate(runs, start, model="su"), repeat)
+    _, ls = timed(lambda: calibrate(runs, start, model="su", method="least-squares"), repeat)
+    out = {"specimen2_su_M1_seconds": nm["seconds"], "specimen2_su_M1_seconds_spread": nm["seconds_spread"],
+           "evaluations": res.nfev, "evaluations_per_s": res.nfev / nm["seconds"],
+           "samples_per_evaluation": int(sum(r.n for r in runs)), "objective": res.objective,
+           "restarts": res.restarts, "converged": res.converged, "specimen2_su_M1_least_squares": ls}
+    vhb = ROOT.parent / "shared" / "data" / "vhb4910" if vhb else None
+    if vhb is not None and vhb.is_dir():
+        from rdea_lab.cli.errors import run as run_cli
+        from rdea_lab.cli.main import cli
+
+        with tempfile.TemporaryDirectory() as tmp:
+            rc = run_cli(cli, ["import", *map(str, sorted(vhb.glob("*.csv"))), "--format", "csv", "--map",
+                               "time=0,position=1,force=2", "--protocol-kind", "tensile", "--specimen",
+                               str(ROOT / "specimens" / "vhb4910_strip.yaml"), "--out", tmp])
+            if rc == 0:
+                kw = dict(model="su", law="finite_strain", branches=2, max_time=900)
+                _, out["vhb5_finite_strain_M2_least_squares"] = timed(
+                    lambda: calibrate_runs(tmp, method="least-squares", **kw), repeat)
+                _, out["vhb5_finite_strain_M2_nelder_mead"] = timed(lambda: calibrate_runs(tmp, **kw), 1)
+    return out
 
 
 def format_text(r: dict) -> str:
@@ -165,9 +192,18 @@ def format_text(r: dict) -> str:
                  f"{r['speedup_3r_vs_fsolve']:.0f}x faster ({lo:.0f}-{hi:.0f}x; fsolve "
                  f"{r['fsolve_samples_per_s']:.0f} samples/s), max rel. diff {r['max_rel_diff_3r_vs_fsolve']:.1e}")
     c = r["calibration"]
-    lines.append(f"calibration of specimen 2 (SU, 1 branch + eta_v0, emulator data): {c['specimen2_su_M1_seconds']:.2f} s, "
+    lo, hi = c["specimen2_su_M1_seconds_spread"]
+    lines.append(f"calibration of specimen 2 (SU, 1 branch + eta_v0, emulator data): Nelder-Mead "
+                 f"{c['specimen2_su_M1_seconds']:.2f} s ({lo:.2f}-{hi:.2f}), "
                  f"{c['evaluations']} evaluations, {c['evaluations_per_s']:.0f} evaluations/s "
                  f"({c['samples_per_evaluation']} samples each)")
+    for key, label in (("specimen2_su_M1_least_squares", "specimen 2, least squares"),
+                       ("vhb5_finite_strain_M2_nelder_mead", "VHB 4910, 5 files, 2 finite-strain branches, Nelder-Mead"),
+                       ("vhb5_finite_strain_M2_least_squares", "VHB 4910, 5 files, 2 finite-strain branches, least squares")):
+        if key in c:
+            x = c[key]
+            lines.append(f"  {label}: {x['seconds']:.2f} s ({x['seconds_spread'][0]:.2f}-{x['seconds_spread'][1]:.2f}, "
+                         f"{x['runs']} runs), {x['evaluations']} evaluations, objective {x['objective']:.4g}")
     lines.append("per scene [samples/s]:")
     lines.append(" " * 16 + "".join(f"{m:>12}" for m in MODELS))
     for name, rates in r["scenes_samples_per_s"].items():

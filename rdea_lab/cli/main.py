@@ -229,8 +229,9 @@ def reproduce(out_dir, campaign_path, no_speed, quiet):
 @click.option("--repeat", default=5, show_default=True, type=click.IntRange(1, 100),
               help="Timing repeats (the median and the spread are reported).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
-def bench(samples, baseline_samples, repeat, as_json):
-    """Speed of the SU, 1R, 3R and CR solvers, and of 3R against an fsolve baseline.
+@click.option("--no-vhb", is_flag=True, help="Leave out the calibrations on the shared VHB 4910 files (about a minute).")
+def bench(samples, baseline_samples, repeat, as_json, no_vhb):
+    """Speed of the SU, 1R, 3R and CR solvers, of 3R against an fsolve baseline, and of calibration.
 
     \b
     Example:
@@ -242,7 +243,7 @@ def bench(samples, baseline_samples, repeat, as_json):
     sys.path.insert(0, str(folder))
     import bench_models  # noqa: E402  (lives in benchmarks/, outside the package)
 
-    result = bench_models.run(samples=samples, baseline_samples=baseline_samples, repeat=repeat)
+    result = bench_models.run(samples=samples, baseline_samples=baseline_samples, repeat=repeat, vhb=not no_vhb)
     if as_json:
         click.echo(json.dumps(result, indent=2))
     else:

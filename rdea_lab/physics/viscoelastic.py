@@ -48,9 +48,13 @@ Two laws, chosen by the parameter set (``law``):
     at most 2 % per substep. Against ``solve_ivp`` at rtol 1e-13 the stress is
     right to ~1e-10 of its peak for ``tau/dt`` from 1e-4 to 1e4 (tested).
 
-The branches run sequentially in time (compiled with numba; ``cache=True``, so
-the first call in a fresh install compiles for a few seconds and later
-processes load the cached machine code), one pass over the samples per branch.
+The linear law's affine recurrence is evaluated for all samples at once by a
+parallel prefix scan over the composition of affine maps (``log2(n)``
+vectorized numpy passes). The finite-strain branches run sequentially in time,
+compiled with numba (``rdea_lab.physics._branch_kernels``, ``cache=True``):
+the first call in a fresh install compiles for about 5 s, and every later
+process pays about 2.5 s once (importing numba, loading the cached machine
+code), so nothing of the linear law imports numba.
 """
 
 from __future__ import annotations
@@ -72,103 +76,42 @@ _RADAU_A = (((88 - 7 * _S6) / 360, (296 - 169 * _S6) / 1800, (-2 + 3 * _S6) / 22
 #: Substep rule of the finite-strain integrator (see the module docstring).
 _FS_STEP, _FS_GROW, _FS_STRETCH_STEP = 0.1, 1 / 4, 0.02
 
-_KERNELS = {}
+def _affine_prefix(a, b):
+    """Inclusive prefix composition of ``q -> a_n q + b_n`` along the last axis.
+
+    Returns ``(A, B)`` with ``q_{n+1} = A_n q_0 + B_n`` (Hillis-Steele scan: ``log2(n)``
+    vectorized passes, no Python loop over samples).
+    """
+    A = a.copy()
+    B = b.copy()
+    n = A.shape[-1]
+    shift = 1
+    while shift < n:
+        B[..., shift:] = A[..., shift:] * B[..., :-shift] + B[..., shift:]
+        A[..., shift:] = A[..., shift:] * A[..., :-shift]
+        shift *= 2
+    return A, B
+
+
+def _linear_strains(t, lam, tau, q0, q):
+    """Eq. (44)'s exact update for all samples at once (the affine recurrence as a prefix scan), into ``q``."""
+    q[:, 0] = q0
+    if t.size < 2:
+        return
+    dt = np.diff(t)
+    slope = np.diff(lam) / dt
+    r = dt / tau[:, None]
+    a = np.exp(-r)
+    b = slope * tau[:, None] * -np.expm1(-r)
+    A, B = _affine_prefix(a, b)
+    q[:, 1:] = A * q[:, :1] + B
 
 
 def _kernels():
-    """The compiled kernels (numba, imported and compiled on first use, cached on disk)."""
-    if _KERNELS:
-        return _KERNELS
-    import numba
+    """The compiled kernels (numba: imported on first use; machine code cached on disk)."""
+    from ._branch_kernels import KERNELS
 
-    (c1, c2, _), ((a11, a12, a13), (a21, a22, a23), (a31, a32, a33)) = _RADAU_C, _RADAU_A
-
-    @numba.njit(cache=True)
-    def linear(t, lam, tau, q0, out):
-        for j in range(tau.size):
-            q = q0[j]
-            out[j, 0] = q
-            for i in range(1, t.size):
-                dt = t[i] - t[i - 1]
-                r = dt / tau[j]
-                slope = (lam[i] - lam[i - 1]) / dt
-                q = q * math.exp(-r) + slope * tau[j] * -math.expm1(-r)
-                out[j, i] = q
-
-    @numba.njit(cache=True)
-    def radau(u0, e, r1, r2, r3, hr, hs):
-        # stages U_i = u0 + hs sum_j A_ij r_j - hr sum_j A_ij f(U_j), e = exp(u0); returns U_3 (stiffly accurate)
-        d1 = hs * (a11 * r1 + a12 * r2 + a13 * r3)
-        d2 = hs * (a21 * r1 + a22 * r2 + a23 * r3)
-        d3 = hs * (a31 * r1 + a32 * r2 + a33 * r3)
-        f0 = (e * e - 1.0 / e) / 3.0
-        k = hr * (2.0 * e * e + 1.0 / e) / 3.0
-        # predictor: the exact solution of the ODE linearized at u0 (right in both limits)
-        g = d3 - hr * f0
-        if k < 0.1:  # (1 - exp(-k c)) / k to O((k c)^3): Newton removes the rest
-            U1 = u0 + g * c1 / (1.0 + 0.5 * k * c1 + k * k * c1 * c1 / 12.0)
-            U2 = u0 + g * c2 / (1.0 + 0.5 * k * c2 + k * k * c2 * c2 / 12.0)
-            U3 = u0 + g / (1.0 + 0.5 * k + k * k / 12.0)
-        else:
-            U1 = u0 + g * -math.expm1(-k * c1) / k
-            U2 = u0 + g * -math.expm1(-k * c2) / k
-            U3 = u0 + g * -math.expm1(-k) / k
-        last = math.inf
-        for _ in range(60):
-            e1, e2, e3 = math.exp(U1), math.exp(U2), math.exp(U3)
-            F1, F2, F3 = (e1 * e1 - 1.0 / e1) / 3.0, (e2 * e2 - 1.0 / e2) / 3.0, (e3 * e3 - 1.0 / e3) / 3.0
-            D1, D2, D3 = (hr * (2.0 * e1 * e1 + 1.0 / e1) / 3.0, hr * (2.0 * e2 * e2 + 1.0 / e2) / 3.0,
-                          hr * (2.0 * e3 * e3 + 1.0 / e3) / 3.0)
-            G1 = U1 - u0 - d1 + hr * (a11 * F1 + a12 * F2 + a13 * F3)
-            G2 = U2 - u0 - d2 + hr * (a21 * F1 + a22 * F2 + a23 * F3)
-            G3 = U3 - u0 - d3 + hr * (a31 * F1 + a32 * F2 + a33 * F3)
-            j11, j12, j13 = 1.0 + a11 * D1, a12 * D2, a13 * D3
-            j21, j22, j23 = a21 * D1, 1.0 + a22 * D2, a23 * D3
-            j31, j32, j33 = a31 * D1, a32 * D2, 1.0 + a33 * D3
-            c11, c12, c13 = j22 * j33 - j23 * j32, j23 * j31 - j21 * j33, j21 * j32 - j22 * j31
-            det = j11 * c11 + j12 * c12 + j13 * c13
-            x1 = (G1 * c11 + j12 * (G3 * j23 - G2 * j33) + j13 * (G2 * j32 - G3 * j22)) / det
-            x2 = (j11 * (G2 * j33 - G3 * j23) + G1 * c12 + j13 * (G3 * j21 - G2 * j31)) / det
-            x3 = (j11 * (G3 * j22 - G2 * j32) + j12 * (G2 * j31 - G3 * j21) + G1 * c13) / det
-            U1, U2, U3 = U1 - x1, U2 - x2, U3 - x3
-            big = max(abs(x1), abs(x2), abs(x3)) / (1.0 + abs(U3))
-            if not big < 1e3:  # diverging or NaN
-                return math.nan
-            # Newton converges quadratically (its constant ~ h kappa): a correction below 1e-9 / (1 + h kappa)
-            # leaves an error of its square, below rounding
-            if big * (1.0 + k) < 1e-9 or (big >= last and big < 1e-13):
-                return U3
-            last = big
-        return U3 if last < 1e-12 else math.nan
-
-    @numba.njit(cache=True)
-    def finite(t, lam, tau, u0, out, step0, grow, dstep):
-        for j in range(tau.size):
-            u = u0[j]
-            out[j, 0] = u
-            for i in range(1, t.size):
-                h = t[i] - t[i - 1]
-                s = (lam[i] - lam[i - 1]) / h  # d lambda1/dt on the interval
-                done, x = 0.0, 0.0  # time and decay (integral of kappa) since the sample
-                while done < h and u == u:
-                    la = lam[i - 1] + s * done
-                    e = math.exp(u)
-                    kappa = (2.0 * e * e + 1.0 / e) / (3.0 * tau[j])
-                    hs = (step0 if x == 0.0 else step0 * math.exp(min(x * grow, 600.0))) / kappa
-                    if s != 0.0:
-                        hs = min(hs, dstep * la / abs(s))
-                    if done + hs >= h * (1.0 - 1e-12):
-                        hs = h - done
-                    r1 = s / (la + s * c1 * hs)
-                    r2 = s / (la + s * c2 * hs)
-                    r3 = s / (la + s * hs)
-                    u = radau(u, e, r1, r2, r3, hs / tau[j], hs)
-                    done += hs
-                    x += kappa * hs
-                out[j, i] = u
-
-    _KERNELS.update(linear=linear, finite_strain=finite)
-    return _KERNELS
+    return KERNELS
 
 
 def stress_of(law, modulus, q):
@@ -242,9 +185,9 @@ def branch_strains(t, stretch, tau, q0=None, law="linear"):
     start = np.zeros(tau.size) if q0 is None else np.ascontiguousarray(np.broadcast_to(np.asarray(q0, float),
                                                                                         tau.shape))
     if law == "linear":
-        _kernels()[law](t, lam, tau, start, q)
+        _linear_strains(t, lam, tau, start, q)
     else:
-        _kernels()[law](t, lam, tau, start, q, _FS_STEP, _FS_GROW, _FS_STRETCH_STEP)
+        _kernels()["finite_strain"](t, lam, tau, start, q, _FS_STEP, _FS_GROW, _FS_STRETCH_STEP)
     return q
 
 
@@ -338,7 +281,7 @@ def overstress_step(t, stretch, k, eta, eta_v0=0.0, *, q0=None, state=None, law=
     q = None
     if k.size and tt.size:
         q = branch_strains(tt, ll, eta / k, q0, law)
-        part = stress_of(law, k, q).sum(axis=0)
+        part = k @ q if law == "linear" else stress_of(law, k, q).sum(axis=0)
     if eta_v0 and tt.size > 1:
         part = part + eta_v0 * stretch_rate(tt, ll)
     sigma = np.full(lam.shape, np.nan)

@@ -70,7 +70,8 @@ def reproduce(root: Path, out: Path, *, campaign=None, speed=True, echo=print, p
     if failed:
         raise RuntimeError(f"{len(failed)} campaign runs did not complete: {failed[0].path}: {failed[0].reason}")
 
-    echo(f"[2/5] calibration on {CALIBRATION_SPECIMEN}'s tensile runs (SU, Nelder-Mead)")
+    echo(f"[2/5] calibration on {CALIBRATION_SPECIMEN}'s tensile runs (SU, Nelder-Mead, viscoelastic law linear: "
+         "eq. (44), as the paper)")
     cal_runs = [load_run(p) for p in find_runs([data / CALIBRATION_SPECIMEN], ("tensile",))]
     if not cal_runs:
         raise ValueError(f"no tensile runs of {CALIBRATION_SPECIMEN} in the campaign")
