@@ -14,3 +14,9 @@ Quick start (the whole library: see `rdea_lab`)::
     twin = rdea_lab.predict(ds, params, "su")
 """
 
+import os as _os
+
+# One BLAS thread unless the user says otherwise: rdea-lab's arrays are long and thin
+# (samples x a few parameters), where a threaded BLAS only contends for the cores;
+# least squares on a busy 2-core machine ran 7x slower with it. Set before numpy loads.
+_os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
