@@ -109,7 +109,7 @@ def _rate_range(r) -> str:
     return f"{_g(r[0])} /s" if _g(r[0]) == _g(r[1]) else f"{_g(r[0])}-{_g(r[1])} /s"
 
 
-def stretch_rate(t, stretch) -> np.ndarray:
+def central_rate(t, stretch) -> np.ndarray:
     """d stretch / dt [1/s] by central differences (one-sided at the ends).
 
     Parameters
@@ -127,14 +127,14 @@ def stretch_rate(t, stretch) -> np.ndarray:
 
 def moving_rates(run) -> np.ndarray:
     """|d stretch / dt| [1/s] of a run's samples that move (``>= HOLD_RATE``)."""
-    a = np.abs(stretch_rate(run.t, run.stretch))
+    a = np.abs(central_rate(run.t, run.stretch))
     return a[a >= HOLD_RATE]
 
 
 def longest_hold(t, stretch) -> float:
     """Longest span [s] of consecutive samples with |d stretch/dt| below `HOLD_RATE`."""
     t = np.asarray(t, float)
-    still = np.abs(stretch_rate(t, stretch)) < HOLD_RATE
+    still = np.abs(central_rate(t, stretch)) < HOLD_RATE
     if not still.any():
         return 0.0
     edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
@@ -212,4 +212,4 @@ def _name(run) -> str:
 
 
 __all__ = ["Envelope", "HOLD_RATE", "HOLD_TOL", "RATE_PERCENTILES", "RATE_RTOL", "STRETCH_RTOL", "VOLTAGE_TOL",
-           "beyond", "envelope", "longest_hold", "moving_rates", "run_envelope", "stretch_rate", "stretch_text"]
+           "beyond", "envelope", "longest_hold", "moving_rates", "run_envelope", "central_rate", "stretch_text"]

@@ -369,7 +369,7 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
     Nelder-Mead started with M branches at once tends to merge them into one time
     scale. Here the fit with m - 1 branches is extended by a branch 10 times slower
     than the slowest and, separately, 10 times faster than the fastest (its
-    stiffness a tenth of C10), both fitted, and the better kept; ``start`` supplies
+    stiffness a tenth of the stiffest spring so far), both fitted, and the better kept; ``start`` supplies
     the first branch. ``free`` names parameters of the final set (default: all).
     ``max_evals`` and ``max_time`` are budgets for all the fits together: each
     gets what the ones before it left (a fit left nothing stops at its start).
@@ -402,7 +402,9 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
     for m in range(2, M + 1):
         prev = done[kept[-1]].params
         taus = [b.tau for b in prev.branches]
-        k_new = 0.1 * prev.C10 if prev.law == "linear" else 0.1 * prev.C10 / 3
+        # a tenth of the stiffest spring so far (C10, or a branch that took over the elasticity), in bounds
+        k_new = 0.1 * max(prev.C10 if prev.law == "linear" else prev.C10 / 3, *(b.modulus for b in prev.branches))
+        k_new = min(max(k_new, 1e3), 1e10)
         candidates = [fit(prev.replace(branches=prev.branches + (ViscoBranch.of(prev.law, k_new, k_new * tau),)),
                           f"M = {m}, new branch {side} (tau {tau:.3g} s)")
                       for side, tau in (("slower", 10 * max(taus)), ("faster", 0.1 * min(taus)))]
