@@ -405,9 +405,14 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
         # a tenth of the stiffest spring so far (C10, or a branch that took over the elasticity), in bounds
         k_new = 0.1 * max(prev.C10 if prev.law == "linear" else prev.C10 / 3, *(b.modulus for b in prev.branches))
         k_new = min(max(k_new, 1e3), 1e10)
+        # the new time scale within what the runs resolve: a tenth of a sample interval to ten run lengths
+        dt = min(float(np.median(np.diff(r.t))) for r in runs)
+        T = max(float(r.t[-1] - r.t[0]) for r in runs)
+        scales = [(side, min(max(tau, 0.1 * dt), 10 * T)) for side, tau in
+                  (("slower", 10 * max(taus)), ("faster", 0.1 * min(taus)))]
         candidates = [fit(prev.replace(branches=prev.branches + (ViscoBranch.of(prev.law, k_new, k_new * tau),)),
                           f"M = {m}, new branch {side} (tau {tau:.3g} s)")
-                      for side, tau in (("slower", 10 * max(taus)), ("faster", 0.1 * min(taus)))]
+                      for side, tau in scales]
         kept.append(min(candidates, key=lambda i: done[i].objective))
     for i in kept:
         stages[i]["kept"] = True
