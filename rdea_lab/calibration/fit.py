@@ -370,7 +370,7 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
     scale. Here the fit with m - 1 branches is extended by a branch 10 times slower
     than the slowest and, separately, 10 times faster than the fastest (its
     stiffness a tenth of the stiffest spring so far), both fitted, and the better kept; ``start`` supplies
-    the first branch. ``free`` names parameters of the final set (default: all).
+    the first branch (finite strain: it and one a tenth as stiff, the better kept). ``free`` names parameters of the final set (default: all).
     ``max_evals`` and ``max_time`` are budgets for all the fits together: each
     gets what the ones before it left (a fit left nothing stops at its start).
     Other keywords go to `calibrate` (``model``, ``metric``, ``method``, ...).
@@ -398,7 +398,17 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
         done.append(res)
         return len(done) - 1
 
-    kept = [fit(start.replace(branches=start.branches[:1]), "M = 1")]
+    first = start.replace(branches=start.branches[:1])
+    if first.law == "finite_strain" and first.branches:
+        # a neo-Hookean branch's stress grows like lambda_e**2: started at the small-strain estimate, a
+        # local fit on large stretches can switch it off (tau to its bound) instead of softening it; a
+        # second start a tenth as stiff (same tau), the better fit of the runs kept
+        b0 = first.branches[0]
+        soft = first.replace(branches=(ViscoBranch.of(first.law, max(b0.modulus / 10, 1e3), b0.eta / 10),))
+        pair = [fit(first, "M = 1"), fit(soft, "M = 1, spring a tenth as stiff")]
+        kept = [min(pair, key=lambda i: done[i].objective)]
+    else:
+        kept = [fit(first, "M = 1")]
     for m in range(2, M + 1):
         prev = done[kept[-1]].params
         taus = [b.tau for b in prev.branches]
