@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from ..physics import viscoelastic
 from ..physics.geometry import geometry_from_card
 from ..physics.models import solve, su
 from ..twin import MIN_STRETCH, compose, viscous
@@ -51,6 +52,7 @@ class RunData:
     excluded: int = 0
     index: np.ndarray = field(default=None, repr=False)
     _basis: tuple = field(default=None, repr=False)
+    _visco_history: object = field(default=None, repr=False)
 
     @property
     def n(self) -> int:
@@ -65,6 +67,12 @@ class RunData:
         if self._basis is None:
             self._basis = su.stress_basis(self.stretch, self.voltage)
         return self._basis
+
+    def visco_history(self):
+        """The run's time and stretch for the overstress (:class:`rdea_lab.physics.viscoelastic.History`), cached."""
+        if self._visco_history is None:
+            self._visco_history = viscoelastic.History.of(self.t, self.stretch)
+        return self._visco_history
 
 
 def file_hash(path: Path) -> str:
@@ -149,7 +157,8 @@ def predict_force(run: RunData, params, model: str) -> np.ndarray:
     For SU, and for every model at 0 V (uniaxial kinematics), the quasi-static
     stress is linear in the Yeoh coefficients: a cached basis makes it three
     vector operations. Otherwise the model is solved along the run's path. The
-    rest is the twin's own composition of eqs. (43), (44) and (16)
+    rest is the twin's own composition of eqs. (43), (44) and (16), on the
+    run's cached `RunData.visco_history`
     (:func:`rdea_lab.twin.compose`), which clips a roll that would push to 0 N
     (slack): a measured slack sample then says only that the model force is <= 0.
     """
@@ -158,7 +167,7 @@ def predict_force(run: RunData, params, model: str) -> np.ndarray:
     else:
         # the equilibrium's tension is all compose needs (it clips); no free states to search
         sigma_rev = solve(model, run.geom, params, run.stretch, run.voltage, path=True, slack=False).sigma1
-    return compose(run.geom, viscous(params), run.t, run.stretch, sigma_rev)[2]
+    return compose(run.geom, viscous(params), run.t, run.stretch, sigma_rev, history=run.visco_history())[2]
 
 
 #: The percentile of |error| that `error_measures` reports beside the maximum and the rms.

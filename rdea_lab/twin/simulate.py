@@ -47,7 +47,7 @@ def viscous(params) -> tuple[np.ndarray, np.ndarray, float, str]:
             float(getattr(params, "eta_v0", 0.0) or 0.0), str(getattr(params, "law", "linear")))
 
 
-def compose(geom, visco, t, stretch, sigma_rev, state=None):
+def compose(geom, visco, t, stretch, sigma_rev, state=None, history=None):
     """Total stress and force from the quasi-static stress and the history: eqs. (43), (44) and (16) of [1].
 
     (Eq. (44) or its finite-strain form, by the parameter set's ``law``.)
@@ -69,6 +69,10 @@ def compose(geom, visco, t, stretch, sigma_rev, state=None):
         Quasi-static (reversible) axial stress of a model [Pa].
     state : ViscoState, optional
         End of the previous block.
+    history : History, optional
+        ``viscoelastic.History.of(t, stretch)``, precomputed for a history
+        evaluated many times (the calibration objective); the overstress then
+        comes from it (`~rdea_lab.physics.viscoelastic.overstress_step`).
 
     Returns
     -------
@@ -82,7 +86,10 @@ def compose(geom, visco, t, stretch, sigma_rev, state=None):
     state : ViscoState or None
     """
     k, eta, eta_v0, law = visco
-    sigma_irr, state = viscoelastic.overstress_step(t, stretch, k, eta, eta_v0, state=state, law=law)
+    if history is not None and history.t.shape != np.shape(stretch):
+        raise ValueError(f"history of {history.t.size} samples for a stretch of shape {np.shape(stretch)}")
+    source = (t, stretch) if history is None else (history, None)
+    sigma_irr, state = viscoelastic.overstress_step(*source, k, eta, eta_v0, state=state, law=law)
     sigma = sigma_rev + sigma_irr
     force = geom.carried_force(sigma * geom.area / stretch)
     with np.errstate(invalid="ignore"):
