@@ -51,20 +51,11 @@ Two laws, chosen by the parameter set (``law``):
     where ``tau/dt >= 100``).
 
 The linear law's update is the affine recurrence ``q_{n+1} = a_n q_n + b_n``
-(``a_n = exp(-dt_n / tau)``, ``b_n = s_n tau (1 - a_n)``, ``_linear_coefficients``)
-evaluated by one of two algorithms: a parallel prefix scan over the
-composition of affine maps (``log2(n)`` vectorized numpy passes), or, where a precomputed `History` has
-uniform sample intervals (all within ``UNIFORM_RTOL`` of their mean ``h``, so
-``a = exp(-h / tau)`` is one number per branch), the first-order recursive
-filter ``scipy.signal.lfilter`` (sequential, in C, about 4x faster). Both
-solve the same equation with the same ``a`` and ``b``; they differ only in
-the order of the rounding (tested to agree to 1e-13 of the largest strain).
-(The intervals of a uniform grid still differ in their last bits, ~1e-13
-relative, and at ``tau ~ dt`` that matters at 1e-13: the filter runs on
-``p = q / u``, ``u_n = exp(-offset_n / tau)`` with ``offset_n`` sample n's
-distance from the exact grid, for which the recurrence is exactly
-constant-coefficient; see ``_uniform_coefficients``.) ``scipy.signal`` is
-imported on the filter's first use (about 1 s). The finite-strain branches run
+(``a_n = exp(-dt_n / tau)``, ``b_n = s_n tau (1 - a_n)``, ``_linear_coefficients``),
+evaluated for all samples at once by a parallel prefix scan over the
+composition of affine maps (``log2(n)`` vectorized numpy passes). A
+precomputed `History` (the calibration's: its runs' time axes never change)
+spares the data-only work of each evaluation. The finite-strain branches run
 sequentially in time, compiled with numba (``rdea_lab.physics._branch_kernels``, ``cache=True``):
 the first call in a fresh install compiles for about 5 s, and every later
 process pays about 2.5 s once (importing numba, loading the cached machine
@@ -89,11 +80,7 @@ _RADAU_A = (((88 - 7 * _S6) / 360, (296 - 169 * _S6) / 1800, (-2 + 3 * _S6) / 22
             ((16 - _S6) / 36, (16 + _S6) / 36, 1 / 9))
 #: Substep rule of the finite-strain integrator (see the module docstring).
 _FS_STEP, _FS_GROW, _FS_STRETCH_STEP = 0.1, 1 / 4, 0.02
-#: Sample intervals within this fraction of their mean count as uniform (`History.step`).
-UNIFORM_RTOL = 1e-12
-#: Largest ``|offset| / tau`` of a uniform grid run as a filter (``exp`` of it must neither overflow nor lose bits).
-_MAX_OFFSET = 1e-3
-_ONE = np.ones(1)
+
 
 def _affine_prefix(a, b):
     """Inclusive prefix composition of ``q -> a_n q + b_n`` along the last axis.
@@ -123,14 +110,6 @@ def _rate(slope):
     return np.concatenate([slope[:1], slope])
 
 
-def _uniform_step(t, dt):
-    """The common interval [s] of a time axis whose intervals ``dt`` are all within `UNIFORM_RTOL` of it, else None."""
-    if dt.size == 0:
-        return None
-    h = (t[-1] - t[0]) / dt.size
-    return float(h) if np.max(np.abs(dt - h)) <= UNIFORM_RTOL * h else None
-
-
 def _linear_coefficients(dt, slope, tau):
     """``(a, b)`` of eq. (44)'s exact update ``q_{n+1} = a_n q_n + b_n`` over each interval, per branch.
 
@@ -140,35 +119,10 @@ def _linear_coefficients(dt, slope, tau):
     return np.exp(-r), slope * tau[:, None] * -np.expm1(-r)
 
 
-def _uniform_coefficients(dt, slope, tau, step, offset):
-    """The update of `_linear_coefficients` on a uniform grid: ``(a, c, u)`` with ``a`` one number per branch.
-
-    With ``dt_n = h + e_n`` (``h`` the step, ``e_n`` its rounding jitter) and
-    ``u_n = exp(-offset_n / tau)`` (``offset_n = sum_{j<n} e_j``: sample n's
-    distance from ``t_0 + n h``), ``a_n = a u_{n+1} / u_n`` with ``a = exp(-h / tau)``,
-    so ``p = q / u`` obeys ``p_{n+1} = a p_n + c_n``, ``c_n = b_n / u_{n+1}``:
-    constant coefficients, the same equation, exact (no ``e_n`` dropped).
-    """
-    a = np.exp(-step / tau)[:, None]
-    b = slope * tau[:, None] * -np.expm1(-dt / tau[:, None])
-    u = np.exp(-offset / tau[:, None])
-    return a, b / u[:, 1:], u
-
-
-def _linear_recurrence(a, b, q0, q, scan=False):
-    """``q[:, 0] = q0`` and ``q_{n+1} = a_n q_n + b_n`` into ``q[:, 1:]``.
-
-    A constant ``a`` per branch (shape (M, 1)) goes to the recursive filter
-    ``scipy.signal.lfilter`` unless ``scan``; otherwise (or when ``scan``) the prefix scan.
-    """
+def _linear_recurrence(a, b, q0, q):
+    """``q[:, 0] = q0`` and ``q_{n+1} = a_n q_n + b_n`` into ``q[:, 1:]`` (the prefix scan)."""
     q[:, 0] = q0
-    if a.shape[-1] == 1 and not scan:
-        from scipy.signal import lfilter  # on first use: importing scipy.signal takes about 1 s
-
-        for j in range(q.shape[0]):
-            q[j, 1:] = lfilter(_ONE, [1.0, -a[j, 0]], b[j], zi=[a[j, 0] * q0[j]])[0]
-        return
-    A, B = _affine_prefix(np.broadcast_to(a, b.shape), b)
+    A, B = _affine_prefix(a, b)
     q[:, 1:] = A * q[:, :1] + B
 
 
@@ -178,7 +132,7 @@ def _linear_strains(t, lam, tau, q0, q):
     if t.size < 2:
         return
     a, b = _linear_coefficients(*_intervals(t, lam), tau)
-    _linear_recurrence(a, b, q0, q, scan=True)
+    _linear_recurrence(a, b, q0, q)
 
 
 def _kernels():
@@ -245,12 +199,6 @@ class History:
         Intervals between them [s] and the stretch's slope over each [1/s].
     rate : numpy.ndarray, shape (m,)
         ``d lambda1 / dt`` [1/s] at each finite sample (:func:`stretch_rate`).
-    step : float or None
-        The common interval [s] when all of ``dt`` are within :data:`UNIFORM_RTOL`
-        of their mean (the linear law then runs as a recursive filter), else None.
-    offset : numpy.ndarray, shape (m,), or None
-        With a `step`: each finite sample's time minus ``t_finite[0] + n step`` [s]
-        (the cumulated rounding jitter of the intervals), kept exactly in the update.
     """
 
     t: np.ndarray
@@ -261,8 +209,6 @@ class History:
     dt: np.ndarray
     slope: np.ndarray
     rate: np.ndarray
-    step: float | None
-    offset: np.ndarray | None
 
     @property
     def all_finite(self) -> bool:
@@ -277,12 +223,9 @@ class History:
         tt, ll = np.ascontiguousarray(t[finite]), np.ascontiguousarray(lam[finite])
         dt, slope = _intervals(tt, ll)
         rate = _rate(slope) if tt.size > 1 else np.zeros_like(ll)
-        step = _uniform_step(tt, dt)
-        offset = None if step is None else np.concatenate([[0.0], np.cumsum(dt - step)])
-        for x in (t, lam, finite, tt, ll, dt, slope, rate, offset):
-            if x is not None:
-                x.setflags(write=False)
-        return cls(t, lam, finite, tt, ll, dt, slope, rate, step, offset)
+        for x in (t, lam, finite, tt, ll, dt, slope, rate):
+            x.setflags(write=False)
+        return cls(t, lam, finite, tt, ll, dt, slope, rate)
 
 
 def branch_strains(t, stretch, tau, q0=None, law="linear"):
@@ -325,12 +268,7 @@ def branch_strains(t, stretch, tau, q0=None, law="linear"):
         return q
     start = np.zeros(tau.size) if q0 is None else np.ascontiguousarray(np.broadcast_to(np.asarray(q0, float),
                                                                                         tau.shape))
-    if law == "linear" and history is not None and history.step is not None and \
-            np.max(np.abs(history.offset), initial=0.0) <= _MAX_OFFSET * np.min(tau):
-        a, c, u = _uniform_coefficients(history.dt, history.slope, tau, history.step, history.offset)
-        _linear_recurrence(a, c, start, q)  # p = q / u, with p_0 = q_0 (u_0 = 1)
-        q *= u
-    elif law == "linear" and history is not None:
+    if law == "linear" and history is not None:
         _linear_recurrence(*_linear_coefficients(history.dt, history.slope, tau), start, q)
     elif law == "linear":
         _linear_strains(t, lam, tau, start, q)
@@ -383,8 +321,7 @@ def overstress_step(t, stretch, k, eta, eta_v0=0.0, *, q0=None, state=None, law=
         Sample times [s], strictly increasing (and after ``state.t``); or a
         `History` (:meth:`History.of`), which carries its stretch and what
         depends on the data alone (``stretch`` is then None): nothing of that is
-        recomputed, and with uniform intervals the linear law runs as a
-        recursive filter (see the module docstring). With a `state` a History is
+        recomputed. With a `state` a History is
         evaluated as its ``t`` and ``stretch``.
     stretch : array_like, shape (n,), or None
         Axial stretch [-].
