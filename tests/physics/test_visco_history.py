@@ -5,6 +5,7 @@ import pytest
 
 from rdea_lab.physics.viscoelastic import History, branch_strains, overstress_step
 
+
 def random_history(rng, n, uniform=True):
     dt = 10.0 ** rng.uniform(-3, -1)
     if uniform:
