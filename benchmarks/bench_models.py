@@ -169,7 +169,10 @@ def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
         from rdea_lab.cli.errors import run as run_cli
         from rdea_lab.cli.main import cli
 
-        with tempfile.TemporaryDirectory() as tmp:
+        import contextlib
+        import io
+
+        with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(io.StringIO()):  # the import's lines
             rc = run_cli(cli, ["import", *map(str, sorted(vhb.glob("*.csv"))), "--format", "csv", "--map",
                                "time=0,position=1,force=2", "--protocol-kind", "tensile", "--specimen",
                                str(ROOT / "specimens" / "vhb4910_strip.yaml"), "--out", tmp])
