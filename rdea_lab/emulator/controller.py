@@ -144,6 +144,7 @@ class RigController:
         self.idn = f"rdea-lab,rig-emulator,{card.id},{__version__}"
         self._truth_json = truth_json(truth)
         self._close_session = close_session or (lambda session: None)
+        self._doomed = None  # the session an injected realtime disconnect closes at its next command
         self._clock = clock
         self._lock = threading.RLock()
         self._errors: dict[object, collections.deque] = {}
@@ -247,7 +248,12 @@ class RigController:
         wanted = self.run.samples_until(elapsed)
         self._produce_to(wanted)
         if self._disconnect_due(wanted):
-            self._close_session(self._fire_disconnect())
+            # the line drops between two commands of the controlling connection, never under a reply
+            # already taken from the buffer (closing the socket from here raced with the handler sending
+            # a FETC? reply: its rows were counted fetched and lost): an idle connection is closed now
+            # (close_session leaves a busy one alone), a busy one at its next command
+            self._doomed = self._fire_disconnect()
+            self._close_session(self._doomed)
 
     def _producer(self, stop: threading.Event) -> None:
         while not stop.is_set():
@@ -287,6 +293,9 @@ class RigController:
             if block is not None and header not in ("TRAJ:STR", "TRAJ:VOLT"):
                 raise RigError(-108, f"parameter not allowed: {header} takes no binary block")
             with self._lock:
+                if session is not None and session == self._doomed:  # the injected disconnect (realtime)
+                    self._doomed = None
+                    raise CloseConnection()
                 if session == self.owner:
                     self._last_heard = self._clock()  # any command of the controlling connection is a heartbeat
                 if header not in self._anyone:
@@ -576,6 +585,9 @@ class RigController:
             return encode_block([])
         if self.realtime:
             self._advance_realtime()
+            if session is not None and session == self._doomed:  # the disconnect fired: no rows taken
+                self._doomed = None
+                raise CloseConnection()
         elif self.state == "RUNNING" and self._buffered < wanted:
             target = self.run.acquired + wanted - self._buffered
             self._produce_to(target)

@@ -119,13 +119,14 @@ class RigServer:
         self.host, self.port = host, port
         self._token = token
         self.controller = RigController(card, truth, realtime=realtime, faults=faults, truth_source=truth_source,
-                                        close_session=self._close_session, limits=limits, heartbeat=heartbeat)
+                                        close_session=self._drop_line, limits=limits, heartbeat=heartbeat)
         self.max_connections, self.auth_timeout, self.idle_timeout = int(max_connections), auth_timeout, idle_timeout
         self.block_timeout = block_timeout
         self._budget = ByteBudget(max_upload_bytes)
         self._server: _TCPServer | None = None
         self._thread: threading.Thread | None = None
         self._sessions: dict[int, socket.socket] = {}
+        self._busy: set[int] = set()  # sessions executing or answering a command (see _drop_line)
         self._sessions_lock = threading.Lock()
         self._ids = itertools.count(1)
         #: connections accepted so far (a run refused before anything moves never connects)
@@ -199,6 +200,14 @@ class RigServer:
         except OSError:
             pass
 
+    def _drop_line(self, session) -> None:
+        """The injected disconnect: close ``session``'s connection unless it is executing or answering a
+        command (then the controller closes it at its next one), so no reply in flight is cut."""
+        with self._sessions_lock:
+            if session in self._busy:
+                return
+        self._close_session(session)
+
     def _serve_connection(self, sock: socket.socket, peer) -> None:
         session = next(self._ids)
         with self._sessions_lock:
@@ -244,11 +253,17 @@ class RigServer:
                     authenticated = True  # (the closure `idle` sees it)
                     _send(sock, "OK")
                     continue
+                with self._sessions_lock:
+                    self._busy.add(session)
                 try:
-                    reply = self.controller.execute(session, text, block)
-                except CloseConnection:
-                    break
-                _send(sock, reply)
+                    try:
+                        reply = self.controller.execute(session, text, block)
+                    except CloseConnection:
+                        break
+                    _send(sock, reply)
+                finally:
+                    with self._sessions_lock:
+                        self._busy.discard(session)
         except (ConnectionClosed, OSError):
             pass
         finally:
