@@ -25,17 +25,6 @@ FAST = {"model": "1r", "max_evals": 200}
 
 
 @pytest.fixture(scope="module")
-def imported(tmp_path_factory):
-    out = tmp_path_factory.mktemp("vhb")
-    rc = run_cli(cli, ["import", *map(str, sorted(VHB.glob("*.csv"))), "--format", "csv", "--map",
-                       "time=0,position=1,force=2", "--protocol-kind", "tensile", "--specimen",
-                       str(ROOT / "specimens" / "vhb4910_strip.yaml"), "--credit",
-                       "Chongran-Zhao/VHB4910_data (GitHub)", "--out", str(out)])
-    assert rc == 0
-    return out
-
-
-@pytest.fixture(scope="module")
 def runs(imported):
     return [load_run(p) for p in sorted(imported.glob("*.nc"))]
 

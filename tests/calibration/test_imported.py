@@ -16,17 +16,6 @@ VHB = ROOT.parent / "shared" / "data" / "vhb4910"
 pytestmark = pytest.mark.skipif(not VHB.is_dir(), reason=f"{VHB} (the shared real-data folder) is absent")
 
 
-@pytest.fixture(scope="module")
-def imported(tmp_path_factory):
-    out = tmp_path_factory.mktemp("vhb")
-    rc = run_cli(cli, ["import", *map(str, sorted(VHB.glob("*.csv"))), "--format", "csv", "--map",
-                       "time=0,position=1,force=2", "--protocol-kind", "tensile", "--specimen",
-                       str(ROOT / "specimens" / "vhb4910_strip.yaml"), "--credit",
-                       "Chongran-Zhao/VHB4910_data (GitHub)", "--out", str(out)])
-    assert rc == 0
-    return out
-
-
 def test_noise_below_stretch_1_is_left_out_and_counted(imported):
     path = imported / "0d01_1d5.nc"
     ds = open_run(path)
