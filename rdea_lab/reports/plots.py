@@ -13,6 +13,8 @@ import os
 
 import numpy as np
 
+from ..store.schema import is_emulated
+
 DPI = 120
 #: How a twin prediction is drawn over a measurement.
 PREDICTION = {"color": "black", "ls": "--", "lw": 0.9, "label": "twin"}
@@ -123,7 +125,7 @@ def _run_label(ds) -> str:
     backend = str(ds.attrs.get("backend", ""))
     if backend == "twin":
         return f"run (twin, {ds.attrs.get('model', '?')})"
-    return "measured" + (" (emulator)" if str(ds.attrs.get("emulated", "")).startswith("yes") else "")
+    return "measured" + (" (emulator)" if is_emulated(ds.attrs) else "")
 
 
 def _prediction_label(prediction) -> str:

@@ -25,6 +25,7 @@ import xarray as xr
 import yaml
 
 from ..backends.rig import truth_name
+from ..store.schema import is_emulated
 from ..calibration.objective import error_measures, file_hash, load_run
 from ..runs.app import check_writable
 from ..specs import MODEL_CHOICES, UserError, as_params
@@ -225,10 +226,9 @@ def evaluate_run(path: Path, params, model: str, tolerance: float) -> tuple[dict
     notes = [window, f"{err['excluded']} samples without equilibrium left out" if err["excluded"] else "",
              f"auto: {reason}" if reason else ""]
     row["notes"] = "; ".join(n for n in notes if n)
-    emulated = str(a.get("emulated", ""))
     prov = {"file": str(path), "sha256": run.sha256, "run_id": a.get("run_id", "?"), "backend": a.get("backend", "?"),
             "created": a.get("created", "?"), "protocol": run.protocol, "kind": run.kind, "specimen": run.specimen,
-            "emulated": emulated.startswith("yes"), "truth": truth_name(a.get("emulator_truth", "")) or "",
+            "emulated": is_emulated(a), "truth": truth_name(a.get("emulator_truth", "")) or "",
             "model": a.get("model", ""), "parameters_name": a.get("parameters_name", "")}
     return row, {"row": row, "provenance": prov, "series": series}
 

@@ -10,6 +10,7 @@ import pandas as pd
 import xarray as xr
 
 from .journal import FORMAT, journal_writer
+from .schema import is_emulated
 
 
 def open_run(path: Path) -> xr.Dataset:
@@ -77,7 +78,7 @@ def catalog_rows(folder: Path) -> list[dict]:
             with xr.open_dataset(path, engine="netcdf4") as ds:
                 a = ds.attrs
                 t = ds["time"].values if "time" in ds else np.array([])
-                backend = a.get("backend", "?") + (" (emulator)" if a.get("emulated") else "")
+                backend = a.get("backend", "?") + (" (emulator)" if is_emulated(a) else "")
                 rows.append({"file": str(path), "specimen": a.get("specimen_id", "?"),
                              "protocol": a.get("protocol_name", "?"), "backend": backend,
                              "model": a.get("model", "-"), "status": a.get("status", "?"),

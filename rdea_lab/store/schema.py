@@ -31,3 +31,18 @@ REQUIRED_ATTRS = (
     "protocol_name", "protocol_kind", "protocol", "sample_rate", "seed", "created", "status",
     "status_reason", "history",
 )
+
+
+def is_emulated(attrs) -> bool:
+    """Whether a dataset's attributes say it comes from the rig emulator.
+
+    Reads ``emulated`` as written now (the integer 1; 0 for a physical rig)
+    and as written by rdea-lab 0.1 (a sentence starting with ``yes``).
+    """
+    value = attrs.get("emulated", 0)
+    if isinstance(value, str):
+        return value.strip().lower().startswith("yes") or value.strip() == "1"
+    try:
+        return int(value) == 1
+    except (TypeError, ValueError):
+        return False
