@@ -57,8 +57,9 @@ def tau_of_bandwidth(bandwidth: float) -> float:
     return 1.0 / (2.0 * math.pi * bandwidth)
 
 
-def load_cell(force, offset: float, noise: float, rng: np.random.Generator) -> np.ndarray:
-    """Load-cell reading [N]: true force [N] + offset [N] + Gaussian noise of std `noise` [N].
+def load_cell(force, offset, noise: float, rng: np.random.Generator) -> np.ndarray:
+    """Load-cell reading [N]: true force [N] + offset [N] (a number, or one per sample: a drift)
+    + Gaussian noise of std `noise` [N].
 
     Draws one normal variate per sample whatever `noise` is, so the stream
     of `rng` advances by the number of samples (chunking does not matter).

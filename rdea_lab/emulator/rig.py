@@ -11,12 +11,16 @@ producing in chunks of any sizes gives bit-identical data:
   ``position = (stretch - 1) L1`` with the configured ``L1``;
 - amplifier: first-order low-pass (``amplifier_bandwidth``) on the voltage
   setpoint, starting at 0 V;
-- true force and capacitance: `rdea_lab.twin.simulate.TwinStream` on the true
-  geometry (`true_geometry`) with the truth's material and model;
-- load cell: + offset + noise; LCR bridge: + parasitics + noise, and only
-  where ``capacitance`` is measured and ``|voltage| < 1 V``;
-- aborts: dielectric breakdown (field estimate ``|v| sqrt(stretch) / L3``
-  with the true ``L3`` above ``breakdown_field``, or no stable equilibrium
+- true force and capacitance: `rdea_lab.emulator.roll.TrueRoll` on the true
+  geometry (`true_geometry`) with the truth's material, model and effects
+  (passive ends, clamp compliance, Mullins softening, fringe capacitance; with
+  none, the twin `rdea_lab.twin.simulate.TwinStream`);
+- load cell: + offset (drifting by ``force_drift`` from the run's start) +
+  noise; LCR bridge: + parasitics + noise, and only where ``capacitance`` is
+  measured and ``|voltage| < 1 V``;
+- aborts: dielectric breakdown (field estimate ``|v| sqrt(lambda) / L3`` with
+  the true ``L3`` and the electroded zone's stretch ``lambda`` above
+  ``breakdown_field``, or no stable equilibrium
   left: pull-in), or a load-cell reading above ``max_force``. The samples up
   to and including the breaking one are kept (a pull-in sample has no force
   and is dropped); then voltage goes to 0 and the actuator back to its start.
@@ -30,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..physics.result import LIMIT_POINT, OUTSIDE_RANGE, STATUS_NAMES, VALID
-from ..twin.simulate import TwinStream
+from .roll import TrueRoll
 from .instruments import FirstOrderLag, lcr_bridge, load_cell, tau_of_bandwidth
 from .truth import true_geometry
 
@@ -199,7 +203,7 @@ class EmulatedRig:
         self.config = config
         self.truth = truth
         self.geom = true_geometry(card, truth, source=truth_source)
-        self._twin = TwinStream(self.geom, truth.material, truth.model)
+        self._roll = TrueRoll(self.geom, truth)
         inst = truth.instrument
         dt = 1.0 / config.rate
         self._start = float(config.stretch_setpoint[0])
@@ -298,8 +302,8 @@ class EmulatedRig:
         stretch = self._actuator(s_sp)
         voltage = self._amplifier(v_sp)
         # the roll cannot be compressed: a setpoint of 1 - 1e-16 is 1
-        true = self._twin.step(t, np.maximum(stretch, 1.0), voltage)
-        force = load_cell(true["force"], inst.force_offset, inst.force_noise, self._force_rng)
+        true = self._roll.step(t, np.maximum(stretch, 1.0), voltage)
+        force = load_cell(true["force"], inst.force_offset + inst.force_drift * t, inst.force_noise, self._force_rng)
         capacitance = lcr_bridge(true["capacitance"], voltage, inst.parasitic_capacitance, inst.capacitance_noise,
                                  self._cap_rng, enabled="capacitance" in cfg.measure, max_voltage=LCR_MAX_VOLTAGE)
         rows = np.column_stack([
@@ -307,14 +311,17 @@ class EmulatedRig:
             force if "force" in cfg.measure else np.full(m, np.nan),
             capacitance, s_sp, v_sp,
         ])
-        event = self._first_event(t, stretch, voltage, force, true["model_status"])
+        event = self._first_event(t, np.where(np.isnan(true["lambda_a"]), stretch, true["lambda_a"]), voltage, force,
+                                  true["model_status"])
         if event is not None:
             event.index += k0
             event.keep += k0
         return rows, event
 
     def _first_event(self, t, stretch, voltage, force, status) -> _Event | None:
-        """The earliest abort in a block: breakdown, pull-in or force limit (indices in the block)."""
+        """The earliest abort in a block: breakdown, pull-in or force limit (indices in the block).
+
+        `stretch` is the electroded zone's (the field's) stretch."""
         E = np.abs(voltage) * np.sqrt(np.maximum(stretch, 1.0)) / self.geom.L3
         fmt = lambda i: f"dielectric breakdown at t = {seconds(t[i])} s (field {E[i] / 1e6:.4g} V/um"  # noqa: E731
         events = []

@@ -61,6 +61,9 @@ Frequency = quantity("frequency", "Hz", gt=0.0)
 Capacitance = quantity("capacitance", "pF", ge=0.0)
 Field = quantity("electric_field", "V/um", gt=0.0)
 Number = quantity("dimensionless", "")
+Compliance = quantity("compliance", "um/N", ge=0.0)
+ForceRate = quantity("force_rate", "mN/min")
+Energy = quantity("pressure", "kPa", gt=0.0)  # an energy density, J/m^3 = Pa
 
 
 def _in_factor_range(value: float) -> float:
@@ -101,6 +104,65 @@ class RadiiFactors(SpecModel):
     Ro: Factor = 1.0
 
 
+def _positive_factor(value: float) -> float:
+    if not value > 0.0:
+        raise SpecError("", "", f"factor {value:g} is not > 0")
+    return value
+
+
+def _softening(value: float) -> float:
+    if not 0.0 < value < 1.0:
+        raise SpecError("", "", f"max_softening {value:g} is not in (0, 1): it is the fraction of the "
+                                "stress lost at most on reloading (1/r of Ogden and Roxburgh)")
+    return value
+
+
+class Mullins(SpecModel):
+    """Ogden-Roxburgh pseudo-elastic softening of the quasi-static force.
+
+    ``F = eta F_virgin`` with ``eta = 1 - max_softening erf((W_max - W) / energy_scale)``,
+    ``W`` the Yeoh energy density at the roll's stretch and ``W_max`` the
+    largest so far in the run: 1 on the virgin (first) loading, lower on
+    unloading and reloading below the previous maximum.
+
+    Attributes
+    ----------
+    max_softening : float
+        ``1/r`` of Ogden and Roxburgh (1999), in (0, 1).
+    energy_scale : float
+        ``m`` [J/m^3 = Pa], > 0.
+    """
+
+    max_softening: Annotated[Number, AfterValidator(_softening)]
+    energy_scale: Energy
+
+
+class Effects(SpecModel):
+    """Physics of a real roll that no model of `rdea_lab.physics` has (each off by default).
+
+    Attributes
+    ----------
+    passive_ends : bool
+        The electrode-free ends ``L1 - L1e`` are their own zone in series with
+        the electroded zone ``L1e`` (no Maxwell stress there; Assumption 3 of
+        [1] smears the electrode over ``L1`` with ``alpha_e1`` instead).
+    passive_stiffness : float
+        Factor on the Yeoh coefficients of the passive ends, > 0 (1: the same film).
+    clamp_compliance : float
+        Compliance of clamps and load cell in series with the roll [m/N], >= 0 (0: rigid).
+    mullins : Mullins or None
+        First-cycle softening (None: none).
+    fringe_capacitance : bool
+        Palmer's (1937) edge correction on the electrodes' capacitance.
+    """
+
+    passive_ends: bool = False
+    passive_stiffness: Annotated[Number, AfterValidator(_positive_factor)] = 1.0
+    clamp_compliance: Compliance = 0.0
+    mullins: Mullins | None = None
+    fringe_capacitance: bool = False
+
+
 class Instrument(SpecModel):
     """The rig's instrument effects, SI.
 
@@ -121,6 +183,9 @@ class Instrument(SpecModel):
     breakdown_field : float
         The membrane breaks down above this field estimate
         ``|v| sqrt(stretch) / L3`` [V/m], > 0.
+    force_drift : float
+        Drift of the load-cell offset [N/s] (0: none); the offset is
+        ``force_offset + force_drift t`` with ``t`` from the run's start.
     """
 
     force_noise: Force
@@ -130,6 +195,7 @@ class Instrument(SpecModel):
     parasitic_capacitance: Capacitance
     capacitance_noise: Capacitance
     breakdown_field: Field
+    force_drift: ForceRate = 0.0
 
 
 class TruthSpec(SpecModel):
@@ -145,6 +211,8 @@ class TruthSpec(SpecModel):
         The true material (named like the truth).
     radii_factors : RadiiFactors
         True radius = nominal radius x factor.
+    effects : Effects
+        Physics beyond every model (passive ends, clamp compliance, Mullins, fringe capacitance).
     instrument : Instrument
     seed : int
         Seed of the emulator's noise, >= 0 (0 if not given).
@@ -156,6 +224,7 @@ class TruthSpec(SpecModel):
     model: ModelName
     material: ParameterSet
     radii_factors: RadiiFactors = RadiiFactors()
+    effects: Effects = Effects()
     instrument: Instrument
     seed: Seed = 0
     description: str | None = None
@@ -172,6 +241,7 @@ class _TruthFile(SpecModel):
     eps_r: Number
     viscoelastic: _Viscoelastic = _Viscoelastic()
     radii_factors: RadiiFactors = RadiiFactors()
+    effects: Effects = Effects()
     instrument: Instrument
     seed: Seed = 0
 
@@ -191,7 +261,8 @@ def truth_from_mapping(mapping: Any, source: str = "<mapping>") -> TruthSpec:
     material = params_from_mapping({k: mapping[k] for k in _MATERIAL_KEYS if k in mapping}, source)
     try:
         return TruthSpec(name=f.name, description=f.description, source=f.source, model=f.model,
-                         material=material, radii_factors=f.radii_factors, instrument=f.instrument, seed=f.seed)
+                         material=material, radii_factors=f.radii_factors, effects=f.effects,
+                         instrument=f.instrument, seed=f.seed)
     except SpecError as err:
         raise err.with_source(source) from None
 
@@ -216,7 +287,7 @@ def load_truth(path: str | os.PathLike) -> TruthSpec:
 
 _INSTRUMENT_UNITS = {
     "force_noise": "mN", "force_offset": "mN", "actuator_lag": "ms", "amplifier_bandwidth": "Hz",
-    "parasitic_capacitance": "pF", "capacitance_noise": "pF", "breakdown_field": "V/um",
+    "parasitic_capacitance": "pF", "capacitance_noise": "pF", "breakdown_field": "V/um", "force_drift": "mN/min",
 }
 
 
@@ -231,6 +302,13 @@ def truth_as_mapping(truth: TruthSpec) -> dict:
     data["model"] = truth.model
     data.update({k: material[k] for k in ("yeoh", "eps_r", "viscoelastic")})
     data["radii_factors"] = {k: getattr(truth.radii_factors, k) for k in RadiiFactors.model_fields}
+    e = truth.effects
+    data["effects"] = {"passive_ends": e.passive_ends, "passive_stiffness": e.passive_stiffness,
+                       "clamp_compliance": format_quantity(e.clamp_compliance, "um/N"),
+                       "fringe_capacitance": e.fringe_capacitance}
+    if e.mullins is not None:  # omitted: none
+        data["effects"]["mullins"] = {"max_softening": e.mullins.max_softening,
+                                      "energy_scale": format_quantity(e.mullins.energy_scale, "kPa")}
     data["instrument"] = {k: format_quantity(getattr(truth.instrument, k), unit)
                           for k, unit in _INSTRUMENT_UNITS.items()}
     data["seed"] = truth.seed
@@ -248,6 +326,6 @@ def truth_json(truth: TruthSpec) -> str:
 
 
 __all__ = [
-    "FACTOR_RANGE", "Instrument", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth",
+    "FACTOR_RANGE", "Effects", "Instrument", "Mullins", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth",
     "truth_as_mapping", "truth_from_mapping", "truth_from_yaml", "truth_json",
 ]

@@ -33,8 +33,11 @@ _DIMENSIONS: dict[str, tuple[str, str, str]] = {
     "force": ("N", "force", "1.5 N"),
     "capacitance": ("F", "capacitance", "100 pF"),
     "electric_field": ("V/m", "electric field", "50 V/um"),
+    "compliance": ("m/N", "compliance", "20 um/N"),
+    "force_rate": ("N/s", "force rate", "0.5 mN/min"),
 }
-_NOTES = {"viscosity": " (pressure times time)", "electric_field": " (voltage per length)"}
+_NOTES = {"viscosity": " (pressure times time)", "electric_field": " (voltage per length)",
+          "compliance": " (length per force)", "force_rate": " (force per time)"}
 DIMENSIONS = tuple(_DIMENSIONS)
 
 _NUMBER = re.compile(
@@ -75,7 +78,7 @@ def parse_quantity(
         One of `DIMENSIONS`: ``length`` [m], ``pressure`` [Pa], ``viscosity``
         [Pa s], ``voltage`` [V], ``frequency`` [Hz], ``time`` [s],
         ``dimensionless`` [-], ``force`` [N], ``capacitance`` [F],
-        ``electric_field`` [V/m].
+        ``electric_field`` [V/m], ``compliance`` [m/N], ``force_rate`` [N/s].
     source, field : str
         Where the value came from, for the error message.
     example_unit : str, optional

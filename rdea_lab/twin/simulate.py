@@ -97,6 +97,15 @@ def compose(geom, visco, t, stretch, sigma_rev, state=None, history=None):
     return sigma, sigma_irr, force, state
 
 
+def slack_status(status, pushes, force):
+    """Model status with slack where the total (quasi-static + viscous) stress would be compressive
+    (`pushes`): a quasi-static slack state the overstress pulls taut (``force > 0``) carries force
+    (its stretches stay the free state's) and is OK."""
+    valid = np.isin(status, VALID)
+    out = np.where(valid & pushes & (status == OK), SLACK, status)
+    return np.where(valid & (force > 0.0) & (status == SLACK), OK, out).astype(np.int8)
+
+
 def history_limits(protocol):
     """``(Limits, source)`` of a protocol given as a spec, a path, a plan or bare Limits."""
     if isinstance(protocol, Limits):
@@ -211,13 +220,8 @@ class TwinStream:
                     path=True, start=self._path)
         self._path = res.end
         sigma, sigma_irr, force, self._state = compose(self.geom, self._visco, t, stretch, res.tension, self._state)
-        # slack where the total (quasi-static + viscous) force would be compressive; a quasi-static
-        # slack state the overstress pulls taut carries force (its stretches stay the free state's)
-        valid = np.isin(res.status, VALID)
         with np.errstate(invalid="ignore"):
-            pushes = res.tension + sigma_irr < 0.0
-        status = np.where(valid & pushes & (res.status == OK), SLACK, res.status)
-        status = np.where(valid & (force > 0.0) & (res.status == SLACK), OK, status).astype(np.int8)
+            status = slack_status(res.status, res.tension + sigma_irr < 0.0, force)
         return {"force": force, "capacitance": res.capacitance, "sigma1": sigma, "sigma1_irr": sigma_irr,
                 "lambda2b": res.lambda2b, "model_status": status,
                 "summary": dataclasses.replace(res, status=status).summary()}

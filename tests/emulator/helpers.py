@@ -23,10 +23,13 @@ def truth_with(truth, **instrument):
 
 
 def quiet_truth(truth):
-    """`truth` without instrument effects (no noise, offset, lag, parasitics; breakdown far away)."""
-    return truth_with(truth, force_noise="0 N", force_offset="0 N", actuator_lag="0 s",
-                      amplifier_bandwidth=IDEAL_BANDWIDTH, parasitic_capacitance="0 F", capacitance_noise="0 F",
-                      breakdown_field="1e6 V/um")
+    """`truth` without instrument effects (no noise, offset, drift, lag, parasitics; breakdown far away)
+    and without the roll's effects beyond the models (`rdea_lab.emulator.roll`): the truth's model and
+    material seen through ideal instruments."""
+    quiet = truth_with(truth, force_noise="0 N", force_offset="0 N", force_drift="0 N/s", actuator_lag="0 s",
+                       amplifier_bandwidth=IDEAL_BANDWIDTH, parasitic_capacitance="0 F", capacitance_noise="0 F",
+                       breakdown_field="1e6 V/um")
+    return quiet.model_copy(update={"effects": type(quiet.effects)()})
 
 
 def block(values) -> bytes:

@@ -19,12 +19,18 @@ def shipped_mapping():
 
 
 def test_shipped_truth_in_si(truth):
-    assert (truth.name, truth.model, truth.seed) == ("paper2021-emulator", "3r", 2021)
+    assert (truth.name, truth.model, truth.seed) == ("paper2021-emulator", "cr", 2021)
     m = truth.material
     # kPa integers parse exactly; the material is a ParameterSet like params/*.yaml
     assert (m.C10, m.C20, m.C30, m.eps_r) == (242e3, -69e3, 47e3, 2.8)
-    assert [(b.k, b.eta) for b in m.branches] == [(8271e3, 86e3), (600e3, 900e3)]
+    assert m.law == "finite_strain"
+    assert [(b.mu, b.eta) for b in m.branches] == [(2757e3, pytest.approx(28.67e3, rel=1e-15)), (200e3, 300e3)]
     assert m.eta_v0 == 0.0
+    e = truth.effects
+    assert (e.passive_ends, e.passive_stiffness, e.fringe_capacitance) == (True, 1.0, True)
+    assert e.clamp_compliance == pytest.approx(20e-6, rel=1e-15)
+    assert (e.mullins.max_softening, e.mullins.energy_scale) == (0.05, 30e3)
+    assert truth.instrument.force_drift == pytest.approx(0.5e-3 / 60.0, rel=1e-15)
     f = truth.radii_factors
     assert (f.Ri, f.Rie, f.Roe, f.Ro) == (1.0, 1.02, 0.985, 1.01)
     i = truth.instrument
@@ -39,7 +45,10 @@ def test_material_part_is_a_parameter_set_with_the_same_checks(truth):
     # the first branch and the Yeoh part are Table 3, as in params/paper2021_table3.yaml
     table3 = load_params(ROOT / "params" / "paper2021_table3.yaml")
     assert (truth.material.C10, truth.material.C20, truth.material.C30) == (table3.C10, table3.C20, table3.C30)
-    assert truth.material.branches[0] == table3.branches[0]
+    # the first branch is Table 3's by the small-strain map k = 3 mu, eta(44) = 3 eta (same relaxation time)
+    b, ref = truth.material.branches[0], table3.branches[0]
+    assert 3.0 * b.mu == pytest.approx(ref.k, rel=1e-12)
+    assert 3.0 * b.eta == pytest.approx(ref.eta, rel=2e-4) and b.eta / b.mu == pytest.approx(ref.eta / ref.k, rel=2e-4)
 
 
 def test_round_trips(truth):
@@ -68,6 +77,15 @@ BAD = [
     (None, "seed", 1.5, "seed", "integer >= 0"),
     (None, "eps_r", 0.5, "eps_r", ">= 1"),
     (None, "noise", "4 mN", "noise", "unknown key"),
+    ("instrument", "force_drift", "0.5 mN", "instrument.force_drift", "force rate"),
+    ("effects", "clamp_compliance", "-1 um/N", "effects.clamp_compliance", ">= 0"),
+    ("effects", "clamp_compliance", "20 um", "effects.clamp_compliance", "compliance"),
+    ("effects", "passive_stiffness", 0, "effects.passive_stiffness", "not > 0"),
+    ("effects", "passive_ends", "maybe", "effects.passive_ends", "maybe"),
+    ("effects", "mullins", {"max_softening": 1.5, "energy_scale": "30 kPa"}, "effects.mullins.max_softening",
+     "not in (0, 1)"),
+    ("effects", "mullins", {"max_softening": 0.05, "energy_scale": "0 kPa"}, "effects.mullins.energy_scale", "> 0"),
+    ("effects", "hysteresis", True, "effects.hysteresis", "unknown key"),
 ]
 
 
