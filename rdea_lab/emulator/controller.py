@@ -25,6 +25,7 @@ import time
 import numpy as np
 
 from .. import __version__
+from ..physics import viscoelastic
 from ..specs.truth import truth_json
 from .framing import FramingError, decode_block, encode_block
 from .rig import EmulatedRig, RunConfig, limit_violation
@@ -130,6 +131,7 @@ class RigController:
         from ..specs import Limits
 
         self.card, self.truth, self.truth_source = card, truth, truth_source
+        viscoelastic.prepare(truth.material.law)  # before any client waits on a reply
         hard = limits if limits is not None else Limits()
         self.hard_limits = {"volt": float(hard.max_voltage), "str": float(hard.max_stretch),
                             "forc": float(hard.max_force), "fiel": float(hard.max_field)}

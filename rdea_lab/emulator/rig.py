@@ -46,7 +46,7 @@ CHANNELS = ("force", "capacitance")
 #: The LCR bridge measures only below this |voltage| [V].
 LCR_MAX_VOLTAGE = 1.0
 #: Samples computed at once, in blocks aligned on the start of the run [samples].
-BLOCK = 4096
+BLOCK = 2048
 #: Relative slack of the limit checks, as in `rdea_lab.protocols.check_plan`.
 SLACK = 1e-12
 

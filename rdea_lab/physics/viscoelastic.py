@@ -142,6 +142,13 @@ def _kernels():
     return KERNELS
 
 
+def prepare(law: str) -> None:
+    """Load `law`'s compiled kernel now (finite strain: numba, about 2.5 s once per process, from its
+    disk cache), so that a caller with a deadline (a rig server's first reply) does not pay it later."""
+    if law != "linear":
+        branch_strains(np.array([0.0, 1e-3]), np.array([1.0, 1.001]), np.array([1.0]), law=law)
+
+
 def stress_of(law, modulus, q):
     """Branch stresses [Pa] from their internal strains ``q`` (shape (M, n)): ``k q`` or ``mu (e^{2q} - e^{-q})``."""
     modulus = np.asarray(modulus, float)[:, None]
