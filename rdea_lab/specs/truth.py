@@ -1,22 +1,33 @@
 """Truth files: the "true" specimen and instruments behind the rig emulator.
 
 The emulator (`rdea_lab.emulator`) answers like a real rig: a roll whose
-physics is not the one a user calibrates (a chosen model, a material with
-two viscoelastic branches, radii off by a manufacturing tolerance) seen
-through imperfect instruments. A truth file says all of it, in YAML with
-units::
+physics is beyond the models a user calibrates (a chosen model, a material
+with branches of either viscoelastic law, radii off by a manufacturing
+tolerance, and `Effects` no model has: passive electrode-free ends in series,
+clamp compliance, Mullins softening, fringe capacitance; their physics in
+`rdea_lab.emulator.roll`) seen through imperfect instruments. A truth file
+says all of it, in YAML with units (``truth/paper2021.yaml`` argues each
+magnitude)::
 
     name: paper2021-emulator
-    model: 3r                       # the true physics: su | 1r | 3r
+    model: cr                       # the true physics: su | 1r | 3r | cr
     yeoh: {C10: 242 kPa, C20: -69 kPa, C30: 47 kPa}
     eps_r: 2.8
     viscoelastic:
-      branches: [{k: 8271 kPa, eta: 86 kPa s}, {k: 600 kPa, eta: 900 kPa s}]
+      law: finite_strain
+      branches: [{mu: 2757 kPa, eta: 28.67 kPa s}, {mu: 200 kPa, eta: 300 kPa s}]
       eta_v0: 0 kPa s
     radii_factors: {Rie: 1.02, Roe: 0.985, Ro: 1.01}   # true radius = nominal x factor
+    effects:                        # each off when left out
+      passive_ends: true            # L1 - L1e without electrode, in series
+      passive_stiffness: 1.0        # factor on their Yeoh coefficients
+      clamp_compliance: 20 um/N     # clamps and load cell in series
+      mullins: {max_softening: 0.05, energy_scale: 30 kPa}   # Ogden-Roxburgh
+      fringe_capacitance: true      # Palmer's edge correction
     instrument:
       force_noise: 4 mN             # load-cell noise, standard deviation
       force_offset: 8 mN            # load-cell offset
+      force_drift: 0.5 mN/min       # drift of the offset (default 0)
       actuator_lag: 4 ms            # first-order tracking lag of the linear actuator
       amplifier_bandwidth: 300 Hz   # first-order bandwidth of the HV amplifier
       parasitic_capacitance: 25 pF  # LCR parasitics, added to the true capacitance
