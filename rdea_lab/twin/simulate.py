@@ -15,7 +15,8 @@ from ..physics.geometry import RollGeometry, StripGeometry, geometry_from_card
 from ..physics.models import solve
 from ..physics.result import OK, SLACK, VALID
 from .cf import global_attrs, time_attrs, variable_attrs
-from ..specs import as_params, as_protocol, as_specimen, check_limits, dump_params
+from ..specs import ParameterSet, ViscoBranch, as_params, as_protocol, as_specimen, check_limits, dump_params
+from ..specs.errors import SpecError
 from ..specs.protocol import Limits
 
 #: The variables `simulate` writes, in order (CF attributes: the one table, `rdea_lab.twin.cf`).
@@ -165,13 +166,29 @@ def simulate(specimen, params, t, stretch, voltage, model="su", *, protocol=None
         "viscoelastic_law": law,
         "model_summary": out["summary"],
         "geometry": json.dumps(geom.as_dict(params.eps_r)),
-        "parameters": dump_params(params),  # YAML, as every run writes it
+        "parameters": parameters_yaml(params),  # YAML, as every run writes it
         "rdea_lab_version": __version__,
         "created": created,
         "history": f"{created}: rdea_lab.twin.simulate",
-        **global_attrs(f"rdea-lab {__version__} twin.simulate, model {model}, parameters {params.name}"),
+        **global_attrs(f"rdea-lab {__version__} twin.simulate, model {model}, parameters "
+                       f"{getattr(params, 'name', 'unnamed')}"),
     })
     return ds
+
+
+def parameters_yaml(params) -> str:
+    """The ``parameters`` attribute: `dump_params`'s YAML, as a run writes it, also for a parameter set
+    in disguise (any object with ``C10, C20, C30, eps_r`` and the viscous fields `viscous` reads)."""
+    if isinstance(params, ParameterSet):
+        return dump_params(params)
+    k, eta, eta_v0, law = viscous(params)
+    fields = {key: float(getattr(params, key)) for key in ("C10", "C20", "C30", "eps_r")}
+    try:
+        return dump_params(ParameterSet(name=str(getattr(params, "name", "") or "unnamed"), law=law, eta_v0=eta_v0,
+                                        branches=tuple(ViscoBranch.of(law, a, b) for a, b in zip(k, eta)),
+                                        **fields))
+    except (SpecError, ValueError) as exc:
+        raise ValueError(f"params: not a parameter set ({exc})") from None
 
 
 class TwinStream:
