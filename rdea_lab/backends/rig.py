@@ -125,10 +125,20 @@ class RigBackend:
 
     # -- Backend interface -------------------------------------------------
     def attrs(self) -> dict:
-        out = {"rig_address": self.address, "rig_idn": self.idn}
-        if self.truth:
-            out["emulated"] = "yes: data from the rdea-lab rig emulator, not a physical rig"
-            out["emulator_truth"] = self.truth
+        """``rig_idn``, ``emulated`` (1 for the rdea-lab emulator, else 0; the sentence in ``comment``),
+        CF's ``source`` and, for a remote rig only, ``rig_address``: a loopback address is the port
+        of a rig started for one run (the built-in emulator), meaningless once it has gone."""
+        out = {"rig_idn": self.idn}
+        if not _loopback(self.host):
+            out["rig_address"] = self.address
+        if self.truth or self.idn.split(",")[1:2] == ["rig-emulator"]:
+            name = truth_name(self.truth) or "not given"
+            out.update({"emulated": 1, "comment": "data from the rdea-lab rig emulator, not a physical rig",
+                        "source": f"rdea-lab rig emulator (truth {name})"})
+            if self.truth:
+                out["emulator_truth"] = self.truth
+        else:
+            out.update({"emulated": 0, "source": f"physical rig {self.idn or self.address}"})
         return out
 
     def start(self, plan) -> None:
@@ -258,6 +268,18 @@ class RigBackend:
             except Exception:
                 pass
         self._inst = self._rm = None
+
+
+def _loopback(host: str) -> bool:
+    """Whether ``host`` names this machine (``localhost``, 127.0.0.0/8, ``::1``)."""
+    import ipaddress
+
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
 
 
 def _error_text(reply: str) -> str:

@@ -7,6 +7,7 @@ import time as _time
 
 import numpy as np
 
+from .. import __version__
 from ..physics.geometry import geometry_from_card
 from ..physics.models import three_ring
 from ..physics.selection import select_model
@@ -74,7 +75,9 @@ class TwinBackend:
         self._t0 = self._clock()
 
     def attrs(self) -> dict:
-        out = {"model": self.model or self.requested, "model_requested": self.requested,
+        out = {"source": f"rdea-lab {__version__} twin, model {self.model or self.requested}, parameters "
+                         f"{self.params.name}",
+               "model": self.model or self.requested, "model_requested": self.requested,
                "parameters": dump_params(self.params), "parameters_name": self.params.name,
                "realtime": int(self.realtime)}
         if self.choice is not None:

@@ -26,6 +26,7 @@ from ..physics.geometry import geometry_from_card
 from ..protocols import first_violation
 from ..specs import SpecError, dump_specimen
 from ..store.journal import DiskFull, JournalWriter, utc_now
+from ..store.schema import global_attrs, portable_command, portable_path
 from .callbacks import RunBlock, subscriber_name
 
 #: Exit status of a run by its dataset status (the CLI's, and `RunResult.exit_code`).
@@ -78,7 +79,12 @@ def check_metadata(metadata, source="metadata") -> dict:
 
 
 def run_attrs(plan, card, backend, seed, command="", metadata=None) -> dict:
-    """The dataset attributes known before the first sample."""
+    """The dataset attributes known before the first sample.
+
+    CF's ``institution`` is the metadata's ``institution`` (else "not stated"),
+    ``source`` the backend's (how the data were produced); paths are relative to
+    the project root (`~rdea_lab.store.schema.portable_path`), never a machine's.
+    """
     created = utc_now()
     attrs = {
         "Conventions": "CF-1.8",
@@ -91,15 +97,16 @@ def run_attrs(plan, card, backend, seed, command="", metadata=None) -> dict:
         "protocol_name": plan.name,
         "protocol_kind": plan.kind,
         "protocol": plan.yaml,
-        "protocol_source": str(plan.source),
+        "protocol_source": portable_path(plan.source),
         "sample_rate": float(plan.sample_rate),
         "measured": ",".join(plan.measure),
         "seed": int(seed),
         "created": created,
         "status": "running",
         "status_reason": "",
-        "history": f"{created}: {command or 'rdea-lab run'}",
+        "history": f"{created}: {portable_command(command) or 'rdea-lab run'}",
         "metadata": json.dumps(metadata or {}, sort_keys=True),
+        **global_attrs(f"rdea-lab {__version__}, backend {backend.name}", metadata),  # a backend says more
     }
     attrs.update(backend.attrs())
     return attrs

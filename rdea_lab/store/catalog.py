@@ -14,8 +14,13 @@ from .schema import is_emulated
 
 
 def open_run(path: Path) -> xr.Dataset:
-    """Open a run dataset (loaded into memory, file closed)."""
-    with xr.open_dataset(path, engine="netcdf4") as ds:
+    """Open a run dataset (loaded into memory, file closed).
+
+    ``time`` is float seconds since the run's start, as the file stores it (its
+    ``units``, ``seconds since <start, ISO 8601 UTC>``, say when that was):
+    times are not decoded to dates, so ``ds.time.values`` arithmetic is in seconds.
+    """
+    with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
         return ds.load()
 
 
@@ -75,7 +80,7 @@ def catalog_rows(folder: Path) -> list[dict]:
     rows = []
     for path in sorted(folder.rglob("*.nc")):
         try:
-            with xr.open_dataset(path, engine="netcdf4") as ds:
+            with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
                 a = ds.attrs
                 t = ds["time"].values if "time" in ds else np.array([])
                 backend = a.get("backend", "?") + (" (emulator)" if is_emulated(a) else "")

@@ -33,7 +33,7 @@ from ..physics.geometry import geometry_from_card
 from ..specs import SpecError, dump_specimen, ureg
 from .csvtable import read_csv
 from .journal import utc_now, write_dataset
-from .schema import TIME, VARIABLES
+from .schema import VARIABLES, global_attrs, portable_command, time_attrs, variable_attrs
 from .tables import Table, read_mat, read_tdms
 from ..specs.importing import FORMATS, KINDS, MIN_STRETCH  # noqa: F401  (what import accepts; re-exported)
 
@@ -266,12 +266,12 @@ def import_file(path, card, options: ImportOptions, command: str = "") -> xr.Dat
     data = {"stretch": stretch, "position": si["position"], "voltage": si.get("voltage", np.zeros(n)),
             "force": si["force"], "capacitance": si.get("capacitance", np.full(n, np.nan)),
             "stretch_setpoint": np.full(n, np.nan), "voltage_setpoint": np.full(n, np.nan)}
-    data_vars = {k: ("time", np.asarray(data[k], np.float64), {"units": u, "long_name": ln})
-                 for k, (u, ln) in VARIABLES.items()}
-    coords = {"time": ("time", t, {"units": TIME[0], "long_name": TIME[1]})}
-    ds = xr.Dataset(data_vars, coords=coords)
-    ds.attrs = _attrs(path, raw, card, options, table, units, origins, float(np.min(si["position"])), t, command)
-    return ds
+    data_vars = {k: ("time", np.asarray(data[k], np.float64), variable_attrs(k)) for k in VARIABLES}
+    attrs = _attrs(path, raw, card, options, table, units, origins, float(np.min(si["position"])), t, command)
+    time = {**time_attrs(attrs["created"]),
+            "comment": f"times as {path.name} gives them; the file does not say when it was measured, so the "
+                       "reference time in units is the time of the import"}
+    return xr.Dataset(data_vars, coords={"time": ("time", t, time)}, attrs=attrs)
 
 
 def _attrs(path, raw, card, options, table, units, origins, min_position, t, command) -> dict:
@@ -300,13 +300,14 @@ def _attrs(path, raw, card, options, table, units, origins, min_position, t, com
         "created": created,
         "status": "complete",
         "status_reason": "",
-        "history": f"{created}: {command or 'rdea-lab import'} ({path.name}, sha256 {sha[:12]})",
+        "history": f"{created}: {portable_command(command) or 'rdea-lab import'} ({path.name}, sha256 {sha[:12]})",
         "samples": int(t.size),
         "source_file": path.name,
         "source_sha256": sha,
         "source_format": options.fmt,
         "import_mapping": json.dumps(mapping, ensure_ascii=False),
         "min_position_m": min_position,
+        **global_attrs(f"imported from {path.name}"),
     }
     if options.credit:
         attrs["source_credit"] = options.credit

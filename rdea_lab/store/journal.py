@@ -35,7 +35,7 @@ import numpy as np
 import xarray as xr
 
 from ..specs.errors import SpecError, UserError
-from .schema import EXTRA_VARIABLES, TIME, VARIABLES
+from .schema import EXTRA_VARIABLES, TIME_ENCODING, VARIABLES, time_attrs, variable_attrs
 
 FORMAT = "rdea-lab-journal-1"
 LOCK = "writer.lock"
@@ -262,14 +262,15 @@ def read_journal(folder: Path) -> xr.Dataset:
     data_vars = {}
     for j, name in enumerate(columns[1:], start=1):
         if name in VARIABLES:
-            units, long_name = VARIABLES[name]
             values = rows[:, j]
         else:
-            units, long_name, dtype = EXTRA_VARIABLES[name]
-            values = np.nan_to_num(rows[:, j], nan=-1).astype(dtype)
-        data_vars[name] = ("time", values, {"units": units, "long_name": long_name})
-    coords = {"time": ("time", rows[:, 0], {"units": TIME[0], "long_name": TIME[1]})}
-    ds = xr.Dataset(data_vars, coords=coords, attrs=dict(header["attrs"]))
+            values = np.nan_to_num(rows[:, j], nan=-1).astype(EXTRA_VARIABLES[name][2])
+        data_vars[name] = ("time", values, variable_attrs(name))
+    attrs = dict(header["attrs"])
+    writer = header.get("writer") if isinstance(header.get("writer"), dict) else {}
+    start = str(attrs.get("created") or writer.get("started") or utc_now())
+    coords = {"time": ("time", rows[:, 0], time_attrs(start))}
+    ds = xr.Dataset(data_vars, coords=coords, attrs=attrs)
     ds.attrs["samples"] = int(n)
     return ds
 
@@ -280,8 +281,11 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     ds.attrs = netcdf_attrs(ds.attrs)
     tmp = out.with_name(out.name + ".tmp")
+    if ("time" in ds.coords and np.issubdtype(ds["time"].dtype, np.number)
+            and " since " not in str(ds["time"].attrs.get("units", ""))):
+        ds["time"].attrs.update(time_attrs(str(ds.attrs.get("created") or utc_now())))  # float seconds, CF-1.8
     encoding = {name: {"zlib": True, "complevel": 4} for name in ds.data_vars}
-    encoding["time"] = {"zlib": True, "complevel": 4}
+    encoding["time"] = {"zlib": True, "complevel": 4, **TIME_ENCODING}
     try:
         ds.to_netcdf(tmp, engine="netcdf4", unlimited_dims=["time"], encoding=encoding)
         with open(tmp, "rb") as fh:

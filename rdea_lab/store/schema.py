@@ -2,25 +2,22 @@
 
 from __future__ import annotations
 
-#: Variables of every run, in journal column order after ``time``:
-#: name -> (units, long_name). SI units, CF ``units`` strings.
-VARIABLES: dict[str, tuple[str, str]] = {
-    "stretch": ("1", "axial stretch lambda1 = l1 / L1"),
-    "position": ("m", "displacement of the moving end from the unstretched length, l1 - L1"),
-    "voltage": ("V", "voltage across the electrodes"),
-    "force": ("N", "axial force"),
-    "capacitance": ("F", "capacitance (NaN where not measured)"),
-    "stretch_setpoint": ("1", "commanded axial stretch"),
-    "voltage_setpoint": ("V", "commanded voltage"),
-}
+from pathlib import Path, PurePath
+
+from ..paths import project_root
+from ..twin.cf import (FLAGS, MODEL_VARIABLES, NO_INSTITUTION, REFERENCES, RUN_VARIABLES, TIME_ENCODING,
+                       TIME_LONG_NAME, global_attrs, time_attrs, variable_attrs)
+
+#: Variables of every run, in journal column order after ``time``: name -> (units, long_name).
+#: The one table is `rdea_lab.twin.cf` (the twin, a layer below the store, writes datasets too).
+VARIABLES: dict[str, tuple[str, str]] = RUN_VARIABLES
 
 #: Optional per-backend variables: name -> (units, long_name, netCDF dtype).
-EXTRA_VARIABLES: dict[str, tuple[str, str, str]] = {
-    "model_status": ("1", "twin model status: 0 ok, 1 past limit point, 2 NaN input, 3 not converged, "
-                          "4 reached by a snap-through, 5 stress overflows", "i1"),
-}
+EXTRA_VARIABLES: dict[str, tuple[str, str, str]] = {"model_status": MODEL_VARIABLES["model_status"]}
 
-TIME = ("s", "time since the start of the run")
+#: ``(units, long_name)`` of ``time`` as a reader gets it from `open_run`: float seconds since the
+#: run's start (the file's ``units`` say since when: `time_attrs`).
+TIME = ("s", TIME_LONG_NAME)
 
 #: Values of the ``status`` attribute.
 STATUSES = ("running", "complete", "aborted", "interrupted")
@@ -29,7 +26,7 @@ STATUSES = ("running", "complete", "aborted", "interrupted")
 REQUIRED_ATTRS = (
     "Conventions", "title", "rdea_lab_version", "run_id", "backend", "specimen_id", "specimen",
     "protocol_name", "protocol_kind", "protocol", "sample_rate", "seed", "created", "status",
-    "status_reason", "history",
+    "status_reason", "history", "institution", "source", "references",
 )
 
 
@@ -46,3 +43,33 @@ def is_emulated(attrs) -> bool:
         return int(value) == 1
     except (TypeError, ValueError):
         return False
+
+
+def portable_path(path) -> str:
+    """A path as a shipped file may hold it: relative to the project root when it lies inside it, else
+    the bare file name (no machine's absolute path); text that is not a path (``<string>``) as it is."""
+    text = str(path)
+    if not text or text.startswith("<") or not PurePath(text).is_absolute():
+        return text
+    p = Path(text)
+    root = project_root()
+    if root is not None:
+        try:
+            return p.resolve().relative_to(Path(root).resolve()).as_posix()
+        except ValueError:
+            pass
+    return p.name
+
+
+def portable_command(command: str) -> str:
+    """A command line for ``history``: each absolute path in it (also after ``--opt=``) made portable."""
+    def one(word: str) -> str:
+        key, eq, value = word.rpartition("=") if "=" in word and not word.startswith("/") else ("", "", word)
+        return key + eq + portable_path(value) if value.startswith("/") else word
+
+    return " ".join(one(w) for w in str(command).split(" "))
+
+
+__all__ = ["EXTRA_VARIABLES", "FLAGS", "NO_INSTITUTION", "REFERENCES", "REQUIRED_ATTRS", "STATUSES", "TIME",
+           "TIME_ENCODING", "VARIABLES", "global_attrs", "is_emulated", "portable_command", "portable_path",
+           "time_attrs", "variable_attrs"]

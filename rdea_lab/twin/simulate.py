@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from datetime import datetime, timezone
 
 import numpy as np
 import xarray as xr
@@ -12,22 +13,15 @@ from .. import __version__
 from ..physics import viscoelastic
 from ..physics.geometry import RollGeometry, StripGeometry, geometry_from_card
 from ..physics.models import solve
-from ..physics.result import OK, SLACK, STATUS_LEGEND, VALID
-from ..specs import MODULUS, as_params, as_protocol, as_specimen, check_limits
+from ..physics.result import OK, SLACK, VALID
+from .cf import global_attrs, time_attrs, variable_attrs
+from ..specs import ParameterSet, ViscoBranch, as_params, as_protocol, as_specimen, check_limits, dump_params
+from ..specs.errors import SpecError
 from ..specs.protocol import Limits
 
-#: CF attributes of the variables the twin writes.
-VARIABLES = {
-    "stretch": ("1", "axial stretch lambda1 = l1 / L1"),
-    "voltage": ("V", "voltage across the electrodes"),
-    "force": ("N", "axial force"),
-    "capacitance": ("F", "capacitance"),
-    "sigma1": ("Pa", "axial true stress (reversible + viscoelastic)"),
-    "sigma1_irr": ("Pa", "viscoelastic overstress, eq. (44) or its finite-strain form (attribute viscoelastic_law)"),
-    "lambda2b": ("1", "circumferential stretch of the active ring b"),
-    "converged": ("1", "1 where the model has a stable equilibrium"),
-    "model_status": ("1", "model status: " + STATUS_LEGEND),
-}
+#: The variables `simulate` writes, in order (CF attributes: the one table, `rdea_lab.twin.cf`).
+VARIABLES = ("stretch", "voltage", "force", "capacitance", "sigma1", "sigma1_irr", "lambda2b", "converged",
+             "model_status")
 
 
 def as_geometry(specimen):
@@ -156,7 +150,7 @@ def simulate(specimen, params, t, stretch, voltage, model="su", *, protocol=None
         limits, source = history_limits(protocol)
         check_limits(limits, source, t, stretch, voltage, L3=geom.L3)
     out = TwinStream(geom, params, model).step(t, stretch, voltage)  # the whole series as one block
-    k, eta, eta_v0, law = viscous(params)
+    law = viscous(params)[3]
     data = {
         "stretch": stretch,
         "voltage": voltage,
@@ -168,23 +162,42 @@ def simulate(specimen, params, t, stretch, voltage, model="su", *, protocol=None
         "converged": np.isin(out["model_status"], VALID).astype(np.int8),
         "model_status": out["model_status"],
     }
+    created = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
     ds = xr.Dataset(
-        {name: ("time", np.asarray(values), {"units": VARIABLES[name][0], "long_name": VARIABLES[name][1]})
-         for name, values in data.items()},
-        coords={"time": ("time", t, {"units": "s", "long_name": "time since start of run"})},
+        {name: ("time", np.asarray(data[name]), variable_attrs(name)) for name in VARIABLES},
+        coords={"time": ("time", np.asarray(t, float), time_attrs(created))},
     )
+    ds["time"].encoding.update({"_FillValue": None})  # a coordinate has no missing values (CF 2.5.1)
     ds.attrs.update({
+        "Conventions": "CF-1.8",
+        "title": f"twin ({model}) of a roll over a given stretch and voltage history",
         "model": model,
         "viscoelastic_law": law,
         "model_summary": out["summary"],
         "geometry": json.dumps(geom.as_dict(params.eps_r)),
-        "parameters": json.dumps({
-            "C10": params.C10, "C20": params.C20, "C30": params.C30, "eps_r": params.eps_r, "law": law,
-            "branches": [{MODULUS[law]: float(a), "eta": float(b)} for a, b in zip(k, eta)], "eta_v0": eta_v0,
-        }),
+        "parameters": parameters_yaml(params),  # YAML, as every run writes it
         "rdea_lab_version": __version__,
+        "created": created,
+        "history": f"{created}: rdea_lab.twin.simulate",
+        **global_attrs(f"rdea-lab {__version__} twin.simulate, model {model}, parameters "
+                       f"{getattr(params, 'name', 'unnamed')}"),
     })
     return ds
+
+
+def parameters_yaml(params) -> str:
+    """The ``parameters`` attribute: `dump_params`'s YAML, as a run writes it, also for a parameter set
+    in disguise (any object with ``C10, C20, C30, eps_r`` and the viscous fields `viscous` reads)."""
+    if isinstance(params, ParameterSet):
+        return dump_params(params)
+    k, eta, eta_v0, law = viscous(params)
+    fields = {key: float(getattr(params, key)) for key in ("C10", "C20", "C30", "eps_r")}
+    try:
+        return dump_params(ParameterSet(name=str(getattr(params, "name", "") or "unnamed"), law=law, eta_v0=eta_v0,
+                                        branches=tuple(ViscoBranch.of(law, a, b) for a, b in zip(k, eta)),
+                                        **fields))
+    except (SpecError, ValueError) as exc:
+        raise ValueError(f"params: not a parameter set ({exc})") from None
 
 
 class TwinStream:

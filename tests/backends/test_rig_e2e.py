@@ -57,7 +57,7 @@ def test_every_preset_on_every_specimen_is_complete(tmp_path):
         np.testing.assert_array_equal(ds["stretch_setpoint"].values, plan.stretch)
         np.testing.assert_array_equal(ds["voltage_setpoint"].values, plan.voltage)
         assert np.all(np.isfinite(ds["force"].values))
-        assert ds.attrs["emulated"].startswith("yes") and "rig-emulator" in ds.attrs["rig_idn"]
+        assert ds.attrs["emulated"] == 1 and "rig-emulator" in ds.attrs["rig_idn"]
         assert json.loads(ds.attrs["emulator_truth"])["name"] == "paper2021-emulator"
         # the LCR bridge reads at 0 V only, and only when the protocol measures capacitance
         c = ds["capacitance"].values

@@ -93,7 +93,7 @@ def test_the_statistics_have_lmfit_meanings_counted_from_the_datasets(both):
     runs, res = both
     ndata = 0
     for f in sorted(SPECIMEN2.glob("tensile*.nc")):  # the samples the fit can use, counted from the files
-        with xr.open_dataset(f) as ds:
+        with xr.open_dataset(f, decode_times=False) as ds:  # time in seconds, as open_run gives it
             v = {k: ds[k].values for k in ("time", "stretch", "voltage", "force")}
         ndata += int(np.sum(np.all([np.isfinite(a) for a in v.values()], axis=0) & (v["stretch"] >= 1.0)))
     for r in res.values():

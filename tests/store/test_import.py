@@ -116,7 +116,7 @@ def test_vhb_dataset_has_the_run_schema(tmp_path):
     assert "rdea-lab import test" in ds.attrs["history"]
     for name, (units, long_name) in VARIABLES.items():
         assert ds[name].attrs == {"units": units, "long_name": long_name}
-    assert ds["time"].attrs["units"] == "s"
+    assert ds["time"].attrs["units"] == f"seconds since {ds.attrs['created']}"  # CF 1.8, the import's time
     np.testing.assert_array_equal(ds["voltage"].values, 0.0)
     for name in ("capacitance", "stretch_setpoint", "voltage_setpoint"):
         assert np.isnan(ds[name].values).all(), name

@@ -16,7 +16,8 @@ ROOT = Path(__file__).resolve().parents[2]
 ATTRS = {"Conventions": "CF-1.8", "title": "t", "rdea_lab_version": "0", "run_id": "x", "backend": "twin",
          "specimen_id": "s", "specimen": "id: s\n", "protocol_name": "p", "protocol_kind": "tensile",
          "protocol": "name: p\n", "sample_rate": 100.0, "seed": 0, "created": "2026-01-01T00:00:00Z",
-         "status": "running", "status_reason": "", "history": "created"}
+         "status": "running", "status_reason": "", "history": "created", "institution": "not stated",
+         "source": "a test", "references": "none"}
 
 
 def block(t0, n):
@@ -40,7 +41,7 @@ def test_round_trip_keeps_every_sample_units_and_attrs(tmp_path):
         expected = np.concatenate([b[name] for b in blocks])
         np.testing.assert_array_equal(ds[name].values, expected)  # float64 all the way: bit-exact
         assert ds[name].attrs["units"] and ds[name].attrs["long_name"]
-    assert ds["time"].attrs["units"] == "s"
+    assert ds["time"].attrs["units"] == f"seconds since {ATTRS['created']}"  # CF 1.8: from the run's start
     for key in REQUIRED_ATTRS:
         assert ds.attrs[key] is not None and key in ds.attrs
     assert ds.attrs["status"] == "complete" and ds.attrs["samples"] == 237

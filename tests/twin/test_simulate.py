@@ -96,7 +96,7 @@ def test_dataset_schema(tensile_run):
         assert ds[name].dims == ("time",)
     for name in ds.data_vars:  # every variable, not only the six above
         assert {"units", "long_name"} <= set(ds[name].attrs), name
-    assert ds["time"].attrs["units"] == "s"
+    assert ds["time"].attrs["units"] == f"seconds since {ds.attrs['created']}"  # CF 1.8
     np.testing.assert_array_equal(ds["time"], t)
     np.testing.assert_array_equal(ds["stretch"], lam)
     np.testing.assert_array_equal(ds["voltage"], 0.0)
@@ -233,3 +233,30 @@ def test_time_axis_is_checked_whatever_the_parameters(card, table3, branches):
         simulate(card, params, [0.0, 1.0], lam, 0.0)
     with pytest.raises(ValueError, match="time must be finite"):
         simulate(card, params, [0.0, np.nan, 2.0], lam, 0.0)
+
+
+def test_parameters_are_the_yaml_every_run_writes(card, table3):
+    """One encoding of ``parameters`` (issue 14): `simulate` writes what a twin run writes, `dump_params`'s
+    YAML, and it reads back as the same parameter set (law and branches included)."""
+    from rdea_lab.specs import dump_params, params_from_yaml
+
+    t = np.linspace(0.0, 1.0, 11)
+    ds = simulate(card, table3, t, 1.0 + 0.1 * t, 0.0)
+    assert ds.attrs["parameters"] == dump_params(table3)
+    back = params_from_yaml(ds.attrs["parameters"], "parameters")
+    assert back.law == table3.law and back.branches == table3.branches and back.C10 == table3.C10
+
+
+def test_status_variables_are_cf_flags(card, table3):
+    """``model_status`` and ``converged`` name their codes in ``flag_values``/``flag_meanings`` (CF 1.8
+    section 3.5), taken from the status codes of `rdea_lab.physics.result`, not spelled in ``long_name``."""
+    from rdea_lab.physics.result import STATUS_NAMES
+
+    t = np.linspace(0.0, 1.0, 11)
+    ds = simulate(card, table3, t, 1.0 + 0.1 * t, 0.0)
+    status = ds["model_status"].attrs
+    assert status["flag_values"].dtype == np.int8 and list(status["flag_values"]) == sorted(STATUS_NAMES)
+    meanings = status["flag_meanings"].split()
+    assert meanings[SLACK] == "slack" and meanings[0] == "ok" and len(meanings) == len(STATUS_NAMES)
+    assert ds["converged"].attrs["flag_meanings"] == "no_stable_equilibrium stable_equilibrium"
+    assert "time" in ds.coords and ds["time"].encoding["_FillValue"] is None

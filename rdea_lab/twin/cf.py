@@ -1,0 +1,95 @@
+"""The one variable table: CF attributes of every variable and the global attributes rdea-lab writes.
+
+It lives in the twin layer, the lowest that writes datasets (`simulate`); the
+store (`rdea_lab.store.schema`) takes its schema from here, so runs, imports
+and the twin's own datasets describe each variable in the same words (CF 1.8:
+``units`` and ``long_name`` everywhere, ``flag_values`` and ``flag_meanings``
+on status codes, a ``time`` coordinate with a reference time).
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from .. import __version__
+from ..physics.result import STATUS_NAMES
+
+#: Variables of every run, in journal column order after ``time``:
+#: name -> (units, long_name). SI units, CF ``units`` strings.
+RUN_VARIABLES: dict[str, tuple[str, str]] = {
+    "stretch": ("1", "axial stretch lambda1 = l1 / L1"),
+    "position": ("m", "displacement of the moving end from the unstretched length, l1 - L1"),
+    "voltage": ("V", "voltage across the electrodes"),
+    "force": ("N", "axial force"),
+    "capacitance": ("F", "capacitance (NaN where not measured)"),
+    "stretch_setpoint": ("1", "commanded axial stretch"),
+    "voltage_setpoint": ("V", "commanded voltage"),
+}
+
+#: Variables of the twin's model (a run of the twin backend has ``model_status``;
+#: `simulate` writes them all): name -> (units, long_name, netCDF dtype).
+MODEL_VARIABLES: dict[str, tuple[str, str, str]] = {
+    "sigma1": ("Pa", "axial true stress (reversible + viscoelastic)", "f8"),
+    "sigma1_irr": ("Pa", "viscoelastic overstress, eq. (44) or its finite-strain form (attribute viscoelastic_law)",
+                   "f8"),
+    "lambda2b": ("1", "circumferential stretch of the active ring b", "f8"),
+    "converged": ("1", "whether the model has a stable equilibrium", "i1"),
+    "model_status": ("1", "status of the twin model's solution", "i1"),
+}
+
+
+def flag_word(name: str) -> str:
+    """A status name as one CF ``flag_meanings`` word: ``"past limit point"`` -> ``"past_limit_point"``
+    (a parenthesis dropped, anything but letters and digits an underscore)."""
+    return re.sub(r"[^a-z0-9]+", "_", name.split(" (")[0].lower()).strip("_")
+
+
+#: Status variables: name -> (flag_values, flag_meanings); the codes of `rdea_lab.physics.result`.
+FLAGS: dict[str, tuple[np.ndarray, str]] = {
+    "model_status": (np.array(sorted(STATUS_NAMES), np.int8),
+                     " ".join(flag_word(STATUS_NAMES[code]) for code in sorted(STATUS_NAMES))),
+    "converged": (np.array([0, 1], np.int8), "no_stable_equilibrium stable_equilibrium"),
+}
+
+TIME_LONG_NAME = "time since the start of the run"
+
+#: The ``references`` attribute of every dataset.
+REFERENCES = ("Prechtl et al., Smart Mater. Struct. 30 (2021), doi:10.1088/1361-665X/ac34be; "
+              f"rdea-lab {__version__}, experiment management, physics twin and calibration for rolled "
+              "dielectric elastomer actuators")
+
+#: ``institution`` when the user's metadata does not name one.
+NO_INSTITUTION = "not stated"
+
+
+def variable_attrs(name: str) -> dict:
+    """CF attributes of a variable of the table: ``units``, ``long_name`` and, for a status, its flags."""
+    if name in RUN_VARIABLES:
+        units, long_name = RUN_VARIABLES[name]
+    else:
+        units, long_name, _ = MODEL_VARIABLES[name]
+    attrs = {"units": units, "long_name": long_name}
+    if name in FLAGS:
+        values, meanings = FLAGS[name]
+        attrs.update({"flag_values": values.copy(), "flag_meanings": meanings})
+    return attrs
+
+
+def time_attrs(start: str) -> dict:
+    """CF attributes of the ``time`` coordinate of a run that started at ``start`` (ISO 8601 UTC):
+    float seconds since then (a numeric time with its reference, CF 1.8 section 4.4)."""
+    return {"units": f"seconds since {start}", "standard_name": "time", "axis": "T", "calendar": "standard",
+            "long_name": TIME_LONG_NAME}
+
+
+#: How a ``time`` coordinate is encoded: no ``_FillValue`` (CF 2.5.1: a coordinate has no missing values).
+TIME_ENCODING = {"_FillValue": None, "dtype": "f8"}
+
+
+def global_attrs(source: str, metadata: dict | None = None) -> dict:
+    """``institution`` (the user's metadata ``institution``, else "not stated"), ``source`` (how the data
+    were produced, CF's meaning) and ``references``."""
+    institution = str((metadata or {}).get("institution", "") or "").strip() or NO_INSTITUTION
+    return {"institution": institution, "source": source, "references": REFERENCES}
