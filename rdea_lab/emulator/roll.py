@@ -118,7 +118,7 @@ class TrueRoll:
         if not taut.any():
             return lam
         target = force[taut]
-        A, (C10, _, _) = self.geom.area, (self.passive_material.C10, 0, 0)
+        A, C10 = self.geom.area, self.passive_material.C10
         zero = np.zeros_like(target)
 
         def F(x):
