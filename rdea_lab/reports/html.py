@@ -80,7 +80,7 @@ def table(columns, rows, numeric=(), flagged=()) -> str:
 
 def entries_table(entries) -> str:
     """A two-column table of ``(name, value)`` pairs (values escaped unless `Markup`)."""
-    rows = "".join(f"<tr><th>{esc(k)}</th><td>{_cell(_text(v))}</td></tr>\n" for k, v in entries)
+    rows = "".join(f"<tr><th>{breakable(k)}</th><td>{_cell(_text(v))}</td></tr>\n" for k, v in entries)
     return "<table>\n" + rows + "</table>\n"
 
 

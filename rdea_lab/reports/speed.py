@@ -55,6 +55,8 @@ PROTOCOLS = ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV", "blocking_force"
 CORES = ("hollow_core", "active_core", "passive_core")
 CORE_VOLTAGE = 3500.0
 CORE_STRETCH = (1.0, 1.75)
+#: The Pareto plot's marker of each model.
+MARKERS = {"su": "o", "1r": "s", "3r": "^", "cr": "D", "auto": "x"}
 REFERENCE = ("CR, the continuum roll model (the exact limit of 3R's ring lumping; its quadrature checked below), "
              "stresses at the given stretch (the tension, no slack clipping)")
 #: Gauss points per panel of the rule the CR quadrature is checked against.
@@ -210,14 +212,20 @@ def _bands(errors: np.ndarray) -> tuple[float, float, float, float]:
 
 
 def pareto_plot(rows: list[dict], path: Path) -> Path:
+    """`pareto_figure` as PNG at 200 dpi and a PDF beside."""
+    save_figure(pareto_figure(rows), path, vector=True)
+    return Path(path)
+
+
+def pareto_figure(rows: list[dict]) -> Figure:
     """Time per sample against the largest error from CR: one panel per roll, a marker per model, a colour
-    per scene (the roll's protocol); PNG at 200 dpi and a PDF beside.
+    per scene (the roll's protocol).
 
     The log error axis spans the errors above `IDENTICAL` of the peak (the data); below it two marked
     bands: errors within `IDENTICAL` of the peak (rounding: the model is identical to CR there) and
     exact zeros (CR against itself).
     """
-    markers = {"su": "o", "1r": "s", "3r": "^", "cr": "D", "auto": "x"}
+    markers = MARKERS
     rolls = list(dict.fromkeys(r["roll"] for r in rows))
     protocols = list(dict.fromkeys(r["protocol"] for r in rows))
     colors = {p: matplotlib.colormaps["tab10"](i % 10) for i, p in enumerate(protocols)}
@@ -258,8 +266,7 @@ def pareto_plot(rows: list[dict], path: Path) -> Path:
     fig.suptitle("speed against error from CR (the reference; below the dotted line: errors within "
                  f"{IDENTICAL:g} of the peak stress, and CR's own exact 0)", fontsize=10)
     fig.tight_layout(rect=(0, 0.09, 1, 1))
-    save_figure(fig, path, vector=True)
-    return Path(path)
+    return fig
 
 
 def _markdown(rows, auto, check, quad, sweep, repeats, tolerance) -> str:

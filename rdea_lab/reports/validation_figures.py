@@ -54,7 +54,7 @@ def _title(row) -> str:
             f"{100 * row['max_rel_error']:.2f} %, model {row['model'].upper()}{flags}")
 
 
-def tensile_figure(e: dict, color: str, path: Path) -> Path:
+def tensile_figure(e: dict, color: str) -> Figure:
     """Figures 11-13: displacement (and voltage) over time; force over time and against displacement,
     each with its residual panel below."""
     s, row = _drawn(e["series"]), e["row"]
@@ -94,10 +94,10 @@ def tensile_figure(e: dict, color: str, path: Path) -> Path:
     for ax in axes[:2]:
         ax.grid(alpha=0.3)
     axes[3].grid(alpha=0.3)
-    return _save(fig, path)
+    return fig
 
 
-def blocking_figure(items: list[dict], colors: dict, path: Path) -> Path:
+def blocking_figure(items: list[dict], colors: dict) -> Figure:
     """Figure 15: blocking force over time (left) and over voltage (right), one pair of rows per run
     (the curves, then their residual)."""
     fig = Figure(figsize=(11, 3.8 * len(items)), layout="constrained")
@@ -127,10 +127,10 @@ def blocking_figure(items: list[dict], colors: dict, path: Path) -> Path:
         for ax in (left, right):
             ax.grid(alpha=0.3)
             ax.legend(fontsize=7)
-    return _save(fig, path)
+    return fig
 
 
-def capacitance_figure(items: list[dict], colors: dict, path: Path) -> Path:
+def capacitance_figure(items: list[dict], colors: dict) -> Figure:
     """Figure 16: capacitance against displacement, measured and predicted, every run on one axis;
     below, each run's residual in % of its own peak capacitance (the runs' peaks differ)."""
     fig = Figure(figsize=(7, 6), layout="constrained")
@@ -154,7 +154,7 @@ def capacitance_figure(items: list[dict], colors: dict, path: Path) -> Path:
     res.legend(fontsize=7)
     for a in (ax, res):
         a.grid(alpha=0.3)
-    return _save(fig, path)
+    return fig
 
 
 def write_figures(evaluated: list[dict], out: Path) -> dict[Path, str]:
@@ -172,18 +172,18 @@ def write_figures(evaluated: list[dict], out: Path) -> dict[Path, str]:
             while out / name in files:  # the same run name twice on one specimen
                 n += 1
                 name = f"{stem}_{n}.png"
-            files[tensile_figure(e, colors[row["specimen"]], out / name)] = (
+            files[_save(tensile_figure(e, colors[row["specimen"]]), out / name)] = (
                 f"As Figures 11-13: {row['specimen']}, {row['name']} ({row['protocol']}, {row['voltage']}, "
                 f"{row['role']}): displacement, force over time, force against displacement; measured and twin, "
                 "with the residual (twin − measured, in N and in % of the run's peak force) under each.")
     blocking = [e for e in evaluated if e["row"]["kind"] == "blocking"]
     if blocking:
-        files[blocking_figure(blocking, colors, out / "blocking_force.png")] = (
+        files[_save(blocking_figure(blocking, colors), out / "blocking_force.png")] = (
             "As Figure 15: blocking force over time and, during the voltage cycles, over voltage; measured and twin, "
             "with the residual (N and % of the peak force during the voltage cycles) under each.")
     cap = [e for e in evaluated if e["row"]["quantity"] == "capacitance"]
     if cap:
-        files[capacitance_figure(cap, colors, out / "capacitance.png")] = (
+        files[_save(capacitance_figure(cap, colors), out / "capacitance.png")] = (
             "As Figure 16: capacitance at 0 V against displacement; measured (LCR bridge) and twin, with each run's "
             "residual in % of its peak capacitance below.")
     return files

@@ -9,11 +9,12 @@ from rdea_lab.cli.errors import run as run_cli
 from rdea_lab.cli.main import cli
 from rdea_lab.specs import load_params
 from rdea_lab.store import open_run
+from rdea_lab.store.schema import is_emulated
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_reproduce_on_a_short_campaign(capsys, tmp_path):
+def test_reproduce_on_a_short_campaign(capsys, tmp_path, read_page):
     campaign = tmp_path / "short.yaml"
     campaign.write_text(f"""name: short
 root: {ROOT}
@@ -32,7 +33,7 @@ protocols: [protocols/tensile_ramp_sine_0V.yaml, protocols/tensile_ramp_sine_2.6
     assert len(datasets) == 6
     for path in datasets:
         ds = open_run(path)
-        assert ds.attrs["status"] == "complete" and ds.attrs["emulated"].startswith("yes")
+        assert ds.attrs["status"] == "complete" and is_emulated(ds.attrs)
     # calibrated on specimen 2: the emulator's truth is C10 = 242 kPa behind radii off by up to 2 %
     params = load_params(out / "params" / "calibrated.yaml")
     assert params.C10 == pytest.approx(242e3, rel=0.05)
@@ -43,6 +44,18 @@ protocols: [protocols/tensile_ramp_sine_0V.yaml, protocols/tensile_ramp_sine_2.6
     assert (out / "validation" / "index.html").stat().st_size > 1000
     assert (out / "models" / "models.md").exists() and not (out / "speed").exists()
     assert "Table 4 analogue" in stdout and "EMULATOR" in stdout and "index.html" in stdout
+    # the top-level index links the calibration, the validation report, the models and the datasets,
+    # every link to something that exists, and its tables fit the page
+    page = read_page(out / "index.html")
+    for target in ("params/calibrated.yaml", "params/calibrated.history.csv", "validation/index.html",
+                   "validation/table4.csv", "models/models.md", "datasets/"):
+        assert target in page.links, target
+    for href in page.links:
+        if not href.startswith("#"):
+            assert (out / href).exists(), href
+    assert "models/figure5_hollow-core.png" in page.attrs and not any("speed" in h for h in page.links)
+    assert len(page.longest_unbreakable()) <= 24, page.longest_unbreakable()
+    assert "index.html" in stdout.split("outputs:")[1].splitlines()[1]
     # every force error of this emulator campaign stays small once calibrated (a few percent at most)
     for row in rows:
         if "force" in row["experiment"]:
