@@ -25,8 +25,9 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: now
 td.flag { color: #a40; }
 code, .hash { font-family: monospace; font-size: 0.9em; }
 .banner { border: 2px solid #c60; background: #fff4e5; padding: 0.6em 1em; font-weight: bold; }
-figure { margin: 1em 0; }
-figure img { max-width: 100%; border: 1px solid #ddd; }
+.figures { display: grid; grid-template-columns: repeat(auto-fill, minmax(560px, 1fr)); gap: 1em; }
+figure { margin: 0; }
+figure img { width: 100%; border: 1px solid #ddd; }
 figcaption { font-size: 0.85em; color: #555; }
 """
 
@@ -39,9 +40,20 @@ def esc(value) -> str:
     return html.escape("—" if value is None else str(value), quote=True)
 
 
+#: Words up to this many characters are kept whole (``0d01_1d5``, ``specimen-1``); longer ones may break.
+WHOLE_WORD = 16
+
+
+def _break_word(word: str) -> str:
+    if len(word) <= WHOLE_WORD:
+        return html.escape(word, quote=True)
+    return html.escape(word, quote=True).replace("_", "_<wbr>").replace("/", "/<wbr>")
+
+
 def breakable(value) -> str:
-    """``value`` escaped, with a line-break opportunity (``<wbr>``) after every ``_`` and ``/``."""
-    return esc(value).replace("_", "_<wbr>").replace("/", "/<wbr>")
+    """``value`` escaped; in a word longer than `WHOLE_WORD` characters a line-break opportunity
+    (``<wbr>``) after every ``_`` and ``/`` (paths, protocol names)."""
+    return " ".join(_break_word(w) for w in ("—" if value is None else str(value)).split(" "))
 
 
 def short_hash(value) -> Markup:
@@ -101,9 +113,9 @@ def figures(paths, captions=None, base=None) -> str:
         pdf = p.with_suffix(".pdf")
         vector = (f" (<a href=\"{esc(os.path.relpath(pdf, base) if base is not None else pdf.name)}\">PDF</a>)"
                   if pdf.is_file() else "")
-        out.append(f"<figure><img src=\"{esc(href)}\" alt=\"{esc(p.name)}\">"
+        out.append(f"<figure><a href=\"{esc(href)}\"><img src=\"{esc(href)}\" alt=\"{esc(p.name)}\"></a>"
                    f"<figcaption>{esc(captions.get(p.name, p.name))}{vector}</figcaption></figure>")
-    return "\n".join(out) + "\n"
+    return "<div class=\"figures\">\n" + "\n".join(out) + "\n</div>\n"
 
 
 def _text(value) -> str:
@@ -126,7 +138,8 @@ def write_validation_index(path: Path, result: dict, columns) -> Path:
     parts = [f"<p class=\"banner\">Data origin: {esc(result['origin'])}</p>\n",
              f"<h2>Table 4 analogue</h2>\n<p>{esc(result['caption'])}</p>\n",
              table(columns, result["rows"], numeric=("rate_per_s", "max_stretch", "samples", "max_rel_error",
-                                                     "paper_max_rel_error", "rms_rel_error", "p99_rel_error"),
+                                                     "paper_max_rel_error", "rms_rel_error", "p99_rel_error",
+                                                     "rms_text"),
                    flagged=("beyond_calibration",)),
              f"<p class=\"legend\">{esc(result.get('legend', ''))}</p>\n" if result.get("legend") else "",
              "<p>Files: <a href=\"table4.md\">table4.md</a>, <a href=\"table4.csv\">table4.csv</a> (full hashes "

@@ -54,13 +54,38 @@ def _title(row) -> str:
             f"{100 * row['max_rel_error']:.2f} %, model {row['model'].upper()}{flags}")
 
 
+#: Margins [in] of the figures: fixed, as a layout engine costs more than the drawing (text measured
+#: once for the layout and again for each file).
+MARGINS = {"left": 0.85, "right": 0.8, "top": 0.5, "bottom": 0.55}
+#: Gap [in] between groups of panels (an x label and tick labels, a title) and within a group.
+GROUP_GAP, PANEL_GAP = 0.75, 0.12
+
+
+def _grid(fig, groups: list[list[float]], ncols: int = 1, wspace: float = 0.0):
+    """Axes in vertical groups (panels of a group touch but for `PANEL_GAP`; groups `GROUP_GAP` apart),
+    inside `MARGINS`; ``groups`` gives each group's panel heights [in]. Returns one list of axes rows
+    per group, each row a list of ``ncols`` axes."""
+    w, h = fig.get_size_inches()
+    m = MARGINS
+    outer = fig.add_gridspec(len(groups), 1, height_ratios=[sum(g) + PANEL_GAP * (len(g) - 1) for g in groups],
+                             left=m["left"] / w, right=1 - m["right"] / w, top=1 - m["top"] / h,
+                             bottom=m["bottom"] / h,
+                             hspace=GROUP_GAP / np.mean([sum(g) for g in groups]))
+    out = []
+    for spec, g in zip(outer, groups):
+        inner = spec.subgridspec(len(g), ncols, height_ratios=g, hspace=PANEL_GAP / np.mean(g), wspace=wspace)
+        out.append([[fig.add_subplot(inner[i, j]) for j in range(ncols)] for i in range(len(g))])
+    return out
+
+
 def tensile_figure(e: dict, color: str) -> Figure:
     """Figures 11-13: displacement (and voltage) over time; force over time and against displacement,
     each with its residual panel below."""
     s, row = _drawn(e["series"]), e["row"]
     peak = float(np.max(np.abs(e["series"]["force"])))
-    fig = Figure(figsize=(8, 10), layout="constrained")
-    axes = fig.subplots(5, 1, gridspec_kw={"height_ratios": [1, 1.2, 0.6, 1.6, 0.6]})
+    fig = Figure(figsize=(8, 10))
+    history, loop = _grid(fig, [[1.6, 2.0, 1.0], [2.4, 1.0]])
+    axes = [row[0] for row in history + loop]
     for a in axes[:2]:
         a.sharex(axes[2])
         a.tick_params(labelbottom=False)
@@ -100,10 +125,9 @@ def tensile_figure(e: dict, color: str) -> Figure:
 def blocking_figure(items: list[dict], colors: dict) -> Figure:
     """Figure 15: blocking force over time (left) and over voltage (right), one pair of rows per run
     (the curves, then their residual)."""
-    fig = Figure(figsize=(11, 3.8 * len(items)), layout="constrained")
-    axes = fig.subplots(2 * len(items), 2, squeeze=False, gridspec_kw={"height_ratios": [2.2, 1] * len(items)})
-    for k, e in enumerate(items):
-        (left, right), (rleft, rright) = axes[2 * k], axes[2 * k + 1]
+    fig = Figure(figsize=(11, 3.8 * len(items)))
+    groups = _grid(fig, [[1.9, 0.85]] * len(items), ncols=2, wspace=0.3)
+    for e, ((left, right), (rleft, rright)) in zip(items, groups):
         for top, bottom in ((left, rleft), (right, rright)):
             top.sharex(bottom)
             top.tick_params(labelbottom=False)
@@ -133,8 +157,10 @@ def blocking_figure(items: list[dict], colors: dict) -> Figure:
 def capacitance_figure(items: list[dict], colors: dict) -> Figure:
     """Figure 16: capacitance against displacement, measured and predicted, every run on one axis;
     below, each run's residual in % of its own peak capacitance (the runs' peaks differ)."""
-    fig = Figure(figsize=(7, 6), layout="constrained")
-    ax, res = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2.2, 1]})
+    fig = Figure(figsize=(7, 6))
+    ((ax,), (res,)), = _grid(fig, [[3.4, 1.5]])
+    ax.sharex(res)
+    ax.tick_params(labelbottom=False)
     for e in items:
         s, row = e["series"], e["row"]
         c = colors[row["specimen"]]
