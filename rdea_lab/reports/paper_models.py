@@ -118,7 +118,7 @@ def _figure(name, comparison, path):
             ax.grid(alpha=0.3)
             if ax.get_legend_handles_labels()[0]:
                 ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.09, right=0.98, top=0.95, bottom=0.07, hspace=0.12, wspace=0.22)  # fixed: cheaper
     save_figure(fig, path, vector=True)
 
 
