@@ -25,7 +25,7 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: now
 td.flag { color: #a40; }
 code, .hash { font-family: monospace; font-size: 0.9em; }
 .banner { border: 2px solid #c60; background: #fff4e5; padding: 0.6em 1em; font-weight: bold; }
-.figures { display: grid; grid-template-columns: repeat(auto-fill, minmax(560px, 1fr)); gap: 1em; }
+.figures { display: grid; grid-template-columns: repeat(auto-fit, minmax(560px, 1fr)); gap: 1em; }
 figure { margin: 0; }
 figure img { width: 100%; border: 1px solid #ddd; }
 figcaption { font-size: 0.85em; color: #555; }

@@ -6,9 +6,13 @@ complete run's own measured stretch and voltage history
 and for capacitance runs also the capacitance at the samples where the LCR
 bridge measured it. Each run gives one row: the maximum relative error
 against the largest measured force or capacitance of that run (the metric of
-Table 4 in [1]) and the rms error, beside the paper's value. It writes
-``table4.md``, ``table4.csv``, ``table4.tex``, figures in the manner of
-Figures 11-16 and ``index.html``.
+Table 4 in [1]) and the rms error, beside the paper's value, and says what the
+run is (:mod:`~rdea_lab.reports.provenance`): its name, protocol, nominal
+stretch rate and maximum stretch, where its data come from (import, emulator,
+twin, rig), its role against the calibration record (calibration run, held out
+(same specimen), other specimen) and where it leaves the calibration envelope.
+It writes ``table4.md``, ``table4.csv``, ``table4.tex``, figures in the manner
+of Figures 11-16 (PNG and PDF, with residual panels) and ``index.html``.
 
 [1] Prechtl et al., Smart Mater. Struct. 30 (2021), doi:10.1088/1361-665X/ac34be.
 """
