@@ -184,7 +184,7 @@ def test_index_html_shows_every_run_and_its_hash_and_no_urls(same, read_page):
     assert {"blocking_force.png", "capacitance.png", "tensile_specimen-1_tensile_ramp_sine_0V.png"} <= names
 
 
-def test_calibration_record_marks_roles_and_emulated_data_is_said(twin_folder, tmp_path):
+def test_calibration_record_marks_roles_and_emulated_data_is_said(twin_folder, tmp_path, read_page):
     """A folder where two runs claim to come from the emulator, one run is aborted, and a parameter
     file whose calibration record names the specimen-2 tensile run."""
     folder = tmp_path / "runs"
@@ -222,7 +222,7 @@ def test_calibration_record_marks_roles_and_emulated_data_is_said(twin_folder, t
     banner = re.search(r'<p class="banner">(.*?)</p>', page).group(1)
     assert "EMULATOR" in banner and "toy-truth" in banner and "not from a physical rig" in banner
     assert "aborted.nc" in page and "status aborted" in page
-    assert "specimen-2/tensile_ramp_sine_0V" in page  # the runs the parameters were fitted on
+    assert "specimen-2/tensile_ramp_sine_0V" in read_page(result["files"]["html"]).text  # the runs fitted on
 
 
 def test_auto_names_its_model_per_run(twin_folder, tmp_path):
