@@ -224,7 +224,11 @@ def write_reproduce_index(out: Path, result: dict, validation_columns) -> Path:
     pngs = sorted(models.glob("figure*.png"))
     parts.append("<h2 id=\"models\">Model-side results: Table 2, Section 3.4, Figures 5-8</h2>\n"
                  f"<p>{_files(out, [models / 'models.md', models / 'models.json'])}</p>\n")
-    parts.append(figures(pngs, base=out))
+    captions = {p.name: (f"As Figure {p.name[6]}: SU, 1R, 3R and CR on the {p.stem.split('_', 1)[1]} roll at 0 and "
+                         "3.5 kV: circumferential stretch, axial stress, deviation from 3R."
+                         if p.name[6] in "567" else "As Figure 8: Ri swept from 0.1 to 0.9 Rie at 3.5 kV, the "
+                         "deviations of 1R, SU and CR from 3R.") for p in pngs}
+    parts.append(figures(pngs, captions, base=out))
     runs = result.get("campaign", [])
     parts.append("<h2 id=\"datasets\">Datasets</h2>\n"
                  f"<p>{len(runs)} runs in {link('datasets/', 'datasets/')} (one netCDF file per specimen and "
