@@ -75,6 +75,14 @@ class Envelope:
                                 "stretch_rtol": STRETCH_RTOL, "rate_rtol": RATE_RTOL,
                                 "voltage_tol": list(VOLTAGE_TOL), "hold_tol": list(HOLD_TOL)}}
 
+    @classmethod
+    def from_mapping(cls, m: dict) -> "Envelope":
+        """The inverse of `mapping` (e.g. a record's ``calibration.validation.envelope``); a null rate is nan."""
+        return cls(stretch=tuple(float(x) for x in m["stretch"]),
+                   rate=tuple(np.nan if x is None else float(x) for x in m["rate_per_s"]),
+                   voltage=tuple(float(x) for x in m["voltage_V"]), hold=float(m["hold_s"]),
+                   runs=tuple(str(r) for r in m.get("runs") or ()))
+
     def describe(self) -> str:
         """One line: ``stretch 1-1.5, rate 0.01-0.05 /s, voltage 0 V, longest hold 0 s``."""
         return (f"stretch {stretch_text(self.stretch[0])}-{stretch_text(self.stretch[1])}, "

@@ -212,12 +212,13 @@ def reproduce(out_dir, campaign_path, no_speed, quiet):
     click.echo(v["markdown"], nl=False)
     click.echo(v["legend"] + "\n")
     click.echo("outputs:")
+    click.echo(f"  index           {result['index']} (links to everything below)")
     click.echo(f"  datasets        {out / 'datasets'}/<specimen>/<protocol>.nc")
     click.echo(f"  parameters      {result['calibration']['params']} (+ .history.csv, .history.png)")
-    click.echo(f"  validation      {v['files']['html']} (table4.md/.csv/.tex, figures)")
+    click.echo(f"  validation      {v['files']['html']} (table4.md/.csv/.tex, figures .png/.pdf)")
     if "speed" in result:
-        click.echo(f"  speed vs error  {out / 'speed'}/speed.md, pareto.png, figure8_sweep.png")
-    click.echo(f"  models          {out / 'models'}/models.md, figure5-8*.png")
+        click.echo(f"  speed vs error  {out / 'speed'}/speed.md, pareto.png/.pdf, figure8_sweep.png/.pdf")
+    click.echo(f"  models          {out / 'models'}/models.md, figure5-8*.png/.pdf")
     click.echo(f"done in {result['seconds']:.1f} s")
 
 

@@ -48,13 +48,19 @@ def validation(params_path, datasets, out_dir, model, tolerance, no_figures):
     """The twin against measured runs: the Table 4 analogue, figures 11-16, index.html.
 
     Runs the twin on every complete run's own stretch and voltage history
-    and writes table4.md / .csv / .tex, PNG figures and index.html (with
-    the provenance of every run and of the parameters) into --out.
+    and writes table4.md / .csv / .tex, figures (PNG at 200 dpi and PDF)
+    and index.html into --out. Each row names its run, protocol, rate and
+    maximum stretch, where its data come from (import and its credit,
+    emulator, twin, rig), its role (calibration run, held out (same
+    specimen), other specimen: from the calibration record in --params) and
+    where it leaves the calibration envelope.
 
     \b
     Example:
       rdea-lab report validation --params params/calibrated.yaml --datasets datasets/paper2021 \\
           --out reports/paper2021
+      rdea-lab report validation --params params/vhb4910.yaml --datasets datasets/vhb4910 --model 1r \\
+          --out reports/vhb4910
     """
     headless()
     click.echo(f"evaluating the twin ({model.lower()}) on the runs in {datasets} ...")

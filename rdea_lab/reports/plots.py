@@ -15,9 +15,84 @@ import numpy as np
 
 from ..store.schema import is_emulated
 
-DPI = 120
+DPI = 200
 #: How a twin prediction is drawn over a measurement.
 PREDICTION = {"color": "black", "ls": "--", "lw": 0.9, "label": "twin"}
+#: Below this |voltage| [V] everywhere a run is a 0 V run: no voltage axis is drawn for it.
+ZERO_VOLTAGE = 5.0
+
+
+def save_figure(fig, path, dpi: int = DPI, vector: bool = False):
+    """Save ``fig`` to ``path`` (PNG at ``dpi``) and, with ``vector``, a PDF of it beside (same stem).
+
+    Returns the PNG's path.
+    """
+    path = os.fspath(path)
+    fig.savefig(path, dpi=dpi)
+    if vector:
+        fig.savefig(os.path.splitext(path)[0] + ".pdf")
+    return path
+
+
+def minmax_index(n: int, ys, bins: int = 1500) -> np.ndarray:
+    """Indices of the samples to draw of ``n``: all of them if ``n <= 3 bins``; otherwise, in each of
+    ``bins`` equal index ranges, the first and last sample and those where each of ``ys`` is smallest
+    and largest (what a line drawn ``bins`` pixels wide shows, with far fewer vertices).
+
+    Parameters
+    ----------
+    n : int
+        Samples.
+    ys : sequence of array_like
+        Series of ``n`` samples each (NaN ignored).
+    bins : int
+        Index ranges, about the panel's width in pixels.
+    """
+    if n <= 3 * bins:
+        return np.arange(n)
+    edges = np.linspace(0, n, bins + 1).astype(int)
+    keep = [edges[:-1], edges[1:] - 1]
+    width = int(np.max(np.diff(edges)))
+    pos = np.minimum(edges[:-1, None] + np.arange(width)[None, :], edges[1:, None] - 1)  # (bins, width)
+    for y in ys:
+        block = np.asarray(y, float)[pos]
+        keep += [pos[np.arange(bins), np.argmin(np.where(np.isnan(block), np.inf, block), axis=1)],
+                 pos[np.arange(bins), np.argmax(np.where(np.isnan(block), -np.inf, block), axis=1)]]
+    return np.unique(np.concatenate(keep))
+
+
+def is_zero_voltage(voltage) -> bool:
+    """Whether a run never leaves 0 V (|v| below `ZERO_VOLTAGE` at every sample)."""
+    v = np.asarray(voltage, float)
+    return bool(v.size == 0 or np.nanmax(np.abs(v)) < ZERO_VOLTAGE)
+
+
+def residual_panel(ax, x, measured, predicted, peak: float, unit: str = "N", scale: float = 1.0, **style):
+    """The twin's residual (predicted - measured) under a curve: in ``unit`` on the left axis, in % of
+    ``peak`` on the right.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    x : array_like
+        Abscissa (as the panel above).
+    measured, predicted : array_like
+        In SI [N] or [F]; drawn times ``scale`` (e.g. 1e12 for pF).
+    peak : float
+        The run's largest |measured| value [SI] (Table 4's error scale).
+    unit : str
+        Shown unit of the left axis.
+    """
+    r = (np.asarray(predicted, float) - np.asarray(measured, float)) * scale
+    ax.plot(x, r, **{"color": "black", "lw": 0.7, **style})
+    ax.axhline(0.0, color="tab:gray", lw=0.6)
+    ax.set_ylabel(f"twin − measured [{unit}]", fontsize=8)
+    ax.grid(alpha=0.3)
+    if peak > 0 and np.isfinite(peak):
+        k = 100.0 / (peak * scale)
+        right = ax.secondary_yaxis("right", functions=(lambda y: y * k, lambda p: p / k))
+        right.set_ylabel("[% of peak]", fontsize=8)
+    return ax
 
 
 def _new_figure(figsize):
@@ -32,7 +107,7 @@ def _finish(fig, path, created: bool, tight: bool = True):
         fig.tight_layout()
     if path is not None:
         os.makedirs(os.path.dirname(os.path.abspath(os.fspath(path))), exist_ok=True)  # a new folder is fine
-        fig.savefig(os.fspath(path), dpi=DPI)
+        save_figure(fig, path)
         if created:
             import matplotlib.pyplot as plt
 
@@ -61,7 +136,7 @@ def plot_plan(plan, path=None, *, ax=None):
         An expanded protocol (:func:`rdea_lab.protocols.load_plan`): ``time`` [s],
         ``stretch`` [-], ``voltage`` [V].
     path : str or path-like, optional
-        Save the figure there as PNG (dpi 120). A figure made here is then
+        Save the figure there as PNG (dpi 200). A figure made here is then
         closed (it is still returned).
     ax : matplotlib.axes.Axes, optional
         Draw on this axis: the stretch setpoint [-] against time [s], the
@@ -140,10 +215,11 @@ def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
     ----------
     ds : xarray.Dataset
         A run (:func:`rdea_lab.store.open_run`) over ``time`` [s]: ``stretch`` [-],
-        ``voltage`` [V], ``force`` [N], ``position`` [m] and ``capacitance`` [F]
-        (drawn in a fourth panel when any of it was measured).
+        ``voltage`` [V] (no panel for a run at 0 V throughout, `is_zero_voltage`),
+        ``force`` [N], ``position`` [m] and ``capacitance`` [F] (a panel when any
+        of it was measured).
     path : str or path-like, optional
-        Save the figure there as PNG (dpi 120). A figure made here is then
+        Save the figure there as PNG (dpi 200). A figure made here is then
         closed (it is still returned).
     ax : matplotlib.axes.Axes, optional
         Draw only force [N] against time [s] on this axis.
@@ -153,7 +229,9 @@ def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
     prediction : xarray.Dataset, optional
         The twin on the same ``time``: ``force`` [N] and optionally
         ``capacitance`` [F], drawn dashed and labelled ``twin`` over the
-        measurement (force panel, loop and capacitance panel, or ``ax``).
+        measurement (force panel, loop and capacitance panel, or ``ax``); in
+        the full layout a residual panel (`residual_panel`: predicted -
+        measured in N or pF, and in % of the run's peak) under each of them.
 
     Returns
     -------
@@ -182,32 +260,50 @@ def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
         ax.grid(alpha=0.3)
         return _finish(ax.figure, path, created=False, tight=False)
     measured_c = bool(np.any(np.isfinite(ds["capacitance"].values)))
-    rows = 4 if measured_c else 3
-    created = fig is None
-    if created:
-        fig = _new_figure((11, 2.3 * rows))
-    grid = fig.add_gridspec(rows, 2)
-    series = [("stretch", 1.0, "stretch λ1 [-]"), ("voltage", 1e-3, "voltage [kV]"), ("force", 1.0, "force [N]")]
+    zero_v = is_zero_voltage(ds["voltage"].values)
+    series = [("stretch", 1.0, "stretch λ1 [-]")] + ([] if zero_v else [("voltage", 1e-3, "voltage [kV]")])
+    series.append(("force", 1.0, "force [N]"))
     if measured_c:
         series.append(("capacitance", 1e12, "capacitance [pF]"))
-    for i, (name, scale, label) in enumerate(series):
-        a = fig.add_subplot(grid[i, 0])
-        a.plot(t, ds[name].values * scale, lw=0.8, label=own)
+    panels = []  # (kind, name, scale, label): a series, or the residual under the one before
+    for name, scale, label in series:
+        panels.append(("series", name, scale, label))
         if name in pred:
-            a.plot(t, pred[name] * scale, **style)
-            a.legend(fontsize=8)
-        a.set_ylabel(label)
-        a.grid(alpha=0.3)
-        if i == rows - 1:
+            panels.append(("residual", name, scale, "pF" if name == "capacitance" else "N"))
+    heights = [1.0 if kind == "series" else 0.6 for kind, *_ in panels]
+    created = fig is None
+    if created:
+        fig = _new_figure((11, 2.3 * sum(heights)))
+    grid = fig.add_gridspec(len(panels), 2, height_ratios=heights)
+    for i, (kind, name, scale, label) in enumerate(panels):
+        a = fig.add_subplot(grid[i, 0])
+        measured = ds[name].values
+        if kind == "residual":
+            ok = np.isfinite(measured)
+            residual_panel(a, t[ok], measured[ok], pred[name][ok], float(np.nanmax(np.abs(measured))), label, scale)
+        else:
+            a.plot(t, measured * scale, lw=0.8, label=own)
+            if name in pred:
+                a.plot(t, pred[name] * scale, **style)
+                a.legend(fontsize=8)
+            a.set_ylabel(label)
+            a.grid(alpha=0.3)
+        if i == len(panels) - 1:
             a.set_xlabel("time [s]")
-    a = fig.add_subplot(grid[:, 1])
     x = ds["position"].values * 1e3
-    a.plot(x, ds["force"].values, lw=0.8, label=own)
+    force = ds["force"].values
+    loop_rows = slice(0, len(panels) - 1) if "force" in pred else slice(0, len(panels))
+    a = fig.add_subplot(grid[loop_rows, 1])
+    a.plot(x, force, lw=0.8, label=own)
     if "force" in pred:
         a.plot(x, pred["force"], **style)
         a.legend(fontsize=8)
-    a.set_xlabel("displacement [mm]")
+        r = fig.add_subplot(grid[len(panels) - 1, 1])
+        residual_panel(r, x, force, pred["force"], float(np.nanmax(np.abs(force))))
+        r.set_xlabel("displacement [mm]")
+    else:
+        a.set_xlabel("displacement [mm]")
     a.set_ylabel("force [N]")
     a.grid(alpha=0.3)
-    fig.suptitle(_title(ds))
+    fig.suptitle(_title(ds) + (" at 0 V throughout" if zero_v else ""))
     return _finish(fig, path, created)

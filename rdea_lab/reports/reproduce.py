@@ -8,7 +8,8 @@ Steps (each written under ``out``):
    runs (SU, one Maxwell branch and the parallel damper, eps_r fixed at 2.8);
 3. ``validation/``: the Table 4 analogue, the figures and ``index.html``;
 4. ``speed/``: time per sample against error for SU, 1R, 3R, CR and auto;
-5. ``models/``: Table 2 and Section 3.4 (Figures 5-8).
+5. ``models/``: Table 2 and Section 3.4 (Figures 5-8);
+6. ``index.html``: links to all of it, with the key tables and figures.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ from ..specs.campaign import load_campaign
 from ..specs.errors import UserError
 from .paper_models import reproduce_models
 from .speed import speed_study
-from .validation import validation_report
+from .html import write_reproduce_index
+from .validation import COLUMNS, validation_report
 
 CALIBRATION_SPECIMEN = "specimen-2"
 
@@ -82,8 +84,8 @@ def reproduce(root: Path, out: Path, *, campaign=None, speed=True, echo=print, p
 
     echo("[3/5] validation report: the twin on every run's own stretch and voltage")
     report = validation_report(files["params"], data, out / "validation", model="su")
-    result = {"campaign": [str(r.path) for r in results], "calibration": files, "calibration_result": fit,
-              "validation": report}
+    result = {"campaign": [str(r.path) for r in results], "campaign_name": spec.name, "calibration": files,
+              "calibration_result": fit, "validation": report}
     if speed:
         echo("[4/5] speed against error: SU, 1R, 3R, CR and auto on the paper's scenes and the Section 3.4 cores")
         result["speed"] = speed_study(out / "speed", root)
@@ -92,4 +94,5 @@ def reproduce(root: Path, out: Path, *, campaign=None, speed=True, echo=print, p
     echo("[5/5] Table 2 and Section 3.4 (Figures 5-8)")
     result["models"] = reproduce_models(root, out / "models")
     result["seconds"] = time.perf_counter() - t0
+    result["index"] = write_reproduce_index(out, result, COLUMNS)
     return result

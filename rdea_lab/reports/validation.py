@@ -6,9 +6,13 @@ complete run's own measured stretch and voltage history
 and for capacitance runs also the capacitance at the samples where the LCR
 bridge measured it. Each run gives one row: the maximum relative error
 against the largest measured force or capacitance of that run (the metric of
-Table 4 in [1]) and the rms error, beside the paper's value. It writes
-``table4.md``, ``table4.csv``, ``table4.tex``, figures in the manner of
-Figures 11-16 and ``index.html``.
+Table 4 in [1]) and the rms error, beside the paper's value, and says what the
+run is (:mod:`~rdea_lab.reports.provenance`): its name, protocol, nominal
+stretch rate and maximum stretch, where its data come from (import, emulator,
+twin, rig), its role against the calibration record (calibration run, held out
+(same specimen), other specimen) and where it leaves the calibration envelope.
+It writes ``table4.md``, ``table4.csv``, ``table4.tex``, figures in the manner
+of Figures 11-16 (PNG and PDF, with residual panels) and ``index.html``.
 
 [1] Prechtl et al., Smart Mater. Struct. 30 (2021), doi:10.1088/1361-665X/ac34be.
 """
@@ -17,22 +21,22 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 import xarray as xr
-import yaml
 
-from ..backends.rig import truth_name
-from ..store.schema import is_emulated
-from ..calibration.objective import error_measures, file_hash, load_run
+from ..calibration.crossval import nominal_rate
+from ..calibration.envelope import beyond, run_envelope, stretch_text
+from ..calibration.objective import error_measures, load_run
 from ..runs.app import check_writable
 from ..specs import MODEL_CHOICES, UserError, as_params
 from ..twin import predict
 from ..store import open_run
 from . import tables
 from .html import write_validation_index
+from .provenance import (NONE_RECORDED, NOT_CHECKED, calibration_envelope, calibration_summary, data_origin, role,
+                         run_origin)
 from .validation_figures import write_figures
 
 #: Table 4 of [1]: maximum relative error [-] per (experiment, voltage [V]) and specimen.
@@ -46,15 +50,18 @@ PAPER_TABLE4 = {
 VOLTAGE_MATCH = 130.0
 MODELS = MODEL_CHOICES
 KIND_ORDER = ("tensile", "blocking", "capacitance", "custom")
-NONE_RECORDED = "none recorded"
 
 #: The columns shown (Markdown, LaTeX, HTML); the CSV has every key of CSV_KEYS.
 COLUMNS = [
     ("experiment", "experiment", tables.text),
     ("voltage", "voltage", tables.text),
     ("specimen", "specimen", tables.text),
+    ("name", "run", tables.text),
+    ("protocol", "protocol", tables.text),
+    ("rate_per_s", "rate [/s]", tables.number(".3g")),
+    ("max_stretch", "max. stretch", stretch_text),
+    ("origin", "data", tables.text),
     ("role", "role", tables.text),
-    ("calibrated_on", "calibrated on", tables.text),
     ("model", "model", tables.text),
     ("samples", "samples", tables.text),
     ("max_rel_error", "max. rel. error [%]", tables.percent),
@@ -62,15 +69,23 @@ COLUMNS = [
     ("rms_rel_error", "rms/peak [%]", tables.percent),
     ("p99_rel_error", "p99/peak [%]", tables.percent),
     ("rms_text", "rms error", tables.text),
+    ("beyond_calibration", "beyond the calibration", tables.text),
     ("notes", "notes", tables.text),
 ]
-CSV_KEYS = ["experiment", "kind", "quantity", "voltage", "voltage_V", "specimen", "protocol", "file", "sha256",
-            "role", "calibrated_on", "model", "model_reason", "samples", "excluded", "peak", "unit",
-            "max_rel_error", "rms_error", "paper_max_rel_error", "rms_rel_error", "p99_rel_error", "window", "notes"]
+CSV_KEYS = ["experiment", "kind", "quantity", "voltage", "voltage_V", "specimen", "name", "protocol", "rate_per_s",
+            "max_stretch", "file", "sha256", "origin", "origin_detail", "source_file", "source_credit", "role",
+            "calibrated_on", "model", "model_reason", "samples", "excluded", "peak", "unit", "max_rel_error",
+            "rms_error", "paper_max_rel_error", "rms_rel_error", "p99_rel_error", "beyond_calibration", "window",
+            "notes"]
 #: The line under every rendering of the table that says which error measure is which.
 LEGEND = ("Errors relative to the run's largest measured force or capacitance (peak): max. rel. error = "
           "max |predicted - measured| / peak (Table 4's metric); rms/peak = rms(predicted - measured) / peak; "
-          "p99/peak = 99th percentile of |predicted - measured| / peak; rms error in the quantity's unit.")
+          "p99/peak = 99th percentile of |predicted - measured| / peak; rms error in the quantity's unit. "
+          "Run: the file's name; rate: the run's nominal stretch rate, the median |d stretch/dt| over its moving "
+          "samples; data: where the file says its data come from (import, emulator, twin, rig); role: calibration "
+          "run (fitted: its sha256 is in the calibration record), held out (same specimen) or other specimen; "
+          "beyond the calibration: where the run leaves the stretch, rate, voltage or hold range of the fitted "
+          "runs (the calibration envelope).")
 
 
 class ReportInputError(UserError):
@@ -101,34 +116,6 @@ def scan_runs(folder: Path) -> tuple[list[Path], list[dict]]:
         else:
             use.append(path)
     return use, skipped
-
-
-def calibration_summary(params_path) -> dict:
-    """Provenance of a parameter file: its hash and, if present, its calibration record in brief.
-
-    A parameter set given as an object (not a file) has neither: it says so.
-    """
-    if not isinstance(params_path, (str, os.PathLike)):
-        name = getattr(params_path, "name", "?")
-        return {"file": f"<ParameterSet {name}>", "sha256": "", "record": False, "specimens": [], "runs": [],
-                "summary": "parameters given as an object: no file, no calibration record"}
-    text = Path(params_path).read_text()
-    try:
-        record = (yaml.safe_load(text) or {}).get("calibration")
-    except (yaml.YAMLError, AttributeError):
-        record = None
-    out = {"file": str(params_path), "sha256": file_hash(params_path), "record": isinstance(record, dict)}
-    if not isinstance(record, dict):
-        return {**out, "specimens": [], "runs": [], "summary": "no calibration record in the file"}
-    runs = [r for r in record.get("runs") or [] if isinstance(r, dict)]
-    out.update({k: record.get(k) for k in ("model", "metric", "objective", "converged", "message", "software")})
-    out["runs"] = [{k: r.get(k) for k in ("specimen", "protocol", "file", "sha256", "max_rel_error")} for r in runs]
-    out["specimens"] = sorted({str(r["specimen"]) for r in runs if r.get("specimen")})
-    stats = record.get("statistics") or {}
-    out["nfev"] = stats.get("nfev")
-    out["summary"] = (f"model {out['model']}, {out['metric']} objective {out['objective']}, "
-                      f"{len(runs)} run(s): " + ", ".join(f"{r.get('specimen')}/{r.get('protocol')}" for r in runs))
-    return out
 
 
 def experiment(kind: str, protocol: str, voltage: np.ndarray, has_capacitance: bool) -> dict:
@@ -217,54 +204,29 @@ def evaluate_run(path: Path, params, model: str, tolerance: float) -> tuple[dict
         series["window"] = sel
         err, unit, scale, shown = compare(run.force[sel], force_pred[sel]), "N", 1.0, "N"
         samples = int(sel.sum())
+    own = run_envelope(run)
+    origin = run_origin(a)
     row = {k: exp[k] for k in ("experiment", "voltage", "voltage_V", "quantity")}
-    row.update({"kind": run.kind, "specimen": run.specimen, "protocol": run.protocol, "file": str(path),
-                "sha256": run.sha256, "model": used, "model_reason": reason, "samples": samples, "unit": unit,
+    row.update({"kind": run.kind, "specimen": run.specimen, "name": Path(path).stem, "protocol": run.protocol,
+                "rate_per_s": nominal_rate(run), "max_stretch": own.stretch[1], "file": str(path),
+                "sha256": run.sha256, **{k: origin[k] for k in ("origin", "origin_detail", "source_file",
+                                                                  "source_credit")},
+                "model": used, "model_reason": reason, "samples": samples, "unit": unit,
                 **err, "window": window,
                 "paper_max_rel_error": PAPER_TABLE4.get(exp["key"], {}).get(run.specimen) if exp["key"] else None,
                 "rms_text": f"{err['rms_error'] * scale:.4g} {shown}" if math.isfinite(err["rms_error"]) else "—"})
     notes = [window, f"{err['excluded']} samples without equilibrium left out" if err["excluded"] else "",
              f"auto: {reason}" if reason else ""]
     row["notes"] = "; ".join(n for n in notes if n)
-    prov = {"file": str(path), "sha256": run.sha256, "run_id": a.get("run_id", "?"), "backend": a.get("backend", "?"),
-            "created": a.get("created", "?"), "protocol": run.protocol, "kind": run.kind, "specimen": run.specimen,
-            "emulated": is_emulated(a), "truth": truth_name(a.get("emulator_truth", "")) or "",
-            "model": a.get("model", ""), "parameters_name": a.get("parameters_name", "")}
-    return row, {"row": row, "provenance": prov, "series": series}
+    prov = {"file": str(path), "name": row["name"], "sha256": run.sha256, "run_id": a.get("run_id", "?"),
+            "backend": a.get("backend", "?"), "created": a.get("created", "?"), "protocol": run.protocol,
+            "kind": run.kind, "specimen": run.specimen, **origin}
+    return row, {"row": row, "provenance": prov, "series": series, "run": run, "envelope": own}
 
 
 def _sort_key(row):
     return (KIND_ORDER.index(row["kind"]) if row["kind"] in KIND_ORDER else len(KIND_ORDER),
             row["quantity"], round(row["voltage_V"], -1), row["specimen"], row["protocol"], row["file"])
-
-
-def _role(row, cal) -> tuple[str, str]:
-    if not cal["specimens"]:
-        return NONE_RECORDED, NONE_RECORDED
-    on = ", ".join(cal["specimens"])
-    if row["sha256"] in {r.get("sha256") for r in cal["runs"]}:
-        return "calibration run", on
-    if row["specimen"] in cal["specimens"]:
-        return "calibration specimen", on
-    return "validation", on
-
-
-def data_origin(provenance: list[dict]) -> str:
-    """One plain sentence on where the datasets come from (emulator, twin or rig)."""
-    emulated = [p for p in provenance if p["emulated"]]
-    twin = [p for p in provenance if p["backend"] == "twin"]
-    rig = len(provenance) - len(emulated) - len(twin)
-    parts = []
-    if emulated:
-        names = sorted({p["truth"] or "unnamed truth" for p in emulated})
-        parts.append(f"{len(emulated)} of {len(provenance)} runs come from the rdea-lab rig EMULATOR "
-                     f"(truth: {', '.join(names)}), not from a physical rig")
-    if twin:
-        parts.append(f"{len(twin)} of {len(provenance)} runs are twin simulations (a model, not measurements)")
-    if rig:
-        parts.append(f"{rig} of {len(provenance)} runs do not say they are emulated or simulated "
-                     "(backend rig without an 'emulated' attribute)")
-    return "; ".join(parts) + "."
 
 
 def validation_report(params_path, datasets_folder, out, model: str = "su", tolerance: float = 0.01,
@@ -320,8 +282,15 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
             f" ({len(skipped)} skipped: {skipped[0]['file']}: {skipped[0]['reason']})" if skipped else ""))
     evaluated.sort(key=lambda e: _sort_key(e["row"]))
     cal = calibration_summary(params_path)
+    env, env_source = calibration_envelope(cal, [e["run"] for e in evaluated])
+    cal["envelope_source"] = env_source
+    cal["envelope_text"] = env.describe() if env is not None else ""
     for e in evaluated:
-        e["row"]["role"], e["row"]["calibrated_on"] = _role(e["row"], cal)
+        r = e["row"]
+        r["role"] = role(r["sha256"], r["specimen"], cal)
+        r["calibrated_on"] = ", ".join(cal["specimens"]) or NONE_RECORDED
+        r["flags"] = beyond(env, e["envelope"]) if env is not None else ()
+        r["beyond_calibration"] = "; ".join(r["flags"]) or ("—" if env is not None else NOT_CHECKED)
     rows = [e["row"] for e in evaluated]
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -329,7 +298,10 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
     md = tables.markdown(COLUMNS, rows)
     caption = (f"Maximum relative error against the largest measured force or capacitance of each run "
                f"(Table 4 of Prechtl et al. 2021), twin model {model}, parameters {params.name}; "
-               f"calibrated on: {', '.join(cal['specimens']) or NONE_RECORDED}. {origin}")
+               f"calibrated on: {', '.join(cal['specimens']) or NONE_RECORDED}. {origin} "
+               + (f"Calibration envelope ({env_source}): {cal['envelope_text']}; "
+                  f"{sum(bool(r['flags']) for r in rows)} of {len(rows)} runs beyond it."
+                  if env is not None else f"Calibration envelope: {env_source}."))
     files = {"markdown": out / "table4.md", "csv": out / "table4.csv", "latex": out / "table4.tex"}
     left_out = "".join(f"- `{sk['file']}`: {sk['reason']}\n" for sk in skipped)
     files["markdown"].write_text(f"# Table 4 analogue\n\n{caption}\n\n{md}\n{LEGEND}\n"
@@ -340,7 +312,8 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
     figs = write_figures(evaluated, out) if figures else {}
     result = {"rows": rows, "markdown": md, "caption": caption, "legend": LEGEND, "model": model, "params": cal,
               "params_name": params.name, "runs": [e["provenance"] for e in evaluated], "skipped": skipped,
-              "origin": origin, "figures": [str(f) for f in figs],
+              "origin": origin, "envelope": env.mapping() if env is not None else None,
+              "figures": [str(f) for f in figs],
               "figure_captions": {Path(f).name: c for f, c in figs.items()},
               "files": {k: str(v) for k, v in files.items()}}
     result["files"]["html"] = str(write_validation_index(out / "index.html", result, COLUMNS))

@@ -50,3 +50,23 @@ def test_reproduced_section_3_4_matches_the_papers_findings(reproduced):
     sweep = json.loads((reproduced[0] / "models.json").read_text())["figure8"]
     assert sweep[0]["max_dev_su_MPa"] < sweep[0]["max_dev_1r_MPa"]
     assert sweep[-1]["max_dev_su_MPa"] > sweep[-1]["max_dev_1r_MPa"]
+
+
+def test_a_deviation_of_rounding_size_is_said_not_plotted():
+    """SU off by 3 ulp of the peak (rounding) is named 'identical'; 1R off by 1 % is drawn."""
+    import numpy as np
+    from matplotlib.figure import Figure
+
+    from rdea_lab.reports.paper_models import deviation_panel
+
+    lam = np.linspace(1.0, 1.75, 50)
+    ref = 1e6 * (lam - 1.0)
+    ax = Figure().subplots()
+    same = deviation_panel(ax, lam, {"su": ref + 3 * np.spacing(ref.max()), "1r": 1.01 * ref}, ref, "3R")
+    assert same == ["su"]
+    drawn = [ln for ln in ax.lines if ln.get_label() == "1R"]
+    assert len(drawn) == 1 and np.allclose(drawn[0].get_ydata(), 0.01 * ref / 1e6)
+    assert any("SU: identical to 3R to 1e-12 of the peak stress" == ln.get_label() for ln in ax.lines)
+    ax = Figure().subplots()
+    assert deviation_panel(ax, lam, {"su": ref.copy(), "1r": ref * (1 + 1e-15)}, ref, "3R") == ["su", "1r"]
+    assert not ax.lines and "SU, 1R: identical to 3R" in ax.texts[0].get_text()

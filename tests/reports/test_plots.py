@@ -9,7 +9,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from rdea_lab.protocols import load_plan
-from rdea_lab.reports.plots import plot_plan, plot_run
+from rdea_lab.reports.plots import minmax_index, plot_plan, plot_run
 from rdea_lab.store import open_run
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -19,6 +19,14 @@ RUNS = ROOT / "datasets" / "paper2021" / "specimen-2"
 @pytest.fixture(scope="module")
 def run():
     ds = open_run(RUNS / "tensile_ramp_sine_0V.nc")
+    yield ds.load()
+    ds.close()
+
+
+@pytest.fixture(scope="module")
+def kv_run():
+    """A run at 2.6 kV (a voltage panel)."""
+    ds = open_run(RUNS / "tensile_ramp_sine_2.6kV.nc")
     yield ds.load()
     ds.close()
 
@@ -74,51 +82,85 @@ def test_labels_say_what_made_each_line(run):
     assert [t.get_text() for t in ax.get_legend().get_texts()] == ["run (twin, 3r)", "prediction (su)"]
 
 
-def test_plot_run_default_layout(run, cap_run):
+def test_plot_run_default_layout(run, kv_run, cap_run):
+    """A 0 V run has no voltage panel (its voltage axis would show only noise about 0); a 2.6 kV run has one."""
     fig = plot_run(run)
     assert isinstance(fig, Figure) and plt.fignum_exists(fig.number)  # pyplot's own: a notebook shows it
-    assert len(fig.axes) == 4  # stretch, voltage, force over time; the loop
-    assert [ax.get_ylabel() for ax in fig.axes] == ["stretch λ1 [-]", "voltage [kV]", "force [N]", "force [N]"]
-    np.testing.assert_array_equal(fig.axes[1].lines[0].get_ydata(), run["voltage"].values / 1e3)
-    loop = fig.axes[3]
+    assert float(np.max(np.abs(run["voltage"].values))) < 5.0  # the fixture is a 0 V run
+    assert [ax.get_ylabel() for ax in fig.axes] == ["stretch λ1 [-]", "force [N]", "force [N]"]
+    loop = fig.axes[-1]
     np.testing.assert_array_equal(loop.lines[0].get_xdata(), run["position"].values * 1e3)
     np.testing.assert_array_equal(loop.lines[0].get_ydata(), run["force"].values)
-    assert fig.get_size_inches() == pytest.approx((11, 6.9))
-    assert len(plot_run(cap_run).axes) == 5  # and capacitance [pF]
+    assert fig.get_size_inches() == pytest.approx((11, 4.6))  # 2.3 in per panel
+    assert "at 0 V throughout" in fig._suptitle.get_text()
+    fig = plot_run(kv_run)
+    assert [ax.get_ylabel() for ax in fig.axes] == ["stretch λ1 [-]", "voltage [kV]", "force [N]", "force [N]"]
+    np.testing.assert_allclose(fig.axes[1].lines[0].get_ydata(), kv_run["voltage"].values / 1e3, rtol=1e-15)
+    assert [ax.get_ylabel() for ax in plot_run(cap_run).axes][-2:] == ["capacitance [pF]", "force [N]"]
 
 
 def test_plot_run_into_a_given_figure(run):
     fig = Figure(figsize=(11, 7))
     assert plot_run(run, fig=fig) is fig
-    assert len(fig.axes) == 4
+    assert len(fig.axes) == 3
     np.testing.assert_array_equal(fig.axes[0].lines[0].get_ydata(), run["stretch"].values)
     assert plt.get_fignums() == []
 
 
 def test_plot_run_prediction_in_force_panel_loop_and_capacitance(cap_run):
     fig = plot_run(cap_run, fig=Figure(), prediction=prediction_of(cap_run, 0.9))
-    labels = {ax.get_ylabel(): [line.get_label() for line in ax.lines] for ax in fig.axes}
-    assert labels["stretch λ1 [-]"] == ["measured (emulator)"]
-    assert labels["capacitance [pF]"] == ["measured (emulator)", "prediction"]
-    assert [len([ln for ln in ax.lines if ln.get_label() == "prediction"]) for ax in fig.axes] == [0, 0, 1, 1, 1]
-    loop = fig.axes[-1]
+    labels = [(ax.get_ylabel(), [line.get_label() for line in ax.lines if not line.get_label().startswith("_")])
+              for ax in fig.axes]
+    assert labels == [("stretch λ1 [-]", ["measured (emulator)"]),
+                      ("force [N]", ["measured (emulator)", "prediction"]), ("twin − measured [N]", []),
+                      ("capacitance [pF]", ["measured (emulator)", "prediction"]), ("twin − measured [pF]", []),
+                      ("force [N]", ["measured (emulator)", "prediction"]), ("twin − measured [N]", [])]
+    loop = fig.axes[5]
     np.testing.assert_allclose(loop.lines[1].get_ydata(), 0.9 * cap_run["force"].values)
     assert loop.get_legend() is not None
 
 
-def test_plot_run_path_writes_png_and_closes_its_figure(run, tmp_path):
+def test_residual_panels_are_prediction_minus_measurement_in_n_and_percent_of_peak(kv_run):
+    """Under the force history: 0.9 F - F = -0.1 F [N]; the right axis is the same in % of max |F|."""
+    f = kv_run["force"].values
+    fig = plot_run(kv_run, fig=Figure(), prediction=prediction_of(kv_run, 0.9))
+    history, loop = [ax for ax in fig.axes if ax.get_ylabel() == "twin − measured [N]"]
+    for ax in (history, loop):
+        np.testing.assert_allclose(ax.lines[0].get_ydata(), -0.1 * f, atol=1e-12)
+        (right,) = ax.child_axes
+        assert right.get_ylabel() == "[% of peak]"
+        np.testing.assert_allclose(right.get_ylim(), np.array(ax.get_ylim()) * 100 / np.max(np.abs(f)), rtol=1e-9)
+    np.testing.assert_array_equal(loop.lines[0].get_xdata(), kv_run["position"].values * 1e3)
+
+
+def test_plot_run_path_writes_png_at_200_dpi_and_closes_its_figure(run, tmp_path):
     out = tmp_path / "run.png"
     fig = plot_run(run, out)  # positionally, as the CLI calls it
     assert isinstance(fig, Figure)
-    assert png_size(out) == (828, 1320)  # (6.9 x 11) in at 120 dpi
+    assert png_size(out) == (920, 2200)  # (4.6 x 11) in at 200 dpi
     assert not plt.fignum_exists(fig.number)  # made here and saved: closed, so a loop does not pile up figures
 
 
 def test_plot_run_path_with_ax_saves_the_callers_figure_and_keeps_it(run, tmp_path):
     fig, ax = plt.subplots(figsize=(4, 3))
     plot_run(run, tmp_path / "ax.png", ax=ax)
-    assert png_size(tmp_path / "ax.png") == (360, 480)
+    assert png_size(tmp_path / "ax.png") == (600, 800)
     assert plt.fignum_exists(fig.number)
+
+
+def test_minmax_index_keeps_each_bins_extremes_and_ends():
+    """A noisy series of 30000 samples in 1000 bins: the kept samples hold every bin's min and max (checked
+    against a reshape of the series: bins of 30 samples), the first and the last sample."""
+    y = np.random.default_rng(3).normal(size=30000)
+    keep = minmax_index(y.size, [y], bins=1000)
+    assert keep[0] == 0 and keep[-1] == y.size - 1 and np.all(np.diff(keep) > 0)
+    assert keep.size <= 4 * 1000
+    kept = np.zeros(y.size, bool)
+    kept[keep] = True
+    blocks = y.reshape(1000, 30)
+    assert np.all(kept[np.arange(1000) * 30 + blocks.argmax(axis=1)])
+    assert np.all(kept[np.arange(1000) * 30 + blocks.argmin(axis=1)])
+    np.testing.assert_array_equal(minmax_index(2999, [y[:2999]], bins=1000), np.arange(2999))  # short: all of it
 
 
 def test_plot_run_bad_arguments(run):
@@ -151,5 +193,5 @@ def test_plot_plan_default_and_path(plan, tmp_path):
     np.testing.assert_array_equal(fig.axes[1].lines[0].get_ydata(), plan.voltage / 1e3)
     out = tmp_path / "plan.png"
     saved = plot_plan(plan, out)
-    assert png_size(out) == (600, 960)  # (5 x 8) in at 120 dpi
+    assert png_size(out) == (1000, 1600)  # (5 x 8) in at 200 dpi
     assert not plt.fignum_exists(saved.number)

@@ -13,7 +13,7 @@ from rdea_lab.store import open_run
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_reproduce_on_a_short_campaign(capsys, tmp_path):
+def test_reproduce_on_a_short_campaign(capsys, tmp_path, read_page):
     campaign = tmp_path / "short.yaml"
     campaign.write_text(f"""name: short
 root: {ROOT}
@@ -43,6 +43,18 @@ protocols: [protocols/tensile_ramp_sine_0V.yaml, protocols/tensile_ramp_sine_2.6
     assert (out / "validation" / "index.html").stat().st_size > 1000
     assert (out / "models" / "models.md").exists() and not (out / "speed").exists()
     assert "Table 4 analogue" in stdout and "EMULATOR" in stdout and "index.html" in stdout
+    # the top-level index links the calibration, the validation report, the models and the datasets,
+    # every link to something that exists, and its tables fit the page
+    page = read_page(out / "index.html")
+    for target in ("params/calibrated.yaml", "params/calibrated.history.csv", "validation/index.html",
+                   "validation/table4.csv", "models/models.md", "datasets/"):
+        assert target in page.links, target
+    for href in page.links:
+        if not href.startswith("#"):
+            assert (out / href).exists(), href
+    assert "models/figure5_hollow-core.png" in page.attrs and not any("speed" in h for h in page.links)
+    assert len(page.longest_unbreakable()) <= 24, page.longest_unbreakable()
+    assert "index.html" in stdout.split("outputs:")[1].splitlines()[1]
     # every force error of this emulator campaign stays small once calibrated (a few percent at most)
     for row in rows:
         if "force" in row["experiment"]:

@@ -10,7 +10,7 @@ import pytest
 
 from rdea_lab.cli.errors import run
 from rdea_lab.cli.main import cli
-from rdea_lab.reports.speed import MODELS, speed_study
+from rdea_lab.reports.speed import MARKERS, MODELS, pareto_figure, speed_study
 
 ROOT = Path(__file__).resolve().parents[2]
 #: 3 paper specimens x 4 protocols, then the 3 cores of Section 3.4
@@ -105,3 +105,34 @@ def test_cli_speed(tmp_path, capsys):
     assert "passive-core @ 3.5 kV: auto picks" in out and (tmp_path / "speed.md").is_file()
     assert run(group, ["report", "--params", "x.yaml", "speed", "--out", str(tmp_path)]) == 2  # not an option of report
     assert run(group, ["report", "speed", "--params", "x.yaml", "--out", str(tmp_path)]) == 2  # nor of report speed
+
+
+def _rows(errors):
+    """Synthetic study rows: two rolls, two protocols on the first, one model per error given."""
+    out = []
+    for i, (roll, protocol, model, err) in enumerate(errors):
+        out.append({"scene": f"{roll} / {protocol}", "roll": roll, "protocol": protocol, "model": model,
+                    "time_per_sample_s": 1e-6 * (i + 1), "max_rel_error": err})
+    return out
+
+
+def test_pareto_axis_spans_the_errors_and_marks_rounding_and_zeros():
+    """Errors 0.5 % and 8 % set the scale; 3e-15 (rounding) and 0 (CR) sit in their marked bands below it,
+    not at 1e-14 % on a scale reaching down there."""
+    rows = _rows([("roll-a", "p1", "su", 0.005), ("roll-a", "p1", "cr", 0.0), ("roll-a", "p2", "3r", 3e-15),
+                  ("roll-b", "p3", "1r", 0.08), ("roll-b", "p3", "cr", 0.0)])
+    fig = pareto_figure(rows)
+    a, b = [ax for ax in fig.axes if ax.get_visible()]
+    assert (a.get_title(), b.get_title()) == ("roll-a", "roll-b")
+    lo, hi = a.get_ylim()
+    assert 1e-3 < lo < 0.5 and hi >= 8.0  # the data (0.5 % to 8 %) and the two bands just below
+    labels = {t.get_text(): y for t, y in zip(a.get_yticklabels(), a.get_yticks())}
+    assert "exact 0" in labels and "≤ 1e-12 of peak" in labels
+    assert labels["exact 0"] < labels["≤ 1e-12 of peak"] < 0.5
+    markers = [ln for ln in a.lines if ln.get_marker() not in ("None", "", None)]  # not the band's dotted line
+    points = {(ln.get_marker(), ln.get_color()): ln.get_ydata()[0] for ln in markers}
+    colors = {ln.get_color() for ln in markers}
+    assert len(colors) == 2  # p1 and p2: a colour per scene
+    ys = sorted(points.values())
+    assert ys == pytest.approx([labels["exact 0"], labels["≤ 1e-12 of peak"], 0.5])
+    assert {mk for mk, _ in points} == {MARKERS["su"], MARKERS["cr"], MARKERS["3r"]}  # a marker per model

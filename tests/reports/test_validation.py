@@ -26,9 +26,6 @@ from rdea_lab.specs import dump_params, load_params
 
 ROOT = Path(__file__).resolve().parents[2]
 TABLE3 = ROOT / "params" / "paper2021_table3.yaml"
-#: (specimen card, protocol) of the fixture's twin runs
-RUNS = [("specimen1", "tensile_ramp_sine_0V"), ("specimen1", "tensile_ramp_sine_2.6kV"),
-        ("specimen1", "blocking_force"), ("specimen1", "capacitance_sweep"), ("specimen2", "tensile_ramp_sine_0V")]
 
 
 @pytest.fixture(autouse=True)
@@ -40,19 +37,6 @@ def _close_figures():
 @pytest.fixture(scope="module")
 def report_cli():
     return main_cli
-
-
-@pytest.fixture(scope="module")
-def twin_folder(tmp_path_factory):
-    """Five twin runs (SU, Table 3), written by `rdea-lab run`."""
-    folder = tmp_path_factory.mktemp("twin_runs")
-    for card, proto in RUNS:
-        out = folder / card / f"{proto}.nc"
-        argv = ["run", str(ROOT / "protocols" / f"{proto}.yaml"),
-                "--specimen", str(ROOT / "specimens" / f"{card}.yaml"),
-                "--backend", "twin", "--model", "su", "--params", str(TABLE3), "--out", str(out), "--quiet"]
-        assert run(main_cli, argv) == 0
-    return folder
 
 
 def _perturbed(path: Path, factor: float) -> Path:
@@ -183,27 +167,29 @@ def test_latex_escape():
     assert latex_escape("λ1") == r"$\lambda$1"
 
 
-def test_index_html_shows_every_run_and_its_hash_and_no_urls(same):
+def test_index_html_shows_every_run_and_its_hash_and_no_urls(same, read_page):
     page = Path(same["files"]["html"]).read_text()
-    for card, proto in RUNS:
-        path = next(Path(r["file"]) for r in same["rows"] if Path(r["file"]).name == f"{proto}.nc"
-                    and Path(r["file"]).parent.name == card)
-        assert str(path) in page
-        assert hashlib.sha256(path.read_bytes()).hexdigest() in page
+    shown = read_page(same["files"]["html"])
+    assert len(same["rows"]) == 5  # the twin_folder fixture's five runs (tests/reports/conftest.py)
+    for r in same["rows"]:
+        path = Path(r["file"])
+        assert str(path) in shown.text
+        assert hashlib.sha256(path.read_bytes()).hexdigest() in shown.attrs  # on hover (title=)
     assert "http" not in page and "<script" not in page
     assert "twin simulations" in page  # the data are said to be simulated, not measured
-    assert hashlib.sha256(TABLE3.read_bytes()).hexdigest() in page
+    assert hashlib.sha256(TABLE3.read_bytes()).hexdigest() in shown.attrs
     for f in same["figures"]:
         assert Path(f).stat().st_size > 10_000 and Path(f).name in page
     names = {Path(f).name for f in same["figures"]}
     assert {"blocking_force.png", "capacitance.png", "tensile_specimen-1_tensile_ramp_sine_0V.png"} <= names
 
 
-def test_calibration_record_marks_roles_and_emulated_data_is_said(twin_folder, tmp_path):
+def test_calibration_record_marks_roles_and_emulated_data_is_said(twin_folder, tmp_path, read_page):
     """A folder where two runs claim to come from the emulator, one run is aborted, and a parameter
     file whose calibration record names the specimen-2 tensile run."""
     folder = tmp_path / "runs"
-    for card, proto in RUNS[:2] + RUNS[4:]:
+    for card, proto in [("specimen1", "tensile_ramp_sine_0V"), ("specimen1", "tensile_ramp_sine_2.6kV"),
+                        ("specimen2", "tensile_ramp_sine_0V")]:
         (folder / card).mkdir(parents=True, exist_ok=True)
         shutil.copy(twin_folder / card / f"{proto}.nc", folder / card / f"{proto}.nc")
     for name, attrs in (("specimen1/tensile_ramp_sine_0V.nc", {"emulated": "yes: data from the rdea-lab rig "
@@ -224,15 +210,19 @@ def test_calibration_record_marks_roles_and_emulated_data_is_said(twin_folder, t
     params.write_text(TABLE3.read_text() + yaml.safe_dump(record))
     result = validation_report(params, folder, tmp_path / "out", figures=False)
     roles = {(r["specimen"], r["voltage"]): (r["role"], r["calibrated_on"]) for r in result["rows"]}
-    assert roles == {("specimen-1", "0 V"): ("validation", "specimen-2"),
-                     ("specimen-1", "2.60 kV"): ("validation", "specimen-2"),
+    assert roles == {("specimen-1", "0 V"): ("other specimen", "specimen-2"),
+                     ("specimen-1", "2.60 kV"): ("other specimen", "specimen-2"),
                      ("specimen-2", "0 V"): ("calibration run", "specimen-2")}
+    # the envelope of the one fitted run (0 V, found among the datasets by its sha256): the 2.6 kV run leaves it
+    flags = {(r["specimen"], r["voltage"]): r["flags"] for r in result["rows"]}
+    assert flags[("specimen-2", "0 V")] == () and flags[("specimen-1", "0 V")] == ()
+    assert any(f.startswith("voltage 2.6 kV beyond the calibrated 0 V") for f in flags[("specimen-1", "2.60 kV")])
     assert [Path(s["file"]).name for s in result["skipped"]] == ["aborted.nc"]
     page = Path(result["files"]["html"]).read_text()
     banner = re.search(r'<p class="banner">(.*?)</p>', page).group(1)
     assert "EMULATOR" in banner and "toy-truth" in banner and "not from a physical rig" in banner
     assert "aborted.nc" in page and "status aborted" in page
-    assert "specimen-2/tensile_ramp_sine_0V" in page  # the runs the parameters were fitted on
+    assert "specimen-2/tensile_ramp_sine_0V" in read_page(result["files"]["html"]).text  # the runs fitted on
 
 
 def test_auto_names_its_model_per_run(twin_folder, tmp_path):
