@@ -146,7 +146,7 @@ def prepare(law: str) -> None:
     """Load `law`'s compiled kernel now (finite strain: numba, about 2.5 s once per process, from its
     disk cache), so that a caller with a deadline (a rig server's first reply) does not pay it later."""
     if law != "linear":
-        branch_strains(np.array([0.0, 1e-3]), np.array([1.0, 1.001]), np.array([1.0]), law=law)
+        overstress_step(np.array([0.0, 1e-3]), np.array([1.0, 1.001]), np.array([1.0]), np.array([1.0]), law=law)
 
 
 def stress_of(law, modulus, q):
