@@ -37,14 +37,12 @@ EXPERIMENTS = (("tensile", 0.0, "tensile 0 V"), ("tensile", 2600.0, "tensile 2.6
 
 def variants(truth):
     """(label, truth) with one effect off at a time, then all off."""
-    from rdea_lab.specs.params import ViscoBranch
     from rdea_lab.specs.truth import Effects, RadiiFactors
     from rdea_lab.specs.truth import truth_as_mapping, truth_from_mapping
 
     m = truth.material
     e = truth.effects
-    linear = m.model_copy(update={"law": "linear", "branches": tuple(
-        ViscoBranch.of("linear", 3.0 * b.modulus, 3.0 * b.eta) for b in m.branches)})
+    linear = m.model_copy(update={"law": "linear", "branches": tuple(b.as_law("linear") for b in m.branches)})
 
     def quiet_instruments(tr):
         data = truth_as_mapping(tr)

@@ -157,9 +157,7 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         start = initial_guess(runs, M, eps, law=law)
     else:
         if init.law != law:  # the same branches at small strain: k = 3 mu, eta(44) = 3 eta
-            f = 1 / 3 if law == "finite_strain" else 3.0
-            init = init.replace(law=law, branches=tuple(ViscoBranch.of(law, b.modulus * f, b.eta * f)
-                                                        for b in init.branches))
+            init = init.replace(law=law, branches=tuple(b.as_law(law) for b in init.branches))
         padded = list(init.branches[:M])
         while len(padded) < M:  # more branches than the start has: slower ones, same stiffness
             last = padded[-1] if padded else ViscoBranch.of(law, init.C10, init.C10)

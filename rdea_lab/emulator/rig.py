@@ -21,7 +21,8 @@ producing in chunks of any sizes gives bit-identical data:
 - aborts: dielectric breakdown (field estimate ``|v| sqrt(lambda) / L3`` with
   the true ``L3`` and the electroded zone's stretch ``lambda`` above
   ``breakdown_field``, or no stable equilibrium
-  left: pull-in), or a load-cell reading above ``max_force``. The samples up
+  left: pull-in), a load-cell reading above ``max_force``, or a block the
+  truth's physics cannot solve (`rdea_lab.emulator.roll`: the reason says so). The samples up
   to and including the breaking one are kept (a pull-in sample has no force
   and is dropped); then voltage goes to 0 and the actuator back to its start.
 """
@@ -302,7 +303,11 @@ class EmulatedRig:
         stretch = self._actuator(s_sp)
         voltage = self._amplifier(v_sp)
         # the roll cannot be compressed: a setpoint of 1 - 1e-16 is 1
-        true = self._roll.step(t, np.maximum(stretch, 1.0), voltage)
+        try:
+            true = self._roll.step(t, np.maximum(stretch, 1.0), voltage)
+        except RuntimeError as exc:  # the truth's physics has no solution here: stop, voltage off
+            self.abort(f"the emulated roll has no solution from t = {seconds(t[0])} s: {exc}")
+            return np.empty((0, len(COLUMNS))), None
         force = load_cell(true["force"], inst.force_offset + inst.force_drift * t, inst.force_noise, self._force_rng)
         capacitance = lcr_bridge(true["capacitance"], voltage, inst.parasitic_capacitance, inst.capacitance_noise,
                                  self._cap_rng, enabled="capacitance" in cfg.measure, max_voltage=LCR_MAX_VOLTAGE)

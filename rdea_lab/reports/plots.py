@@ -35,6 +35,10 @@ def save_figure(fig, path, dpi: int = DPI, vector: bool = False):
     from PIL import Image  # matplotlib's own dependency
 
     path = os.fspath(path)
+    stem, ext = os.path.splitext(path)
+    if ext.lower() != ".png":  # another format asked for (show --plot run.pdf): matplotlib's, as named
+        fig.savefig(path, dpi=dpi)
+        return path
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi)
     buf.seek(0)
@@ -42,7 +46,7 @@ def save_figure(fig, path, dpi: int = DPI, vector: bool = False):
         image.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE,
                                       dither=Image.Dither.NONE).save(path, format="PNG")
     if vector:
-        fig.savefig(os.path.splitext(path)[0] + ".pdf")
+        fig.savefig(stem + ".pdf")
     return path
 
 

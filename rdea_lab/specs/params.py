@@ -203,6 +203,13 @@ class ViscoBranch(SpecModel):
         """A branch of ``law`` with spring modulus ``modulus`` (k or mu) [Pa] and damper ``eta`` [Pa s]."""
         return cls(**{MODULUS[law]: modulus, "eta": eta})
 
+    def as_law(self, law: str) -> "ViscoBranch":
+        """The same branch at small strain in `law`: ``k = 3 mu``, ``eta(44) = 3 eta`` (same relaxation time)."""
+        if law == self.law:
+            return self
+        f = 1.0 / 3.0 if law == "finite_strain" else 3.0
+        return ViscoBranch.of(law, self.modulus * f, self.eta * f)
+
     @property
     def law(self) -> str:
         """The law the branch's spring belongs to."""

@@ -72,7 +72,7 @@ Frequency = quantity("frequency", "Hz", gt=0.0)
 Capacitance = quantity("capacitance", "pF", ge=0.0)
 Field = quantity("electric_field", "V/um", gt=0.0)
 Number = quantity("dimensionless", "")
-Compliance = quantity("compliance", "um/N", ge=0.0)
+Compliance = quantity("compliance", "um/N", ge=0.0, le=100e-6)
 ForceRate = quantity("force_rate", "mN/min")
 Energy = quantity("pressure", "kPa", gt=0.0)  # an energy density, J/m^3 = Pa
 
@@ -115,9 +115,17 @@ class RadiiFactors(SpecModel):
     Ro: Factor = 1.0
 
 
-def _positive_factor(value: float) -> float:
-    if not value > 0.0:
-        raise SpecError("", "", f"factor {value:g} is not > 0")
+#: Passive ends' stiffness factor: the same film give or take its electrode layers, not another material.
+PASSIVE_STIFFNESS_RANGE = (0.5, 5.0)
+#: Largest clamp compliance [m/N]: 1e4 N/m is already a soft clamp (a 10 N load cell is 5e4-1e5 N/m).
+MAX_CLAMP_COMPLIANCE = 100e-6
+
+
+def _stiffness_factor(value: float) -> float:
+    lo, hi = PASSIVE_STIFFNESS_RANGE
+    if not lo <= value <= hi:
+        raise SpecError("", "", f"factor {value:g} is outside [{lo:g}, {hi:g}]: the passive ends are the same "
+                                "film as the electroded zone, give or take its electrodes")
     return value
 
 
@@ -158,9 +166,10 @@ class Effects(SpecModel):
         the electroded zone ``L1e`` (no Maxwell stress there; Assumption 3 of
         [1] smears the electrode over ``L1`` with ``alpha_e1`` instead).
     passive_stiffness : float
-        Factor on the Yeoh coefficients of the passive ends, > 0 (1: the same film).
+        Factor on the Yeoh coefficients of the passive ends, in [0.5, 5] (1: the same film).
     clamp_compliance : float
-        Compliance of clamps and load cell in series with the roll [m/N], >= 0 (0: rigid).
+        Compliance of clamps and load cell in series with the roll [m/N], 0 (rigid) to
+        100 um/N (1e4 N/m: a soft clamp; softer is another spring, not a clamp).
     mullins : Mullins or None
         First-cycle softening (None: none).
     fringe_capacitance : bool
@@ -168,7 +177,7 @@ class Effects(SpecModel):
     """
 
     passive_ends: bool = False
-    passive_stiffness: Annotated[Number, AfterValidator(_positive_factor)] = 1.0
+    passive_stiffness: Annotated[Number, AfterValidator(_stiffness_factor)] = 1.0
     clamp_compliance: Compliance = 0.0
     mullins: Mullins | None = None
     fringe_capacitance: bool = False

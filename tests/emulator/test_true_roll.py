@@ -102,7 +102,7 @@ def test_passive_ends_under_voltage_balance_force_and_length(truth, geom, model)
 
 
 def test_clamp_compliance_shortens_the_roll_by_c_F(truth, geom):
-    c = 2e-4  # m/N: ten times the shipped value, so the effect is well above rounding
+    c = 1e-4  # m/N: five times the shipped value (the largest a truth accepts), well above rounding
     tr = with_effects(truth, branches=False, clamp_compliance=c)
     t, x, v = history(n=201)
     out = blocks(TrueRoll(geom, tr), t, x, v, size=64)
@@ -149,3 +149,35 @@ def test_all_effects_give_the_same_numbers_in_any_blocks(truth, geom):
     b = blocks(TrueRoll(geom, truth), t, x, v, size=97)
     np.testing.assert_allclose(a["force"], b["force"], rtol=1e-9, atol=1e-11)
     np.testing.assert_allclose(a["capacitance"], b["capacitance"], rtol=1e-10)
+
+
+def test_the_softest_clamp_with_branches_is_the_twin_at_the_roll_stretch(truth, geom):
+    # the largest compliance a truth accepts, with the shipped finite-strain branches: the force is
+    # the twin's on the roll's own stretch history, and the clamps take up the rest
+    c = 100e-6
+    tr = with_effects(truth, clamp_compliance=c)
+    t, x, v = history(n=601)
+    out = blocks(TrueRoll(geom, tr), t, x, v, size=300)
+    np.testing.assert_allclose(out["roll_stretch"] + c * out["force"] / geom.L1, x, rtol=0, atol=2e-13)
+    twin = TwinStream(geom, tr.material, tr.model)
+    ref = np.concatenate([twin.step(t[i:i + 300], out["roll_stretch"][i:i + 300], v[i:i + 300])["force"]
+                          for i in range(0, t.size, 300)])
+    np.testing.assert_allclose(out["force"], ref, rtol=1e-9, atol=1e-11)
+
+
+def test_a_block_without_solution_aborts_the_run_with_voltage_off(card, truth, monkeypatch):
+    import rdea_lab.emulator.roll as roll
+    from rdea_lab.emulator import EmulatedRig, RunConfig
+
+    n = 5000  # three blocks: the first solves, the second cannot
+    x = 1.0 + 0.3 * np.sin(np.linspace(0.0, np.pi, n)) ** 2
+    v = np.full(n, 1500.0)
+    rig = EmulatedRig(card, truth, np.random.default_rng(1),
+                      RunConfig(rate=RATE, stretch_setpoint=x, voltage_setpoint=v, L1=0.034, L3=48e-6))
+    first = rig.produce(100)
+    monkeypatch.setattr(roll, "MAX_ITER", 0)
+    rows = rig.produce(n)
+    assert rig.state == "aborted" and "no solution" in rig.reason and "did not converge" in rig.reason
+    from rdea_lab.emulator.rig import BLOCK
+    assert first.shape[0] + rows.shape[0] == BLOCK  # the solved block kept, nothing after it
+    assert rig._amplifier.y == 0.0  # voltage off
