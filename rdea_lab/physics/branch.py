@@ -96,6 +96,28 @@ class Problem:
     load: np.ndarray
     pitchfork: bool = False
     scale: float | None = None
+    #: ``(code, constants)`` of the compiled terms (`rdea_lab.physics.kernels`), None where there is none
+    kernel: tuple | None = None
+    #: the largest span ``y_max - y0`` the scale nodes are graded against (default: this problem's);
+    #: a subset of a problem's samples keeps its parent's, so that it is scanned at the same nodes
+    span_max: float | None = None
+
+    def subset(self, sel) -> "Problem":
+        """The samples ``sel`` (integer array) as a problem of their own, scanned at the same nodes."""
+        terms = self.terms
+
+        def sub_terms(y, idx, second):
+            return terms(y, sel[idx], second)
+
+        return Problem(sub_terms, self.y0[sel], self.y_max[sel], self.K[sel], self.load[sel], self.pitchfork,
+                       self.scale, None, self.graded_span())
+
+    def graded_span(self) -> float:
+        """The span the scale nodes are graded against (see `span_max`)."""
+        if self.span_max is not None:
+            return self.span_max
+        span = self.y_max - self.y0
+        return float(np.max(span)) if span.size else 0.0
 
     def voltage(self, K):
         """The voltage [V] of load parameters ``K`` (NaN stays NaN)."""
@@ -110,23 +132,30 @@ class Problem:
         return p_yy / c_yy
 
 
+def scale_offsets(problem: Problem) -> np.ndarray:
+    """The offsets from ``y0`` of the scale nodes (see `scan_nodes`), increasing; empty without a scale."""
+    if not problem.scale:
+        return np.zeros(0)
+    first = (1.0 / N_SCAN) ** 2 * problem.graded_span()
+    j_max = int(np.ceil(2.0 * np.log2(max(first / problem.scale, 1.0)))) + 1
+    # a probe at a thousandth of the scale first: whether h falls right after y0 (a subcritical
+    # pitchfork whose window is narrower than the core) shows there as h below h(y0)
+    offsets = problem.scale * np.r_[1e-3, 2.0 ** (np.arange(-8, j_max) / 2.0)]
+    return offsets[offsets < first]
+
+
 def scan_nodes(problem: Problem) -> np.ndarray:
     """Scan nodes per sample, ``(n, m)``, increasing, in ``(y0, y_max]``.
 
     ``N_SCAN`` nodes at fractions ``(k / N_SCAN)**2`` of the range and, with a
     ``scale``, nodes ``y0 + scale 2**(j/2)`` (j >= -8) below the first of them,
-    led by a probe at ``y0 + scale / 1000``.
+    led by a probe at ``y0 + scale / 1000`` (`scale_offsets`).
     """
     span = problem.y_max - problem.y0
     t = (np.arange(1, N_SCAN + 1) / N_SCAN) ** 2
     Y = problem.y0[:, None] + span[:, None] * t
     if problem.scale and span.size:
-        first = t[0] * float(np.max(span))
-        j_max = int(np.ceil(2.0 * np.log2(max(first / problem.scale, 1.0)))) + 1
-        # a probe at a thousandth of the scale first: whether h falls right after y0 (a subcritical
-        # pitchfork whose window is narrower than the core) shows there as h below h(y0)
-        offsets = problem.scale * np.r_[1e-3, 2.0 ** (np.arange(-8, j_max) / 2.0)]
-        offsets = offsets[offsets < first]
+        offsets = scale_offsets(problem)
         if offsets.size:
             extra = problem.y0[:, None] + np.minimum(offsets, 0.999 * span[:, None])
             Y = np.sort(np.concatenate([extra, Y], axis=1), axis=1)

@@ -96,19 +96,25 @@ def hessian(l1, l2, C):
     return W2 * I_1 * I_1 + W1 * I_11, W2 * I_1 * I_2 + W1 * I_12, W2 * I_2 * I_2 + W1 * I_22
 
 
-def d_psi_d_l2(l1, l2, C, second=True):
-    """``(psi_2, psi_22)``: what the 1-D equilibrium solvers need, cheaply.
+def psi2_terms(l1, l2, C10, C20, C30):
+    """``(psi_2, psi_22)`` [Pa]: the first and second derivative of psi_m in ``l2``.
 
-    Plain algebra (no logarithms): the solvers need the root of a sum of such
-    terms, not their relative accuracy near zero strain, and this is the hot
-    path. ``psi_22`` is None when ``second`` is False.
+    Plain algebra (no logarithms): the 1-D equilibrium solvers need the root
+    of a sum of such terms, not their relative accuracy near zero strain, and
+    this is the hot path. Scalar or array arguments; the compiled kernels
+    (:mod:`rdea_lab.physics.kernels`) compile this same function.
     """
     e = 1.0 / (l1 * l2) ** 2  # (l1 l2)**-2
     inv2 = 1.0 / (l2 * l2)
     x = l1 * l1 + l2 * l2 + e - 3.0
-    W1 = C[0] + x * (2.0 * C[1] + 3.0 * C[2] * x)
+    W1 = C10 + x * (2.0 * C20 + 3.0 * C30 * x)
     I_2 = 2.0 * l2 * (1.0 - e * inv2)
-    if not second:
-        return W1 * I_2, None
-    W2 = 2.0 * C[1] + 6.0 * C[2] * x
+    W2 = 2.0 * C20 + 6.0 * C30 * x
     return W1 * I_2, W2 * I_2 * I_2 + W1 * (2.0 + 6.0 * e * inv2)
+
+
+def d_psi_d_l2(l1, l2, C, second=True):
+    """``(psi_2, psi_22)`` of :func:`psi2_terms` for coefficients ``C``; ``psi_22`` is None when
+    ``second`` is False."""
+    p_2, p_22 = psi2_terms(l1, l2, C[0], C[1], C[2])
+    return p_2, (p_22 if second else None)

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..branch import follow_branch, follow_path
 from ..constants import EPS0
-from ..result import NOT_CONVERGED, SLACK, SNAPPED, VALID, PathEnd, finish, prepare_inputs
+from ..result import NOT_CONVERGED, OK, SLACK, SNAPPED, VALID, PathEnd, finish, prepare_inputs
 
 #: Upper end of the admissible range of the active ring's circumferential
 #: stretch, as a multiple of the uniaxial value ``lambda1**-0.5``. States
@@ -55,23 +55,91 @@ class Evaluation:
     y: np.ndarray | None = None
 
 
-def evaluate_free(problem, state, *, path=False, start=None, origin=None) -> Evaluation:
+#: Kernel choices of `solve`: the compiled kernels where numba is there (``auto``), always, or never.
+KERNELS = ("auto", "numba", "numpy")
+#: A path whose uncertified samples (see `rdea_lab.physics.kernels`) fall into more runs than this is
+#: solved by the reference as a whole (each run is one reference call).
+MAX_FALLBACK_RUNS = 32
+
+
+def compiled(kernel):
+    """The `rdea_lab.physics.kernels` module if ``kernel`` asks for it and it can be had, else None."""
+    if kernel not in KERNELS:
+        raise ValueError(f"kernel {kernel!r}; allowed: {', '.join(KERNELS)}")
+    if kernel == "numpy":
+        return None
+    try:
+        from .. import kernels
+    except ImportError:  # numba missing: the reference is the fallback
+        if kernel == "numba":
+            raise
+        return None
+    return kernels if (kernel == "numba" or kernels.enabled()) else None
+
+
+def evaluate_free(problem, state, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
     """Solve a one-coordinate problem (rising-ramp rule, the path, or descent from
     ``origin`` per sample) and assemble its fields.
 
-    ``state(y)`` returns the fields dict at the equilibrium coordinates.
+    ``state(y)`` returns the fields dict at the equilibrium coordinates. With a
+    compiled ``kernel``, the samples it certifies (one basin, no fold) are its
+    and every other sample is the reference solver's.
     """
+    fast = compiled(kernel) if (problem.kernel is not None and origin is None) else None
     if origin is not None:
         y, status, K_crit, K_range, end = follow_path(problem, origin=origin)
     elif path:
         y_start, label = start if start is not None else (None, None)
-        y, status, K_crit, K_range, end = follow_path(problem, y_start, start_label=label)
+        if fast is not None:
+            y, status, K_crit, K_range, end = _path_certified(fast, problem, y_start, label)
+        else:
+            y, status, K_crit, K_range, end = follow_path(problem, y_start, start_label=label)
+    elif fast is not None:
+        (y, status, K_crit, K_range), end = _branch_certified(fast, problem), None
     else:
         (y, status, K_crit, K_range), end = follow_branch(problem), None
     return Evaluation(status, problem.voltage(K_crit), problem.voltage(K_range), state(y), end, y)
 
 
-def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False, start=None, slack=True):
+def _branch_certified(fast, problem):
+    """`follow_branch` with the compiled kernel's certified samples (the rest by the reference)."""
+    y, ok = fast.branch_roots(problem, whole=False)
+    n = y.size
+    status = np.full(n, OK, dtype=np.int8)
+    K_crit, K_range = np.full(n, np.nan), np.full(n, np.nan)
+    bad = np.flatnonzero(~ok)
+    if bad.size:
+        y[bad], status[bad], K_crit[bad], K_range[bad] = follow_branch(problem.subset(bad))
+    return y, status, K_crit, K_range
+
+
+def _path_certified(fast, problem, y_start, label):
+    """`follow_path` with the compiled kernel's certified samples: a single-basin sample's state is its
+    one root whatever came before, so only the runs of other samples go to the reference, each from the
+    state before it."""
+    y, ok = fast.branch_roots(problem, whole=True)
+    n = y.size
+    status = np.full(n, OK, dtype=np.int8)
+    K_crit, K_range = np.full(n, np.nan), np.full(n, np.nan)
+    if n == 0:
+        return y, status, K_crit, K_range, (y_start, label)
+    edges = np.flatnonzero(np.diff(np.r_[0, (~ok).astype(np.int8), 0]))
+    runs = edges.reshape(-1, 2)
+    if len(runs) > MAX_FALLBACK_RUNS:
+        return follow_path(problem, y_start, start_label=label)
+    end = (float(y[-1]), None)
+    for a, b in runs.tolist():
+        sel = np.arange(a, b)
+        prev, lab = (float(y[a - 1]), None) if a else (y_start, label)
+        y[sel], status[sel], K_crit[sel], K_range[sel], sub_end = follow_path(problem.subset(sel), prev,
+                                                                              start_label=lab)
+        if b == n:
+            end = sub_end
+    return y, status, K_crit, K_range, end
+
+
+def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False, start=None, slack=True,
+                kernel="auto"):
     """The solve of every model: inputs checked, equilibria, slack, one ModelResult.
 
     ``evaluate(geom, material, l1, v, path=, start=)`` returns an
@@ -92,9 +160,9 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
         start = (start.y, start.label)
     if path and bad.any():  # a NaN sample has no state: the path runs on across it
         good = np.flatnonzero(~bad)
-        ev = _expand(evaluate(geom, material, l1[good], v[good], path=True, start=start), good, l1.size, start)
+        ev = _expand(evaluate(geom, material, l1[good], v[good], path=True, start=start, kernel=kernel), good, l1.size, start)
     else:
-        ev = evaluate(geom, material, l1, v, path=path, start=start)
+        ev = evaluate(geom, material, l1, v, path=path, start=start, kernel=kernel)
     fields = dict(ev.fields)
     fields["tension"] = fields["sigma1"]
     status = ev.status.copy()
@@ -105,7 +173,7 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
         # a path's free state continues the branch the clamped state is on
         origin = ev.y[slack] if (path and ev.y is not None) else None
         lam_f, st_f, f_free = free_state(evaluate, geom, material, l1[slack], v[slack], fields["sigma1"][slack],
-                                         origin=origin)
+                                         origin=origin, kernel=kernel)
         # slack either way (force 0: the clamped state pushes); a snap-through stays the event it is.
         # Where the free state lies beyond what the model solves (outside its range, past a fold, or
         # past FREE_STRETCH_MAX) the stretches and capacitance stay the clamped state's, free_stretch NaN.
@@ -127,7 +195,8 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
                   end)
 
 
-def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rtol=1e-13, max_iter=200):
+def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rtol=1e-13, max_iter=200,
+               kernel="auto"):
     """The free (F = 0) state of a slack roll: the stretch above ``l1`` where the stress vanishes.
 
     At fixed voltage the equilibrium stress rises with stretch; the free
@@ -158,7 +227,7 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
     open_ = np.arange(n)
     while open_.size:
         trial = np.minimum(hi[open_] * 1.25, FREE_STRETCH_MAX)
-        ev = _trial(evaluate, geom, material, trial, v[open_], origin, open_)
+        ev = _trial(kernel, evaluate, geom, material, trial, v[open_], origin, open_)
         sig = ev.fields["sigma1"]
         ok = np.isin(ev.status, VALID) & np.isfinite(sig)
         status[open_[~ok]] = np.where(np.isin(ev.status[~ok], VALID), NOT_CONVERGED, ev.status[~ok])
@@ -185,7 +254,7 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
         xa, xb, ya, yb = a[active], b[active], fa[active], fb[active]
         xn = (xa * yb - xb * ya) / (yb - ya)
         xn = np.where((xn > xa) & (xn < xb), xn, 0.5 * (xa + xb))
-        ev = _trial(evaluate, geom, material, xn, v[work[active]], origin, work[active])
+        ev = _trial(kernel, evaluate, geom, material, xn, v[work[active]], origin, work[active])
         yn = ev.fields["sigma1"]
         bad = ~(np.isin(ev.status, VALID) & np.isfinite(yn))
         yn = np.where(bad, 0.0, yn)  # treat as the root: flagged below
@@ -208,7 +277,7 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
     fields = {k: np.full(n, np.nan) for k in ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i")}
     w = np.flatnonzero(keep)
     if w.size:
-        ev = _trial(evaluate, geom, material, lam[w], v[w], origin, w)
+        ev = _trial(kernel, evaluate, geom, material, lam[w], v[w], origin, w)
         scale = np.abs(np.asarray(sigma_at_l1, float)[w])
         jump = ~(np.abs(ev.fields["sigma1"]) <= 1e-6 * scale + 1e-6)
         status[w[jump]] = NOT_CONVERGED
@@ -218,7 +287,7 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
     return lam, status, fields
 
 
-def _trial(evaluate, geom, material, l1, v, origin, idx):
+def _trial(kernel, evaluate, geom, material, l1, v, origin, idx):
     if origin is None:
         return evaluate(geom, material, l1, v)
     return evaluate(geom, material, l1, v, origin=origin[idx])

@@ -63,6 +63,7 @@ import functools
 import numpy as np
 
 from .. import yeoh
+from ..yeoh import slope
 from ..branch import Problem
 from ..result import OK, ModelNotApplicable, ModelResult
 from . import su
@@ -169,6 +170,8 @@ class _Roll:
         self.Lb = np.log(self.s_oe / self.s_ie) / (self.s_oe - self.s_ie)
         self.s, self.w, self.region = quadrature(geom, points)
         self.w_over_s = self.w / self.s
+        #: ``(s, w / s, w / s**2, w)``: the nodes and the weights of `_terms`' three integrals
+        self.weights = (self.s, self.w_over_s, self.w_over_s * (1.0 / self.s), self.w)
         # region averages: columns of weights summing to 1 over each present region
         self.present = tuple(bool(np.any(self.region == j)) for j in range(3))
         avg = np.zeros((self.s.size, 3))
@@ -191,6 +194,21 @@ class _Roll:
         return np.sqrt(xi0 * xi0 + self.s_ie * (l2 * l2 - 1.0 / l1))
 
 
+def node_terms(A, B, x0, s, C10, C20, C30):
+    """What `_terms` integrates at quadrature nodes ``s``: ``(W' tt, W'' tt**2, W' (1 - t) / (s + B)**2)``
+    with ``t = B / (s + B)``, ``tt = t (2 - t)``, ``x = x0 + A t / s`` (``A`` the opening, ``B = lambda1 A``).
+
+    Scalar or broadcast arrays; the compiled kernels (:mod:`rdea_lab.physics.kernels`) compile this
+    same function for one node.
+    """
+    inv = 1.0 / (s + B)
+    t = B * inv
+    x = x0 + A * t * (1.0 / s)
+    W1, W2 = slope(x, (C10, C20, C30))
+    tt = t * (2.0 - t)
+    return W1 * tt, W2 * tt * tt, W1 * (1.0 - t) * inv * inv
+
+
 def _terms(roll, C):
     """``terms(xi, idx, second)`` for the branch solver: derivatives of psi and c in ``xi``.
 
@@ -198,23 +216,16 @@ def _terms(roll, C):
     ``d2_delta/dA2 = 2 lambda1 (1 - t) / (s + B)**2``, ``t = B / (s + B)``;
     ``dA/dxi = 2 xi``. ``c = 1 / lambda1 + A Lb`` is linear in ``A``.
     """
-    s, ws, w = roll.s, roll.w_over_s, roll.w
-    inv_s = 1.0 / s
-    ws2 = ws * inv_s
+    s, ws, ws2, w = roll.weights
 
     def block(xi, idx, second):
         l1 = roll.l1[idx]
         A = roll.opening(xi, roll.xi0[idx])
-        B = (l1 * A)[:, None]
-        inv = 1.0 / (s + B)
-        t = B * inv
-        x = roll.x0[idx][:, None] + A[:, None] * t * inv_s
-        W1, W2 = yeoh.slope(x, C)
-        tt = t * (2.0 - t)
-        p_A = (W1 * tt) @ ws
+        a1, a2, a3 = node_terms(A[:, None], (l1 * A)[:, None], roll.x0[idx][:, None], s, *C)
+        p_A = a1 @ ws
         if not second:
             return p_A, None
-        return p_A, (W2 * tt * tt) @ ws2 + 2.0 * l1 * (((W1 * (1.0 - t)) * inv * inv) @ w)
+        return p_A, a2 @ ws2 + 2.0 * l1 * (a3 @ w)
 
     def terms(xi, idx, second):
         p_A, p_AA = _by_blocks(lambda x, i: block(x, i, second), xi, idx)
@@ -308,8 +319,11 @@ def _problem(roll, geom, material, l1, v):
                          "energy); evaluate() handles it without a problem")
     load = kappa(geom, material) * l1 * l1
     y_max = roll.xi_at_inner_hoop(HOOP_STRETCH_CAP / np.sqrt(l1), l1, roll.xi0)
-    return Problem(_terms(roll, yeoh_coefficients(material)), roll.xi0, y_max, load * v * v, load,
-                   scale=np.sqrt(roll.s_i))
+    C = yeoh_coefficients(material)
+    kernel = (4, {"l1": np.ascontiguousarray(l1, float), "C": C, "xi0": np.ascontiguousarray(roll.xi0, float),
+                  "x0": np.ascontiguousarray(roll.x0, float), "Lb": float(roll.Lb),
+                  "Q": np.ascontiguousarray(np.stack(roll.weights), float)})
+    return Problem(_terms(roll, C), roll.xi0, y_max, load * v * v, load, scale=np.sqrt(roll.s_i), kernel=kernel)
 
 
 def _mechanics(roll, C):
@@ -335,7 +349,8 @@ def _mechanics(roll, C):
     return block
 
 
-def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, points=None) -> Evaluation:
+def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, points=None,
+             kernel="auto") -> Evaluation:
     """CR equilibria at clean 1-D inputs: the rising-ramp rule, or the path from ``start``.
 
     With ``Ri = 0`` the state is the pinned ``r_i = 0`` at every voltage
@@ -359,10 +374,12 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, poin
         y = np.zeros(n)
         return Evaluation(np.full(n, OK, np.int8), np.full(n, np.nan), np.full(n, np.nan), state(y),
                           0.0 if path else None, y)
-    return evaluate_free(_problem(roll, geom, material, l1, v), state, path=path, start=start, origin=origin)
+    return evaluate_free(_problem(roll, geom, material, l1, v), state, path=path, start=start, origin=origin,
+                         kernel=kernel)
 
 
-def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True) -> ModelResult:
+def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,
+          kernel="auto") -> ModelResult:
     """Axial stress, force, region hoop stretches and capacitance of the CR model.
 
     Parameters
@@ -394,4 +411,5 @@ def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=Tru
     ``docs/models-cr.md``. With ``Ri = 0`` it equals the SU model (39)-(41).
     """
     check_applicable(geom)
-    return solve_model("cr", evaluate, geom, material, stretch, voltage, path=path, start=start, slack=slack)
+    return solve_model("cr", evaluate, geom, material, stretch, voltage, path=path, start=start, slack=slack,
+                       kernel=kernel)

@@ -28,15 +28,16 @@ def problem(geom, material, l1, v) -> Problem:
     kap = kappa(geom, material)
 
     def terms(y, idx, second):
-        p_y, p_yy = yeoh.d_psi_d_l2(l1[idx], y, C, second)
-        return p_y, p_yy, 2.0 * y, 2.0
+        p_y, p_yy = yeoh.psi2_terms(l1[idx], y, *C)
+        return p_y, (p_yy if second else None), 2.0 * y, 2.0
 
     y0 = 1.0 / np.sqrt(l1)
     load = kap * l1 * l1
-    return Problem(terms, y0, HOOP_STRETCH_CAP * y0, load * v * v, load)
+    return Problem(terms, y0, HOOP_STRETCH_CAP * y0, load * v * v, load,
+                   kernel=(1, {"l1": np.ascontiguousarray(l1, float), "C": C}))
 
 
-def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None) -> Evaluation:
+def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
     """1R equilibria at clean 1-D inputs: the rising-ramp rule, or the path from ``start``."""
     C = yeoh_coefficients(material)
     kap = kappa(geom, material)
@@ -49,10 +50,12 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None) -> E
                 "capacitance": geom.C0(material.eps_r) * (l1 * l2) ** 2,
                 "r_i": 0.5 * (l2 * (geom.Ro + geom.Ri) - (geom.Ro - geom.Ri) / (l1 * l2))}
 
-    return evaluate_free(problem(geom, material, l1, v), state, path=path, start=start, origin=origin)
+    return evaluate_free(problem(geom, material, l1, v), state, path=path, start=start, origin=origin,
+                         kernel=kernel)
 
 
-def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True) -> ModelResult:
+def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,
+          kernel="auto") -> ModelResult:
     """Axial stress, force, circumferential stretch and capacitance of the 1R model.
 
     Parameters
@@ -82,4 +85,5 @@ def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=Tru
     ``sigma1 = lambda1 d psi_m / d lambda1 - alpha_e1 eta_b eps E**2``;
     capacitance eq. (34), ``C = C0 lambda1**2 lambda2**2``.
     """
-    return solve_model("1r", evaluate, geom, material, stretch, voltage, path=path, start=start, slack=slack)
+    return solve_model("1r", evaluate, geom, material, stretch, voltage, path=path, start=start, slack=slack,
+                       kernel=kernel)

@@ -6,7 +6,7 @@ import numpy as np
 
 from .. import yeoh
 from ..result import OK, ModelResult
-from ._common import Evaluation, kappa, solve_model, yeoh_coefficients
+from ._common import Evaluation, compiled, kappa, solve_model, yeoh_coefficients
 
 
 def enthalpy(geom, material, stretch, voltage):
@@ -57,17 +57,22 @@ def stress_from_basis(stress_basis_, geom, material):
     return b * W1 - kappa(geom, material) * lv2
 
 
-def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None) -> Evaluation:
+def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
     """Closed-form SU state at clean 1-D inputs (no free coordinate: a path changes nothing)."""
-    sigma1 = stress_from_basis(stress_basis(l1, v), geom, material)
-    l2 = 1.0 / np.sqrt(l1)
+    fast = compiled(kernel)
+    if fast is not None:
+        sigma1, l2, _ = fast.su_state(l1, v, yeoh_coefficients(material), kappa(geom, material), 0.0)
+    else:
+        sigma1 = stress_from_basis(stress_basis(l1, v), geom, material)
+        l2 = 1.0 / np.sqrt(l1)
     n = l1.size
     fields = {"sigma1": sigma1, "lambda2a": l2, "lambda2b": l2, "lambda2c": l2,
               "capacitance": geom.C0(material.eps_r) * l1, "r_i": geom.Ri * l2}
     return Evaluation(np.full(n, OK, np.int8), np.full(n, np.nan), np.full(n, np.nan), fields, None)
 
 
-def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True) -> ModelResult:
+def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,
+          kernel="auto") -> ModelResult:
     """Axial stress, force and capacitance of the SU model.
 
     Parameters
@@ -100,4 +105,5 @@ def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=Tru
     stretch where eq. (39) vanishes.
     """
     return solve_model("su", evaluate, geom, material, stretch, voltage,
-                       path=path, start=start, slack=slack)
+                       path=path, start=start, slack=slack,
+                       kernel=kernel)

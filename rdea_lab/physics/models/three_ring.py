@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import yeoh
+from ..yeoh import psi2_terms
 from ..branch import Problem
 from ..result import ModelNotApplicable, ModelResult
 from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
@@ -51,29 +52,14 @@ class _Rings:
         self.has_c = geom.eta_c > 0.0
         self.eta = (geom.eta_a, geom.eta_b, geom.eta_c)
         self.l1 = l1
+        #: the ring constants of `ring_terms` (rings of zero volume: eta 0)
+        self.constants = tuple(float(c) for c in (self.Da, self.Dab, self.Dabc, self.Sa, self.Sb, self.Sc,
+                                                  *(e if e > 0.0 else 0.0 for e in self.eta)))
 
     def radii(self, xi, l1):
         s = xi * xi
         inv = 1.0 / l1
         return np.sqrt(s + self.Da * inv), np.sqrt(s + self.Dab * inv), np.sqrt(s + self.Dabc * inv)
-
-    def radius_derivatives(self, xi, l1):
-        """``(r, dr/dxi, d2r/dxi2)`` for ``r_ie, r_oe, r_o`` at fixed ``l1``.
-
-        ``r**2 = xi**2 + D / l1`` gives ``dr/dxi = xi / r`` and
-        ``d2r/dxi2 = (D / l1) / r**3``; with ``D = 0`` (no ring a) ``r = xi``.
-        """
-        inv = 1.0 / l1
-        s = xi * xi
-        out = []
-        for D in (self.Da, self.Dab, self.Dabc):
-            if D == 0.0:
-                out.append((xi, 1.0, 0.0))
-                continue
-            r = np.sqrt(s + D * inv)
-            q = 1.0 / r
-            out.append((r, xi * q, D * inv * q * q * q))
-        return out
 
     def radius_stretch_rates(self, radii, l1):
         """``dr/dlambda1`` at fixed ``xi`` for ``r_ie, r_oe, r_o``: ``-D / (2 l1**2 r)``."""
@@ -95,32 +81,57 @@ class _Rings:
         return np.sqrt(np.maximum(r_ie * r_ie - self.Da / l1, 0.0))
 
 
+def _radius(s, xi, D, inv):
+    """``(r, dr/dxi, d2r/dxi2)`` of ``r**2 = xi**2 + D / l1`` (``s = xi**2``, ``inv = 1 / l1``):
+    ``dr/dxi = xi / r``, ``d2r/dxi2 = (D / l1) / r**3``; with ``D = 0`` (no ring a) ``r = xi``."""
+    if D == 0.0:
+        return xi, 1.0, 0.0
+    r = np.sqrt(s + D * inv)
+    q = 1.0 / r
+    return r, xi * q, D * inv * q * q * q
+
+
+def ring_terms(xi, l1, R, C10, C20, C30):
+    """``(psi_y, psi_yy, c_y, c_yy)`` of the 3R problem in ``xi = r_i / Ro`` (``c = lambda2b**2``).
+
+    ``R = (Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c)`` (`_Rings.constants`); scalar or
+    array ``xi`` and ``l1``. The reference solver calls it on arrays, the compiled kernels
+    (:mod:`rdea_lab.physics.kernels`) compile this same function for one sample.
+    """
+    Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c = R
+    inv = 1.0 / l1
+    s = xi * xi
+    r_ie, d_ie, dd_ie = _radius(s, xi, Da, inv)
+    r_oe, d_oe, dd_oe = _radius(s, xi, Dab, inv)
+    r_o, d_o, dd_o = _radius(s, xi, Dabc, inv)
+    p_y = 0.0
+    p_yy = 0.0
+    if eta_a > 0.0:  # rings of zero volume carry no energy and are left out
+        l2, d, dd = (xi + r_ie) / Sa, (1.0 + d_ie) / Sa, dd_ie / Sa
+        psi_2, psi_22 = psi2_terms(l1, l2, C10, C20, C30)
+        p_y = p_y + eta_a * psi_2 * d
+        p_yy = p_yy + eta_a * (psi_22 * d * d + psi_2 * dd)
+    l2b = (r_ie + r_oe) / Sb
+    d_b = (d_ie + d_oe) / Sb
+    dd_b = (dd_ie + dd_oe) / Sb
+    psi_2, psi_22 = psi2_terms(l1, l2b, C10, C20, C30)
+    p_y = p_y + eta_b * psi_2 * d_b
+    p_yy = p_yy + eta_b * (psi_22 * d_b * d_b + psi_2 * dd_b)
+    if eta_c > 0.0:
+        l2, d, dd = (r_oe + r_o) / Sc, (d_oe + d_o) / Sc, (dd_oe + dd_o) / Sc
+        psi_2, psi_22 = psi2_terms(l1, l2, C10, C20, C30)
+        p_y = p_y + eta_c * psi_2 * d
+        p_yy = p_yy + eta_c * (psi_22 * d * d + psi_2 * dd)
+    return p_y, p_yy, 2.0 * l2b * d_b, 2.0 * (d_b * d_b + l2b * dd_b)
+
+
 def _terms(rings, C):
     """``terms(xi, idx, second)`` for :func:`follow_branch`: derivatives of psi and c = lambda2b**2."""
+    R = rings.constants
 
     def terms(xi, idx, second):
-        l1 = rings.l1[idx]
-        (r_ie, d_ie, dd_ie), (r_oe, d_oe, dd_oe), (r_o, d_o, dd_o) = rings.radius_derivatives(xi, l1)
-        parts = []  # (eta, lambda2, d lambda2 / d xi, d2 lambda2 / d xi2)
-        if rings.has_a:
-            parts.append((rings.eta[0], (xi + r_ie) / rings.Sa, (1.0 + d_ie) / rings.Sa, dd_ie / rings.Sa))
-        l2b = (r_ie + r_oe) / rings.Sb
-        d_b = (d_ie + d_oe) / rings.Sb
-        dd_b = (dd_ie + dd_oe) / rings.Sb
-        parts.append((rings.eta[1], l2b, d_b, dd_b))
-        if rings.has_c:
-            parts.append((rings.eta[2], (r_oe + r_o) / rings.Sc, (d_oe + d_o) / rings.Sc, (dd_oe + dd_o) / rings.Sc))
-        p_y = 0.0
-        p_yy = 0.0
-        for eta, l2, d, dd in parts:
-            psi_2, psi_22 = yeoh.d_psi_d_l2(l1, l2, C, second)
-            p_y = p_y + eta * psi_2 * d
-            if second:
-                p_yy = p_yy + eta * (psi_22 * d * d + psi_2 * dd)
-        c_y = 2.0 * l2b * d_b
-        if not second:
-            return p_y, None, c_y, None
-        return p_y, p_yy, c_y, 2.0 * (d_b * d_b + l2b * dd_b)
+        p_y, p_yy, c_y, c_yy = ring_terms(xi, rings.l1[idx], R, *C)
+        return (p_y, p_yy, c_y, c_yy) if second else (p_y, None, c_y, None)
 
     return terms
 
@@ -155,12 +166,14 @@ def problem(geom, material, l1, v) -> Problem:
     rings = _Rings(geom, l1)
     load = kappa(geom, material) * l1 * l1
     pitchfork = rings.rho_i == 0.0 and rings.has_a
-    return Problem(_terms(rings, yeoh_coefficients(material)), rings.rho_i / np.sqrt(l1),
+    C = yeoh_coefficients(material)
+    return Problem(_terms(rings, C), rings.rho_i / np.sqrt(l1),
                    rings.xi_at_hoop_stretch(HOOP_STRETCH_CAP / np.sqrt(l1), l1), load * v * v, load,
-                   pitchfork=pitchfork, scale=rings.rho_ie if pitchfork else None)
+                   pitchfork=pitchfork, scale=rings.rho_ie if pitchfork else None,
+                   kernel=(3, {"l1": np.ascontiguousarray(l1, float), "R": rings.constants, "C": C}))
 
 
-def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None) -> Evaluation:
+def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
     """3R equilibria at clean 1-D inputs: the rising-ramp rule, or the path from ``start``."""
     C = yeoh_coefficients(material)
     kap = kappa(geom, material)
@@ -187,10 +200,12 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None) -> E
                 "lambda2a": l2a, "lambda2b": l2b, "lambda2c": l2c,
                 "capacitance": geom.C0(material.eps_r) * (l1 * l2b) ** 2, "r_i": xi * geom.Ro}
 
-    return evaluate_free(problem(geom, material, l1, v), state, path=path, start=start, origin=origin)
+    return evaluate_free(problem(geom, material, l1, v), state, path=path, start=start, origin=origin,
+                         kernel=kernel)
 
 
-def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True) -> ModelResult:
+def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,
+          kernel="auto") -> ModelResult:
     """Axial stress, force, ring stretches and capacitance of the 3R model.
 
     Parameters
@@ -219,4 +234,5 @@ def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=Tru
     stationary in ``r_i``); ``C = C0 lambda1**2 lambda2b**2``.
     """
     check_applicable(geom)
-    return solve_model("3r", evaluate, geom, material, stretch, voltage, path=path, start=start, slack=slack)
+    return solve_model("3r", evaluate, geom, material, stretch, voltage, path=path, start=start, slack=slack,
+                       kernel=kernel)

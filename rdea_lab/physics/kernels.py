@@ -1,0 +1,250 @@
+"""Compiled kernels of the hot paths (numba, ``cache=True``), with the numpy code as reference and fallback.
+
+The equations are not written again here: the plain functions of the model
+modules that state them (`yeoh.psi2_terms`, `su.basis`, `yeoh.slope`,
+`three_ring.ring_terms`, `continuum.node_terms`) are compiled as they are
+(:func:`_jit` re-binds their helpers to compiled ones). What is compiled is
+the work around them, fused per sample with no temporaries:
+
+- `su_state`: the SU stress, hoop stretch and capacitance (eqs. (39), (41)).
+- `branch_roots`: the 1R / 3R / CR equilibrium of one sample, *certified*:
+  ``h = psi_y / c_y`` is scanned at the reference solver's own nodes
+  (:func:`rdea_lab.physics.branch.scan_nodes`) and the root is refined by its
+  own Newton iteration (`branch._refine_root`), but a sample is accepted only
+  where ``h`` rises strictly at every node scanned (its slope > 0, no value
+  falls, no hidden dip of the cubic fit between nodes): one basin, no fold,
+  so the state is the one root whatever the history. Every other sample (a
+  fold, a snap, pull-in, outside the range, not converged, NaN) goes back to
+  the reference solver, so the hard cases are the reference's by
+  construction. With ``whole=False`` (the rising-ramp rule) the scan stops at
+  the bracketing node, as the reference's does; with ``whole=True`` (a path)
+  it covers the whole range, which certifies the sample's single basin.
+- `linear_strains`: eq. (44)'s exact update as the sequential recurrence.
+
+Importing this module imports numba (about 0.6 s) and loads the cached
+machine code; the first call in a fresh install compiles (measured by
+``rdea-lab bench``: ``compile_s``). Set ``RDEA_LAB_KERNELS=numpy`` to run the
+reference everywhere.
+"""
+
+from __future__ import annotations
+
+import os
+import types
+
+import numba
+import numpy as np
+from numba import prange
+
+from . import yeoh
+from .models import continuum, su, three_ring
+
+
+def _jit(func, parallel=False, **deps):
+    """``func`` compiled, its global helpers ``deps`` replaced by their compiled forms (one source)."""
+    scope = dict(func.__globals__)
+    scope.update(deps)
+    clone = types.FunctionType(func.__code__, scope, func.__name__, func.__defaults__, func.__closure__)
+    clone.__module__, clone.__qualname__, clone.__doc__ = func.__module__, func.__qualname__, func.__doc__
+    return numba.njit(cache=True, error_model="numpy", parallel=parallel)(clone)
+
+
+_psi2 = _jit(yeoh.psi2_terms)
+_slope = _jit(yeoh.slope)
+_basis = _jit(su.basis)
+_radius = _jit(three_ring._radius)
+_ring = _jit(three_ring.ring_terms, _radius=_radius, psi2_terms=_psi2)
+_node = _jit(continuum.node_terms, slope=_slope)
+
+#: Model codes of `branch_roots`.
+CODES = {"1r": 1, "3r": 3, "cr": 4}
+_EPS = float(np.finfo(float).eps)
+_NO_RING = (0.0,) * 9
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _terms(code, y, l1, R, Q, C10, C20, C30):
+    """``(psi_y, psi_yy, c_y, c_yy)`` of model ``code`` at one sample (see `CODES`)."""
+    if code == 1:
+        p, pp = _psi2(l1, y, C10, C20, C30)
+        return p, pp, 2.0 * y, 2.0
+    if code == 3:
+        return _ring(y, l1, R, C10, C20, C30)
+    # CR: Q = (s, w / s, w / s**2, w) of the quadrature nodes; R = (xi0, x0, Lb, ...)
+    xi0, x0, Lb = R[0], R[1], R[2]
+    A = (y - xi0) * (y + xi0)
+    B = l1 * A
+    p_A = 0.0
+    p_AA1 = 0.0
+    p_AA2 = 0.0
+    for j in range(Q.shape[1]):
+        a1, a2, a3 = _node(A, B, x0, Q[0, j], C10, C20, C30)
+        p_A += a1 * Q[1, j]
+        p_AA1 += a2 * Q[2, j]
+        p_AA2 += a3 * Q[3, j]
+    p_AA = p_AA1 + 2.0 * l1 * p_AA2
+    return 2.0 * y * p_A, 4.0 * y * y * p_AA + 2.0 * p_A, 2.0 * Lb * y, 2.0 * Lb
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan):
+    """One sample: ``(y, certified)``; see the module docstring."""
+    span = y_max - y0
+    if not (span > 0.0) or not (K == K) or not (h0 == h0):
+        return y0, False
+    done_at_start = not (K > h0)
+    if done_at_start and not whole:
+        return y0, True
+    y_prev, h_prev, s_prev = y0, h0, np.nan
+    lo, hi = np.nan, np.nan
+    j = 0  # next scale offset
+    k = 1  # next regular node
+    n_off = offsets.size
+    while k <= n_scan:
+        reg = y0 + span * (k / n_scan) ** 2
+        if j < n_off:
+            ext = y0 + min(offsets[j], 0.999 * span)
+            if ext <= reg:
+                yk = ext
+                j += 1
+            else:
+                yk = reg
+                k += 1
+        else:
+            yk = reg
+            k += 1
+        p_y, p_yy, c_y, c_yy = _terms(code, yk, l1, R, Q, C10, C20, C30)
+        h = p_y / c_y
+        slope = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+        if not (slope > 0.0 and h >= h_prev):
+            return y0, False
+        # the reference's hidden-dip hint (a cubic Hermite fit falls between two rising nodes)
+        dy = yk - y_prev
+        m0, m1, d = s_prev * dy, slope * dy, h - h_prev
+        b = 6.0 * d - 4.0 * m0 - 2.0 * m1
+        a = 3.0 * m0 + 3.0 * m1 - 6.0 * d
+        if (b < 0.0) and (-b < 2.0 * a) and (b * b > 4.0 * a * m0) and (m0 >= 0.0) and (m1 >= 0.0):
+            return y0, False
+        if lo != lo and h >= K and not done_at_start:
+            lo, hi = y_prev, yk
+            if not whole:
+                break
+        y_prev, h_prev, s_prev = yk, h, slope
+    if done_at_start:
+        return y0, True
+    if lo != lo:
+        return y0, False  # no crossing in the range: the reference says what it is
+    # Newton on g_y inside [lo, hi], bisection where it strays: `branch._refine_root`
+    y = 0.5 * (lo + hi)
+    tol = rtol * span
+    for _ in range(max_iter):
+        p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
+        g1 = p_y - K * c_y
+        g2 = p_yy - K * c_yy
+        if g1 < 0.0:
+            lo = y
+        else:
+            hi = y
+        y_new = y - g1 / g2
+        if abs(g1) <= 64.0 * 2.220446049250313e-16 * (abs(p_y) + abs(K * c_y)):
+            return y, True
+        if not (y_new >= lo and y_new <= hi):
+            y_new = 0.5 * (lo + hi)
+        if abs(y_new - y) <= tol or hi - lo <= tol:
+            return y_new, True
+        y = y_new
+    return y0, False
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _roots(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan, y, ok):
+    for i in prange(l1.size):
+        y[i], ok[i] = _one(code, l1[i], y0[i], y_max[i], K[i], h0[i], R, Q, C10, C20, C30, offsets, whole,
+                           rtol, max_iter, n_scan)
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _roots_cr(l1, y0, y_max, K, h0, xi0, x0, Lb, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan, y,
+              ok):
+    for i in prange(l1.size):
+        R = (xi0[i], x0[i], Lb, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        y[i], ok[i] = _one(4, l1[i], y0[i], y_max[i], K[i], h0[i], R, Q, C10, C20, C30, offsets, whole,
+                           rtol, max_iter, n_scan)
+
+
+def branch_roots(problem, *, whole, rtol=1e-14, max_iter=100):
+    """``(y, certified)`` of every sample of a `~rdea_lab.physics.branch.Problem` with a ``kernel``.
+
+    ``certified`` marks the samples whose state is the one root of a strictly
+    rising ``h`` (up to the bracketing node, or over the whole range with
+    ``whole``); the others must be solved by the reference.
+    """
+    from .branch import N_SCAN, scale_offsets
+
+    code, consts = problem.kernel
+    n = problem.K.size
+    y = np.empty(n)
+    ok = np.zeros(n, dtype=np.bool_)
+    if n == 0:
+        return y, ok
+    h0 = problem.h_start(np.arange(n))
+    offsets = np.ascontiguousarray(scale_offsets(problem), dtype=float)
+    args = (np.ascontiguousarray(problem.y0, float), np.ascontiguousarray(problem.y_max, float),
+            np.ascontiguousarray(problem.K, float), np.ascontiguousarray(h0, float))
+    C = consts["C"]
+    if code == CODES["cr"]:
+        _roots_cr(consts["l1"], *args, consts["xi0"], consts["x0"], consts["Lb"], consts["Q"], *C, offsets,
+                  bool(whole), rtol, max_iter, N_SCAN, y, ok)
+    else:
+        _roots(code, consts["l1"], *args, consts.get("R", _NO_RING), _EMPTY_Q, *C, offsets, bool(whole), rtol,
+               max_iter, N_SCAN, y, ok)
+    return y, ok
+
+
+_EMPTY_Q = np.zeros((4, 0))
+
+
+@numba.njit(cache=True, error_model="numpy", parallel=True)
+def _su(l1, v, C10, C20, C30, kap, C0, sigma, l2, cap):
+    C = (C10, C20, C30)
+    for i in prange(l1.size):
+        lam = l1[i]
+        b, x = _basis(lam)
+        W1, _ = _slope(x, C)
+        sigma[i] = b * W1 - kap * (lam * v[i] ** 2)
+        l2[i] = 1.0 / np.sqrt(lam)
+        cap[i] = C0 * lam
+
+
+def su_state(l1, v, C, kap, C0, out=None):
+    """``(sigma1 [Pa], lambda2 [-], capacitance [F])`` of the SU model, fused (eqs. (39), (41) of [1]).
+
+    ``l1``, ``v``: float arrays of one shape; ``out``: three arrays of that
+    shape to write into (none is allocated then).
+    """
+    l1 = np.ascontiguousarray(l1, dtype=float)
+    v = np.ascontiguousarray(np.broadcast_to(v, l1.shape), dtype=float)
+    if out is None:
+        out = (np.empty_like(l1), np.empty_like(l1), np.empty_like(l1))
+    _su(l1.ravel(), v.ravel(), C[0], C[1], C[2], kap, C0, *(o.reshape(-1) for o in out))
+    return out
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _linear(a, b, q0, q):
+    for j in range(a.shape[0]):
+        x = q0[j]
+        q[j, 0] = x
+        for i in range(a.shape[1]):
+            x = a[j, i] * x + b[j, i]
+            q[j, i + 1] = x
+
+
+def linear_recurrence(a, b, q0, q):
+    """``q[:, 0] = q0``, ``q_{n+1} = a_n q_n + b_n`` into ``q[:, 1:]``: eq. (44)'s exact update, in sequence."""
+    _linear(np.ascontiguousarray(a, float), np.ascontiguousarray(b, float), np.ascontiguousarray(q0, float), q)
+
+
+def enabled() -> bool:
+    """Whether the compiled kernels are used (``RDEA_LAB_KERNELS=numpy`` turns them off)."""
+    return os.environ.get("RDEA_LAB_KERNELS", "numba").lower() != "numpy"
