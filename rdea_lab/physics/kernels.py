@@ -30,6 +30,7 @@ reference everywhere.
 from __future__ import annotations
 
 import os
+import threading
 import types
 
 import numba
@@ -86,15 +87,92 @@ def _terms(code, y, l1, R, Q, C10, C20, C30):
     return 2.0 * y * p_A, 4.0 * y * y * p_AA + 2.0 * p_A, 2.0 * Lb * y, 2.0 * Lb
 
 
+_GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)
+
+
 @numba.njit(cache=True, error_model="numpy")
-def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan):
-    """One sample: ``(y, certified)``; see the module docstring."""
+def _above(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, n_scan, pitchfork):
+    """Whether ``h`` stays above ``K <= h(y0)`` over the whole range though it is not monotone: the
+    reference's knots (the nodes and its golden-section minima, `branch._full_scan`) all above ``K``, so
+    ``y0`` is the one state and no root exists. Shapes it refines otherwise (a fold pair at one node, a
+    hidden dip) are left to the reference."""
+    m = offsets.size + n_scan + 1
+    Y = np.empty(m)
+    H = np.empty(m)
+    S = np.empty(m)
+    Y[0], H[0], S[0] = y0, h0, np.nan
+    j, k, i = 0, 1, 1
+    while k <= n_scan:
+        reg = y0 + span * (k / n_scan) ** 2
+        if j < offsets.size and y0 + min(offsets[j], 0.999 * span) <= reg:
+            Y[i] = y0 + min(offsets[j], 0.999 * span)
+            j += 1
+        else:
+            Y[i] = reg
+            k += 1
+        p_y, p_yy, c_y, c_yy = _terms(code, Y[i], l1, R, Q, C10, C20, C30)
+        H[i] = p_y / c_y
+        S[i] = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+        if not (H[i] > K) or S[i] != S[i]:
+            return False
+        i += 1
+    margin = K + 1e-9 * abs(K) + 1e-300
+    for i in range(1, m):
+        inc_b = H[i] - H[i - 1] >= 0.0
+        # a hidden dip between two rising nodes (the reference refines it): not ours
+        dy = Y[i] - Y[i - 1]
+        m0, m1, d = S[i - 1] * dy, S[i] * dy, H[i] - H[i - 1]
+        b = 6.0 * d - 4.0 * m0 - 2.0 * m1
+        a = 3.0 * m0 + 3.0 * m1 - 6.0 * d
+        if inc_b and (b < 0.0) and (-b < 2.0 * a) and (b * b > 4.0 * a * m0) and (m0 >= 0.0) and (m1 >= 0.0):
+            return False
+        if i == m - 1:
+            break
+        inc_a = H[i + 1] - H[i] >= 0.0
+        rising = not (S[i] < 0.0)
+        if (inc_b and inc_a and not rising) or (not inc_b and not inc_a and rising):
+            return False  # a fold pair at one node
+        if not inc_b and inc_a:  # an interior minimum near node i: golden section as `branch._extremum`
+            lo, hi = Y[i - 1], Y[i + 1]
+            a_, b_ = lo, hi
+            if pitchfork and lo <= y0:
+                a_ = lo + 1e-12 * (hi - lo)
+            c = b_ - _GOLDEN * (b_ - a_)
+            e = a_ + _GOLDEN * (b_ - a_)
+            pc, _, cc, _ = _terms(code, c, l1, R, Q, C10, C20, C30)
+            pe, _, ce, _ = _terms(code, e, l1, R, Q, C10, C20, C30)
+            fc, fe = -pc / cc, -pe / ce
+            for _ in range(80):
+                if fc > fe:
+                    b_ = e
+                    e = c
+                    fe = fc
+                    c = b_ - _GOLDEN * (b_ - a_)
+                    pc, _, cc, _ = _terms(code, c, l1, R, Q, C10, C20, C30)
+                    fc = -pc / cc
+                else:
+                    a_ = c
+                    c = e
+                    fc = fe
+                    e = a_ + _GOLDEN * (b_ - a_)
+                    pe, _, ce, _ = _terms(code, e, l1, R, Q, C10, C20, C30)
+                    fe = -pe / ce
+            h_min = min(H[i], -max(fc, fe))
+            if not (h_min > margin):
+                return False
+    return True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan, pitchfork):
+    """One sample: ``(y, certified)``, certified 1 (yes), 2 (if the previous state is not above y0) or 0;
+    see the module docstring."""
     span = y_max - y0
     if not (span > 0.0) or not (K == K) or not (h0 == h0):
-        return y0, False
+        return y0, 0
     done_at_start = not (K > h0)
     if done_at_start and not whole:
-        return y0, True
+        return y0, 1
     y_prev, h_prev, s_prev = y0, h0, np.nan
     lo, hi = np.nan, np.nan
     j = 0  # next scale offset
@@ -117,23 +195,26 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
         h = p_y / c_y
         slope = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
         if not (slope > 0.0 and h >= h_prev):
-            return y0, False
+            if whole and done_at_start and _above(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets,
+                                                  n_scan, pitchfork):
+                return y0, 2  # one state, y0, if the previous state is not above y0 (checked by the caller)
+            return y0, 0
         # the reference's hidden-dip hint (a cubic Hermite fit falls between two rising nodes)
         dy = yk - y_prev
         m0, m1, d = s_prev * dy, slope * dy, h - h_prev
         b = 6.0 * d - 4.0 * m0 - 2.0 * m1
         a = 3.0 * m0 + 3.0 * m1 - 6.0 * d
         if (b < 0.0) and (-b < 2.0 * a) and (b * b > 4.0 * a * m0) and (m0 >= 0.0) and (m1 >= 0.0):
-            return y0, False
+            return y0, 0
         if lo != lo and h >= K and not done_at_start:
             lo, hi = y_prev, yk
             if not whole:
                 break
         y_prev, h_prev, s_prev = yk, h, slope
     if done_at_start:
-        return y0, True
+        return y0, 1
     if lo != lo:
-        return y0, False  # no crossing in the range: the reference says what it is
+        return y0, 0  # no crossing in the range: the reference says what it is
     # Newton on g_y inside [lo, hi], bisection where it strays: `branch._refine_root`
     y = 0.5 * (lo + hi)
     tol = rtol * span
@@ -147,65 +228,94 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
             hi = y
         y_new = y - g1 / g2
         if abs(g1) <= 64.0 * 2.220446049250313e-16 * (abs(p_y) + abs(K * c_y)):
-            return y, True
+            return y, 1
         if not (y_new >= lo and y_new <= hi):
             y_new = 0.5 * (lo + hi)
         if abs(y_new - y) <= tol or hi - lo <= tol:
-            return y_new, True
+            return y_new, 1
         y = y_new
-    return y0, False
+    return y0, 0
 
 
-@numba.njit(cache=True, error_model="numpy", parallel=True)
-def _roots(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan, y, ok):
+def _roots_loop(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
+                pitchfork, y, ok):
     for i in prange(l1.size):
         y[i], ok[i] = _one(code, l1[i], y0[i], y_max[i], K[i], h0[i], R, Q, C10, C20, C30, offsets, whole,
-                           rtol, max_iter, n_scan)
+                           rtol, max_iter, n_scan, pitchfork)
 
 
-@numba.njit(cache=True, error_model="numpy", parallel=True)
-def _roots_cr(l1, y0, y_max, K, h0, xi0, x0, Lb, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan, y,
-              ok):
+def _roots_cr_loop(l1, y0, y_max, K, h0, xi0, x0, Lb, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
+                   pitchfork, y, ok):
     for i in prange(l1.size):
         R = (xi0[i], x0[i], Lb, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
         y[i], ok[i] = _one(4, l1[i], y0[i], y_max[i], K[i], h0[i], R, Q, C10, C20, C30, offsets, whole,
-                           rtol, max_iter, n_scan)
+                           rtol, max_iter, n_scan, pitchfork)
 
 
-def branch_roots(problem, *, whole, rtol=1e-14, max_iter=100):
+def _variants(loop):
+    """``(serial, parallel)`` compiled forms of one loop (``prange`` is ``range`` in the serial one)."""
+    return (numba.njit(cache=True, error_model="numpy")(loop),
+            numba.njit(cache=True, error_model="numpy", parallel=True)(loop))
+
+
+
+#: Calls of at least this many samples run on all cores (numba's threads), from the main thread only:
+#: a server's or a client's thread never enters the thread pool, so no two threads share it.
+PARALLEL_MIN = 4096
+
+
+def _parallel(n) -> int:
+    return int(n >= PARALLEL_MIN and threading.current_thread() is threading.main_thread())
+
+
+@numba.njit(cache=True)
+def _chain(ok, y, y0, y_start):
+    # a conditionally certified sample (2): certified where the sample before is and its state is not above y0
+    for i in range(ok.size):
+        if ok[i] == 2:
+            prev_ok = True if i == 0 else ok[i - 1] == 1
+            prev_y = y_start if i == 0 else y[i - 1]
+            ok[i] = 1 if (prev_ok and prev_y <= y0[i]) else 0
+
+
+def branch_roots(problem, *, whole, start=None, rtol=1e-14, max_iter=100):
     """``(y, certified)`` of every sample of a `~rdea_lab.physics.branch.Problem` with a ``kernel``.
 
     ``certified`` marks the samples whose state is the one root of a strictly
     rising ``h`` (up to the bracketing node, or over the whole range with
-    ``whole``); the others must be solved by the reference.
+    ``whole``), or, on a path (``whole``, ``start`` the coordinate before the
+    first sample), ``y0`` where ``h`` stays above the load everywhere and the
+    state before is not above ``y0`` (so no fold lies between them); the
+    others must be solved by the reference.
     """
     from .branch import N_SCAN, scale_offsets
 
     code, consts = problem.kernel
     n = problem.K.size
     y = np.empty(n)
-    ok = np.zeros(n, dtype=np.bool_)
+    ok = np.zeros(n, dtype=np.int8)
     if n == 0:
-        return y, ok
+        return y, ok.astype(bool)
     h0 = problem.h_start(np.arange(n))
     offsets = np.ascontiguousarray(scale_offsets(problem), dtype=float)
     args = (np.ascontiguousarray(problem.y0, float), np.ascontiguousarray(problem.y_max, float),
             np.ascontiguousarray(problem.K, float), np.ascontiguousarray(h0, float))
     C = consts["C"]
+    tail = (offsets, bool(whole), rtol, max_iter, N_SCAN, bool(problem.pitchfork), y, ok)
     if code == CODES["cr"]:
-        _roots_cr(consts["l1"], *args, consts["xi0"], consts["x0"], consts["Lb"], consts["Q"], *C, offsets,
-                  bool(whole), rtol, max_iter, N_SCAN, y, ok)
+        _roots_cr[_parallel(n)](consts["l1"], *args, consts["xi0"], consts["x0"], consts["Lb"], consts["Q"], *C,
+                                *tail)
     else:
-        _roots(code, consts["l1"], *args, consts.get("R", _NO_RING), _EMPTY_Q, *C, offsets, bool(whole), rtol,
-               max_iter, N_SCAN, y, ok)
-    return y, ok
+        _roots[_parallel(n)](code, consts["l1"], *args, consts.get("R", _NO_RING), _EMPTY_Q, *C, *tail)
+    if whole:
+        _chain(ok, y, args[0], float(problem.y0[0]) if start is None else float(start))
+    return y, ok == 1
 
 
 _EMPTY_Q = np.zeros((4, 0))
 
 
-@numba.njit(cache=True, error_model="numpy", parallel=True)
-def _su(l1, v, C10, C20, C30, kap, C0, sigma, l2, cap):
+def _su_loop(l1, v, C10, C20, C30, kap, C0, sigma, l2, cap):
     C = (C10, C20, C30)
     for i in prange(l1.size):
         lam = l1[i]
@@ -214,6 +324,11 @@ def _su(l1, v, C10, C20, C30, kap, C0, sigma, l2, cap):
         sigma[i] = b * W1 - kap * (lam * v[i] ** 2)
         l2[i] = 1.0 / np.sqrt(lam)
         cap[i] = C0 * lam
+
+
+_roots = _variants(_roots_loop)
+_roots_cr = _variants(_roots_cr_loop)
+_su = _variants(_su_loop)
 
 
 def su_state(l1, v, C, kap, C0, out=None):
@@ -226,7 +341,7 @@ def su_state(l1, v, C, kap, C0, out=None):
     v = np.ascontiguousarray(np.broadcast_to(v, l1.shape), dtype=float)
     if out is None:
         out = (np.empty_like(l1), np.empty_like(l1), np.empty_like(l1))
-    _su(l1.ravel(), v.ravel(), C[0], C[1], C[2], kap, C0, *(o.reshape(-1) for o in out))
+    _su[_parallel(l1.size)](l1.ravel(), v.ravel(), C[0], C[1], C[2], kap, C0, *(o.reshape(-1) for o in out))
     return out
 
 

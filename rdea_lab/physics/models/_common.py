@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,11 +63,20 @@ KERNELS = ("auto", "numba", "numpy")
 MAX_FALLBACK_RUNS = 32
 
 
-def compiled(kernel):
-    """The `rdea_lab.physics.kernels` module if ``kernel`` asks for it and it can be had, else None."""
+#: ``auto`` loads the compiled kernels for a call of at least this many samples (loading numba and
+#: the cached machine code costs a process about 0.9 s once, more than the kernels save on small
+#: calls); once loaded, every call uses them.
+AUTO_MIN_SAMPLES = 16384
+
+
+def compiled(kernel, n=None):
+    """The `rdea_lab.physics.kernels` module if ``kernel`` asks for it and it can be had, else None
+    (``n``: the call's samples, for ``auto``)."""
     if kernel not in KERNELS:
         raise ValueError(f"kernel {kernel!r}; allowed: {', '.join(KERNELS)}")
     if kernel == "numpy":
+        return None
+    if kernel == "auto" and "rdea_lab.physics.kernels" not in sys.modules and (n is None or n < AUTO_MIN_SAMPLES):
         return None
     try:
         from .. import kernels
@@ -85,7 +95,7 @@ def evaluate_free(problem, state, *, path=False, start=None, origin=None, kernel
     compiled ``kernel``, the samples it certifies (one basin, no fold) are its
     and every other sample is the reference solver's.
     """
-    fast = compiled(kernel) if (problem.kernel is not None and origin is None) else None
+    fast = compiled(kernel, problem.K.size) if (problem.kernel is not None and origin is None) else None
     if origin is not None:
         y, status, K_crit, K_range, end = follow_path(problem, origin=origin)
     elif path:
@@ -117,7 +127,7 @@ def _path_certified(fast, problem, y_start, label):
     """`follow_path` with the compiled kernel's certified samples: a single-basin sample's state is its
     one root whatever came before, so only the runs of other samples go to the reference, each from the
     state before it."""
-    y, ok = fast.branch_roots(problem, whole=True)
+    y, ok = fast.branch_roots(problem, whole=True, start=y_start)
     n = y.size
     status = np.full(n, OK, dtype=np.int8)
     K_crit, K_range = np.full(n, np.nan), np.full(n, np.nan)

@@ -59,7 +59,7 @@ def stress_from_basis(stress_basis_, geom, material):
 
 def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
     """Closed-form SU state at clean 1-D inputs (no free coordinate: a path changes nothing)."""
-    fast = compiled(kernel)
+    fast = compiled(kernel, l1.size)
     if fast is not None:
         sigma1, l2, _ = fast.su_state(l1, v, yeoh_coefficients(material), kappa(geom, material), 0.0)
     else:
