@@ -77,8 +77,14 @@ def gradient(l1, l2, C):
     The two stretches are independent variables (the third follows from
     incompressibility), as eq. (39) of [1] requires.
     """
-    x, I_1, I_2 = _invariant_terms(np.asarray(l1, float), np.asarray(l2, float))
-    W1, _ = slope(x, C)
+    return gradient_terms(np.asarray(l1, float), np.asarray(l2, float), *C)
+
+
+def gradient_terms(l1, l2, C10, C20, C30):
+    """`gradient` for scalar or array stretches and the coefficients as three numbers (compiled too:
+    :mod:`rdea_lab.physics.kernels`)."""
+    x, I_1, I_2 = _invariant_terms(l1, l2)
+    W1, _ = slope(x, (C10, C20, C30))
     return W1 * I_1, W1 * I_2
 
 

@@ -4,7 +4,7 @@ Used by ``test_hysteresis.py`` to check ``solve(..., path=True)``. It knows
 nothing of the package's solvers: all it uses is the free enthalpy density
 ``g(y)`` of the 1R and 3R models (``one_ring.enthalpy``, ``three_ring.enthalpy``,
 energy only) and, for the end of the 3R admissible range, the closed-form
-inverse of the hoop stretch (``three_ring._Rings.xi_at_hoop_stretch``).
+inverse of the hoop stretch (``three_ring.xi_at_hoop_stretch``).
 
 The rule it implements (an overdamped quasi-static path): the samples are a
 time series; at each sample the state is the local minimum of ``g`` at the
@@ -135,7 +135,8 @@ class Reference:
         if self.model == "1r":
             y0 = l1**-0.5
             return y0 / HOOP_CAP, HOOP_CAP * y0
-        hi = float(three_ring._Rings(self.geom, l1).xi_at_hoop_stretch(HOOP_CAP / np.sqrt(l1), l1))
+        rings = three_ring._Rings(self.geom, l1)
+        hi = float(three_ring.xi_at_hoop_stretch(HOOP_CAP / np.sqrt(l1), l1, *rings.bound_constants[1:]))
         return 0.0, hi
 
     def scale(self, l1, y):

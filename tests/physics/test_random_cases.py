@@ -448,7 +448,8 @@ def test_reference_range_end_is_the_hoop_stretch_cap():
         geom = core(name)
         for l1 in (1.0, 1.4):
             land = bf.landscape("3r", geom, TABLE3, l1)
-            xi = three_ring._Rings(geom, np.asarray([l1])).xi_at_hoop_stretch(bf.HOOP_FACTOR / np.sqrt(l1), l1)
+            xi = three_ring.xi_at_hoop_stretch(bf.HOOP_FACTOR / np.sqrt(l1), l1,
+                                                *three_ring._Rings(geom, np.asarray([l1])).bound_constants[1:])
             assert land.y_end == pytest.approx(float(np.ravel(xi)[0]), rel=1e-12, abs=0)
             # c grows as lambda2b**2: at the range end it is 100 times c(y0)
             assert (land.c0 + land.dc[-1]) / land.c0 == pytest.approx(bf.HOOP_FACTOR**2, rel=1e-12, abs=0)

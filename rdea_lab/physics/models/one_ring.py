@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import yeoh
+from ..yeoh import gradient_terms
 from ..branch import Problem
 from ..result import ModelResult
 from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
@@ -22,6 +23,20 @@ def enthalpy(geom, material, stretch, voltage, lambda2):
             - kappa(geom, material) * (l1 * l2 * np.asarray(voltage, float)) ** 2)
 
 
+def stress(l2, l1, v, C10, C20, C30, kap):
+    """Axial stress [Pa] at the equilibrium ``lambda2 = l2``: ``lambda1 dpsi_m/dlambda1 - alpha_e1
+    eta_b eps E**2`` (eq. (33) of [1]); scalar or array arguments (compiled too)."""
+    psi_1, _ = gradient_terms(l1, l2, C10, C20, C30)
+    return l1 * psi_1 - 2.0 * kap * (l1 * v) ** 2 * l2 * l2
+
+
+def bounds(l1, kap):
+    """``(y0, y_max, load)`` of the 1R problem at stretch ``l1``: the unloaded ``lambda2 = l1**-0.5``,
+    the hoop-stretch cap and ``K / v**2``."""
+    y0 = 1.0 / np.sqrt(l1)
+    return y0, HOOP_STRETCH_CAP * y0, kap * l1 * l1
+
+
 def problem(geom, material, l1, v) -> Problem:
     """The 1R equilibrium in ``y = lambda2`` at clean 1-D inputs (eq. 33 as a stationary point)."""
     C = yeoh_coefficients(material)
@@ -31,9 +46,8 @@ def problem(geom, material, l1, v) -> Problem:
         p_y, p_yy = yeoh.psi2_terms(l1[idx], y, *C)
         return p_y, (p_yy if second else None), 2.0 * y, 2.0
 
-    y0 = 1.0 / np.sqrt(l1)
-    load = kap * l1 * l1
-    return Problem(terms, y0, HOOP_STRETCH_CAP * y0, load * v * v, load,
+    y0, y_max, load = bounds(l1, kap)
+    return Problem(terms, y0, y_max, load * v * v, load,
                    kernel=(1, {"l1": np.ascontiguousarray(l1, float), "C": C}))
 
 
@@ -43,9 +57,8 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     kap = kappa(geom, material)
 
     def state(l2):
-        psi_1, _ = yeoh.gradient(l1, l2, C)
         # one hollow cylinder: mean hoop stretch l2, radial stretch 1 / (l1 l2)
-        return {"sigma1": l1 * psi_1 - 2.0 * kap * (l1 * v) ** 2 * l2 * l2,
+        return {"sigma1": stress(l2, l1, v, *C, kap),
                 "lambda2a": l2, "lambda2b": l2, "lambda2c": l2,
                 "capacitance": geom.C0(material.eps_r) * (l1 * l2) ** 2,
                 "r_i": 0.5 * (l2 * (geom.Ro + geom.Ri) - (geom.Ro - geom.Ri) / (l1 * l2))}

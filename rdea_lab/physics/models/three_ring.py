@@ -29,10 +29,17 @@ from __future__ import annotations
 import numpy as np
 
 from .. import yeoh
-from ..yeoh import psi2_terms
+from ..yeoh import gradient_terms, psi2_terms
 from ..branch import Problem
 from ..result import ModelNotApplicable, ModelResult
 from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
+
+
+def radii(xi, l1, Da, Dab, Dabc):
+    """``(r_ie, r_oe, r_o)`` [Ro] at inner radius ``xi`` [Ro]: ``r**2 = xi**2 + D / lambda1``, eqs. (5)-(7)."""
+    s = xi * xi
+    inv = 1.0 / l1
+    return np.sqrt(s + Da * inv), np.sqrt(s + Dab * inv), np.sqrt(s + Dabc * inv)
 
 
 class _Rings:
@@ -55,16 +62,12 @@ class _Rings:
         #: the ring constants of `ring_terms` (rings of zero volume: eta 0)
         self.constants = tuple(float(c) for c in (self.Da, self.Dab, self.Dabc, self.Sa, self.Sb, self.Sc,
                                                   *(e if e > 0.0 else 0.0 for e in self.eta)))
+        #: ``(rho_i, Sb, rho_oe**2 - rho_ie**2, Da)``: what `bounds` needs
+        self.bound_constants = tuple(float(c) for c in (self.rho_i, self.Sb, self.rho_oe**2 - self.rho_ie**2,
+                                                        self.Da))
 
     def radii(self, xi, l1):
-        s = xi * xi
-        inv = 1.0 / l1
-        return np.sqrt(s + self.Da * inv), np.sqrt(s + self.Dab * inv), np.sqrt(s + self.Dabc * inv)
-
-    def radius_stretch_rates(self, radii, l1):
-        """``dr/dlambda1`` at fixed ``xi`` for ``r_ie, r_oe, r_o``: ``-D / (2 l1**2 r)``."""
-        w = -0.5 / (l1 * l1)
-        return [0.0 if D == 0.0 else w * D / r for D, r in zip((self.Da, self.Dab, self.Dabc), radii)]
+        return radii(xi, l1, self.Da, self.Dab, self.Dabc)
 
     def stretches(self, xi, l1):
         """``(lambda2a, lambda2b, lambda2c)`` at inner radius ``xi`` [Ro]."""
@@ -73,12 +76,22 @@ class _Rings:
         l2c = (r_oe + r_o) / self.Sc if self.has_c else None
         return l2a, (r_ie + r_oe) / self.Sb, l2c
 
-    def xi_at_hoop_stretch(self, l2b, l1):
-        """Inverse of ``lambda2b(xi)`` (closed form), clipped at ``xi >= 0``."""
-        total = l2b * self.Sb
-        diff = (self.rho_oe**2 - self.rho_ie**2) / (l1 * total)
-        r_ie = 0.5 * (total - diff)
-        return np.sqrt(np.maximum(r_ie * r_ie - self.Da / l1, 0.0))
+
+def xi_at_hoop_stretch(l2b, l1, Sb, dB, Da):
+    """Inverse of ``lambda2b(xi)`` (closed form), clipped at ``xi >= 0`` (``dB = rho_oe**2 - rho_ie**2``)."""
+    total = l2b * Sb
+    diff = dB / (l1 * total)
+    r_ie = 0.5 * (total - diff)
+    return np.sqrt(np.maximum(r_ie * r_ie - Da / l1, 0.0))
+
+
+def bounds(l1, kap, B):
+    """``(y0, y_max, load)`` of the 3R problem at stretch ``l1``: the unloaded ``xi = rho_i l1**-0.5``, the
+    ``xi`` where the active ring's hoop stretch is `HOOP_STRETCH_CAP` times uniaxial, and ``K / v**2``
+    (``B``: `_Rings.bound_constants`)."""
+    rho_i, Sb, dB, Da = B
+    root = np.sqrt(l1)
+    return rho_i / root, xi_at_hoop_stretch(HOOP_STRETCH_CAP / root, l1, Sb, dB, Da), kap * l1 * l1
 
 
 def _radius(s, xi, D, inv):
@@ -125,6 +138,34 @@ def ring_terms(xi, l1, R, C10, C20, C30):
     return p_y, p_yy, 2.0 * l2b * d_b, 2.0 * (d_b * d_b + l2b * dd_b)
 
 
+def ring_state(xi, l1, v, R, C10, C20, C30, kap):
+    """``(sigma1 [Pa], lambda2a, lambda2b, lambda2c)`` at the equilibrium ``xi``: ``sigma1 = lambda1
+    dg/dlambda1`` at fixed ``xi`` (eq. (27) row 1 as corrected in ERRATA); a ring of zero volume has a
+    NaN stretch. ``R`` as in `ring_terms`; scalar or array arguments (compiled too)."""
+    Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c = R
+    r_ie, r_oe, r_o = radii(xi, l1, Da, Dab, Dabc)
+    # dr/dlambda1 at fixed xi: -D / (2 l1**2 r)
+    w = -0.5 / (l1 * l1)
+    dr_ie = 0.0 if Da == 0.0 else w * Da / r_ie
+    dr_oe = 0.0 if Dab == 0.0 else w * Dab / r_oe
+    dr_o = 0.0 if Dabc == 0.0 else w * Dabc / r_o
+    l2b = (r_ie + r_oe) / Sb
+    dl2b = (dr_ie + dr_oe) / Sb
+    psi_1, psi_2 = gradient_terms(l1, l2b, C10, C20, C30)
+    dg = eta_b * (psi_1 + psi_2 * dl2b)
+    l2a = l2b * np.nan
+    l2c = l2b * np.nan
+    if eta_a > 0.0:
+        l2a = (xi + r_ie) / Sa
+        psi_1, psi_2 = gradient_terms(l1, l2a, C10, C20, C30)
+        dg = dg + eta_a * (psi_1 + psi_2 * dr_ie / Sa)
+    if eta_c > 0.0:
+        l2c = (r_oe + r_o) / Sc
+        psi_1, psi_2 = gradient_terms(l1, l2c, C10, C20, C30)
+        dg = dg + eta_c * (psi_1 + psi_2 * (dr_oe + dr_o) / Sc)
+    return l1 * dg - 2.0 * kap * v * v * l1 * l1 * l2b * (l2b + l1 * dl2b), l2a, l2b, l2c
+
+
 def _terms(rings, C):
     """``terms(xi, idx, second)`` for :func:`follow_branch`: derivatives of psi and c = lambda2b**2."""
     R = rings.constants
@@ -164,12 +205,10 @@ def enthalpy(geom, material, stretch, voltage, r_i):
 def problem(geom, material, l1, v) -> Problem:
     """The 3R equilibrium in ``xi = r_i / Ro`` at clean 1-D inputs."""
     rings = _Rings(geom, l1)
-    load = kappa(geom, material) * l1 * l1
+    y0, y_max, load = bounds(l1, kappa(geom, material), rings.bound_constants)
     pitchfork = rings.rho_i == 0.0 and rings.has_a
     C = yeoh_coefficients(material)
-    return Problem(_terms(rings, C), rings.rho_i / np.sqrt(l1),
-                   rings.xi_at_hoop_stretch(HOOP_STRETCH_CAP / np.sqrt(l1), l1), load * v * v, load,
-                   pitchfork=pitchfork, scale=rings.rho_ie if pitchfork else None,
+    return Problem(_terms(rings, C), y0, y_max, load * v * v, load, pitchfork=pitchfork, scale=rings.rho_ie if pitchfork else None,
                    kernel=(3, {"l1": np.ascontiguousarray(l1, float), "R": rings.constants, "C": C}))
 
 
@@ -179,26 +218,12 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     kap = kappa(geom, material)
     rings = _Rings(geom, l1)
 
+    C0 = geom.C0(material.eps_r)
+
     def state(xi):
-        # sigma1 = lambda1 dg/dlambda1 at fixed xi
-        r_ie, r_oe, r_o = rings.radii(xi, l1)
-        dr_ie, dr_oe, dr_o = rings.radius_stretch_rates((r_ie, r_oe, r_o), l1)
-        l2b = (r_ie + r_oe) / rings.Sb
-        dl2b = (dr_ie + dr_oe) / rings.Sb
-        psi_1, psi_2 = yeoh.gradient(l1, l2b, C)
-        dg = geom.eta_b * (psi_1 + psi_2 * dl2b)
-        l2a = l2c = np.full_like(l1, np.nan)
-        if rings.has_a:
-            l2a = (xi + r_ie) / rings.Sa
-            psi_1, psi_2 = yeoh.gradient(l1, l2a, C)
-            dg = dg + geom.eta_a * (psi_1 + psi_2 * dr_ie / rings.Sa)
-        if rings.has_c:
-            l2c = (r_oe + r_o) / rings.Sc
-            psi_1, psi_2 = yeoh.gradient(l1, l2c, C)
-            dg = dg + geom.eta_c * (psi_1 + psi_2 * (dr_oe + dr_o) / rings.Sc)
-        return {"sigma1": l1 * dg - 2.0 * kap * v * v * l1 * l1 * l2b * (l2b + l1 * dl2b),
-                "lambda2a": l2a, "lambda2b": l2b, "lambda2c": l2c,
-                "capacitance": geom.C0(material.eps_r) * (l1 * l2b) ** 2, "r_i": xi * geom.Ro}
+        sigma1, l2a, l2b, l2c = ring_state(xi, l1, v, rings.constants, *C, kap)
+        return {"sigma1": sigma1, "lambda2a": l2a, "lambda2b": l2b, "lambda2c": l2c,
+                "capacitance": C0 * (l1 * l2b) ** 2, "r_i": xi * geom.Ro}
 
     return evaluate_free(problem(geom, material, l1, v), state, path=path, start=start, origin=origin,
                          kernel=kernel)
