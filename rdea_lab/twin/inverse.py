@@ -1,0 +1,164 @@
+"""The inverse twin: the voltage that makes the twin's force follow a target along a stretch history.
+
+Along a given stretch history the viscoelastic overstress (eq. (44) of [1], or
+its finite-strain form) depends on the stretch alone, not on the voltage, so
+the force the quasi-static model must supply at each sample is known before
+any voltage is: ``sigma_rev = F lambda1 / A - sigma_irr`` (eqs. (43), (16)).
+What is left is a per-sample inversion of the quasi-static stress in ``v**2``:
+
+- SU: ``sigma_rev = b W'(x) - kappa lambda1 v**2`` (eq. (39)) is affine in
+  ``v**2``: closed form. SU has no fold; the stress falls without bound with
+  ``v**2`` and only the voltage limit (the protocol's, and its field limit)
+  ends the reachable range.
+- 1R, 3R, CR: the stress falls monotonically with ``v**2`` along the branch a
+  voltage ramp from 0 V follows, up to the fold (pull-in, status
+  ``LIMIT_POINT``, or ``SNAPPED`` where the roll jumps to another branch, e.g. the
+  hole of a passive core opening) where that branch ends. A vectorized bisection in ``v**2``
+  over ``[0, min(limit, fold)**2]`` on all samples at once (no loop over
+  samples); a sample whose target needs more than the fold or the limit is
+  unreachable (the twin would snap through or the rig refuse), and is reported,
+  not clipped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..physics import viscoelastic
+from ..physics.models import solve, su
+from ..physics.models._common import kappa
+from ..physics.result import LIMIT_POINT, OK, SLACK, SNAPPED
+from .simulate import as_geometry, viscous
+from ..specs import as_params
+
+#: Bisection steps in v**2 for the models without a closed form: 2**-60 of the
+#: bracket is below a double's resolution of any voltage up to the limit.
+BISECTION_STEPS = 60
+
+
+@dataclass(frozen=True)
+class InverseResult:
+    """The voltage for a force target, per sample.
+
+    Attributes
+    ----------
+    voltage : numpy.ndarray
+        Planned voltage [V], >= 0; 0 where there is no target (NaN force); NaN where the target is
+        out of reach.
+    reachable : numpy.ndarray of bool
+        The target is reachable (True where there is no target).
+    force_max, force_min : numpy.ndarray
+        The twin's force at 0 V and at the highest usable voltage [N]: the reachable range at each
+        sample (force falls as the voltage rises).
+    voltage_max : numpy.ndarray
+        The highest usable voltage [V]: the limit given, or the fold's voltage where it is lower.
+    fold : numpy.ndarray of bool
+        The fold (pull-in) lies below the limit at that sample, so it sets ``voltage_max``.
+    """
+
+    voltage: np.ndarray
+    reachable: np.ndarray
+    force_max: np.ndarray
+    force_min: np.ndarray
+    voltage_max: np.ndarray
+    fold: np.ndarray
+
+
+def required_stress(geom, params, t, stretch, force):
+    """``(sigma_rev, sigma_irr)`` [Pa]: the quasi-static stress a force history needs, and the overstress.
+
+    ``sigma_rev = F lambda1 / A - sigma_irr`` (eqs. (43), (16) of [1]); the branches start relaxed at
+    ``t[0]``, as in `simulate`.
+    """
+    k, eta, eta_v0, law = viscous(params)
+    sigma_irr, _ = viscoelastic.overstress_step(t, stretch, k, eta, eta_v0, law=law)
+    return force * stretch / geom.area - sigma_irr, sigma_irr
+
+
+def _force(geom, stretch, tension, sigma_irr):
+    return geom.carried_force((tension + sigma_irr) * geom.area / stretch)
+
+
+def voltage_for_force(specimen, params, t, stretch, force, model="su", *, max_voltage) -> InverseResult:
+    """Voltage such that the twin's force follows `force` along the stretch history `stretch`.
+
+    Parameters
+    ----------
+    specimen : SpecimenCard, RollGeometry or path
+    params : ParameterSet or path
+    t : array_like, shape (n,)
+        Sample times [s], strictly increasing.
+    stretch : array_like, shape (n,)
+        Axial stretch [-], >= 1 (fixed for a blocking test, moving against a bias).
+    force : array_like, shape (n,)
+        Target force [N], > 0; NaN where there is no target (0 V is planned there, and the
+        overstress history runs on).
+    model : {"su", "1r", "3r", "cr"}
+    max_voltage : float or array_like
+        Highest voltage allowed at each sample [V] (a protocol's voltage and field limits).
+
+    Returns
+    -------
+    InverseResult
+
+    Notes
+    -----
+    Inverts eqs. (43), (44), (16) with (39) (SU) or the model's own
+    equilibria: see the module docstring. Forward check: `simulate` on the
+    returned voltage gives `force` (to rounding for SU, to the bisection's
+    resolution otherwise) where the model's branch from 0 V is the one the
+    time series follows.
+    """
+    geom = as_geometry(specimen)
+    params = as_params(params)
+    stretch = np.asarray(stretch, float)
+    t = viscoelastic.check_time(t, stretch.shape)
+    force = np.asarray(force, float)
+    vmax = np.broadcast_to(np.asarray(max_voltage, float), stretch.shape)
+    target = np.isfinite(force)
+    need, sigma_irr = required_stress(geom, params, t, stretch, np.where(target, force, 0.0))
+    umax = vmax**2
+    if model == "su":
+        mech = su.stress_from_basis(su.stress_basis(stretch, 0.0), geom, params)
+        slope = kappa(geom, params) * stretch  # d sigma_rev / d(v**2), eq. (39)
+        u = (mech - need) / slope
+        u = np.where((u < 0.0) & (u > -1e-12 * umax), 0.0, u)  # a target at the 0 V force, to rounding
+        fmax, fmin = _force(geom, stretch, mech, sigma_irr), _force(geom, stretch, mech - slope * umax, sigma_irr)
+        fold = np.zeros(stretch.shape, bool)
+        ok = (u >= 0.0) & (u <= umax)
+    else:
+        u, ok, fmax, fmin, umax, fold = _bisect(model, geom, params, stretch, need, sigma_irr, umax)
+    reachable = ok | ~target
+    voltage = np.where(target, np.where(ok, np.sqrt(np.where(ok, u, 0.0)), np.nan), 0.0)
+    return InverseResult(voltage, reachable, fmax, fmin, np.sqrt(umax), fold)
+
+
+def _bisect(model, geom, params, stretch, need, sigma_irr, umax):
+    """Vectorized bisection of ``sigma_rev(v**2) = need`` on ``[0, umax]`` (the fold caps the bracket)."""
+
+    def tension(u):
+        res = solve(model, geom, params, stretch, np.sqrt(u), path=False)
+        return res.tension, np.isin(res.status, (OK, SLACK)), res
+
+    t0, valid0, _ = tension(np.zeros_like(umax))
+    t1, valid1, res1 = tension(umax)
+    crit = np.asarray(getattr(res1, "critical_voltage", np.full(stretch.shape, np.nan)), float)
+    fold = np.isin(res1.status, (LIMIT_POINT, SNAPPED))  # the branch from 0 V ends below the limit
+    # past the fold: the bracket ends at the fold's voltage (just below it, where the branch still exists)
+    top = np.where(fold & np.isfinite(crit), np.minimum(umax, (crit * (1.0 - 1e-9)) ** 2), umax)
+    t1, valid1, _ = tension(top)
+    lo, hi = np.zeros_like(umax), top.copy()
+    for _ in range(BISECTION_STEPS):  # over the bracket, on all samples at once
+        mid = 0.5 * (lo + hi)
+        tm, valid, _ = tension(mid)
+        above = valid & (tm > need)  # still too much stress: more voltage
+        lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
+    u = 0.5 * (lo + hi)
+    fmax, fmin = _force(geom, stretch, t0, sigma_irr), _force(geom, stretch, t1, sigma_irr)
+    ok = valid0 & (t0 >= need) & (t1 <= need)
+    return u, ok, fmax, fmin, top, fold & (top < umax)
+
+
+__all__ = ["BISECTION_STEPS", "InverseResult", "required_stress", "voltage_for_force"]
