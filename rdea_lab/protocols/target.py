@@ -25,12 +25,13 @@ bias and the roll's own stiffness would give (linearized).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..physics.models import solve
-from ..specs.errors import SpecError
+from ..specs.errors import DOCUMENT, SpecError
 from ..specs.protocol import ProtocolSpec, dump_protocol
 from ..specs.protocol_segments import (StretchHold, StretchRamp, StretchTable, VoltageHold, VoltageRamp,
                                        VoltageTable)
@@ -65,6 +66,9 @@ class TargetPlan:
     bias_slope : float
         ``-dF_bias/dlambda1`` [N] (0 for none and a mass, ``stiffness L1`` for a spring).
     inverse : InverseResult
+    roll_slope : numpy.ndarray
+        ``dF/dlambda1`` of the quasi-static twin at the planned stretch and voltage [N] (NaN outside
+        the window): with `bias_slope`, the stiffness that turns a force error into a stretch error.
     twin_force : numpy.ndarray
         The forward twin's force on the planned voltage [N].
     twin_error : float
@@ -80,6 +84,7 @@ class TargetPlan:
     stretch: np.ndarray
     bias_slope: float
     inverse: InverseResult
+    roll_slope: np.ndarray
     twin_force: np.ndarray
     twin_error: float
 
@@ -208,8 +213,33 @@ def plan_target(target, specimen, params, model="su") -> TargetPlan:
     twin = simulate(geom, params, plan.time, plan.stretch, plan.voltage, model)
     twin_force = np.asarray(twin["force"].values, float)
     err = float(np.max(np.abs(twin_force[window] - need[window])) / np.max(need[window]))
+    slope = np.full(stretch.shape, np.nan)
+    slope[window] = roll_slope(geom, params, plan.stretch[window], plan.voltage[window], model)
     return TargetPlan(target, plan, model, str(getattr(params, "name", "")), window, need,
-                      np.asarray(plan.stretch, float), float(s.bias.slope(geom.L1)), inv, twin_force, err)
+                      np.asarray(plan.stretch, float), float(s.bias.slope(geom.L1)), inv, slope, twin_force, err)
+
+
+def write_protocol(target_plan: TargetPlan, path, overwrite: bool = False) -> str:
+    """Write the planned protocol (YAML, as `rdea-lab run` reads it) to `path`; returns the path.
+
+    Raises
+    ------
+    SpecError
+        `path` exists (and not `overwrite`), or cannot be written.
+    """
+    path = os.fspath(path)
+    if os.path.exists(path) and not overwrite:
+        raise SpecError(path, DOCUMENT, "exists; give another --out or --force to replace it")
+    s = target_plan.summary()
+    header = (f"# Voltage setpoint protocol planned by rdea-lab from {s['target']} (twin {s['model']}, parameters "
+              f"{s['parameters']});\n# the twin reaches the target within {s['twin_error']:.1e} of its peak "
+              "force. Run it with: rdea-lab run THIS_FILE --specimen CARD --backend emulator\n")
+    try:
+        with open(path, "w", encoding="utf-8") as fh:
+            fh.write(header + target_plan.plan.yaml)
+    except OSError as exc:
+        raise SpecError(path, DOCUMENT, f"cannot write: {exc.strerror}") from None
+    return path
 
 
 def roll_slope(specimen, params, stretch, voltage, model="su", h=1e-6):
@@ -221,4 +251,4 @@ def roll_slope(specimen, params, stretch, voltage, model="su", h=1e-6):
     return (up - down) / (stretch + h - np.maximum(stretch - h, 1.0))
 
 
-__all__ = ["TargetPlan", "WINDOW", "plan_target", "roll_slope"]
+__all__ = ["TargetPlan", "WINDOW", "plan_target", "roll_slope", "write_protocol"]

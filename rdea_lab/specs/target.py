@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
+import yaml
 from pydantic import field_validator, model_validator
 
 from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, show
@@ -366,8 +367,20 @@ def load_target(path: str | os.PathLike, **settings) -> Target:
     settings = {k: v for k, v in settings.items() if v is not None}
     if source.lower().endswith(".csv"):
         time, values, quantity, rows = read_csv_samples(source)
-        mapping = {"name": Path(source).stem.replace(" ", "_") or "target", "target": quantity, **settings}
-        opts = TargetSettings.from_yaml_mapping(mapping, "command line")
+        if isinstance(settings.get("bias"), str):
+            try:
+                settings["bias"] = yaml.safe_load(settings["bias"])
+            except yaml.YAMLError:
+                raise SpecError("command line", "--bias", f"{show(settings['bias'])} is not a YAML mapping; e.g. "
+                                "'{kind: spring, stiffness: 200 N/m, preload: 1 N}'") from None
+        name = "".join(c if c.isalnum() or c in "-_." else "_" for c in Path(source).stem).lstrip(".") or "target"
+        mapping = {"name": name, "target": quantity, **settings}
+        try:
+            opts = TargetSettings.from_yaml_mapping(mapping, "command line")
+        except SpecError as err:
+            head, dot, rest = err.field.partition(".")
+            option = "--" + head.replace("_", "-") if head in settings else head
+            raise SpecError(f"{source} (options for a CSV target)", option + dot + rest, err.message) from None
         _check_samples(time, values, quantity, opts, source, "", rows)
         return Target(opts, _from_zero(time), values, source, quantity)
     if settings:
