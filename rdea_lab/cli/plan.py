@@ -7,6 +7,7 @@ import json
 import click
 
 from .. import api
+from ..specs import MODELS
 from .errors import EXIT_HELP, die
 
 
@@ -27,7 +28,7 @@ def _tracking_lines(t: dict) -> list[str]:
 @click.option("--specimen", "card", required=True, type=click.Path(dir_okay=False), help="Specimen card (YAML).")
 @click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False),
               help="The twin's parameter set (YAML).")
-@click.option("--model", type=click.Choice(("su", "1r", "3r", "cr")), default="su", show_default=True,
+@click.option("--model", type=click.Choice(MODELS), default="su", show_default=True,
               help="Quasi-static model of the twin that is inverted.")
 @click.option("--out", required=True, type=click.Path(dir_okay=False), help="Protocol YAML to write.")
 @click.option("--force", "overwrite", is_flag=True, help="Overwrite existing outputs.")

@@ -28,9 +28,8 @@ import numpy as np
 
 from ..physics import viscoelastic
 from ..physics.models import solve, su
-from ..physics.models._common import kappa
 from ..physics.result import LIMIT_POINT, OK, SLACK, SNAPPED
-from .simulate import as_geometry, viscous
+from .simulate import as_geometry, compose, viscous
 from ..specs import as_params
 
 #: Bisection steps in v**2 for the models without a closed form: 2**-60 of the
@@ -77,8 +76,9 @@ def required_stress(geom, params, t, stretch, force):
     return force * stretch / geom.area - sigma_irr, sigma_irr
 
 
-def _force(geom, stretch, tension, sigma_irr):
-    return geom.carried_force((tension + sigma_irr) * geom.area / stretch)
+def _force(geom, params, t, stretch, tension):
+    """The twin's force [N] for a quasi-static stress along the history: `compose`, the one composition."""
+    return compose(geom, viscous(params), t, stretch, tension)[2]
 
 
 def voltage_for_force(specimen, params, t, stretch, force, model="su", *, max_voltage) -> InverseResult:
@@ -122,33 +122,34 @@ def voltage_for_force(specimen, params, t, stretch, force, model="su", *, max_vo
     umax = vmax**2
     if model == "su":
         mech = su.stress_from_basis(su.stress_basis(stretch, 0.0), geom, params)
-        slope = kappa(geom, params) * stretch  # d sigma_rev / d(v**2), eq. (39)
+        zero = np.zeros_like(stretch)
+        slope = -su.stress_from_basis((zero, zero, stretch), geom, params)  # -d sigma_rev / d(v**2) = kappa l1
         u = (mech - need) / slope
         u = np.where((u < 0.0) & (u > -1e-12 * umax), 0.0, u)  # a target at the 0 V force, to rounding
-        fmax, fmin = _force(geom, stretch, mech, sigma_irr), _force(geom, stretch, mech - slope * umax, sigma_irr)
+        fmax, fmin = _force(geom, params, t, stretch, mech), _force(geom, params, t, stretch, mech - slope * umax)
         fold = np.zeros(stretch.shape, bool)
         ok = (u >= 0.0) & (u <= umax)
     else:
-        u, ok, fmax, fmin, umax, fold = _bisect(model, geom, params, stretch, need, sigma_irr, umax)
+        u, ok, fmax, fmin, umax, fold = _bisect(model, geom, params, t, stretch, need, umax)
     reachable = ok | ~target
     voltage = np.where(target, np.where(ok, np.sqrt(np.where(ok, u, 0.0)), np.nan), 0.0)
     return InverseResult(voltage, reachable, fmax, fmin, np.sqrt(umax), fold)
 
 
-def _bisect(model, geom, params, stretch, need, sigma_irr, umax):
+def _bisect(model, geom, params, t, stretch, need, umax):
     """Vectorized bisection of ``sigma_rev(v**2) = need`` on ``[0, umax]`` (the fold caps the bracket)."""
 
     def tension(u):
         res = solve(model, geom, params, stretch, np.sqrt(u), path=False)
         return res.tension, np.isin(res.status, (OK, SLACK)), res
 
-    t0, valid0, _ = tension(np.zeros_like(umax))
-    t1, valid1, res1 = tension(umax)
+    s0, valid0, _ = tension(np.zeros_like(umax))
+    s1, valid1, res1 = tension(umax)
     crit = np.asarray(getattr(res1, "critical_voltage", np.full(stretch.shape, np.nan)), float)
     fold = np.isin(res1.status, (LIMIT_POINT, SNAPPED))  # the branch from 0 V ends below the limit
     # past the fold: the bracket ends at the fold's voltage (just below it, where the branch still exists)
     top = np.where(fold & np.isfinite(crit), np.minimum(umax, (crit * (1.0 - 1e-9)) ** 2), umax)
-    t1, valid1, _ = tension(top)
+    s1, valid1, _ = tension(top)
     lo, hi = np.zeros_like(umax), top.copy()
     for _ in range(BISECTION_STEPS):  # over the bracket, on all samples at once
         mid = 0.5 * (lo + hi)
@@ -156,8 +157,8 @@ def _bisect(model, geom, params, stretch, need, sigma_irr, umax):
         above = valid & (tm > need)  # still too much stress: more voltage
         lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
     u = 0.5 * (lo + hi)
-    fmax, fmin = _force(geom, stretch, t0, sigma_irr), _force(geom, stretch, t1, sigma_irr)
-    ok = valid0 & (t0 >= need) & (t1 <= need)
+    fmax, fmin = _force(geom, params, t, stretch, s0), _force(geom, params, t, stretch, s1)
+    ok = valid0 & (s0 >= need) & (s1 <= need)
     return u, ok, fmax, fmin, top, fold & (top < umax)
 
 
