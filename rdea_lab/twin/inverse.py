@@ -50,7 +50,7 @@ class InverseResult:
         The target is reachable (True where there is no target).
     force_max, force_min : numpy.ndarray
         The twin's force at 0 V and at the highest usable voltage [N]: the reachable range at each
-        sample (force falls as the voltage rises).
+        sample with a target (force falls as the voltage rises); NaN where there is no target.
     voltage_max : numpy.ndarray
         The highest usable voltage [V]: the limit given, or the fold's voltage where it is lower.
     fold : numpy.ndarray of bool
@@ -130,36 +130,47 @@ def voltage_for_force(specimen, params, t, stretch, force, model="su", *, max_vo
         fold = np.zeros(stretch.shape, bool)
         ok = (u >= 0.0) & (u <= umax)
     else:
-        u, ok, fmax, fmin, umax, fold = _bisect(model, geom, params, t, stretch, need, umax)
+        u, ok, fmax, fmin, umax, fold = _bisect(model, geom, params, t, stretch, need, umax, target)
     reachable = ok | ~target
+    fmax, fmin = np.where(target, fmax, np.nan), np.where(target, fmin, np.nan)
     voltage = np.where(target, np.where(ok, np.sqrt(np.where(ok, u, 0.0)), np.nan), 0.0)
     return InverseResult(voltage, reachable, fmax, fmin, np.sqrt(umax), fold)
 
 
-def _bisect(model, geom, params, t, stretch, need, umax):
-    """Vectorized bisection of ``sigma_rev(v**2) = need`` on ``[0, umax]`` (the fold caps the bracket)."""
+def _bisect(model, geom, params, t, stretch, need, umax, target):
+    """Vectorized bisection of ``sigma_rev(v**2) = need`` on ``[0, umax]`` (the fold caps the bracket),
+    on the samples with a target only."""
+    idx = np.flatnonzero(target)
+    lam, want, cap = stretch[idx], need[idx], umax[idx]
 
     def tension(u):
-        res = solve(model, geom, params, stretch, np.sqrt(u), path=False)
+        res = solve(model, geom, params, lam, np.sqrt(u), path=False)
         return res.tension, np.isin(res.status, (OK, SLACK)), res
 
-    s0, valid0, _ = tension(np.zeros_like(umax))
-    s1, valid1, res1 = tension(umax)
-    crit = np.asarray(getattr(res1, "critical_voltage", np.full(stretch.shape, np.nan)), float)
+    s0, valid0, _ = tension(np.zeros_like(cap))
+    s1, valid1, res1 = tension(cap)
+    crit = np.asarray(res1.critical_voltage, float)
     fold = np.isin(res1.status, (LIMIT_POINT, SNAPPED))  # the branch from 0 V ends below the limit
     # past the fold: the bracket ends at the fold's voltage (just below it, where the branch still exists)
-    top = np.where(fold & np.isfinite(crit), np.minimum(umax, (crit * (1.0 - 1e-9)) ** 2), umax)
+    top = np.where(fold & np.isfinite(crit), np.minimum(cap, (crit * (1.0 - 1e-9)) ** 2), cap)
     s1, valid1, _ = tension(top)
-    lo, hi = np.zeros_like(umax), top.copy()
+    lo, hi = np.zeros_like(cap), top.copy()
     for _ in range(BISECTION_STEPS):  # over the bracket, on all samples at once
         mid = 0.5 * (lo + hi)
         tm, valid, _ = tension(mid)
-        above = valid & (tm > need)  # still too much stress: more voltage
+        above = valid & (tm > want)  # still too much stress: more voltage
         lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
-    u = 0.5 * (lo + hi)
-    fmax, fmin = _force(geom, params, t, stretch, s0), _force(geom, params, t, stretch, s1)
-    ok = valid0 & (s0 >= need) & (s1 <= need)
-    return u, ok, fmax, fmin, top, fold & (top < umax)
+
+    def full(values, fill):
+        out = np.full(stretch.shape, fill, dtype=np.asarray(values).dtype)
+        out[idx] = values
+        return out
+
+    u = full(0.5 * (lo + hi), 0.0)
+    fmax = _force(geom, params, t, stretch, full(s0, np.nan))
+    fmin = _force(geom, params, t, stretch, full(s1, np.nan))
+    ok = full(valid0 & (s0 >= want) & (s1 <= want), False)
+    return u, ok, fmax, fmin, full(top, 0.0) + np.where(target, 0.0, umax), full(fold & (top < cap), False)
 
 
 __all__ = ["BISECTION_STEPS", "InverseResult", "required_stress", "voltage_for_force"]
