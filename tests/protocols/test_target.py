@@ -94,3 +94,11 @@ def test_a_run_of_another_plan_is_refused(tmp_path):
     ds = rdea_lab.run_protocol(other.plan, CARD, "twin", params=PARAMS, model="su", out=tmp_path / "r.nc")
     with pytest.raises(SpecError, match=r"r\.nc: voltage_setpoint: differs from the plan short-plan by up to"):
         tracking_error(ds, tp)
+
+
+def test_against_a_mass():
+    """A dead load: the twin's force equals m g along the whole target stretch history."""
+    tp = plan_target(short(bias={"kind": "mass", "mass": "70 g"}), CARD, PARAMS)
+    w = tp.window
+    assert tp.twin_error < 1e-6 and tp.bias_slope == 0.0
+    np.testing.assert_allclose(tp.twin_force[w], 0.070 * 9.80665, rtol=1e-12)
