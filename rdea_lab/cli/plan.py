@@ -36,6 +36,9 @@ def _tracking_lines(t: dict) -> list[str]:
 @click.option("--bias", default=None,
               help="CSV stretch target only: the bias, e.g. '{kind: spring, stiffness: 200 N/m, preload: 1 N}'.")
 @click.option("--sample-rate", default=None, help="CSV target only: the protocol's sample rate [default: 1 kHz].")
+@click.option("--approach", default=None, help="CSV target only: the stretch ramp to the target at 0 V [default: 5 s].")
+@click.option("--settle", default=None,
+              help="CSV target only: the hold before the target, the voltage ramping to its start [default: 2 s].")
 @click.option("--run", "backend", type=click.Choice(("twin", "emulator")), default=None,
               help="Also run the plan (twin or the built-in emulated rig) and report its tracking error.")
 @click.option("--run-out", type=click.Path(dir_okay=False), default=None,
@@ -44,8 +47,8 @@ def _tracking_lines(t: dict) -> list[str]:
               help="A finished run of this plan (any backend): report its tracking error.")
 @click.option("--seed", default=0, show_default=True, type=int, help="Noise seed of the --run.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
-def plan(target_path, card, params_path, model, out, overwrite, stretch, bias, sample_rate, backend, run_out,
-         check_run, seed, as_json):
+def plan(target_path, card, params_path, model, out, overwrite, stretch, bias, sample_rate, approach, settle,
+         backend, run_out, check_run, seed, as_json):
     """Plan the voltage that drives the twin along a target force (blocking) or stretch (against a bias).
 
     Past the twin's fold (pull-in, 1R/3R) or the voltage and field limits a
@@ -63,7 +66,8 @@ def plan(target_path, card, params_path, model, out, overwrite, stretch, bias, s
         die("plan: give --run or --check, not both")
     if run_out and not backend:
         die("--run-out: only with --run")
-    target = api.load_target(target_path, stretch=stretch, bias=bias, sample_rate=sample_rate)
+    target = api.load_target(target_path, stretch=stretch, bias=bias, sample_rate=sample_rate, approach=approach,
+                             settle=settle)
     tp = api.plan_target(target, card, params_path, model)
     api.write_protocol(tp, out, overwrite)
     result = {"protocol": out, **tp.summary()}
