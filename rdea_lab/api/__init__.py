@@ -19,7 +19,8 @@ Runs: `run_protocol`, `prepare_run`, `run_campaign`, callbacks `LiveTable`,
 `import_files`. Model: `predict`, `simulate`, `quasi_static_curves`,
 `geometry`. Calibration: `calibrate_runs`, `format_result`, `cross_validate`,
 `format_cv`, `envelope`, `beyond`. Reports:
-`validation_report`, `speed_study`, `reproduce`. Rig: `RigServer`.
+`validation_report`, `speed_study`, `reproduce`. Rig: `RigServer`. Voltage from a target:
+`load_target`, `plan_target`, `write_protocol`, `tracking_error`, `track_target`.
 """
 
 from __future__ import annotations
@@ -69,6 +70,10 @@ _EXPORTS = {
     # rig
     "RigServer": "rdea_lab.emulator", "is_loopback": "rdea_lab.emulator", "FAULTS": "rdea_lab.emulator",
     "parse_faults": "rdea_lab.emulator.controller", "RigRefused": "rdea_lab.backends.rig",
+    # voltage plans from a target
+    "load_target": "rdea_lab.specs.target", "plan_target": "rdea_lab.protocols.target",
+    "write_protocol": "rdea_lab.protocols.target", "tracking_error": "rdea_lab.reports.tracking",
+    "track_target": "rdea_lab.reports.tracking",
     # misc
     "project_root": "rdea_lab.paths", "benchmarks_dir": "rdea_lab.paths",}
 

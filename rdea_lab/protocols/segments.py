@@ -42,7 +42,8 @@ def evaluate(segment, t, previous: float) -> np.ndarray:
     sin(2 pi f t + phase); ``ramp_sine``: base + (peak(t) - base)
     (1 - cos(2 pi f t)) / 2 with peak(t) = peak_start + (peak_end -
     peak_start) t / T; ``chirp``: mean + amplitude sin(2 pi (f_start t +
-    (f_end - f_start) t^2 / (2 T))). Ramps and the ramp sine are written as
+    (f_end - f_start) t^2 / (2 T))); ``table``: values[j] at t = j T / (n - 1), linear in between.
+    Ramps, tables and the ramp sine are written as
     convex combinations ``a (1 - w) + b w``, so they hit their end points
     (w = 0, 1) exactly.
     """
@@ -61,6 +62,12 @@ def evaluate(segment, t, previous: float) -> np.ndarray:
         peak = segment.peak_start + (segment.peak_end - segment.peak_start) * (t / T)
         w = 0.5 * (1.0 - np.cos(2.0 * np.pi * segment.frequency * t))
         return segment.base * (1.0 - w) + peak * w
+    if kind == "table":
+        values = np.asarray(segment.values, dtype=float)
+        w = np.clip(t / T, 0.0, 1.0) * (values.size - 1)
+        i = np.minimum(np.floor(w).astype(np.int64), values.size - 2)
+        f = w - i
+        return values[i] * (1.0 - f) + values[i + 1] * f
     if kind == "chirp":
         f0, f1 = segment.f_start, segment.f_end
         return segment.mean + segment.amplitude * np.sin(2.0 * np.pi * (f0 * t + (f1 - f0) * t**2 / (2.0 * T)))
@@ -161,6 +168,10 @@ def describe(channel: str, segment, previous: float | None = None) -> str:
     if kind == "ramp_sine":
         return (f"ramp_sine base {v(segment.base)}, peak {v(segment.peak_start)} -> {v(segment.peak_end)} "
                 f"at {hz(segment.frequency)}")
+    if kind == "table":
+        values = segment.values
+        return (f"table of {len(values)} values {v(values[0])} -> {v(values[-1])} "
+                f"(range {v(min(values))} .. {v(max(values))})")
     return (f"chirp {v(segment.mean)} +- {v(segment.amplitude)}, "
             f"{hz(segment.f_start)} -> {hz(segment.f_end)}")
 

@@ -39,9 +39,9 @@ from .protocol_presets import (  # noqa: F401  (re-exported: part of the protoco
 from .protocol_segments import (  # noqa: F401  (re-exported: part of the protocol spec)
     Angle, CHANNELS, Cycles, Duration, Frequency, KINDS, Limits, MAX_SAMPLES, MAX_SAMPLE_RATE, MEASURABLE, REST,
     SEGMENTS, SEGMENT_KINDS, STRETCH_SEGMENTS, SampleRate, Stretch, StretchAmplitude, StretchChirp, StretchHold,
-    StretchRamp, StretchRampSine, StretchSegment, StretchSine, StretchStep, VOLTAGE_SEGMENTS, Voltage,
+    StretchRamp, StretchRampSine, StretchSegment, StretchSine, StretchStep, StretchTable, VOLTAGE_SEGMENTS, Voltage,
     VoltageAmplitude, VoltageChirp, VoltageHold, VoltageRamp, VoltageRampSine, VoltageSegment, VoltageSine,
-    VoltageStep, channel_duration, check_sample_count, format_angle, rate_text, _ROUNDING, _join, _segments,
+    VoltageStep, VoltageTable, MAX_TABLE_VALUES, channel_duration, check_sample_count, format_angle, rate_text, _ROUNDING, _join, _segments,
 )
 from .units import format_quantity
 
@@ -264,6 +264,10 @@ def _write(key: str, value: Any, channel: str) -> Any:
 
 
 def _dump_fields(model: SpecModel, channel: str, only_set: bool = False) -> dict:
+    if getattr(model, "kind", None) == "table":  # the values in SI, the unit once (exact round trip)
+        unit = {"unit": "V"} if channel == "voltage" else {}
+        return {"kind": "table", "duration": format_quantity(model.duration, "s"), **unit,
+                "values": _FlowList(float(v) for v in model.values)}
     out = {}
     for name, field in type(model).model_fields.items():
         if only_set and name not in model.model_fields_set:
@@ -307,6 +311,7 @@ __all__ = [
     "SEGMENT_KINDS", "STRETCH_SEGMENTS", "VOLTAGE_SEGMENTS",
     "BlockingForceSettings", "CapacitanceSweepSettings", "Limits", "PresetSchema", "ProtocolSpec",
     "StretchChirp", "StretchHold", "StretchRamp", "StretchRampSine", "StretchSegment", "StretchSine", "StretchStep",
+    "StretchTable", "VoltageTable", "MAX_TABLE_VALUES",
     "TensileRampSineSettings", "VoltageChirp", "VoltageHold", "VoltageRamp", "VoltageRampSine", "VoltageSegment",
     "VoltageSine", "VoltageStep",
     "channel_duration", "check_sample_count", "rate_text", "dump_protocol", "format_angle", "load_protocol",

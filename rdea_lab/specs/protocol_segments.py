@@ -8,16 +8,19 @@ import numbers
 from collections.abc import Mapping
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import AfterValidator, BaseModel, BeforeValidator, Field
+import numpy as np
+from pydantic import AfterValidator, BaseModel, BeforeValidator, Field, model_validator
 
 from .errors import DOCUMENT, SpecError, SpecModel, show
 from .errors import units_required
-from .units import _NUMBER, format_quantity, quantity, ureg
+from .units import _NUMBER, format_quantity, parse_quantity, quantity, ureg
 
 
 KINDS = ("tensile", "blocking", "capacitance", "custom")
 MEASURABLE = ("force", "capacitance")
-SEGMENT_KINDS = ("hold", "step", "ramp", "sine", "ramp_sine", "chirp")
+SEGMENT_KINDS = ("hold", "step", "ramp", "sine", "ramp_sine", "chirp", "table")
+#: most values a ``table`` segment may hold (a sampled setpoint history, e.g. a planned voltage)
+MAX_TABLE_VALUES = 1_000_000
 CHANNELS = ("stretch", "voltage")
 #: value of each channel before its first segment
 REST = {"stretch": 1.0, "voltage": 0.0}
@@ -134,6 +137,51 @@ class Limits(SpecModel):
 
 
 # ------------------------------------------------------------- segments
+def _table_values(channel: str, data: Any) -> Any:
+    """A ``table`` segment's mapping with its ``values`` as SI floats (its ``unit`` applied and dropped)."""
+    if not isinstance(data, dict):
+        return data
+    data = dict(data)
+    unit = data.pop("unit", None)
+    values = data.get("values")
+    dimension, example = ("voltage", "V") if channel == "voltage" else ("dimensionless", "")
+    factor = 1.0
+    if unit is not None:
+        if not isinstance(unit, str):
+            raise SpecError("", "unit", f"{show(unit)} is not a unit; give e.g. 'unit: {example or 1}'")
+        try:
+            factor = parse_quantity(f"1 {unit}", dimension, source="", field="unit") if unit.strip() else 1.0
+        except SpecError:
+            allowed = "a voltage unit such as V or kV" if channel == "voltage" else "none (stretch is a number)"
+            raise SpecError("", "unit", f"{show(unit)} is not allowed here; allowed: {allowed}") from None
+    elif units_required() and dimension != "dimensionless":
+        raise SpecError("", "unit", "missing; a voltage table gives its unit once, e.g. 'unit: V', and plain "
+                        "numbers in 'values'")
+    if not isinstance(values, (list, tuple)):
+        raise SpecError("", "values", f"expected a list of at least 2 numbers, got {show(values)}")
+    if not 2 <= len(values) <= MAX_TABLE_VALUES:
+        raise SpecError("", "values", f"{len(values)} values; allowed: 2 to {MAX_TABLE_VALUES}")
+    if any(isinstance(v, bool) for v in values):
+        bad = next(i for i, v in enumerate(values) if isinstance(v, bool))
+        raise SpecError("", f"values[{bad}]", f"{show(values[bad])} is not a number")
+    try:
+        array = np.asarray(values, dtype=float) * factor
+    except (TypeError, ValueError):
+        bad = next(i for i, v in enumerate(values) if isinstance(v, bool) or not isinstance(v, numbers.Real))
+        raise SpecError("", f"values[{bad}]", f"{show(values[bad])} is not a plain number (the unit is "
+                        "given once, in 'unit')") from None
+    bad = np.flatnonzero(~np.isfinite(array))
+    if bad.size:
+        raise SpecError("", f"values[{bad[0]}]", f"{show(values[bad[0]])} is not a finite number")
+    if channel == "stretch":
+        low = np.flatnonzero(array < 1.0)
+        if low.size:
+            raise SpecError("", f"values[{low[0]}]", f"stretch {array[low[0]]:g} is below 1; the roll must stay "
+                            "in tension (stretch >= 1)")
+    data["values"] = tuple(array.tolist())
+    return data
+
+
 def _segment_classes(channel: str, Value: Any, Amplitude: Any) -> dict[str, type[SpecModel]]:
     """The six segment models of one channel; values typed `Value`."""
 
@@ -177,7 +225,21 @@ def _segment_classes(channel: str, Value: Any, Amplitude: Any) -> dict[str, type
         f_start: Frequency
         f_end: Frequency
 
-    classes = dict(zip(SEGMENT_KINDS, (Hold, Step, Ramp, Sine, RampSine, Chirp)))
+    class Table(SpecModel):
+        """Sampled setpoints: ``values`` evenly spaced over the duration, first at its start, last at its
+        end, linear in between. From YAML a voltage table needs ``unit`` (e.g. ``unit: V``), and the values
+        are plain numbers in it; stretch values are plain numbers."""
+
+        kind: Literal["table"] = "table"
+        duration: Duration
+        values: tuple[float, ...]
+
+        @model_validator(mode="before")
+        @classmethod
+        def _in_si(cls, data: Any) -> Any:
+            return _table_values(channel, data)
+
+    classes = dict(zip(SEGMENT_KINDS, (Hold, Step, Ramp, Sine, RampSine, Chirp, Table)))
     prefix = channel.capitalize()
     for cls in classes.values():
         cls.__name__ = cls.__qualname__ = prefix + cls.__name__
@@ -192,8 +254,10 @@ def _segment_classes(channel: str, Value: Any, Amplitude: Any) -> dict[str, type
 STRETCH_SEGMENTS = _segment_classes("stretch", Stretch, StretchAmplitude)
 VOLTAGE_SEGMENTS = _segment_classes("voltage", Voltage, VoltageAmplitude)
 SEGMENTS = {"stretch": STRETCH_SEGMENTS, "voltage": VOLTAGE_SEGMENTS}
-StretchHold, StretchStep, StretchRamp, StretchSine, StretchRampSine, StretchChirp = STRETCH_SEGMENTS.values()
-VoltageHold, VoltageStep, VoltageRamp, VoltageSine, VoltageRampSine, VoltageChirp = VOLTAGE_SEGMENTS.values()
+(StretchHold, StretchStep, StretchRamp, StretchSine, StretchRampSine, StretchChirp,
+ StretchTable) = STRETCH_SEGMENTS.values()
+(VoltageHold, VoltageStep, VoltageRamp, VoltageSine, VoltageRampSine, VoltageChirp,
+ VoltageTable) = VOLTAGE_SEGMENTS.values()
 StretchSegment = Union[tuple(STRETCH_SEGMENTS.values())]
 VoltageSegment = Union[tuple(VOLTAGE_SEGMENTS.values())]
 

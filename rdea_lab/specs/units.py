@@ -35,9 +35,12 @@ _DIMENSIONS: dict[str, tuple[str, str, str]] = {
     "electric_field": ("V/m", "electric field", "50 V/um"),
     "compliance": ("m/N", "compliance", "20 um/N"),
     "force_rate": ("N/s", "force rate", "0.5 mN/min"),
+    "stiffness": ("N/m", "stiffness", "200 N/m"),
+    "mass": ("kg", "mass", "100 g"),
 }
 _NOTES = {"viscosity": " (pressure times time)", "electric_field": " (voltage per length)",
-          "compliance": " (length per force)", "force_rate": " (force per time)"}
+          "compliance": " (length per force)", "force_rate": " (force per time)",
+          "stiffness": " (force per length)"}
 DIMENSIONS = tuple(_DIMENSIONS)
 
 _NUMBER = re.compile(
@@ -78,7 +81,8 @@ def parse_quantity(
         One of `DIMENSIONS`: ``length`` [m], ``pressure`` [Pa], ``viscosity``
         [Pa s], ``voltage`` [V], ``frequency`` [Hz], ``time`` [s],
         ``dimensionless`` [-], ``force`` [N], ``capacitance`` [F],
-        ``electric_field`` [V/m], ``compliance`` [m/N], ``force_rate`` [N/s].
+        ``electric_field`` [V/m], ``compliance`` [m/N], ``force_rate`` [N/s],
+        ``stiffness`` [N/m], ``mass`` [kg].
     source, field : str
         Where the value came from, for the error message.
     example_unit : str, optional
