@@ -63,29 +63,37 @@ def radau(u0, e, r1, r2, r3, hr, hs):
 
 
 @numba.njit(cache=True)
+def interval(u, t0, t1, lam0, lam1, tau, step0, grow, dstep):
+    """The elastic log-stretch ``u`` of one branch carried from ``t0`` to ``t1`` [s] (stretch linear
+    from ``lam0`` to ``lam1`` in between) on the graded Radau substeps of the module docstring."""
+    h = t1 - t0
+    s = (lam1 - lam0) / h  # d lambda1/dt on the interval
+    done, x = 0.0, 0.0  # time and decay (integral of kappa) since the sample
+    while done < h and u == u:
+        la = lam0 + s * done
+        e = math.exp(u)
+        kappa = (2.0 * e * e + 1.0 / e) / (3.0 * tau)
+        hs = (step0 if x == 0.0 else step0 * math.exp(min(x * grow, 600.0))) / kappa
+        if s != 0.0:
+            hs = min(hs, dstep * la / abs(s))
+        if done + hs >= h * (1.0 - 1e-12):
+            hs = h - done
+        r1 = s / (la + s * c1 * hs)
+        r2 = s / (la + s * c2 * hs)
+        r3 = s / (la + s * hs)
+        u = radau(u, e, r1, r2, r3, hs / tau, hs)
+        done += hs
+        x += kappa * hs
+    return u
+
+
+@numba.njit(cache=True)
 def finite(t, lam, tau, u0, out, step0, grow, dstep):
     for j in range(tau.size):
         u = u0[j]
         out[j, 0] = u
         for i in range(1, t.size):
-            h = t[i] - t[i - 1]
-            s = (lam[i] - lam[i - 1]) / h  # d lambda1/dt on the interval
-            done, x = 0.0, 0.0  # time and decay (integral of kappa) since the sample
-            while done < h and u == u:
-                la = lam[i - 1] + s * done
-                e = math.exp(u)
-                kappa = (2.0 * e * e + 1.0 / e) / (3.0 * tau[j])
-                hs = (step0 if x == 0.0 else step0 * math.exp(min(x * grow, 600.0))) / kappa
-                if s != 0.0:
-                    hs = min(hs, dstep * la / abs(s))
-                if done + hs >= h * (1.0 - 1e-12):
-                    hs = h - done
-                r1 = s / (la + s * c1 * hs)
-                r2 = s / (la + s * c2 * hs)
-                r3 = s / (la + s * hs)
-                u = radau(u, e, r1, r2, r3, hs / tau[j], hs)
-                done += hs
-                x += kappa * hs
+            u = interval(u, t[i - 1], t[i], lam[i - 1], lam[i], tau[j], step0, grow, dstep)
             out[j, i] = u
 
 

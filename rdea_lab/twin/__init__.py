@@ -7,6 +7,7 @@
 - `simulate` (specimen, params, t, stretch, voltage, model): the same on bare arrays.
 - `TwinStream`: block by block, carrying the viscoelastic state (the twin
   backend and the emulator use it).
+- `TwinStep`: one sample per call, compiled, for a control loop.
 - `compose`: the one composition of eqs. (43), (44) and (16) of [1].
 
 Quick start::
@@ -20,6 +21,7 @@ Quick start::
 from .curves import quasi_static_curves
 from .predict import MIN_STRETCH, predict
 from .simulate import TwinStream, as_geometry, compose, simulate, viscous
+from .step import TwinStep
 
-__all__ = ["MIN_STRETCH", "TwinStream", "as_geometry", "compose", "predict", "quasi_static_curves", "simulate",
+__all__ = ["MIN_STRETCH", "TwinStep", "TwinStream", "as_geometry", "compose", "predict", "quasi_static_curves", "simulate",
            "viscous"]

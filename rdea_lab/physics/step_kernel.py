@@ -1,0 +1,192 @@
+"""The compiled per-sample step of the twin (numba): quasi-static state, branches and force in one call.
+
+`rdea_lab.twin.TwinStep` calls `step` once per sample with its state and
+parameter arrays (nothing is allocated per call). The equations are the
+reference's own functions compiled (`kernels._jit`); the state follows the
+path rule of `rdea_lab.physics.branch.follow_path` through the certified
+root of `kernels._one` (one basin, or ``h`` above the load everywhere with
+the previous state not above ``y0``). Where that does not hold, or the roll
+would push (slack: the free state is a root search of its own), `step`
+returns ``NEEDS_REFERENCE`` without touching the state, and the caller solves
+the sample with the reference solver and hands the quasi-static state to
+`advance` (branches and force, compiled).
+
+State ``S``: ``[started, t, stretch, y, has_state, q_1 .. q_M]``; parameters
+``P``: ``[C10, C20, C30, kappa, C0, area, eta_v0, law, M, k_1 .. k_M,
+tau_1 .. tau_M]`` (law 0 linear, 1 finite strain; ``k`` the branch moduli);
+output ``out``: ``[force, capacitance, sigma1, sigma1_irr, lambda2b, status]``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from . import _branch_kernels as _bk
+from . import yeoh
+from .kernels import _jit, _basis, _one, _slope, _terms
+from .models import one_ring, three_ring
+from .models._common import FREE_STRETCH_MAX
+from .result import OK, SLACK
+from .viscoelastic import _FS_GROW, _FS_STEP, _FS_STRETCH_STEP
+
+_gradient = _jit(yeoh.gradient_terms, _invariant_terms=_jit(yeoh._invariant_terms), slope=_slope)
+_stress1 = _jit(one_ring.stress, gradient_terms=_gradient)
+_bounds1 = _jit(one_ring.bounds)
+_radii = _jit(three_ring.radii)
+_state3 = _jit(three_ring.ring_state, radii=_radii, gradient_terms=_gradient)
+_xi_hoop = _jit(three_ring.xi_at_hoop_stretch)
+_bounds3 = _jit(three_ring.bounds, xi_at_hoop_stretch=_xi_hoop)
+
+#: Model codes of `step` (CR is not stepped here: its samples go to the reference).
+CODES = {"su": 0, "1r": 1, "3r": 3}
+#: `step` results.
+DONE, NEEDS_REFERENCE, TIME_NOT_INCREASING = 0, 1, -1
+_N_SCAN = 24
+_FREE_MAX = FREE_STRETCH_MAX
+_Q = np.zeros((4, 0))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def advance(S, P, t, l1, sigma_rev, capacitance, lambda2b, status, out):
+    """Carry the branches to ``(t, l1)``, compose eqs. (43), (44), (16) and write ``out``; advance ``S``."""
+    area, eta_v0, law, M = P[5], P[6], P[7], int(P[8])
+    started = S[0] != 0.0
+    rate = 0.0
+    if started:
+        dt = t - S[1]
+        rate = (l1 - S[2]) / dt
+    irr = 0.0
+    for j in range(M):
+        k, tau = P[9 + j], P[9 + M + j]
+        q = S[5 + j] if started else 0.0
+        if started:
+            if law == 0.0:
+                r = dt / tau
+                q = math.exp(-r) * q + rate * tau * -math.expm1(-r)
+            else:
+                q = _bk.interval(q, S[1], t, S[2], l1, tau, _FS_STEP, _FS_GROW, _FS_STRETCH_STEP)
+        S[5 + j] = q
+        irr += k * q if law == 0.0 else k * (math.expm1(2.0 * q) - math.expm1(-q))
+    if eta_v0 != 0.0:
+        irr += eta_v0 * rate
+    sigma = sigma_rev + irr
+    force = sigma * area / l1
+    if force < 0.0:  # NaN stays NaN, as np.maximum keeps it
+        force = 0.0
+    if force == 0.0:
+        sigma = 0.0
+    if status == OK and sigma_rev + irr < 0.0:
+        status = SLACK
+    elif status == SLACK and force > 0.0:
+        status = OK
+    out[0], out[1], out[2], out[3], out[4], out[5] = force, capacitance, sigma, irr, lambda2b, status
+    S[0], S[1], S[2] = 1.0, t, l1
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _state(code, P, R, B, offsets, pitchfork, l1, v, y_prev, prev_ok):
+    """``(sigma_rev, capacitance, lambda2b, y, ok)`` of the path's state at ``(l1, v)`` coming from
+    ``y_prev`` (``prev_ok``: that state exists); ``ok`` False where the reference must decide."""
+    C10, C20, C30, kap, C0 = P[0], P[1], P[2], P[3], P[4]
+    if code == 0:
+        b, x = _basis(l1)
+        W1, _ = _slope(x, (C10, C20, C30))
+        return b * W1 - kap * (l1 * v ** 2), C0 * l1, 1.0 / np.sqrt(l1), math.nan, True
+    if code == 1:
+        y0, y_max, load = _bounds1(l1, kap)
+    else:
+        y0, y_max, load = _bounds3(l1, kap, B)
+    K = load * v * v
+    h0 = 0.0
+    if pitchfork:
+        _, p_yy, _, c_yy = _terms(code, y0, l1, R, _Q, C10, C20, C30)
+        h0 = p_yy / c_yy
+    first = (1.0 / _N_SCAN) ** 2 * (y_max - y0)
+    n_off = 0
+    while n_off < offsets.size and offsets[n_off] < first:
+        n_off += 1
+    y, cert = _one(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, offsets[:n_off], True, 1e-14, 100, _N_SCAN,
+                   pitchfork)
+    if cert == 0 or (cert == 2 and not (prev_ok and (y_prev != y_prev or y_prev <= y0))):
+        return math.nan, math.nan, math.nan, y0, False
+    if code == 1:
+        return _stress1(y, l1, v, C10, C20, C30, kap), C0 * (l1 * y) ** 2, y, y, True
+    sigma, _, l2b, _ = _state3(y, l1, v, R, C10, C20, C30, kap)
+    return sigma, C0 * (l1 * l2b) ** 2, l2b, y, True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
+    """The free (F = 0) state of a slack roll: `models._common.free_state` for one sample (the same
+    bracketing by 25 % steps and Illinois iteration, each trial the path's state descending from
+    ``origin``). ``(capacitance, lambda2b, ok)``."""
+    lo, s_lo, hi = l1, sigma_l1, l1
+    s_hi = -math.inf
+    while True:
+        trial = min(hi * 1.25, _FREE_MAX)
+        sig, _, _, _, ok = _state(code, P, R, B, offsets, pitchfork, trial, v, origin, True)
+        if not (ok and sig == sig):
+            return math.nan, math.nan, False
+        if sig >= 0.0:
+            hi, s_hi = trial, sig
+            break
+        lo, s_lo = trial, sig
+        if trial >= _FREE_MAX:
+            return math.nan, math.nan, False
+        hi = trial
+    a, b, fa, fb = lo, hi, s_lo, s_hi
+    tol = 1e-10 * abs(sigma_l1)
+    side = 0
+    x = b
+    done = False
+    for _ in range(200):
+        xn = (a * fb - b * fa) / (fb - fa)
+        if not (xn > a and xn < b):
+            xn = 0.5 * (a + b)
+        yn, _, _, _, ok = _state(code, P, R, B, offsets, pitchfork, xn, v, origin, True)
+        if not (ok and yn == yn):
+            return math.nan, math.nan, False
+        x = xn
+        if yn < 0.0:
+            fb = 0.5 * fb if side == -1 else fb
+            a, fa = xn, yn
+            side = -1
+        else:
+            fa = 0.5 * fa if side == 1 else fa
+            b, fb = xn, yn
+            side = 1
+        if abs(yn) <= tol or b - a <= 1e-13 * b:
+            done = True
+            break
+    if not done:
+        return math.nan, math.nan, False
+    sig, cap, l2b, _, ok = _state(code, P, R, B, offsets, pitchfork, x, v, origin, True)
+    if not (ok and abs(sig) <= 1e-6 * abs(sigma_l1) + 1e-6):
+        return math.nan, math.nan, False
+    return cap, l2b, True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def step(code, S, P, R, B, offsets, pitchfork, t, l1, v, out):
+    """One sample: `DONE` (``out`` written, ``S`` advanced), `NEEDS_REFERENCE` or `TIME_NOT_INCREASING`."""
+    started = S[0] != 0.0
+    if started and not (t > S[1]):
+        return TIME_NOT_INCREASING
+    if not (l1 >= 1.0 and l1 < math.inf and abs(v) < math.inf):
+        return NEEDS_REFERENCE
+    sigma, cap, l2b, y, ok = _state(code, P, R, B, offsets, pitchfork, l1, v, S[3] if started else math.nan,
+                                    S[4] != 0.0 or not started)
+    if not (ok and sigma == sigma):
+        return NEEDS_REFERENCE
+    status = OK
+    if sigma < 0.0:  # slack: the roll's own state is its free one
+        cap, l2b, ok = _free(code, P, R, B, offsets, pitchfork, l1, v, sigma, y)
+        if not ok:
+            return NEEDS_REFERENCE
+        status = SLACK
+    advance(S, P, t, l1, sigma, cap, l2b, status, out)
+    S[3], S[4] = y, 1.0
+    return DONE

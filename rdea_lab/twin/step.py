@@ -1,0 +1,120 @@
+"""`TwinStep`: the twin one sample at a time, for a control loop (no allocation per call)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..physics.branch import Problem, scale_offsets
+from ..physics.models import MODELS, solve, three_ring
+from ..physics.models._common import kappa, yeoh_coefficients
+from ..physics.result import BAD_INPUT, PathEnd
+from ..specs import as_params
+from .simulate import as_geometry, viscous
+
+#: What `TwinStep.step` returns, by index.
+FIELDS = ("force", "capacitance", "sigma1", "sigma1_irr", "lambda2b", "model_status")
+FORCE, CAPACITANCE, SIGMA1, SIGMA1_IRR, LAMBDA2B, MODEL_STATUS = range(6)
+
+
+class TwinStep:
+    """The twin (a quasi-static model, its branches and the force) advanced one sample per call.
+
+    The same numbers as `TwinStream` / `simulate` over the whole series, to
+    rounding (tested to 1e-12), except ``eta_v0``'s rate at the very first
+    sample, which a stepper cannot know yet and takes as 0 (the series takes
+    the first interval's slope). Each call is one compiled function
+    (:mod:`rdea_lab.physics.step_kernel`) on preallocated state; a sample the
+    kernel cannot certify (a fold, a snap, pull-in, a slack roll's free state,
+    a bad input; every CR sample of a roll with a core) is solved by the reference solver from the
+    same state, which costs a few hundred microseconds instead of a few.
+
+    Parameters
+    ----------
+    specimen : SpecimenCard, RollGeometry or path
+    params : ParameterSet or path
+    model : {"su", "1r", "3r", "cr"}
+
+    Examples
+    --------
+    >>> twin = TwinStep("specimens/specimen2.yaml", "params/paper2021_table3.yaml", "su")  # doctest: +SKIP
+    >>> out = twin.step(0.0, 1.2, 2600.0)      # out[FORCE] [N], out[CAPACITANCE] [F], ...  # doctest: +SKIP
+    """
+
+    def __init__(self, specimen, params, model="su"):
+        from ..physics import step_kernel  # numba: loaded here, not at the first step
+
+        if model not in MODELS:
+            raise ValueError(f"model {model!r}; allowed: {', '.join(MODELS)}")
+        self.geom = as_geometry(specimen)
+        self.params = as_params(params)
+        self.model = model
+        solve(model, self.geom, self.params, np.array([1.0]), np.array([0.0]))  # applicable to this geometry?
+        k, eta, eta_v0, law = viscous(self.params)
+        self._P = np.array([*yeoh_coefficients(self.params), kappa(self.geom, self.params),
+                            self.geom.C0(self.params.eps_r), self.geom.area, eta_v0,
+                            0.0 if law == "linear" else 1.0, k.size, *k, *(eta / k)], float)
+        self._S = np.zeros(5 + k.size)
+        self._out = np.full(len(FIELDS), np.nan)
+        self._label = None
+        self._code = step_kernel.CODES.get(model, -1)
+        if model == "cr" and getattr(self.geom, "Ri", None) == 0.0:
+            self._code = step_kernel.CODES["su"]  # a solid roll's CR is the SU state exactly (r_i = 0 pinned)
+        self._R = (0.0,) * 9
+        self._B = (0.0,) * 4
+        self._offsets = np.zeros(0)
+        self._pitchfork = False
+        if model == "3r":
+            rings = three_ring._Rings(self.geom, np.ones(1))
+            self._R, self._B = rings.constants, rings.bound_constants
+            self._pitchfork = bool(rings.rho_i == 0.0 and rings.has_a)
+            if self._pitchfork:  # the scale nodes up to any span the hoop-stretch cap allows (< 1e3 Ro)
+                probe = Problem(None, np.zeros(1), np.ones(1), np.zeros(1), np.ones(1), True, rings.rho_ie,
+                                span_max=1e3)
+                self._offsets = np.ascontiguousarray(scale_offsets(probe), float)
+        self._kernel = step_kernel.step
+        self._advance = step_kernel.advance
+        self._time_error = step_kernel.TIME_NOT_INCREASING
+
+    def reset(self) -> None:
+        """Back to the unloaded, relaxed roll before its first sample."""
+        self._S[:] = 0.0
+        self._out[:] = np.nan
+        self._label = None
+
+    def step(self, t, stretch, voltage) -> np.ndarray:
+        """Advance to time ``t`` [s] at ``stretch`` [-] and ``voltage`` [V].
+
+        Returns
+        -------
+        numpy.ndarray, shape (6,)
+            ``force`` [N], ``capacitance`` [F], ``sigma1``, ``sigma1_irr`` [Pa],
+            ``lambda2b`` [-], ``model_status`` (indices `FORCE` ... `MODEL_STATUS`);
+            the same array every call, overwritten by the next.
+        """
+        r = self._kernel(self._code, self._S, self._P, self._R, self._B, self._offsets, self._pitchfork, t, stretch,
+                         voltage, self._out)
+        if r == 0:
+            self._label = None
+            return self._out
+        if r == self._time_error:
+            raise ValueError(f"t = {t!r} is not after the previous sample's {self._S[1]!r}")
+        return self._reference(float(t), float(stretch), float(voltage))
+
+    def _reference(self, t, stretch, voltage):
+        S, out = self._S, self._out
+        if not np.isfinite(stretch):  # no state: the branches carry on across it (as in a series)
+            out[:] = np.nan
+            out[MODEL_STATUS] = BAD_INPUT
+            return out
+        start = None
+        if S[0] != 0.0:
+            start = PathEnd(self.model, None if np.isnan(S[3]) else float(S[3]), self._label)
+        res = solve(self.model, self.geom, self.params, np.array([stretch]), np.array([voltage]), path=True,
+                    start=start)
+        self._advance(S, self._P, t, stretch, float(res.tension[0]), float(res.capacitance[0]),
+                      float(res.lambda2b[0]), int(res.status[0]), out)
+        y = res.end.y
+        S[3] = np.nan if y is None else y
+        S[4] = 1.0 if res.end.label is None else 0.0
+        self._label = res.end.label
+        return out
