@@ -28,7 +28,8 @@ from . import _branch_kernels as _bk
 from . import yeoh
 from .kernels import _jit, _basis, _one, _slope, _terms
 from .models import one_ring, three_ring
-from .models._common import FREE_STRETCH_MAX
+from .branch import Problem, scale_offsets
+from .models._common import FREE_STRETCH_MAX, kappa, yeoh_coefficients
 from .result import OK, SLACK
 from .viscoelastic import _FS_GROW, _FS_STEP, _FS_STRETCH_STEP
 
@@ -47,6 +48,28 @@ DONE, NEEDS_REFERENCE, TIME_NOT_INCREASING = 0, 1, -1
 _N_SCAN = 24
 _FREE_MAX = FREE_STRETCH_MAX
 _Q = np.zeros((4, 0))
+
+
+def constants(model, geom, material, modulus, tau, eta_v0, law):
+    """``(code, P, R, B, offsets, pitchfork)`` of `step` for a model, a roll and a material (see the module
+    docstring; ``code`` -1: every sample is the reference's). A solid roll's CR is the SU state exactly
+    (``r_i = 0`` pinned), so it steps as SU."""
+    code = CODES.get(model, -1)
+    if model == "cr" and getattr(geom, "Ri", None) == 0.0:
+        code = CODES["su"]
+    modulus, tau = np.atleast_1d(np.asarray(modulus, float)), np.atleast_1d(np.asarray(tau, float))
+    P = np.array([*yeoh_coefficients(material), kappa(geom, material), geom.C0(material.eps_r), geom.area,
+                  float(eta_v0), 0.0 if law == "linear" else 1.0, modulus.size, *modulus, *tau], float)
+    R, B, offsets, pitchfork = (0.0,) * 9, (0.0,) * 4, np.zeros(0), False
+    if model == "3r":
+        rings = three_ring._Rings(geom, np.ones(1))
+        R, B = rings.constants, rings.bound_constants
+        pitchfork = bool(rings.rho_i == 0.0 and rings.has_a)
+        if pitchfork:  # the scale nodes up to any span the hoop-stretch cap allows (< 1e3 Ro)
+            probe = Problem(None, np.zeros(1), np.ones(1), np.zeros(1), np.ones(1), True, rings.rho_ie,
+                            span_max=1e3)
+            offsets = np.ascontiguousarray(scale_offsets(probe), float)
+    return code, P, R, B, offsets, pitchfork
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -69,6 +69,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._backend import compiled
+
 #: The viscoelastic laws a parameter set can choose.
 LAWS = ("linear", "finite_strain")
 
@@ -119,8 +121,13 @@ def _linear_coefficients(dt, slope, tau):
     return np.exp(-r), slope * tau[:, None] * -np.expm1(-r)
 
 
-def _linear_recurrence(a, b, q0, q):
-    """``q[:, 0] = q0`` and ``q_{n+1} = a_n q_n + b_n`` into ``q[:, 1:]`` (the prefix scan)."""
+def _linear_recurrence(a, b, q0, q, kernel="auto"):
+    """``q[:, 0] = q0`` and ``q_{n+1} = a_n q_n + b_n`` into ``q[:, 1:]`` (the prefix scan, or compiled:
+    the recurrence in sequence, `rdea_lab.physics.kernels.linear_recurrence`)."""
+    fast = compiled(kernel, q.shape[1])
+    if fast is not None:
+        fast.linear_recurrence(a, b, q0, q)
+        return
     q[:, 0] = q0
     A, B = _affine_prefix(a, b)
     q[:, 1:] = A * q[:, :1] + B

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..physics.branch import Problem, scale_offsets
-from ..physics.models import MODELS, solve, three_ring
-from ..physics.models._common import kappa, yeoh_coefficients
+from ..physics.models import MODELS, solve
 from ..physics.result import BAD_INPUT, PathEnd
 from ..specs import as_params
 from .simulate import as_geometry, viscous
@@ -50,27 +48,11 @@ class TwinStep:
         self.model = model
         solve(model, self.geom, self.params, np.array([1.0]), np.array([0.0]))  # applicable to this geometry?
         k, eta, eta_v0, law = viscous(self.params)
-        self._P = np.array([*yeoh_coefficients(self.params), kappa(self.geom, self.params),
-                            self.geom.C0(self.params.eps_r), self.geom.area, eta_v0,
-                            0.0 if law == "linear" else 1.0, k.size, *k, *(eta / k)], float)
+        self._code, self._P, self._R, self._B, self._offsets, self._pitchfork = step_kernel.constants(
+            model, self.geom, self.params, k, eta / k, eta_v0, law)
         self._S = np.zeros(5 + k.size)
         self._out = np.full(len(FIELDS), np.nan)
         self._label = None
-        self._code = step_kernel.CODES.get(model, -1)
-        if model == "cr" and getattr(self.geom, "Ri", None) == 0.0:
-            self._code = step_kernel.CODES["su"]  # a solid roll's CR is the SU state exactly (r_i = 0 pinned)
-        self._R = (0.0,) * 9
-        self._B = (0.0,) * 4
-        self._offsets = np.zeros(0)
-        self._pitchfork = False
-        if model == "3r":
-            rings = three_ring._Rings(self.geom, np.ones(1))
-            self._R, self._B = rings.constants, rings.bound_constants
-            self._pitchfork = bool(rings.rho_i == 0.0 and rings.has_a)
-            if self._pitchfork:  # the scale nodes up to any span the hoop-stretch cap allows (< 1e3 Ro)
-                probe = Problem(None, np.zeros(1), np.ones(1), np.zeros(1), np.ones(1), True, rings.rho_ie,
-                                span_max=1e3)
-                self._offsets = np.ascontiguousarray(scale_offsets(probe), float)
         self._kernel = step_kernel.step
         self._advance = step_kernel.advance
         self._time_error = step_kernel.TIME_NOT_INCREASING

@@ -10,6 +10,7 @@ instead of a prefix scan (measured 1e-15). Statuses must be identical.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,7 +21,7 @@ from rdea_lab.specs import ParameterSet, ViscoBranch, load_params, load_specimen
 from rdea_lab.twin import TwinStep, TwinStream
 from rdea_lab.twin.step import FIELDS, FORCE
 
-from conftest import ROOT as PROJECT
+PROJECT = Path(__file__).resolve().parents[2]
 
 TABLE3 = load_params(PROJECT / "params" / "paper2021_table3.yaml")
 CARD = load_specimen(PROJECT / "specimens" / "specimen2.yaml")

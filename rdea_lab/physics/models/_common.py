@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..branch import follow_branch, follow_path
 from ..constants import EPS0
+from .._backend import compiled
 from ..result import NOT_CONVERGED, OK, SLACK, SNAPPED, VALID, PathEnd, finish, prepare_inputs
 
 #: Upper end of the admissible range of the active ring's circumferential
@@ -56,35 +56,9 @@ class Evaluation:
     y: np.ndarray | None = None
 
 
-#: Kernel choices of `solve`: the compiled kernels where numba is there (``auto``), always, or never.
-KERNELS = ("auto", "numba", "numpy")
 #: A path whose uncertified samples (see `rdea_lab.physics.kernels`) fall into more runs than this is
 #: solved by the reference as a whole (each run is one reference call).
 MAX_FALLBACK_RUNS = 32
-
-
-#: ``auto`` loads the compiled kernels for a call of at least this many samples (loading numba and
-#: the cached machine code costs a process about 0.9 s once, more than the kernels save on small
-#: calls); once loaded, every call uses them.
-AUTO_MIN_SAMPLES = 16384
-
-
-def compiled(kernel, n=None):
-    """The `rdea_lab.physics.kernels` module if ``kernel`` asks for it and it can be had, else None
-    (``n``: the call's samples, for ``auto``)."""
-    if kernel not in KERNELS:
-        raise ValueError(f"kernel {kernel!r}; allowed: {', '.join(KERNELS)}")
-    if kernel == "numpy":
-        return None
-    if kernel == "auto" and "rdea_lab.physics.kernels" not in sys.modules and (n is None or n < AUTO_MIN_SAMPLES):
-        return None
-    try:
-        from .. import kernels
-    except ImportError:  # numba missing: the reference is the fallback
-        if kernel == "numba":
-            raise
-        return None
-    return kernels if (kernel == "numba" or kernels.enabled()) else None
 
 
 def evaluate_free(problem, state, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:

@@ -6,7 +6,8 @@ import numpy as np
 
 from .. import yeoh
 from ..result import OK, ModelResult
-from ._common import Evaluation, compiled, kappa, solve_model, yeoh_coefficients
+from .._backend import compiled
+from ._common import Evaluation, kappa, solve_model, yeoh_coefficients
 
 
 def enthalpy(geom, material, stretch, voltage):

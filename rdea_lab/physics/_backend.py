@@ -1,0 +1,27 @@
+"""Which implementation runs: the compiled kernels (`rdea_lab.physics.kernels`) or the numpy reference."""
+
+from __future__ import annotations
+
+#: Kernel choices of `rdea_lab.physics.models.solve` and the branch updates.
+KERNELS = ("auto", "numba", "numpy")
+#: ``auto`` uses the compiled kernels for calls of at least this many samples: loading numba and the
+#: cached machine code costs a process about 0.9 s once, more than the kernels save on small calls.
+#: The choice depends on the call alone (not on what the process loaded before), so a result does not
+#: depend on the history of the process (the two agree to 1e-12 anyway, mostly to the last bit).
+AUTO_MIN_SAMPLES = 16384
+
+
+def compiled(kernel, n=None):
+    """The `rdea_lab.physics.kernels` module if ``kernel`` asks for it and it can be had, else None
+    (``n``: the call's samples, for ``auto``)."""
+    if kernel not in KERNELS:
+        raise ValueError(f"kernel {kernel!r}; allowed: {', '.join(KERNELS)}")
+    if kernel == "numpy" or (kernel == "auto" and (n is None or n < AUTO_MIN_SAMPLES)):
+        return None
+    try:
+        from . import kernels
+    except ImportError:  # numba missing: the reference is the fallback
+        if kernel == "numba":
+            raise
+        return None
+    return kernels if (kernel == "numba" or kernels.enabled()) else None
