@@ -252,6 +252,17 @@ def _roots_cr_loop(l1, y0, y_max, K, h0, xi0, x0, Lb, Q, C10, C20, C30, offsets,
                            rtol, max_iter, n_scan, pitchfork)
 
 
+def _arr(x, shape=None):
+    """``x`` as a writable C-contiguous float64 array (copied only if it is not one): numba compiles a
+    slower variant for read-only or strided arrays (a broadcast view ran 40x slower)."""
+    a = np.asarray(x, dtype=float)
+    if shape is not None and a.shape != shape:
+        a = np.broadcast_to(a, shape)
+    if not (a.flags.c_contiguous and a.flags.writeable):
+        a = np.array(a, dtype=float, order="C")
+    return a
+
+
 def _variants(loop):
     """``(serial, parallel)`` compiled forms of one loop (``prange`` is ``range`` in the serial one)."""
     return (numba.njit(cache=True, error_model="numpy")(loop),
@@ -297,16 +308,15 @@ def branch_roots(problem, *, whole, start=None, rtol=1e-14, max_iter=100):
     if n == 0:
         return y, ok.astype(bool)
     h0 = problem.h_start(np.arange(n))
-    offsets = np.ascontiguousarray(scale_offsets(problem), dtype=float)
-    args = (np.ascontiguousarray(problem.y0, float), np.ascontiguousarray(problem.y_max, float),
-            np.ascontiguousarray(problem.K, float), np.ascontiguousarray(h0, float))
+    offsets = _arr(scale_offsets(problem))
+    args = (_arr(problem.y0, (n,)), _arr(problem.y_max, (n,)), _arr(problem.K, (n,)), _arr(h0, (n,)))
     C = consts["C"]
     tail = (offsets, bool(whole), rtol, max_iter, N_SCAN, bool(problem.pitchfork), y, ok)
     if code == CODES["cr"]:
-        _roots_cr[_parallel(n)](consts["l1"], *args, consts["xi0"], consts["x0"], consts["Lb"], consts["Q"], *C,
-                                *tail)
+        _roots_cr[_parallel(n)](_arr(consts["l1"]), *args, _arr(consts["xi0"]), _arr(consts["x0"]), consts["Lb"],
+                                _arr(consts["Q"]), *C, *tail)
     else:
-        _roots[_parallel(n)](code, consts["l1"], *args, consts.get("R", _NO_RING), _EMPTY_Q, *C, *tail)
+        _roots[_parallel(n)](code, _arr(consts["l1"]), *args, consts.get("R", _NO_RING), _EMPTY_Q, *C, *tail)
     if whole:
         _chain(ok, y, args[0], float(problem.y0[0]) if start is None else float(start))
     return y, ok == 1
@@ -337,8 +347,8 @@ def su_state(l1, v, C, kap, C0, out=None):
     ``l1``, ``v``: float arrays of one shape; ``out``: three arrays of that
     shape to write into (none is allocated then).
     """
-    l1 = np.ascontiguousarray(l1, dtype=float)
-    v = np.ascontiguousarray(np.broadcast_to(v, l1.shape), dtype=float)
+    l1 = _arr(l1)
+    v = _arr(v, l1.shape)
     if out is None:
         out = (np.empty_like(l1), np.empty_like(l1), np.empty_like(l1))
     _su[_parallel(l1.size)](l1.ravel(), v.ravel(), C[0], C[1], C[2], kap, C0, *(o.reshape(-1) for o in out))
@@ -357,7 +367,7 @@ def _linear(a, b, q0, q):
 
 def linear_recurrence(a, b, q0, q):
     """``q[:, 0] = q0``, ``q_{n+1} = a_n q_n + b_n`` into ``q[:, 1:]``: eq. (44)'s exact update, in sequence."""
-    _linear(np.ascontiguousarray(a, float), np.ascontiguousarray(b, float), np.ascontiguousarray(q0, float), q)
+    _linear(_arr(a), _arr(b), _arr(q0), q)
 
 
 def enabled() -> bool:

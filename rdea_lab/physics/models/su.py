@@ -30,13 +30,16 @@ def enthalpy(geom, material, stretch, voltage):
 def basis(stretch):
     """``(b, x)`` with the SU mechanical stress ``b W'(x)`` [Pa], eq. (39).
 
-    ``x = I1 - 3 = e**(2a) + 2 e**(-a) - 3`` and ``b = 2 lambda1**2 (1 - lambda1**-3)``,
-    ``a = ln lambda1``, both in forms that keep their digits near lambda1 = 1.
+    ``x = I1 - 3 = lambda1**2 + 2 / lambda1 - 3 = d**2 (lambda1 + 2) / lambda1`` and ``b = 2 lambda1**2
+    (1 - lambda1**-3) = 2 d (lambda1**2 + lambda1 + 1) / lambda1`` with ``d = lambda1 - 1`` (exact in
+    floating point for lambda1 in [0.5, 2]): the factored forms keep every digit near lambda1 = 1, where
+    the plain ones cancel, and cost no transcendental function (the compiled kernels compile this too).
     The stress is linear in the Yeoh coefficients through
     ``W'(x) = C10 + 2 C20 x + 3 C30 x**2``, which a calibration can exploit.
     """
-    a = np.log(stretch)
-    return -2.0 * stretch * stretch * np.expm1(-3.0 * a), np.expm1(2.0 * a) + 2.0 * np.expm1(-a)
+    d = stretch - 1.0
+    inv = 1.0 / stretch
+    return 2.0 * d * (stretch * stretch + stretch + 1.0) * inv, d * d * (stretch + 2.0) * inv
 
 
 def stress_basis(stretch, voltage):
