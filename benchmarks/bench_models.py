@@ -14,7 +14,9 @@ passive cores. The fsolve baseline solves the corrected six-equation system
 (27) sample by sample (``baseline_3r_fsolve.py``); speed-up and agreement are
 measured on the hollow core, where the baseline's first stationary point is
 the physical one. Rates are the median of ``repeat`` timed runs after one
-warm-up, with their spread (slowest and fastest run) beside them.
+warm-up, with their spread (slowest and fastest run) beside them. The compiled
+kernels against the numpy reference, `TwinStep`'s latency and numba's start-up
+are `bench_kernels.py`'s (keys ``kernels``, ``step_latency_us``, ``compile_s``).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from rdea_lab.physics.geometry import RollGeometry, geometry_from_card
 from rdea_lab.physics.models import solve
 from rdea_lab.specs import load_params, load_specimen
 
+import bench_kernels
 from baseline_3r_fsolve import solve_3r_fsolve
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -71,7 +74,7 @@ def _envelope(n, stretch_max, voltage_max, seed=0):
     return rng.uniform(1.0, stretch_max, n), rng.uniform(0.0, voltage_max, n)
 
 
-def run(samples=100_000, baseline_samples=1000, repeat=5, vhb=True) -> dict:
+def run(samples=100_000, baseline_samples=1000, repeat=5, vhb=True, steps=20_000, compile_probe=True) -> dict:
     """Measure and return the figures as a JSON-able dict (``vhb=False``: without the VHB calibrations)."""
     l1, v = _envelope(samples, 1.75, 3500.0)
     hollow = _core("hollow-core")
@@ -104,7 +107,9 @@ def run(samples=100_000, baseline_samples=1000, repeat=5, vhb=True) -> dict:
     diff = np.abs(base["sigma1"][ok] - fast.sigma1[ok])
     max_rel = float(np.max(diff / np.max(np.abs(fast.sigma1[ok]))))
     calibration = bench_calibration(max(1, min(repeat, 3)), vhb=vhb)
+    compiled = bench_kernels.run(samples=samples, repeat=max(3, repeat), steps=steps, compile_probe=compile_probe)
     return {
+        **compiled,
         "calibration": calibration,
         "samples_per_s": {m: float(r) for m, r in rate.items()},
         "samples_per_s_spread": {m: [float(a), float(b)] for m, (a, b) in spread.items()},
@@ -211,6 +216,8 @@ def format_text(r: dict) -> str:
     lines.append(" " * 16 + "".join(f"{m:>12}" for m in MODELS))
     for name, rates in r["scenes_samples_per_s"].items():
         lines.append(f"  {name:<14}" + "".join(f"{rates[m]:12.3e}" for m in MODELS if m in rates))
+    if "kernels" in r:
+        lines.append(bench_kernels.format_text(r))
     return "\n".join(lines)
 
 

@@ -231,8 +231,13 @@ def reproduce(out_dir, campaign_path, no_speed, quiet):
               help="Timing repeats (the median and the spread are reported).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
 @click.option("--no-vhb", is_flag=True, help="Leave out the calibrations on the shared VHB 4910 files (about a minute).")
-def bench(samples, baseline_samples, repeat, as_json, no_vhb):
-    """Speed of the SU, 1R, 3R and CR solvers, of 3R against an fsolve baseline, and of calibration.
+@click.option("--steps", default=20_000, show_default=True, type=click.IntRange(100, 10_000_000),
+              help="Timed calls of the per-sample step (step_latency_us).")
+@click.option("--no-compile-probe", is_flag=True,
+              help="Leave out numba's cold start (compile_s: two fresh processes, about 30 s).")
+def bench(samples, baseline_samples, repeat, as_json, no_vhb, steps, no_compile_probe):
+    """Speed of the SU, 1R, 3R and CR solvers, of 3R against an fsolve baseline, of calibration, of the
+    compiled kernels against the numpy reference and of the per-sample step.
 
     \b
     Example:
@@ -244,7 +249,8 @@ def bench(samples, baseline_samples, repeat, as_json, no_vhb):
     sys.path.insert(0, str(folder))
     import bench_models  # noqa: E402  (lives in benchmarks/, outside the package)
 
-    result = bench_models.run(samples=samples, baseline_samples=baseline_samples, repeat=repeat, vhb=not no_vhb)
+    result = bench_models.run(samples=samples, baseline_samples=baseline_samples, repeat=repeat, vhb=not no_vhb,
+                              steps=steps, compile_probe=not no_compile_probe)
     if as_json:
         click.echo(json.dumps(result, indent=2))
     else:

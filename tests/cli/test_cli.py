@@ -282,9 +282,16 @@ def test_help_has_example(command):
 
 
 def test_bench_json():
-    # about 1 s with these sizes, so not marked slow
-    out = ok_json("bench", "--samples", 1000, "--baseline-samples", 10, "--repeat", 1, "--no-vhb", "--json")
+    # a few seconds with these sizes, so not marked slow
+    out = ok_json("bench", "--samples", 1000, "--baseline-samples", 10, "--repeat", 1, "--no-vhb", "--steps", 200,
+                  "--no-compile-probe", "--json")
     assert set(out["samples_per_s"]) >= {"su", "1r", "3r", "cr"}
+    for model in ("su", "3r"):  # the per-sample step: median and p99 of 200 calls, and its ratio to the block twin
+        lat = out["step_latency_us"][model]
+        assert 0 < lat["median"] <= lat["p99"] and lat["steps"] == 200 and lat["ratio"] > 0
+    for level in ("kernel", "solve"):
+        assert all(out["kernels"][level][m]["ratio"] > 0 for m in ("su", "1r", "3r", "cr"))
+    assert out["compile_s"] is None
     assert all(out["samples_per_s"][m] > 0 for m in ("su", "1r", "3r", "cr"))
     assert out["speedup_3r_vs_fsolve"] > 0
     # the fast 3R solver and the fsolve baseline solve the same equations (27);
