@@ -35,6 +35,8 @@ _DIMENSIONS: dict[str, tuple[str, str, str]] = {
     "electric_field": ("V/m", "electric field", "50 V/um"),
     "compliance": ("m/N", "compliance", "20 um/N"),
     "force_rate": ("N/s", "force rate", "0.5 mN/min"),
+    "current": ("A", "current", "20 nA"),
+    "resistance": ("ohm", "resistance", "100 Gohm"),
 }
 _NOTES = {"viscosity": " (pressure times time)", "electric_field": " (voltage per length)",
           "compliance": " (length per force)", "force_rate": " (force per time)"}
@@ -78,7 +80,8 @@ def parse_quantity(
         One of `DIMENSIONS`: ``length`` [m], ``pressure`` [Pa], ``viscosity``
         [Pa s], ``voltage`` [V], ``frequency`` [Hz], ``time`` [s],
         ``dimensionless`` [-], ``force`` [N], ``capacitance`` [F],
-        ``electric_field`` [V/m], ``compliance`` [m/N], ``force_rate`` [N/s].
+        ``electric_field`` [V/m], ``compliance`` [m/N], ``force_rate`` [N/s], ``current`` [A],
+        ``resistance`` [ohm].
     source, field : str
         Where the value came from, for the error message.
     example_unit : str, optional

@@ -1,0 +1,208 @@
+"""Self-sensing: the capacitance from the amplifier's voltage and current, and the stretch from it.
+
+A roll's charge is ``q = C v``; the current into its electrodes is ``i =
+d(C v)/dt + v / R_leak = C dv/dt + v (dC/dt + 1 / R_leak)``. Sampled by an
+integrating current monitor (sample ``k`` the mean current over ``(t_{k-1},
+t_k]``, as the emulator's `rdea_lab.emulator.instruments.CurrentMonitor`),
+the balance is exact in discrete time::
+
+    i_k = C_k (v_k - v_{k-1}) / dt + v_{k-1} ((C_k - C_{k-1}) / dt + 1 / R)      (*)
+
+(up to the leakage's ``(v_k - v_{k-1}) / (2 R)``, a bias of ``dt / (2 R)`` on
+``C``: 2.5e-15 F at 2 kHz and 100 Gohm). `capacitance_rls` fits ``theta = (C,
+dC/dt + 1/R)`` to (*) by recursive least squares with exponential forgetting
+(time constant `tau`): the solution at each sample of the exponentially
+weighted normal equations, whose five running sums are first-order recursive
+filters (`scipy.signal.lfilter`), so the recursion is vectorized. It needs
+excitation: a voltage that moves (the actuation, or a small probe sine on top,
+`rdea_lab.specs.protocol.Probe`); where ``dv/dt`` and ``v`` do not tell ``C``
+from the leakage term (a constant voltage without probe) the estimate is
+flagged. Leakage and ``dC/dt`` need no model: they share the second
+coefficient.
+
+`stretch_from_capacitance` inverts the model's ``C(lambda1, v)``: SU's ``C =
+C0 lambda1`` (eq. 41 of [1]) in closed form; 1R, 3R and CR (which depend on
+the voltage through the hoop stretch) by a bracketed, vectorized regula falsi
+on the clamped state's capacitance (``slack=False``: a slack roll's free state
+has a capacitance that does not depend on the clamps' distance, so no stretch
+of the clamps follows from it).
+
+[1] J. Prechtl et al., Smart Mater. Struct. (2021), doi:10.1088/1361-665X/ac34be.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import lfilter
+
+from ..physics.models import solve
+
+#: Settling of the estimator, in time constants: the weight of the (zero) start is exp(-5) < 1 %.
+SETTLE_TAUS = 5.0
+#: Least ``1 - rho**2`` of the two regressors (``dv/dt`` and ``v``) for a usable estimate.
+MIN_EXCITATION = 1e-3
+#: Stretch bracket of the numerical inverse [-].
+STRETCH_BRACKET = (1.0, 3.0)
+#: Convergence of the numerical inverse, in stretch [-].
+STRETCH_TOL = 1e-10
+
+
+@dataclass(frozen=True)
+class CapacitanceEstimate:
+    """What `capacitance_rls` returns (arrays on the input's samples).
+
+    Attributes
+    ----------
+    capacitance : numpy.ndarray
+        ``C`` [F]; NaN where not `valid`.
+    conductance : numpy.ndarray
+        The second coefficient, ``dC/dt + 1 / R_leak`` [F/s = S].
+    excitation : numpy.ndarray
+        ``1 - rho**2`` of the weighted regressors [-] (1: orthogonal, 0: ``C`` not identifiable).
+    valid : numpy.ndarray of bool
+        Settled (`SETTLE_TAUS` time constants after the start) and excited (`MIN_EXCITATION`).
+    tau : float
+        Forgetting time constant [s].
+    """
+
+    capacitance: np.ndarray
+    conductance: np.ndarray
+    excitation: np.ndarray
+    valid: np.ndarray
+    tau: float
+
+
+def _forget(x: np.ndarray, lam: float) -> np.ndarray:
+    """``S_k = lam S_{k-1} + x_k`` from ``S_{-1} = 0``, vectorized."""
+    return lfilter([1.0], [1.0, -lam], x)
+
+
+def capacitance_rls(time, voltage, current, tau: float) -> CapacitanceEstimate:
+    """Online capacitance from voltage and current: RLS with forgetting on the charge balance (*).
+
+    Parameters
+    ----------
+    time : array_like
+        Sample times [s], uniformly spaced.
+    voltage : array_like
+        Voltage across the electrodes [V] (the amplifier's output, as measured).
+    current : array_like
+        Current into the electrodes [A], sample ``k`` the mean over ``(t_{k-1}, t_k]``.
+    tau : float
+        Forgetting time constant [s] (forgetting factor ``exp(-dt / tau)``); a
+        probe period or two: the estimate lags a changing ``C`` by about `tau`.
+
+    Returns
+    -------
+    CapacitanceEstimate
+        Causal: sample ``k`` uses samples ``0 .. k`` only. The voltage before
+        the first sample is taken as the first sample's (no step).
+
+    Notes
+    -----
+    The exponentially weighted least-squares solution is what RLS with
+    forgetting factor ``lam`` computes (with a vanishing initial
+    information matrix); its normal equations' sums are written as filters,
+    and the 2 x 2 system solved in closed form per sample.
+    """
+    t = np.asarray(time, float)
+    v = np.asarray(voltage, float)
+    i = np.asarray(current, float)
+    if not (t.shape == v.shape == i.shape and t.ndim == 1 and t.size >= 2):
+        raise ValueError(f"time, voltage and current must be 1-D of the same length >= 2, got {t.shape}, "
+                         f"{v.shape}, {i.shape}")
+    dt = float(np.median(np.diff(t)))
+    if not (dt > 0.0 and np.allclose(np.diff(t), dt, rtol=1e-6, atol=0.0)):
+        raise ValueError("time must be uniformly spaced and increasing")
+    if not (tau > 0.0 and np.isfinite(tau)):
+        raise ValueError(f"tau must be a finite time > 0 s, got {tau!r}")
+    lam = float(np.exp(-dt / tau))
+    v_prev = np.concatenate((v[:1], v[:-1]))
+    a = (v - v_prev) / dt  # regressor of C [V/s]
+    b = v_prev  # regressor of dC/dt + 1/R [V]
+    # scaled, so the sums' products stay well within double range and the 2x2 solve well conditioned
+    sa, sb = max(np.sqrt(np.mean(a * a)), 1e-300), max(np.sqrt(np.mean(b * b)), 1e-300)
+    a, b = a / sa, b / sb
+    Saa, Sab, Sbb = _forget(a * a, lam), _forget(a * b, lam), _forget(b * b, lam)
+    Say, Sby = _forget(a * i, lam), _forget(b * i, lam)
+    det = Saa * Sbb - Sab * Sab
+    with np.errstate(invalid="ignore", divide="ignore"):
+        excitation = det / (Saa * Sbb)
+        C = (Sbb * Say - Sab * Sby) / det / sa
+        G = (Saa * Sby - Sab * Say) / det / sb
+    excitation = np.where(np.isfinite(excitation), excitation, 0.0)
+    valid = (t - t[0] >= SETTLE_TAUS * tau) & (excitation >= MIN_EXCITATION) & np.isfinite(C)
+    return CapacitanceEstimate(np.where(valid, C, np.nan), G, excitation, valid, float(tau))
+
+
+def stretch_from_capacitance(capacitance, voltage, geom, material, model: str = "su", *,
+                             bracket=STRETCH_BRACKET) -> np.ndarray:
+    """The stretch at which the model's capacitance ``C(lambda1, v)`` equals `capacitance`.
+
+    Parameters
+    ----------
+    capacitance : array_like
+        [F].
+    voltage : array_like
+        [V], broadcast against `capacitance` (SU does not use it).
+    geom : RollGeometry
+        The (nominal) geometry; ``C0`` from it and ``material.eps_r``.
+    material : ParameterSet
+    model : {"su", "1r", "3r", "cr"}
+    bracket : (float, float)
+        Stretches searched [-].
+
+    Returns
+    -------
+    numpy.ndarray
+        ``lambda1`` [-]. SU: ``C / C0`` (eq. 41 of [1]; below 1 where the
+        capacitance is below ``C0``: returned as is, the caller judges it).
+        Other models: NaN where the capacitance lies outside the clamped
+        state's ``C`` over `bracket` at that voltage, or the model has no
+        equilibrium there.
+
+    Notes
+    -----
+    The other models' ``C = C0 (lambda1 lambda2b)**2`` (eqs. 29, 34 and the
+    continuum's) is increasing in ``lambda1`` at fixed voltage wherever the
+    roll is stable (at 0 V it is SU's ``C0 lambda1``); the bracket's ends are
+    checked, not assumed.
+    """
+    C = np.asarray(capacitance, float)
+    v = np.broadcast_to(np.asarray(voltage, float), C.shape)
+    C0 = geom.C0(material.eps_r)
+    if model == "su":
+        return C / C0
+    out = np.full(C.shape, np.nan)
+    ok = np.isfinite(C) & np.isfinite(v)
+    c, vv = C[ok], v[ok]
+
+    def f(lam):
+        return solve(model, geom, material, lam, vv, slack=False).capacitance - c
+
+    lo, hi = np.full(c.shape, bracket[0]), np.full(c.shape, bracket[1])
+    flo, fhi = f(lo), f(hi)
+    inside = (flo <= 0.0) & (fhi >= 0.0)
+    side = np.zeros(c.shape, int)  # Illinois: which end stayed last time
+    x = lo.copy()
+    for _ in range(100):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            x = np.where(fhi != flo, hi - fhi * (hi - lo) / (fhi - flo), 0.5 * (lo + hi))
+        x = np.where(np.isfinite(x) & (x > lo) & (x < hi), x, 0.5 * (lo + hi))
+        fx = f(x)
+        left = fx < 0.0
+        lo, flo = np.where(left, x, lo), np.where(left, fx, flo)
+        hi, fhi = np.where(left, hi, x), np.where(left, fhi, fx)
+        # Illinois: halve the value at the end that stays twice in a row
+        fhi = np.where(left & (side == 1), 0.5 * fhi, fhi)
+        flo = np.where(~left & (side == -1), 0.5 * flo, flo)
+        side = np.where(left, 1, -1)
+        if np.all((hi - lo <= STRETCH_TOL) | (fx == 0.0) | ~inside):
+            break
+    out[ok] = np.where(inside, x, np.nan)
+    return out
+
+
+__all__ = ["CapacitanceEstimate", "MIN_EXCITATION", "SETTLE_TAUS", "capacitance_rls", "stretch_from_capacitance"]
