@@ -40,13 +40,15 @@ from ..store import open_run
 from ..store.journal import write_dataset
 from ..store.outputs import check_writable
 from ..twin.cf import SELFSENSE_VARIABLES, variable_attrs
-from ..twin.selfsense import capacitance_rls, stretch_from_capacitance
+from ..twin.selfsense import BLEND_VOLTAGE, capacitance_rls, capacitance_secant, stretch_from_capacitance
 
 #: The roll counts as taut where the load cell reads more than this [N] (its offset and noise are mN).
 TAUT_FORCE = 0.05
 #: Forgetting time constant of the estimator, in probe periods.
 TAU_PERIODS = 1.0
 TARES = ("rest", "none")
+#: ``secant``: the charge's ``q / v`` (what the models' C is), ``small-signal``: the probe's ``dq/dv``.
+ESTIMATORS = ("secant", "small-signal")
 
 
 @dataclass(frozen=True)
@@ -93,8 +95,8 @@ def _read(run, source: str) -> xr.Dataset:
         raise SpecError(source, DOCUMENT, f"not a readable netCDF run dataset ({type(exc).__name__})") from None
 
 
-def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", out=None, overwrite: bool = False,
-                  tau: float | None = None) -> SelfSenseResult:
+def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimator: str = "secant", out=None,
+                  overwrite: bool = False, tau: float | None = None) -> SelfSenseResult:
     """The self-sensed stretch of a run beside its encoder's, with the error.
 
     Parameters
@@ -108,6 +110,11 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", out=Non
         The capacitance model inverted.
     tare : {"rest", "none"}
         What is fitted (see the module docstring).
+    estimator : {"secant", "small-signal"}
+        ``secant`` (default): `capacitance_secant`, the charge over the voltage
+        (blended with the small-signal estimate below `BLEND_VOLTAGE`);
+        ``small-signal``: `capacitance_rls` alone, ``dq/dv`` at the probe,
+        biased by ``v dC/dv`` where the capacitance depends on the voltage.
     out : path, optional
         Where to write the dataset (netCDF).
     overwrite : bool
@@ -127,6 +134,8 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", out=Non
         raise SpecError("arguments", "model", f"{model!r} is not one of {', '.join(MODELS)}")
     if tare not in TARES:
         raise SpecError("arguments", "tare", f"{tare!r} is not one of {', '.join(TARES)}")
+    if estimator not in ESTIMATORS:
+        raise SpecError("arguments", "estimator", f"{estimator!r} is not one of {', '.join(ESTIMATORS)}")
     if out is not None:
         if Path(out).exists() and not overwrite:
             raise SpecError(str(out), "out", "exists; give another output or overwrite it (--force)")
@@ -156,6 +165,9 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", out=Non
     if t.size < 2 or not np.all(np.isfinite(i)):
         raise SpecError(source, "current", "needs at least 2 samples, every one finite")
     est = capacitance_rls(t, v, i, tau)
+    if estimator == "secant":
+        charge = capacitance_secant(t, v, i, est)
+        est = type(est)(charge.capacitance, est.conductance, est.excitation, charge.valid, est.tau)
     geom = geometry_from_card(card)
     gain, tare_text = 1.0, "nothing fitted: C0 from the nominal geometry"
     if tare == "rest":
@@ -194,9 +206,11 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", out=Non
         "institution": str(ds.attrs.get("institution", "not stated")),
         "references": str(ds.attrs.get("references", "")),
         "selfsense_model": model, "selfsense_parameters": params.name, "selfsense_tare": tare_text,
-        "selfsense_gain": gain, "selfsense_tau": float(tau), "selfsense_estimator":
-            "recursive least squares with exponential forgetting on i = C dv/dt + v (dC/dt + 1/R_leak) "
-            "(rdea_lab.twin.selfsense.capacitance_rls)",
+        "selfsense_gain": gain, "selfsense_tau": float(tau), "selfsense_estimator": (
+            f"secant q / v from the integrated current less the fitted leakage, blended below {BLEND_VOLTAGE:g} V "
+            "with the small-signal estimate (rdea_lab.twin.selfsense.capacitance_secant)" if estimator == "secant"
+            else "small-signal dq/dv: recursive least squares with exponential forgetting on i = C dv/dt + "
+                 "v (dC/dt + 1/R_leak) (rdea_lab.twin.selfsense.capacitance_rls)"),
         "probe_amplitude": float(probe.amplitude), "probe_frequency": float(probe.frequency),
         "stretch_range": span, "taut_force": TAUT_FORCE, "scored_samples": scored,
         "max_error_percent": max_pct, "rms_error_percent": rms_pct,
@@ -215,4 +229,4 @@ def stretch_to_capacitance(stretch, voltage, geom, params, model: str) -> np.nda
     return solve(model, geom, params, np.asarray(stretch, float), np.asarray(voltage, float), slack=False).capacitance
 
 
-__all__ = ["SelfSenseResult", "TAUT_FORCE", "TARES", "selfsense_run", "stretch_to_capacitance"]
+__all__ = ["ESTIMATORS", "SelfSenseResult", "TAUT_FORCE", "TARES", "selfsense_run", "stretch_to_capacitance"]

@@ -137,6 +137,92 @@ def capacitance_rls(time, voltage, current, tau: float) -> CapacitanceEstimate:
     return CapacitanceEstimate(np.where(valid, C, np.nan), G, excitation, valid, float(tau))
 
 
+@dataclass(frozen=True)
+class ChargeEstimate:
+    """What `capacitance_secant` returns (arrays on the input's samples).
+
+    Attributes
+    ----------
+    capacitance : numpy.ndarray
+        The secant capacitance ``q / v`` blended with the small-signal one near 0 V [F]; NaN where not `valid`.
+    charge : numpy.ndarray
+        ``q``: the integrated current less the estimated leakage [C].
+    leakage_conductance : numpy.ndarray
+        ``1 / R_leak`` as estimated so far [S].
+    valid : numpy.ndarray of bool
+        Where the small-signal estimate was valid.
+    """
+
+    capacitance: np.ndarray
+    charge: np.ndarray
+    leakage_conductance: np.ndarray
+    valid: np.ndarray
+
+
+#: Voltage [V] below which the small-signal capacitance stands for the secant one (its bias
+#: ``v dC/dv`` vanishes with v) and which weighs the blend ``v**2 / (v**2 + V**2)``.
+BLEND_VOLTAGE = 300.0
+#: Memory of the leakage estimate [s].
+LEAKAGE_TAU = 30.0
+#: Regularization of the leakage fit, in integrated voltage [V s]: before the run has built up
+#: this much, the fit keeps to no leakage.
+LEAKAGE_PRIOR = 100.0
+
+
+def capacitance_secant(time, voltage, current, small_signal: CapacitanceEstimate, *,
+                       blend_voltage: float = BLEND_VOLTAGE, leakage_tau: float = LEAKAGE_TAU) -> ChargeEstimate:
+    """The secant capacitance ``C = q / v`` from the charge, which is what the models' ``C(lambda1, v)`` is.
+
+    The probe measures the small-signal capacitance ``dq/dv = C + v dC/dv``:
+    under a bias voltage it differs from ``C`` wherever the capacitance
+    depends on the voltage at fixed clamps (a compliant series element, passive
+    ends, a slack roll; not in the models of the paper's solid rolls). The
+    charge gives ``C`` itself: ``q_k = sum_j i_j dt - G int v dt`` (the roll
+    starts discharged at 0 V), with the leakage conductance ``G`` fitted where
+    the voltage is low (``|v| < blend_voltage``), there ``q = C_small v`` holds
+    to ``v**2 dC/dv``: ``sum i dt - C_small v = G int v dt``, least squares with
+    exponential forgetting (`leakage_tau`), regularized toward ``G = 0``
+    until `LEAKAGE_PRIOR` volt-seconds have been integrated. The result blends
+    ``q / v`` (weight ``v**2 / (v**2 + blend_voltage**2)``) with the small-signal
+    estimate. Causal; vectorized (cumulative sums and first-order filters).
+
+    Parameters
+    ----------
+    time, voltage, current : array_like
+        As for `capacitance_rls` [s], [V], [A].
+    small_signal : CapacitanceEstimate
+        `capacitance_rls` on the same samples.
+    blend_voltage : float
+        [V], > 0.
+    leakage_tau : float
+        [s], > 0.
+
+    Returns
+    -------
+    ChargeEstimate
+    """
+    t = np.asarray(time, float)
+    v = np.asarray(voltage, float)
+    i = np.asarray(current, float)
+    dt = float(np.median(np.diff(t)))
+    v_prev = np.concatenate(([0.0], v[:-1]))
+    Q = np.cumsum(i) * dt
+    I = np.cumsum(0.5 * (v + v_prev)) * dt  # integral of v [V s]
+    Cs = small_signal.capacitance
+    low = small_signal.valid & (np.abs(v) < blend_voltage)
+    r = np.where(low, Q - np.where(low, Cs, 0.0) * v, 0.0)
+    w = low.astype(float)
+    lam = float(np.exp(-dt / leakage_tau))
+    S_II, S_Ir, S_w = _forget(w * I * I, lam), _forget(w * I * r, lam), _forget(w, lam)
+    G = S_Ir / (S_II + S_w * LEAKAGE_PRIOR**2 + 1e-300)
+    q = Q - G * I
+    s = v * v / (v * v + blend_voltage**2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        C = np.where(s > 0.0, s * (q / np.where(v != 0.0, v, 1.0)), 0.0) + (1.0 - s) * Cs
+    valid = small_signal.valid & np.isfinite(C)
+    return ChargeEstimate(np.where(valid, C, np.nan), q, G, valid)
+
+
 def stretch_from_capacitance(capacitance, voltage, geom, material, model: str = "su", *,
                              bracket=STRETCH_BRACKET) -> np.ndarray:
     """The stretch at which the model's capacitance ``C(lambda1, v)`` equals `capacitance`.
@@ -205,4 +291,5 @@ def stretch_from_capacitance(capacitance, voltage, geom, material, model: str = 
     return out
 
 
-__all__ = ["CapacitanceEstimate", "MIN_EXCITATION", "SETTLE_TAUS", "capacitance_rls", "stretch_from_capacitance"]
+__all__ = ["BLEND_VOLTAGE", "CapacitanceEstimate", "ChargeEstimate", "MIN_EXCITATION", "SETTLE_TAUS",
+           "capacitance_rls", "capacitance_secant", "stretch_from_capacitance"]
