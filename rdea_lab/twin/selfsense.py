@@ -170,7 +170,8 @@ LEAKAGE_PRIOR = 100.0
 
 
 def capacitance_secant(time, voltage, current, small_signal: CapacitanceEstimate, *,
-                       blend_voltage: float = BLEND_VOLTAGE, leakage_tau: float = LEAKAGE_TAU) -> ChargeEstimate:
+                       blend_voltage: float = BLEND_VOLTAGE, leakage_tau: float = LEAKAGE_TAU,
+                       leakage: float | None = None) -> ChargeEstimate:
     """The secant capacitance ``C = q / v`` from the charge, which is what the models' ``C(lambda1, v)`` is.
 
     The probe measures the small-signal capacitance ``dq/dv = C + v dC/dv``:
@@ -196,6 +197,8 @@ def capacitance_secant(time, voltage, current, small_signal: CapacitanceEstimate
         [V], > 0.
     leakage_tau : float
         [s], > 0.
+    leakage : float, optional
+        A known leakage conductance ``1 / R_leak`` [S] instead of the fit (0: none).
 
     Returns
     -------
@@ -214,7 +217,7 @@ def capacitance_secant(time, voltage, current, small_signal: CapacitanceEstimate
     w = low.astype(float)
     lam = float(np.exp(-dt / leakage_tau))
     S_II, S_Ir, S_w = _forget(w * I * I, lam), _forget(w * I * r, lam), _forget(w, lam)
-    G = S_Ir / (S_II + S_w * LEAKAGE_PRIOR**2 + 1e-300)
+    G = S_Ir / (S_II + S_w * LEAKAGE_PRIOR**2 + 1e-300) if leakage is None else np.full(t.shape, float(leakage))
     q = Q - G * I
     s = v * v / (v * v + blend_voltage**2)
     with np.errstate(invalid="ignore", divide="ignore"):
