@@ -190,8 +190,8 @@ class ProtocolSpec(SpecModel):
         if not self.probe.frequency < nyquist:
             raise SpecError(
                 "", "probe.frequency",
-                f"{format_quantity(self.probe.frequency, 'Hz', digits=6)} is not below the Nyquist frequency "
-                f"{format_quantity(nyquist, 'Hz', digits=6)} of the sample rate {rate_text(self.sample_rate, 6)}; "
+                f"{rate_text(self.probe.frequency, 6)} is not below the Nyquist frequency "
+                f"{rate_text(nyquist, 6)} of the sample rate {rate_text(self.sample_rate, 6)}; "
                 "allowed: 0 < frequency < sample_rate / 2",
             )
         if "current" not in self.measure:

@@ -58,9 +58,10 @@ class CapacitanceEstimate:
     capacitance : numpy.ndarray
         ``C`` [F]; NaN where not `valid`.
     conductance : numpy.ndarray
-        The second coefficient, ``dC/dt + 1 / R_leak`` [F/s = S].
+        ``1 / R_leak`` with ``drift``; without, ``dC/dt + 1 / R_leak`` [F/s = S].
     excitation : numpy.ndarray
-        ``1 - rho**2`` of the weighted regressors [-] (1: orthogonal, 0: ``C`` not identifiable).
+        The share of the ``dv/dt`` regressor's weighted energy the other regressors do not
+        explain [-] (``1 - rho**2`` for two; 1: orthogonal, 0: ``C`` not identifiable).
     valid : numpy.ndarray of bool
         Settled (`SETTLE_TAUS` time constants after the start) and excited (`MIN_EXCITATION`).
     tau : float
@@ -79,7 +80,14 @@ def _forget(x: np.ndarray, lam: float) -> np.ndarray:
     return lfilter([1.0], [1.0, -lam], x)
 
 
-def capacitance_rls(time, voltage, current, tau: float) -> CapacitanceEstimate:
+def _forget_m(x: np.ndarray, lam: float, power: int) -> np.ndarray:
+    """``sum_m m**power lam**m x_{k-m}`` (power 1 or 2), vectorized (the sums' transfer functions)."""
+    if power == 1:
+        return lfilter([0.0, lam], [1.0, -2.0 * lam, lam * lam], x)
+    return lfilter([0.0, lam, lam * lam], [1.0, -3.0 * lam, 3.0 * lam * lam, -lam**3], x)
+
+
+def capacitance_rls(time, voltage, current, tau: float, *, drift: bool = True) -> CapacitanceEstimate:
     """Online capacitance from voltage and current: RLS with forgetting on the charge balance (*).
 
     Parameters
@@ -91,8 +99,11 @@ def capacitance_rls(time, voltage, current, tau: float) -> CapacitanceEstimate:
     current : array_like
         Current into the electrodes [A], sample ``k`` the mean over ``(t_{k-1}, t_k]``.
     tau : float
-        Forgetting time constant [s] (forgetting factor ``exp(-dt / tau)``); a
-        probe period or two: the estimate lags a changing ``C`` by about `tau`.
+        Forgetting time constant [s] (forgetting factor ``exp(-dt / tau)``); a probe period or two.
+    drift : bool
+        Fit ``C`` as ``C_k + dC/dt (t_j - t_k)`` over the window (three coefficients: ``C_k``,
+        ``dC/dt``, ``1/R``), so the estimate does not lag a changing capacitance; False: ``C``
+        constant over the window (two coefficients, ``C`` and ``dC/dt + 1/R``; lags by about `tau`).
 
     Returns
     -------
@@ -104,8 +115,9 @@ def capacitance_rls(time, voltage, current, tau: float) -> CapacitanceEstimate:
     -----
     The exponentially weighted least-squares solution is what RLS with
     forgetting factor ``lam`` computes (with a vanishing initial
-    information matrix); its normal equations' sums are written as filters,
-    and the 2 x 2 system solved in closed form per sample.
+    information matrix); its normal equations' sums, weighted by ``lam**m``,
+    ``m lam**m`` and ``m**2 lam**m`` for the sample ``m`` steps back, are
+    written as recursive filters, and the small system is solved per sample.
     """
     t = np.asarray(time, float)
     v = np.asarray(voltage, float)
@@ -122,16 +134,47 @@ def capacitance_rls(time, voltage, current, tau: float) -> CapacitanceEstimate:
     v_prev = np.concatenate((v[:1], v[:-1]))
     a = (v - v_prev) / dt  # regressor of C [V/s]
     b = v_prev  # regressor of dC/dt + 1/R [V]
-    # scaled, so the sums' products stay well within double range and the 2x2 solve well conditioned
+    # scaled, so the sums' products stay well within double range and the solve well conditioned
     sa, sb = max(np.sqrt(np.mean(a * a)), 1e-300), max(np.sqrt(np.mean(b * b)), 1e-300)
     a, b = a / sa, b / sb
-    Saa, Sab, Sbb = _forget(a * a, lam), _forget(a * b, lam), _forget(b * b, lam)
-    Say, Sby = _forget(a * i, lam), _forget(b * i, lam)
-    det = Saa * Sbb - Sab * Sab
-    with np.errstate(invalid="ignore", divide="ignore"):
-        excitation = det / (Saa * Sbb)
-        C = (Sbb * Say - Sab * Sby) / det / sa
-        G = (Saa * Sby - Sab * Say) / det / sb
+    F0 = lambda x: _forget(x, lam)  # noqa: E731
+    Saa, Sab, Sbb, Say, Sby = F0(a * a), F0(a * b), F0(b * b), F0(a * i), F0(b * i)
+    if not drift:
+        det = Saa * Sbb - Sab * Sab
+        with np.errstate(invalid="ignore", divide="ignore"):
+            excitation = det / (Saa * Sbb)
+            C = (Sbb * Say - Sab * Sby) / det / sa
+            G = (Saa * Sby - Sab * Say) / det / sb
+    else:
+        # x1 = a, x2 = b - c m a (the drift of C times a, plus dC/dt's own b), x3 = b; c = dt sa / sb
+        c = dt * sa / sb
+        F1 = lambda x: _forget_m(x, lam, 1)  # noqa: E731
+        A1aa, A1ab, A1ay = F1(a * a), F1(a * b), F1(a * i)
+        A2aa = _forget_m(a * a, lam, 2)
+        S = np.empty((t.size, 3, 3))
+        S[:, 0, 0] = Saa
+        S[:, 0, 1] = S[:, 1, 0] = Sab - c * A1aa
+        S[:, 0, 2] = S[:, 2, 0] = Sab
+        S[:, 1, 1] = Sbb - 2.0 * c * A1ab + c * c * A2aa
+        S[:, 1, 2] = S[:, 2, 1] = Sbb - c * A1ab
+        S[:, 2, 2] = Sbb
+        rhs = np.stack([Say, Sby - c * A1ay, Sby], axis=1)
+        C, G = np.full(t.size, np.nan), np.full(t.size, np.nan)
+        excitation = np.zeros(t.size)
+        good = np.isfinite(S).all(axis=(1, 2)) & (Saa > 0.0) & (Sbb > 0.0)
+        if good.any():
+            scale = np.sqrt(np.einsum("nii->ni", S[good]))  # Jacobi scaling before the solve
+            Sg = S[good] / scale[:, :, None] / scale[:, None, :]
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                ok = np.abs(np.linalg.det(Sg)) > 1e-14
+                theta = np.full((Sg.shape[0], 3), np.nan)
+                theta[ok] = np.linalg.solve(Sg[ok], (rhs[good] / scale)[ok][..., None])[..., 0]
+                theta = theta / scale
+                inv11 = np.full(Sg.shape[0], np.inf)
+                inv11[ok] = np.linalg.inv(Sg[ok])[:, 0, 0]
+            C[good] = theta[:, 0] / sa
+            G[good] = theta[:, 2] / sb
+            excitation[good] = np.where(np.isfinite(inv11), 1.0 / inv11, 0.0)  # 1 - R^2 of a on the others
     excitation = np.where(np.isfinite(excitation), excitation, 0.0)
     valid = (t - t[0] >= SETTLE_TAUS * tau) & (excitation >= MIN_EXCITATION) & np.isfinite(C)
     return CapacitanceEstimate(np.where(valid, C, np.nan), G, excitation, valid, float(tau))
