@@ -210,6 +210,8 @@ LEAKAGE_TAU = 30.0
 #: Regularization of the leakage fit, in integrated voltage [V s]: before the run has built up
 #: this much, the fit keeps to no leakage.
 LEAKAGE_PRIOR = 100.0
+#: Weight of that prior, in seconds of low-voltage samples [s].
+LEAKAGE_PRIOR_SECONDS = 0.01
 
 
 def capacitance_secant(time, voltage, current, small_signal: CapacitanceEstimate, *,
@@ -225,10 +227,13 @@ def capacitance_secant(time, voltage, current, small_signal: CapacitanceEstimate
     starts discharged at 0 V), with the leakage conductance ``G`` fitted where
     the voltage is low (``|v| < blend_voltage``), there ``q = C_small v`` holds
     to ``v**2 dC/dv``: ``sum i dt - C_small v = G int v dt``, least squares with
-    exponential forgetting (`leakage_tau`), regularized toward ``G = 0``
-    until `LEAKAGE_PRIOR` volt-seconds have been integrated. The result blends
+    exponential forgetting (`leakage_tau`), regularized toward ``G = 0`` (as if
+    `LEAKAGE_PRIOR_SECONDS` of samples at `LEAKAGE_PRIOR` volt-seconds said so). The result blends
     ``q / v`` (weight ``v**2 / (v**2 + blend_voltage**2)``) with the small-signal
-    estimate. Causal; vectorized (cumulative sums and first-order filters).
+    estimate. Until the leakage is learnt (the voltage has been high and come
+    back below `blend_voltage`: the regularization weighs less than 1 %) only
+    the small-signal estimate below `blend_voltage` is given, and no estimate
+    above it. Causal; vectorized (cumulative sums and first-order filters).
 
     Parameters
     ----------
@@ -259,13 +264,22 @@ def capacitance_secant(time, voltage, current, small_signal: CapacitanceEstimate
     r = np.where(low, Q - np.where(low, Cs, 0.0) * v, 0.0)
     w = low.astype(float)
     lam = float(np.exp(-dt / leakage_tau))
-    S_II, S_Ir, S_w = _forget(w * I * I, lam), _forget(w * I * r, lam), _forget(w, lam)
-    G = S_Ir / (S_II + S_w * LEAKAGE_PRIOR**2 + 1e-300) if leakage is None else np.full(t.shape, float(leakage))
+    S_II, S_Ir = _forget(w * I * I, lam), _forget(w * I * r, lam)
+    if leakage is None:
+        # the prior: as if LEAKAGE_PRIOR_SECONDS of low-voltage samples at int v dt = LEAKAGE_PRIOR said G = 0
+        prior = LEAKAGE_PRIOR**2 * LEAKAGE_PRIOR_SECONDS / dt
+        G = S_Ir / (S_II + prior)
+        # learnt once the prior weighs less than 1 %: the voltage has been high and come back
+        learnt = S_II >= 99.0 * prior
+    else:
+        G, learnt = np.full(t.shape, float(leakage)), np.ones(t.shape, bool)
     q = Q - G * I
-    s = v * v / (v * v + blend_voltage**2)
+    # before the leakage is learnt only the small-signal estimate near 0 V is used (the charge is off
+    # by the unknown int v dt / R); above blend_voltage there is then no estimate
+    s = np.where(learnt, v * v / (v * v + blend_voltage**2), 0.0)
     with np.errstate(invalid="ignore", divide="ignore"):
         C = np.where(s > 0.0, s * (q / np.where(v != 0.0, v, 1.0)), 0.0) + (1.0 - s) * Cs
-    valid = small_signal.valid & np.isfinite(C)
+    valid = small_signal.valid & np.isfinite(C) & (learnt | (np.abs(v) < blend_voltage))
     return ChargeEstimate(np.where(valid, C, np.nan), q, G, valid)
 
 
