@@ -16,6 +16,12 @@ What is fitted on what (``tare``):
   leaves its start or the voltage setpoint exceeds twice the probe
   amplitude): the zeroing of a self-sensing rig at its known rest length. It
   takes up the radii's tolerance and the fringe field at rest.
+- ``"reference"``: a gain on the model's ``C0`` and an offset, least squares
+  of the estimated capacitance of another run of the same specimen
+  (`reference`, at 0 V: ``protocols/selfsense_0V.yaml``, sensed with the same
+  estimator) against the model's at that run's encoder stretch: the
+  capacitance sweep of the paper done by self-sensing. It takes up the radii's
+  tolerance and, to first order in the stretch, the fringe field.
 - ``"none"``: the model's ``C0`` from the nominal geometry, nothing fitted.
 
 Samples are scored where the estimate is valid (settled, excited, invertible)
@@ -46,7 +52,9 @@ from ..twin.selfsense import BLEND_VOLTAGE, capacitance_rls, capacitance_secant,
 TAUT_FORCE = 0.05
 #: Forgetting time constant of the estimator, in probe periods.
 TAU_PERIODS = 1.0
-TARES = ("rest", "none")
+#: A reference run is fitted where |v| is below this [V]: the probe's amplitude and some (0 V runs).
+LCR_LIKE_VOLTAGE = 250.0
+TARES = ("rest", "reference", "none")
 #: ``secant``: the charge's ``q / v`` (what the models' C is), ``small-signal``: the probe's ``dq/dv``.
 ESTIMATORS = ("secant", "small-signal")
 
@@ -66,6 +74,8 @@ class SelfSenseResult:
         Samples scored (valid and taut).
     gain : float
         Factor on the model's C0 (1 without a tare).
+    offset : float
+        Capacitance added to the model's [F] (0 but with the ``reference`` tare).
     """
 
     dataset: xr.Dataset
@@ -73,6 +83,7 @@ class SelfSenseResult:
     rms_error_percent: float
     scored: int
     gain: float
+    offset: float = 0.0
 
     def summary(self) -> str:
         """One line: the errors, what was scored and fitted."""
@@ -80,7 +91,7 @@ class SelfSenseResult:
         return (f"{ds.attrs['run']}: self-sensed stretch within {self.max_error_percent:.2f} % (max) and "
                 f"{self.rms_error_percent:.2f} % (rms) of the stretch range {ds.attrs['stretch_range']:.4g}, "
                 f"{self.scored} of {ds.sizes['time']} samples scored (estimate valid, roll taut); "
-                f"model {ds.attrs['selfsense_model']}, C0 x {self.gain:.5f} ({ds.attrs['selfsense_tare']})")
+                f"model {ds.attrs['selfsense_model']}; {ds.attrs['selfsense_tare']}")
 
 
 def _read(run, source: str) -> xr.Dataset:
@@ -95,52 +106,12 @@ def _read(run, source: str) -> xr.Dataset:
         raise SpecError(source, DOCUMENT, f"not a readable netCDF run dataset ({type(exc).__name__})") from None
 
 
-def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimator: str = "secant", out=None,
-                  overwrite: bool = False, tau: float | None = None) -> SelfSenseResult:
-    """The self-sensed stretch of a run beside its encoder's, with the error.
+def _source(run) -> str:
+    return str(run) if not isinstance(run, xr.Dataset) else f"<dataset {run.attrs.get('run_id', '?')}>"
 
-    Parameters
-    ----------
-    run : path or xarray.Dataset
-        A run with a ``current`` variable and a probe in its protocol.
-    params : ParameterSet or path
-        The calibrated parameters (``eps_r`` gives ``C0``; the other models'
-        ``C(lambda1, v)`` use the whole material).
-    model : {"su", "1r", "3r", "cr"}
-        The capacitance model inverted.
-    tare : {"rest", "none"}
-        What is fitted (see the module docstring).
-    estimator : {"secant", "small-signal"}
-        ``secant`` (default): `capacitance_secant`, the charge over the voltage
-        (blended with the small-signal estimate below `BLEND_VOLTAGE`);
-        ``small-signal``: `capacitance_rls` alone, ``dq/dv`` at the probe,
-        biased by ``v dC/dv`` where the capacitance depends on the voltage.
-    out : path, optional
-        Where to write the dataset (netCDF).
-    overwrite : bool
-        Replace an existing `out`.
-    tau : float, optional
-        Forgetting time constant [s]; default `TAU_PERIODS` probe periods.
 
-    Raises
-    ------
-    SpecError
-        Naming the run's file and the field: no ``current``, no probe, no
-        specimen or protocol attribute, no usable samples; a bad `model`,
-        `tare` or `tau`; `out` exists.
-    """
-    source = str(run) if not isinstance(run, xr.Dataset) else f"<dataset {run.attrs.get('run_id', '?')}>"
-    if model not in MODELS:
-        raise SpecError("arguments", "model", f"{model!r} is not one of {', '.join(MODELS)}")
-    if tare not in TARES:
-        raise SpecError("arguments", "tare", f"{tare!r} is not one of {', '.join(TARES)}")
-    if estimator not in ESTIMATORS:
-        raise SpecError("arguments", "estimator", f"{estimator!r} is not one of {', '.join(ESTIMATORS)}")
-    if out is not None:
-        if Path(out).exists() and not overwrite:
-            raise SpecError(str(out), "out", "exists; give another output or overwrite it (--force)")
-        check_writable(out)
-    params = as_params(params)
+def _sense(run, source: str, estimator: str, tau: float | None):
+    """Read a run, check it can be sensed, and estimate its capacitance: (dataset, card, probe, estimate)."""
     ds = _read(run, source)
     for key in ("specimen", "protocol"):
         if key not in ds.attrs:
@@ -158,18 +129,98 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimat
                                                   "sine on the voltage (probe: {amplitude: 20 V, frequency: 200 Hz})")
     if tau is None:
         tau = TAU_PERIODS / probe.frequency
-    elif not (tau > 0.0 and np.isfinite(tau)):
-        raise SpecError("arguments", "tau", f"{tau!r} is not a finite time > 0 s")
-    t, lam, v, i, force = (np.asarray(ds[k].values, float) for k in ("time", "stretch", "voltage", "current",
-                                                                      "force"))
+    t, v, i = (np.asarray(ds[k].values, float) for k in ("time", "voltage", "current"))
     if t.size < 2 or not np.all(np.isfinite(i)):
         raise SpecError(source, "current", "needs at least 2 samples, every one finite")
     est = capacitance_rls(t, v, i, tau)
     if estimator == "secant":
         charge = capacitance_secant(t, v, i, est)
         est = type(est)(charge.capacitance, est.conductance, est.excitation, charge.valid, est.tau)
+    return ds, card, probe, est
+
+
+def _fit_reference(reference, card, geom, params, model, estimator, tau):
+    """Gain and offset of the model's capacitance from a 0 V reference run: (gain, offset, text)."""
+    source = _source(reference)
+    ref, ref_card, _, est = _sense(reference, source, estimator, tau)
+    if ref_card.id != card.id:
+        raise SpecError(source, "specimen", f"the reference run is of {ref_card.id}, the run of {card.id}: "
+                                            "calibrate on the same specimen")
+    lam, v = np.asarray(ref["stretch"].values, float), np.asarray(ref["voltage"].values, float)
+    use = est.valid & (np.abs(v) < LCR_LIKE_VOLTAGE)
+    if use.sum() < 100 or np.ptp(lam[use]) < 0.01:
+        raise SpecError(source, "stretch", f"{int(use.sum())} valid samples below {LCR_LIKE_VOLTAGE:g} V over a "
+                                           f"stretch range of {np.ptp(lam[use]) if use.any() else 0.0:.3g}: the "
+                                           "reference needs 100 over at least 0.01 (a 0 V stretch sweep)")
+    model_C = stretch_to_capacitance(lam[use], v[use], geom, params, model)
+    A = np.column_stack([model_C, np.ones(model_C.size)])
+    (gain, offset), *_ = np.linalg.lstsq(A, est.capacitance[use], rcond=None)
+    text = (f"C = {gain:.6g} C_model + {offset * 1e12:.4g} pF: least squares over {int(use.sum())} samples of "
+            f"{Path(source).name} (|v| < {LCR_LIKE_VOLTAGE:g} V, encoder stretch {lam[use].min():.4g} to "
+            f"{lam[use].max():.4g})")
+    return float(gain), float(offset), text
+
+
+def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimator: str = "secant", out=None,
+                  overwrite: bool = False, tau: float | None = None, reference=None) -> SelfSenseResult:
+    """The self-sensed stretch of a run beside its encoder's, with the error.
+
+    Parameters
+    ----------
+    run : path or xarray.Dataset
+        A run with a ``current`` variable and a probe in its protocol.
+    params : ParameterSet or path
+        The calibrated parameters (``eps_r`` gives ``C0``; the other models'
+        ``C(lambda1, v)`` use the whole material).
+    model : {"su", "1r", "3r", "cr"}
+        The capacitance model inverted.
+    tare : {"rest", "reference", "none"}
+        What is fitted (see the module docstring); ``reference`` is implied by `reference`.
+    estimator : {"secant", "small-signal"}
+        ``secant`` (default): `capacitance_secant`, the charge over the voltage
+        (blended with the small-signal estimate below `BLEND_VOLTAGE`);
+        ``small-signal``: `capacitance_rls` alone, ``dq/dv`` at the probe,
+        biased by ``v dC/dv`` where the capacitance depends on the voltage.
+    out : path, optional
+        Where to write the dataset (netCDF).
+    overwrite : bool
+        Replace an existing `out`.
+    tau : float, optional
+        Forgetting time constant [s]; default `TAU_PERIODS` probe periods.
+    reference : path or xarray.Dataset, optional
+        A run of the same specimen at 0 V with current and probe, for the ``reference`` tare.
+
+    Raises
+    ------
+    SpecError
+        Naming the run's file and the field: no ``current``, no probe, no
+        specimen or protocol attribute, no usable samples; a bad `model`,
+        `tare` or `tau`; `out` exists.
+    """
+    source = _source(run)
+    if model not in MODELS:
+        raise SpecError("arguments", "model", f"{model!r} is not one of {', '.join(MODELS)}")
+    if reference is not None and tare == "rest":
+        tare = "reference"
+    if tare not in TARES:
+        raise SpecError("arguments", "tare", f"{tare!r} is not one of {', '.join(TARES)}")
+    if (tare == "reference") != (reference is not None):
+        raise SpecError("arguments", "reference", "the reference tare needs a reference run (--reference RUN.nc), "
+                                                  "and a reference run is for the reference tare")
+    if estimator not in ESTIMATORS:
+        raise SpecError("arguments", "estimator", f"{estimator!r} is not one of {', '.join(ESTIMATORS)}")
+    if tau is not None and not (tau > 0.0 and np.isfinite(tau)):
+        raise SpecError("arguments", "tau", f"{tau!r} is not a finite time > 0 s")
+    if out is not None:
+        if Path(out).exists() and not overwrite:
+            raise SpecError(str(out), "out", "exists; give another output or overwrite it (--force)")
+        check_writable(out)
+    params = as_params(params)
+    ds, card, probe, est = _sense(run, source, estimator, tau)
+    t, lam, v, force = (np.asarray(ds[k].values, float) for k in ("time", "stretch", "voltage", "force"))
+    tau = est.tau
     geom = geometry_from_card(card)
-    gain, tare_text = 1.0, "nothing fitted: C0 from the nominal geometry"
+    gain, offset, tare_text = 1.0, 0.0, "nothing fitted: C0 from the nominal geometry"
     if tare == "rest":
         vs, ss = np.asarray(ds["voltage_setpoint"].values, float), np.asarray(ds["stretch_setpoint"].values, float)
         moved = (np.abs(ss - ss[0]) > 1e-9) | (np.abs(vs) > 2.0 * probe.amplitude)
@@ -182,7 +233,9 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimat
         gain = float(np.median(est.capacitance[:end][rest] / model_C))
         tare_text = (f"C0 x {gain:.6g}: the median ratio of estimated to model capacitance over the first rest "
                      f"(t < {t[end - 1]:.4g} s, {int(rest.sum())} samples, encoder stretch {np.median(lam[:end]):.6g})")
-    lam_est = stretch_from_capacitance(est.capacitance / gain, v, geom, params, model)
+    elif tare == "reference":
+        gain, offset, tare_text = _fit_reference(reference, card, geom, params, model, estimator, tau)
+    lam_est = stretch_from_capacitance((est.capacitance - offset) / gain, v, geom, params, model)
     error = lam_est - lam
     span = float(np.nanmax(lam) - np.nanmin(lam))
     if not span > 0.0:
@@ -206,7 +259,7 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimat
         "institution": str(ds.attrs.get("institution", "not stated")),
         "references": str(ds.attrs.get("references", "")),
         "selfsense_model": model, "selfsense_parameters": params.name, "selfsense_tare": tare_text,
-        "selfsense_gain": gain, "selfsense_tau": float(tau), "selfsense_estimator": (
+        "selfsense_gain": gain, "selfsense_offset": offset, "selfsense_tau": float(tau), "selfsense_estimator": (
             f"secant q / v from the integrated current less the fitted leakage, blended below {BLEND_VOLTAGE:g} V "
             "with the small-signal estimate (rdea_lab.twin.selfsense.capacitance_secant)" if estimator == "secant"
             else "small-signal dq/dv: recursive least squares with exponential forgetting on i = C dv/dt + "
@@ -217,7 +270,7 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimat
     }
     if out is not None:
         write_dataset(result_ds, Path(out))
-    return SelfSenseResult(result_ds, max_pct, rms_pct, scored, gain)
+    return SelfSenseResult(result_ds, max_pct, rms_pct, scored, gain, offset)
 
 
 def stretch_to_capacitance(stretch, voltage, geom, params, model: str) -> np.ndarray:
