@@ -71,6 +71,33 @@ def test_the_tare_fits_one_factor_on_c0(run):
     assert result.gain == pytest.approx(1.0, abs=1e-5)
 
 
+def test_the_reference_tare_fits_gain_and_offset_on_a_0V_run(run, tmp_path):
+    folder = tmp_path / "ref"
+    folder.mkdir()
+    protocol = folder / "sense0.yaml"
+    protocol.write_text(PROTOCOL.format(probe="probe: {amplitude: 20 V, frequency: 200 Hz}").replace(
+        "mean: 1 kV, amplitude: 1 kV", "mean: 0 kV, amplitude: 0 kV"))
+    ref = folder / "ref.nc"
+    rdea_lab.run_protocol(protocol, ROOT / "specimens" / "specimen2.yaml", "twin", params=PARAMS, model="su", out=ref)
+    result = selfsense_run(run, PARAMS, "su", reference=ref)
+    # the twin's capacitance is the model's: the fitted map gain C0 lambda + offset is C0 lambda over the
+    # sweep's stretches to the estimator's error at 0 V with the probe, 1e-5 of C (as the rest tare above);
+    # gain and offset alone trade against each other (4e-5 and -1.1e-13 F measured), so 1e-4 each
+    C0 = rdea_lab.geometry(ROOT / "specimens" / "specimen2.yaml").C0(2.8)
+    lam = np.linspace(1.0, 1.4, 9)
+    np.testing.assert_allclose(result.gain * C0 * lam + result.offset, C0 * lam, rtol=1e-5, atol=0)
+    assert result.gain == pytest.approx(1.0, abs=1e-4) and abs(result.offset) < 1e-4 * C0
+    assert "least squares over" in result.dataset.attrs["selfsense_tare"]
+    with pytest.raises(SpecError, match=r"reference: the reference tare needs a reference run"):
+        selfsense_run(run, PARAMS, "su", tare="reference")
+    other = folder / "other.nc"
+    rdea_lab.run_protocol(protocol, ROOT / "specimens" / "specimen1.yaml", "twin", params=PARAMS, model="su",
+                          out=other)
+    with pytest.raises(SpecError, match=r"other.nc: specimen: the reference run is of specimen-1, the run of "
+                                        r"specimen-2"):
+        selfsense_run(run, PARAMS, "su", reference=other)
+
+
 def test_bad_input_is_refused_naming_the_file_and_field(run, tmp_path):
     with pytest.raises(SpecError, match=r"blocking_force.nc: current: the run has no current variable"):
         selfsense_run(ROOT / "datasets" / "paper2021" / "specimen-2" / "blocking_force.nc", PARAMS)
@@ -79,7 +106,7 @@ def test_bad_input_is_refused_naming_the_file_and_field(run, tmp_path):
         selfsense_run(no_probe, PARAMS)
     with pytest.raises(SpecError, match=r"missing.nc: <document>: no such file"):
         selfsense_run(tmp_path / "missing.nc", PARAMS)
-    with pytest.raises(SpecError, match=r"tare: 'zero' is not one of rest, none"):
+    with pytest.raises(SpecError, match=r"tare: 'zero' is not one of rest, reference, none"):
         selfsense_run(run, PARAMS, tare="zero")
 
 
