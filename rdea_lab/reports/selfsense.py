@@ -43,7 +43,7 @@ from ..specs import SpecError, as_params, protocol_from_yaml, specimen_from_yaml
 from ..specs.errors import DOCUMENT
 from ..specs.truth import MODELS
 from ..store import open_run
-from ..store.journal import write_dataset
+from ..store.journal import utc_now, write_dataset
 from ..store.outputs import check_writable
 from ..twin.cf import SELFSENSE_VARIABLES, variable_attrs
 from ..twin.selfsense import BLEND_VOLTAGE, capacitance_rls, capacitance_secant, stretch_from_capacitance
@@ -258,6 +258,8 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimat
         "source": f"rdea-lab selfsense of {Path(source).name} ({ds.attrs.get('source', 'unknown source')})",
         "institution": str(ds.attrs.get("institution", "not stated")),
         "references": str(ds.attrs.get("references", "")),
+        "history": f"{utc_now()} rdea-lab selfsense of {Path(source).name} (model {model}, tare {tare}, "
+                   f"estimator {estimator})",
         "selfsense_model": model, "selfsense_parameters": params.name, "selfsense_tare": tare_text,
         "selfsense_gain": gain, "selfsense_offset": offset, "selfsense_tau": float(tau), "selfsense_estimator": (
             f"secant q / v from the integrated current less the fitted leakage, blended below {BLEND_VOLTAGE:g} V "
