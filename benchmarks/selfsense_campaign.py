@@ -40,7 +40,8 @@ def breakdown(run, result):
     t, lam, v = (ds[k].values for k in ("time", "stretch", "voltage"))
     card, truth = ds.rdea.specimen, rdea_lab.load_truth(TRUTH)
     roll = TrueRoll(true_geometry(card, truth), truth)
-    outs = [roll.step(t[k:k + BLOCK], np.maximum(lam[k:k + BLOCK], 1.0), v[k:k + BLOCK]) for k in range(0, t.size, BLOCK)]
+    outs = [roll.step(t[k:k + BLOCK], np.maximum(lam[k:k + BLOCK], 1.0), v[k:k + BLOCK])
+            for k in range(0, t.size, BLOCK)]
     C_true = np.concatenate([o["capacitance"] for o in outs])
     la = np.concatenate([o["lambda_a"] for o in outs])
     C0 = geometry_from_card(card).C0(rdea_lab.load_params(PARAMS).eps_r) * result.gain

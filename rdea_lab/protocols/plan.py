@@ -221,7 +221,7 @@ def check_plan(plan: Plan, L3: float | None = None) -> list[SpecError]:
     """
     problems = limit_violations(plan.limits, plan.source, plan.time, plan.stretch, plan.voltage, L3,
                                 plan.stretch_segment, plan.voltage_segment)
-    probe = plan.spec.probe
+    probe = getattr(getattr(plan, "spec", None), "probe", None)  # a plan-like object may have no spec
     if probe is None:
         return problems
     with_probe = (f" (with the probe's {format_quantity(probe.amplitude, 'V', digits=6)} at "

@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .. import __version__
 from ..physics.geometry import geometry_from_card
 from ..specs import SpecError, as_params, protocol_from_yaml, specimen_from_yaml
 from ..specs.errors import DOCUMENT
@@ -217,6 +218,7 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimat
         check_writable(out)
     params = as_params(params)
     ds, card, probe, est = _sense(run, source, estimator, tau)
+    protocol_name = str(ds.attrs.get("protocol_name", "unknown"))
     t, lam, v, force = (np.asarray(ds[k].values, float) for k in ("time", "stretch", "voltage", "force"))
     tau = est.tau
     geom = geometry_from_card(card)
@@ -254,6 +256,9 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimat
     result_ds = xr.Dataset(data, coords={"time": ("time", t, dict(ds["time"].attrs))})
     result_ds.attrs = {
         "Conventions": "CF-1.8", "title": f"self-sensing of {ds.attrs.get('run_id', source)}",
+        "rdea_lab_version": __version__, "created": utc_now(), "status": str(ds.attrs.get("status", "unknown")),
+        "backend": str(ds.attrs.get("backend", "unknown")), "protocol_name": protocol_name,
+        "sample_rate": float(ds.attrs.get("sample_rate", 1.0 / float(np.median(np.diff(t))))),
         "run": Path(source).name, "run_id": str(ds.attrs.get("run_id", "")), "specimen_id": card.id,
         "source": f"rdea-lab selfsense of {Path(source).name} ({ds.attrs.get('source', 'unknown source')})",
         "institution": str(ds.attrs.get("institution", "not stated")),

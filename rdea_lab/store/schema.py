@@ -72,6 +72,6 @@ def portable_command(command: str) -> str:
     return " ".join(one(w) for w in str(command).split(" "))
 
 
-__all__ = ["EXTRA_VARIABLES", "FLAGS", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES", "REFERENCES", "REQUIRED_ATTRS", "STATUSES", "TIME",
-           "TIME_ENCODING", "VARIABLES", "global_attrs", "is_emulated", "portable_command", "portable_path",
-           "time_attrs", "variable_attrs"]
+__all__ = ["EXTRA_VARIABLES", "FLAGS", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES", "REFERENCES", "REQUIRED_ATTRS",
+           "STATUSES", "TIME", "TIME_ENCODING", "VARIABLES", "global_attrs", "is_emulated", "portable_command",
+           "portable_path", "time_attrs", "variable_attrs"]

@@ -46,7 +46,7 @@ def test_the_charge_of_the_current_is_the_true_rolls_c_v(card, truth):
     quiet = truth_with(truth, current_noise="0 A", leakage_resistance="1 Gohm")
     rows = produce(card, quiet, ("force", "current"))
     assert rows.shape[1] == len(COLUMNS) + 1
-    t, v, i = rows[:, 0], rows[:, 3], rows[:, -1]
+    v, i = rows[:, 3], rows[:, -1]
     C = true_capacitance(card, quiet, rows)
     leak = 0.5 * (v + np.concatenate(([0.0], v[:-1]))) / 1e9  # trapezoid of v / R per interval
     charge = np.cumsum(i - leak) / RATE
