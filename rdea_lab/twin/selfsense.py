@@ -75,19 +75,30 @@ class CapacitanceEstimate:
     tau: float
 
 
-def _forget(x: np.ndarray, lam: float) -> np.ndarray:
-    """``S_k = lam S_{k-1} + x_k`` from ``S_{-1} = 0``, vectorized."""
-    return lfilter([1.0], [1.0, -lam], x)
+class _Filters:
+    """The estimators' running sums as recursive filters, their states carried from one block to the next.
+
+    ``f(key, x, power)`` is ``sum_m m**power lam**m x_{k-m}`` (power 0, 1 or 2) over every sample
+    given so far under `key`; in blocks it gives what one call on the whole record gives.
+    """
+
+    def __init__(self, lam: float):
+        self.lam = float(lam)
+        self.z: dict = {}
+
+    def f(self, key: str, x: np.ndarray, power: int = 0) -> np.ndarray:
+        lam = self.lam
+        b, a = {0: ([1.0], [1.0, -lam]),
+                1: ([0.0, lam], [1.0, -2.0 * lam, lam * lam]),
+                2: ([0.0, lam, lam * lam], [1.0, -3.0 * lam, 3.0 * lam * lam, -lam**3])}[power]
+        zi = self.z.get(key)
+        if zi is None:
+            zi = np.zeros(len(a) - 1)
+        y, self.z[key] = lfilter(b, a, x, zi=zi)
+        return y
 
 
-def _forget_m(x: np.ndarray, lam: float, power: int) -> np.ndarray:
-    """``sum_m m**power lam**m x_{k-m}`` (power 1 or 2), vectorized (the sums' transfer functions)."""
-    if power == 1:
-        return lfilter([0.0, lam], [1.0, -2.0 * lam, lam * lam], x)
-    return lfilter([0.0, lam, lam * lam], [1.0, -3.0 * lam, 3.0 * lam * lam, -lam**3], x)
-
-
-def capacitance_rls(time, voltage, current, tau: float, *, drift: bool = True) -> CapacitanceEstimate:
+def capacitance_rls(time, voltage, current, tau: float, *, drift: bool = True, scale=None) -> CapacitanceEstimate:
     """Online capacitance from voltage and current: RLS with forgetting on the charge balance (*).
 
     Parameters
@@ -104,6 +115,9 @@ def capacitance_rls(time, voltage, current, tau: float, *, drift: bool = True) -
         Fit ``C`` as ``C_k + dC/dt (t_j - t_k)`` over the window (three coefficients: ``C_k``,
         ``dC/dt``, ``1/R``), so the estimate does not lag a changing capacitance; False: ``C``
         constant over the window (two coefficients, ``C`` and ``dC/dt + 1/R``; lags by about `tau`).
+    scale : (float, float), optional
+        Scales of the two regressors, ``dv/dt`` [V/s] and ``v`` [V], for conditioning only (the
+        estimate does not depend on them but for rounding); default their rms over the record.
 
     Returns
     -------
@@ -119,6 +133,17 @@ def capacitance_rls(time, voltage, current, tau: float, *, drift: bool = True) -
     ``m lam**m`` and ``m**2 lam**m`` for the sample ``m`` steps back, are
     written as recursive filters, and the small system is solved per sample.
     """
+    t, v, i, dt = _checked(time, voltage, current)
+    if not (tau > 0.0 and np.isfinite(tau)):
+        raise ValueError(f"tau must be a finite time > 0 s, got {tau!r}")
+    if scale is None:
+        a = np.diff(v, prepend=v[0]) / dt
+        scale = (np.sqrt(np.mean(a * a)), np.sqrt(np.mean(v * v)))
+    state = _RlsState(_Filters(np.exp(-dt / tau)), float(t[0]), None, dt, float(tau), _scales(scale), drift)
+    return _rls_block(state, t, v, i)
+
+
+def _checked(time, voltage, current):
     t = np.asarray(time, float)
     v = np.asarray(voltage, float)
     i = np.asarray(current, float)
@@ -128,18 +153,38 @@ def capacitance_rls(time, voltage, current, tau: float, *, drift: bool = True) -
     dt = float(np.median(np.diff(t)))
     if not (dt > 0.0 and np.allclose(np.diff(t), dt, rtol=1e-6, atol=0.0)):
         raise ValueError("time must be uniformly spaced and increasing")
-    if not (tau > 0.0 and np.isfinite(tau)):
-        raise ValueError(f"tau must be a finite time > 0 s, got {tau!r}")
-    lam = float(np.exp(-dt / tau))
-    v_prev = np.concatenate((v[:1], v[:-1]))
+    return t, v, i, dt
+
+
+def _scales(scale) -> tuple:
+    return tuple(max(float(x), 1e-300) if np.isfinite(x) else 1.0 for x in scale)
+
+
+@dataclass
+class _RlsState:
+    filters: _Filters
+    t0: float
+    v_last: float | None
+    dt: float
+    tau: float
+    scale: tuple
+    drift: bool
+
+
+def _rls_block(st: _RlsState, t, v, i) -> CapacitanceEstimate:
+    """`capacitance_rls` on the next block of samples, the state carried on."""
+    dt, tau = st.dt, st.tau
+    F = st.filters
+    v_prev = np.concatenate(([v[0] if st.v_last is None else st.v_last], v[:-1]))
+    st.v_last = float(v[-1])
     a = (v - v_prev) / dt  # regressor of C [V/s]
     b = v_prev  # regressor of dC/dt + 1/R [V]
     # scaled, so the sums' products stay well within double range and the solve well conditioned
-    sa, sb = max(np.sqrt(np.mean(a * a)), 1e-300), max(np.sqrt(np.mean(b * b)), 1e-300)
+    sa, sb = st.scale
     a, b = a / sa, b / sb
-    F0 = lambda x: _forget(x, lam)  # noqa: E731
-    Saa, Sab, Sbb, Say, Sby = F0(a * a), F0(a * b), F0(b * b), F0(a * i), F0(b * i)
-    if not drift:
+    Saa, Sab, Sbb, Say, Sby = (F.f(k, x) for k, x in (("aa", a * a), ("ab", a * b), ("bb", b * b), ("ay", a * i),
+                                                       ("by", b * i)))
+    if not st.drift:
         det = Saa * Sbb - Sab * Sab
         with np.errstate(invalid="ignore", divide="ignore"):
             excitation = det / (Saa * Sbb)
@@ -148,9 +193,8 @@ def capacitance_rls(time, voltage, current, tau: float, *, drift: bool = True) -
     else:
         # x1 = a, x2 = b - c m a (the drift of C times a, plus dC/dt's own b), x3 = b; c = dt sa / sb
         c = dt * sa / sb
-        F1 = lambda x: _forget_m(x, lam, 1)  # noqa: E731
-        A1aa, A1ab, A1ay = F1(a * a), F1(a * b), F1(a * i)
-        A2aa = _forget_m(a * a, lam, 2)
+        A1aa, A1ab, A1ay = F.f("aa1", a * a, 1), F.f("ab1", a * b, 1), F.f("ay1", a * i, 1)
+        A2aa = F.f("aa2", a * a, 2)
         S = np.empty((t.size, 3, 3))
         S[:, 0, 0] = Saa
         S[:, 0, 1] = S[:, 1, 0] = Sab - c * A1aa
@@ -176,7 +220,7 @@ def capacitance_rls(time, voltage, current, tau: float, *, drift: bool = True) -
             G[good] = theta[:, 2] / sb
             excitation[good] = np.where(np.isfinite(inv11), 1.0 / inv11, 0.0)  # 1 - R^2 of a on the others
     excitation = np.where(np.isfinite(excitation), excitation, 0.0)
-    valid = (t - t[0] >= SETTLE_TAUS * tau) & (excitation >= MIN_EXCITATION) & np.isfinite(C)
+    valid = (t - st.t0 >= SETTLE_TAUS * tau) & (excitation >= MIN_EXCITATION) & np.isfinite(C)
     return CapacitanceEstimate(np.where(valid, C, np.nan), G, excitation, valid, float(tau))
 
 
@@ -252,27 +296,45 @@ def capacitance_secant(time, voltage, current, small_signal: CapacitanceEstimate
     -------
     ChargeEstimate
     """
-    t = np.asarray(time, float)
-    v = np.asarray(voltage, float)
-    i = np.asarray(current, float)
-    dt = float(np.median(np.diff(t)))
-    v_prev = np.concatenate(([0.0], v[:-1]))
-    Q = np.cumsum(i) * dt
-    I = np.cumsum(0.5 * (v + v_prev)) * dt  # integral of v [V s]
+    t, v, i, dt = _checked(time, voltage, current)
+    state = _ChargeState(_Filters(np.exp(-dt / leakage_tau)), 0.0, 0.0, 0.0, dt, float(blend_voltage), leakage)
+    return _secant_block(state, v, i, small_signal)
+
+
+@dataclass
+class _ChargeState:
+    filters: _Filters
+    sum_i: float  # sum of the current so far [A]
+    sum_v: float  # sum of the interval-mean voltages so far [V]
+    v_last: float  # voltage of the previous sample [V] (0 before the first: discharged)
+    dt: float
+    blend_voltage: float
+    leakage: float | None
+
+
+def _secant_block(st: _ChargeState, v, i, small_signal: CapacitanceEstimate) -> ChargeEstimate:
+    """`capacitance_secant` on the next block of samples, the state carried on."""
+    dt, blend_voltage = st.dt, st.blend_voltage
+    v_prev = np.concatenate(([st.v_last], v[:-1]))
+    # running sums continued in the order one cumulative sum over the record adds them
+    si = np.cumsum(np.concatenate(([st.sum_i], i)))[1:]
+    sv = np.cumsum(np.concatenate(([st.sum_v], 0.5 * (v + v_prev))))[1:]
+    st.sum_i, st.sum_v, st.v_last = float(si[-1]), float(sv[-1]), float(v[-1])
+    Q = si * dt
+    I = sv * dt  # integral of v [V s]
     Cs = small_signal.capacitance
     low = small_signal.valid & (np.abs(v) < blend_voltage)
     r = np.where(low, Q - np.where(low, Cs, 0.0) * v, 0.0)
     w = low.astype(float)
-    lam = float(np.exp(-dt / leakage_tau))
-    S_II, S_Ir = _forget(w * I * I, lam), _forget(w * I * r, lam)
-    if leakage is None:
+    S_II, S_Ir = st.filters.f("II", w * I * I), st.filters.f("Ir", w * I * r)
+    if st.leakage is None:
         # the prior: as if LEAKAGE_PRIOR_SECONDS of low-voltage samples at int v dt = LEAKAGE_PRIOR said G = 0
         prior = LEAKAGE_PRIOR**2 * LEAKAGE_PRIOR_SECONDS / dt
         G = S_Ir / (S_II + prior)
         # learnt once the prior weighs less than 1 %: the voltage has been high and come back
         learnt = S_II >= 99.0 * prior
     else:
-        G, learnt = np.full(t.shape, float(leakage)), np.ones(t.shape, bool)
+        G, learnt = np.full(v.shape, float(st.leakage)), np.ones(v.shape, bool)
     q = Q - G * I
     # before the leakage is learnt only the small-signal estimate near 0 V is used (the charge is off
     # by the unknown int v dt / R); above blend_voltage there is then no estimate
@@ -281,6 +343,46 @@ def capacitance_secant(time, voltage, current, small_signal: CapacitanceEstimate
         C = np.where(s > 0.0, s * (q / np.where(v != 0.0, v, 1.0)), 0.0) + (1.0 - s) * Cs
     valid = small_signal.valid & np.isfinite(C) & (learnt | (np.abs(v) < blend_voltage))
     return ChargeEstimate(np.where(valid, C, np.nan), q, G, valid)
+
+
+class SelfSenseStream:
+    """Both estimators sample block by sample block, for a control loop: what the batch functions give.
+
+    Parameters
+    ----------
+    rate : float
+        DAQ sample rate [Hz].
+    tau : float
+        Forgetting time constant of `capacitance_rls` [s].
+    scale : (float, float)
+        Regressor scales ``dv/dt`` [V/s] and ``v`` [V] (e.g. ``2 pi f A`` of the probe and the
+        largest voltage); conditioning only.
+    blend_voltage, leakage_tau, leakage
+        As for `capacitance_secant`.
+
+    ``step(t, v, i)`` takes the next samples (at least one; times continuing at ``1 / rate``) and
+    returns ``(small_signal, charge)`` for them: `CapacitanceEstimate` and `ChargeEstimate`. In any
+    blocks it gives what `capacitance_rls` (with the same `scale`) and `capacitance_secant` give on
+    the whole record, to rounding.
+    """
+
+    def __init__(self, rate: float, tau: float, scale, *, blend_voltage: float = BLEND_VOLTAGE,
+                 leakage_tau: float = LEAKAGE_TAU, leakage: float | None = None, drift: bool = True):
+        if not (rate > 0.0 and np.isfinite(rate)) or not (tau > 0.0 and np.isfinite(tau)):
+            raise ValueError(f"rate and tau must be finite and > 0, got {rate!r} Hz, {tau!r} s")
+        dt = 1.0 / rate
+        self._rls = _RlsState(_Filters(np.exp(-dt / tau)), None, None, dt, float(tau), _scales(scale), drift)
+        self._charge = _ChargeState(_Filters(np.exp(-dt / leakage_tau)), 0.0, 0.0, 0.0, dt, float(blend_voltage),
+                                    leakage)
+
+    def step(self, t, v, i) -> tuple:
+        t, v, i = (np.atleast_1d(np.asarray(x, float)) for x in (t, v, i))
+        if not (t.shape == v.shape == i.shape and t.ndim == 1 and t.size >= 1):
+            raise ValueError("t, v and i must be 1-D of the same length >= 1")
+        if self._rls.t0 is None:
+            self._rls.t0 = float(t[0])
+        small = _rls_block(self._rls, t, v, i)
+        return small, _secant_block(self._charge, v, i, small)
 
 
 def stretch_from_capacitance(capacitance, voltage, geom, material, model: str = "su", *,
@@ -351,5 +453,5 @@ def stretch_from_capacitance(capacitance, voltage, geom, material, model: str = 
     return out
 
 
-__all__ = ["BLEND_VOLTAGE", "CapacitanceEstimate", "ChargeEstimate", "MIN_EXCITATION", "SETTLE_TAUS",
+__all__ = ["BLEND_VOLTAGE", "CapacitanceEstimate", "ChargeEstimate", "MIN_EXCITATION", "SETTLE_TAUS", "SelfSenseStream",
            "capacitance_rls", "capacitance_secant", "stretch_from_capacitance"]
