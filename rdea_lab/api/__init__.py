@@ -68,6 +68,7 @@ _EXPORTS = {
     "ReproduceInputError": "rdea_lab.reports.reproduce",
     "plot_run": "rdea_lab.reports.plots", "plot_plan": "rdea_lab.reports.plots",
     "selfsense_run": "rdea_lab.reports.selfsense", "SelfSenseResult": "rdea_lab.reports.selfsense",
+    "plot_selfsense": "rdea_lab.reports.selfsense", "SelfSenseStream": "rdea_lab.twin.selfsense",
     "capacitance_rls": "rdea_lab.twin.selfsense", "capacitance_secant": "rdea_lab.twin.selfsense",
     "stretch_from_capacitance": "rdea_lab.twin.selfsense",
     # rig

@@ -6,6 +6,7 @@ import click
 
 from .. import api
 from ..specs import MODELS
+from .errors import headless
 
 
 @click.command()
@@ -25,7 +26,9 @@ from ..specs import MODELS
 @click.option("--out", "out_path", type=click.Path(dir_okay=False),
               help="Dataset to write [default: RUN.selfsense.nc beside the run].")
 @click.option("--force", "overwrite", is_flag=True, help="Overwrite an existing --out.")
-def selfsense(run_path, params_path, model, tare, reference, estimator, out_path, overwrite):
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Write a PNG: both stretches and the error against time.")
+def selfsense(run_path, params_path, model, tare, reference, estimator, out_path, overwrite, plot_path):
     """Self-sensing: the stretch estimated from the amplifier current, beside the encoder's.
 
     The run must have recorded the current with a probe on the voltage (a
@@ -48,3 +51,6 @@ def selfsense(run_path, params_path, model, tare, reference, estimator, out_path
     result = api.selfsense_run(run_path, params_path, model.lower(), tare=tare, estimator=estimator, out=out_path,
                                overwrite=overwrite, reference=reference)
     click.echo(f"{result.summary()}; written {out_path}")
+    if plot_path:
+        headless()
+        api.plot_selfsense(result.dataset, plot_path)

@@ -280,6 +280,60 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimat
     return SelfSenseResult(result_ds, max_pct, rms_pct, scored, gain, offset)
 
 
+def plot_selfsense(ds, path=None, *, ax=None, fig=None):
+    """The self-sensed stretch beside the encoder's, and the error, against time.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A `selfsense_run` dataset (``SelfSenseResult.dataset``, or the file it wrote, opened).
+    path : str or path-like, optional
+        Save the figure there (PNG at 200 dpi); a figure made here is then closed.
+    ax : matplotlib.axes.Axes, optional
+        Draw only the two stretches [-] against time [s] on this axis.
+    fig : matplotlib.figure.Figure, optional
+        Draw both panels into this (empty) figure. Not with ``ax``.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from .plots import _finish, _new_figure, minmax_index
+
+    if ax is not None and fig is not None:
+        raise ValueError("give ax or fig, not both")
+    t = np.asarray(ds["time"].values, float)
+    lam, est = np.asarray(ds["stretch"].values, float), np.asarray(ds["stretch_estimate"].values, float)
+    pct = np.asarray(ds["stretch_error_percent"].values, float)
+    used = np.asarray(ds["estimate_valid"].values) == 1
+    keep = minmax_index(t.size, [lam, np.nan_to_num(est), np.nan_to_num(pct)])
+    created = ax is None and fig is None
+    if ax is None:
+        fig = fig if fig is not None else _new_figure((8.0, 5.0))
+        top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [2, 1]})
+    else:
+        fig, top, bottom = ax.figure, ax, None
+    top.plot(t[keep], lam[keep], color="tab:blue", lw=1.0, label="encoder")
+    top.plot(t[keep], np.where(used, est, np.nan)[keep], color="black", ls="--", lw=0.8, label="self-sensed")
+    top.set_ylabel("stretch λ1 [-]")
+    top.grid(alpha=0.3)
+    top.legend(fontsize=8, loc="upper left")
+    top.set_title(f"{ds.attrs.get('run', '')}: max {ds.attrs.get('max_error_percent', float('nan')):.2f} %, "
+                  f"rms {ds.attrs.get('rms_error_percent', float('nan')):.2f} % of the stretch range", fontsize=9)
+    if bottom is not None:
+        bottom.plot(t[keep], np.where(used, pct, np.nan)[keep], color="tab:red", lw=0.6, label="scored")
+        bottom.plot(t[keep], np.where(used, np.nan, pct)[keep], color="0.7", lw=0.6,
+                    label="not scored (slack, unsettled)")
+        bottom.axhline(0.0, color="black", lw=0.5)
+        bottom.set_xlabel("time [s]")
+        bottom.set_ylabel("error [% of range]")
+        bottom.grid(alpha=0.3)
+        bottom.legend(fontsize=7, loc="upper right")
+    else:
+        top.set_xlabel("time [s]")
+    return _finish(fig, path, created)
+
+
 def stretch_to_capacitance(stretch, voltage, geom, params, model: str) -> np.ndarray:
     """The model's clamped-state capacitance ``C(lambda1, v)`` [F] (the forward map the inverse undoes)."""
     from ..physics.models import solve
@@ -289,4 +343,5 @@ def stretch_to_capacitance(stretch, voltage, geom, params, model: str) -> np.nda
     return solve(model, geom, params, np.asarray(stretch, float), np.asarray(voltage, float), slack=False).capacitance
 
 
-__all__ = ["ESTIMATORS", "SelfSenseResult", "TAUT_FORCE", "TARES", "selfsense_run", "stretch_to_capacitance"]
+__all__ = ["ESTIMATORS", "SelfSenseResult", "TAUT_FORCE", "TARES", "plot_selfsense", "selfsense_run",
+           "stretch_to_capacitance"]

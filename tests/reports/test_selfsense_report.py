@@ -135,3 +135,21 @@ def test_cli_bad_input_exit_2_one_line(run, tmp_path, args, message):
     args = [str(run) if a == "RUN" else a for a in args]
     out = cli("selfsense", *args, "--out", tmp_path / "x.nc", cwd=ROOT)
     assert out.returncode == 2 and out.stderr.count("\n") == 1 and out.stderr.startswith(message), out.stderr
+
+
+def test_plot_draws_both_stretches_and_the_error(run, tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from rdea_lab.reports.selfsense import plot_selfsense
+
+    result = selfsense_run(run, PARAMS, "su", tare="none")
+    fig = plot_selfsense(result.dataset, tmp_path / "s.png")
+    assert (tmp_path / "s.png").stat().st_size > 10_000 and len(fig.axes) == 2
+    top = fig.axes[0]
+    assert [line.get_label() for line in top.get_lines()] == ["encoder", "self-sensed"]
+    _, ax = plt.subplots()
+    assert plot_selfsense(result.dataset, ax=ax) is ax.figure and len(ax.figure.axes) == 1
+    plt.close("all")
