@@ -9,23 +9,24 @@ the balance is exact in discrete time::
     i_k = C_k (v_k - v_{k-1}) / dt + v_{k-1} ((C_k - C_{k-1}) / dt + 1 / R)      (*)
 
 (up to the leakage's ``(v_k - v_{k-1}) / (2 R)``, a bias of ``dt / (2 R)`` on
-``C``: 2.5e-15 F at 2 kHz and 100 Gohm). `capacitance_rls` fits ``theta = (C,
-dC/dt + 1/R)`` to (*) by recursive least squares with exponential forgetting
-(time constant `tau`): the solution at each sample of the exponentially
-weighted normal equations, whose five running sums are first-order recursive
-filters (`scipy.signal.lfilter`), so the recursion is vectorized. It needs
-excitation: a voltage that moves (the actuation, or a small probe sine on top,
-`rdea_lab.specs.protocol.Probe`); where ``dv/dt`` and ``v`` do not tell ``C``
-from the leakage term (a constant voltage without probe) the estimate is
-flagged. Leakage and ``dC/dt`` need no model: they share the second
-coefficient.
+``C``: 2.5e-15 F at 2 kHz and 100 Gohm). `capacitance_rls` fits it by
+recursive least squares with exponential forgetting (time constant `tau`): the
+solution at each sample of the exponentially weighted normal equations, whose
+running sums are recursive filters (`scipy.signal.lfilter`), so the recursion
+is vectorized. By default it fits ``C`` with its drift over the window (``C_k
++ dC/dt (t_j - t_k)``, and ``1/R``: no lag behind a changing capacitance). It
+needs excitation: a voltage that moves (the actuation, or a small probe sine on
+top, `rdea_lab.specs.protocol.Probe`); where ``dv/dt`` does not tell ``C`` from
+the other terms (a constant voltage without probe) the estimate is flagged.
 
-`stretch_from_capacitance` inverts the model's ``C(lambda1, v)``: SU's ``C =
-C0 lambda1`` (eq. 41 of [1]) in closed form; 1R, 3R and CR (which depend on
-the voltage through the hoop stretch) by a bracketed, vectorized regula falsi
-on the clamped state's capacitance (``slack=False``: a slack roll's free state
-has a capacitance that does not depend on the clamps' distance, so no stretch
-of the clamps follows from it).
+What the probe measures is the small-signal capacitance ``dq/dv = C + v
+dC/dv``; the models' ``C(lambda1, v)`` is the secant one, ``q / v``.
+`capacitance_secant` gets that from the charge (the integrated current less a
+leakage fitted where the voltage is low). `SelfSenseStream` runs both block by
+block with their states carried, for a control loop.
+
+`rdea_lab.twin.capacitance_inverse.stretch_from_capacitance` (re-exported here) turns the
+estimate into a stretch.
 
 [1] J. Prechtl et al., Smart Mater. Struct. (2021), doi:10.1088/1361-665X/ac34be.
 """
@@ -37,16 +38,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from ..physics.models import solve
+from .capacitance_inverse import stretch_from_capacitance
 
 #: Settling of the estimator, in time constants: the weight of the (zero) start is exp(-5) < 1 %.
 SETTLE_TAUS = 5.0
-#: Least ``1 - rho**2`` of the two regressors (``dv/dt`` and ``v``) for a usable estimate.
+#: Least share of the ``dv/dt`` regressor's energy the others do not explain (``1 - rho**2`` for two regressors)
+#: for a usable estimate.
 MIN_EXCITATION = 1e-3
-#: Stretch bracket of the numerical inverse [-].
-STRETCH_BRACKET = (1.0, 3.0)
-#: Convergence of the numerical inverse, in stretch [-].
-STRETCH_TOL = 1e-10
 
 
 @dataclass(frozen=True)
@@ -385,73 +383,5 @@ class SelfSenseStream:
         return small, _secant_block(self._charge, v, i, small)
 
 
-def stretch_from_capacitance(capacitance, voltage, geom, material, model: str = "su", *,
-                             bracket=STRETCH_BRACKET) -> np.ndarray:
-    """The stretch at which the model's capacitance ``C(lambda1, v)`` equals `capacitance`.
-
-    Parameters
-    ----------
-    capacitance : array_like
-        [F].
-    voltage : array_like
-        [V], broadcast against `capacitance` (SU does not use it).
-    geom : RollGeometry
-        The (nominal) geometry; ``C0`` from it and ``material.eps_r``.
-    material : ParameterSet
-    model : {"su", "1r", "3r", "cr"}
-    bracket : (float, float)
-        Stretches searched [-].
-
-    Returns
-    -------
-    numpy.ndarray
-        ``lambda1`` [-]. SU: ``C / C0`` (eq. 41 of [1]; below 1 where the
-        capacitance is below ``C0``: returned as is, the caller judges it).
-        Other models: NaN where the capacitance lies outside the clamped
-        state's ``C`` over `bracket` at that voltage, or the model has no
-        equilibrium there.
-
-    Notes
-    -----
-    The other models' ``C = C0 (lambda1 lambda2b)**2`` (eqs. 29, 34 and the
-    continuum's) is increasing in ``lambda1`` at fixed voltage wherever the
-    roll is stable (at 0 V it is SU's ``C0 lambda1``); the bracket's ends are
-    checked, not assumed.
-    """
-    C = np.asarray(capacitance, float)
-    v = np.broadcast_to(np.asarray(voltage, float), C.shape)
-    C0 = geom.C0(material.eps_r)
-    if model == "su":
-        return C / C0
-    out = np.full(C.shape, np.nan)
-    ok = np.isfinite(C) & np.isfinite(v)
-    c, vv = C[ok], v[ok]
-
-    def f(lam):
-        return solve(model, geom, material, lam, vv, slack=False).capacitance - c
-
-    lo, hi = np.full(c.shape, bracket[0]), np.full(c.shape, bracket[1])
-    flo, fhi = f(lo), f(hi)
-    inside = (flo <= 0.0) & (fhi >= 0.0)
-    side = np.zeros(c.shape, int)  # Illinois: which end stayed last time
-    x = lo.copy()
-    for _ in range(100):
-        with np.errstate(invalid="ignore", divide="ignore"):
-            x = np.where(fhi != flo, hi - fhi * (hi - lo) / (fhi - flo), 0.5 * (lo + hi))
-        x = np.where(np.isfinite(x) & (x > lo) & (x < hi), x, 0.5 * (lo + hi))
-        fx = f(x)
-        left = fx < 0.0
-        lo, flo = np.where(left, x, lo), np.where(left, fx, flo)
-        hi, fhi = np.where(left, hi, x), np.where(left, fhi, fx)
-        # Illinois: halve the value at the end that stays twice in a row
-        fhi = np.where(left & (side == 1), 0.5 * fhi, fhi)
-        flo = np.where(~left & (side == -1), 0.5 * flo, flo)
-        side = np.where(left, 1, -1)
-        if np.all((hi - lo <= STRETCH_TOL) | (fx == 0.0) | ~inside):
-            break
-    out[ok] = np.where(inside, x, np.nan)
-    return out
-
-
-__all__ = ["BLEND_VOLTAGE", "CapacitanceEstimate", "ChargeEstimate", "MIN_EXCITATION", "SETTLE_TAUS", "SelfSenseStream",
-           "capacitance_rls", "capacitance_secant", "stretch_from_capacitance"]
+__all__ = ["BLEND_VOLTAGE", "CapacitanceEstimate", "ChargeEstimate", "MIN_EXCITATION", "SETTLE_TAUS",
+           "SelfSenseStream", "capacitance_rls", "capacitance_secant", "stretch_from_capacitance"]
