@@ -6,10 +6,10 @@ import click
 
 from .. import api
 from ..specs import MODELS
-from .errors import headless
+from .errors import EXIT_HELP, headless
 
 
-@click.command()
+@click.command(epilog=EXIT_HELP)
 @click.argument("run_path", metavar="RUN.nc", type=click.Path(dir_okay=False))
 @click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False),
               help="Parameter set (YAML): eps_r gives C0; 1R, 3R and CR use the whole material.")
