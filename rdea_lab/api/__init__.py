@@ -19,7 +19,8 @@ Runs: `run_protocol`, `prepare_run`, `run_campaign`, callbacks `LiveTable`,
 `import_files`. Model: `predict`, `simulate`, `quasi_static_curves`,
 `geometry`. Calibration: `calibrate_runs`, `format_result`, `cross_validate`,
 `format_cv`, `envelope`, `beyond`. Reports:
-`validation_report`, `speed_study`, `reproduce`. Rig: `RigServer`. Voltage from a target:
+`validation_report`, `speed_study`, `reproduce`, `selfsense_run`. Self-sensing: `capacitance_rls`,
+`capacitance_secant`, `stretch_from_capacitance`. Rig: `RigServer`. Voltage from a target:
 `load_target`, `plan_target`, `write_protocol`, `tracking_error`, `track_target`.
 """
 
@@ -67,6 +68,10 @@ _EXPORTS = {
     "speed_study": "rdea_lab.reports.speed", "reproduce": "rdea_lab.reports.reproduce",
     "ReproduceInputError": "rdea_lab.reports.reproduce",
     "plot_run": "rdea_lab.reports.plots", "plot_plan": "rdea_lab.reports.plots",
+    "selfsense_run": "rdea_lab.reports.selfsense", "SelfSenseResult": "rdea_lab.reports.selfsense",
+    "plot_selfsense": "rdea_lab.reports.selfsense", "SelfSenseStream": "rdea_lab.twin.selfsense",
+    "capacitance_rls": "rdea_lab.twin.selfsense", "capacitance_secant": "rdea_lab.twin.selfsense",
+    "stretch_from_capacitance": "rdea_lab.twin.selfsense",
     # rig
     "RigServer": "rdea_lab.emulator", "is_loopback": "rdea_lab.emulator", "FAULTS": "rdea_lab.emulator",
     "parse_faults": "rdea_lab.emulator.controller", "RigRefused": "rdea_lab.backends.rig",

@@ -83,6 +83,7 @@ class RigBackend:
         self.idn = ""
         self.truth = ""
         self._rows = 1000
+        self._columns = COLUMNS
         self._done = False
         self._lost = None
         self.aborted = None
@@ -164,7 +165,9 @@ class RigBackend:
             truth = self._query("SYST:TRUTH?")
             self.truth = "" if truth.startswith("ERR") else truth
         lim = plan.limits
-        meas = ",".join({"force": "FORC", "capacitance": "CAP"}[m] for m in plan.measure)
+        meas = ",".join({"force": "FORC", "capacitance": "CAP", "current": "CUR"}[m] for m in plan.measure)
+        # rows gain a ninth column, the amplifier current, when it is measured (docs/rig-protocol.md)
+        self._columns = COLUMNS + (("current",) if "current" in plan.measure else ())
         for command in ("*RST", f"CONF:RATE {plan.sample_rate!r}", f"CONF:MEAS {meas}",
                         f"CONF:LENG {geom.L1!r}", f"CONF:THIC {geom.L3!r}", f"CONF:SEED {self.seed}",
                         f"LIM:VOLT {lim.max_voltage!r}",
@@ -196,9 +199,10 @@ class RigBackend:
         except Exception as exc:
             raise ConnectionLost(f"connection to the rig {self.address} lost while fetching samples "
                                  f"({type(exc).__name__})") from None
-        if data.size % len(COLUMNS):
-            raise BackendFailure(f"rig {self.address} sent {data.size} values, not whole rows of {len(COLUMNS)}")
-        return data.reshape(-1, len(COLUMNS))
+        width = len(self._columns)
+        if data.size % width:
+            raise BackendFailure(f"rig {self.address} sent {data.size} values, not whole rows of {width}")
+        return data.reshape(-1, width)
 
     def read_block(self):
         if self._done or self.aborted is not None:
@@ -217,7 +221,7 @@ class RigBackend:
             rows = self._fetch()
             if rows.shape[0]:
                 self._last_new = self._clock()
-                return {name: rows[:, j].copy() for j, name in enumerate(COLUMNS)}
+                return {name: rows[:, j].copy() for j, name in enumerate(self._columns)}
             state, acquired, fetched, reason = _status(self._query("STAT?"))
             if state == "DONE" and fetched >= acquired:
                 self._done = True

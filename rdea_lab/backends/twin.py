@@ -71,6 +71,7 @@ class TwinBackend:
             self.choice = select_model(self.geom, self.params, plan.stretch, plan.voltage, self.tolerance)
             self.model = self.choice.model
         self._stream = TwinStream(self.geom, self.params, self.model)
+        self._charge = (0.0, 0.0)  # (C v, v) before the first sample: no charge at 0 V
         self._blocks = iter(plan.block_slices(self.block_seconds))
         self._t0 = self._clock()
 
@@ -100,7 +101,12 @@ class TwinBackend:
                 self._sleep(wait)
         out = self._stream.step(t, stretch, voltage)
         capacitance = out["capacitance"] if "capacitance" in plan.measure else np.full(t.size, np.nan)
-        return {
+        extra = {}
+        if "current" in plan.measure:  # an ideal current monitor: the charge change per interval, no leakage
+            q = out["capacitance"] * voltage
+            extra["current"] = np.diff(q, prepend=self._charge[0]) * plan.sample_rate
+            self._charge = (float(q[-1]), float(voltage[-1]))
+        return {**extra,
             "time": t, "stretch": stretch, "position": (stretch - 1.0) * self.geom.L1, "voltage": voltage,
             "force": out["force"], "capacitance": capacitance,
             "stretch_setpoint": stretch, "voltage_setpoint": voltage,

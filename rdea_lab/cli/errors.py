@@ -26,7 +26,8 @@ OPTIONS = {"address": "--rig", "token": "--token-file", "address/token": "--rig/
            "model": "--model", "tolerance": "--tolerance", "backend": "--backend", "stall_timeout": "--stall-timeout",
            "protocol_kind": "--protocol-kind", "free": "--free", "eps_r": "--eps-r", "branches": "--viscous-branches",
            "metric": "--metric", "init": "--init", "cv": "--cv", "holdout": "--holdout",
-           "method": "--method"}
+           "method": "--method", "tare": "--tare", "estimator": "--estimator", "tau": "--tau",
+           "reference": "--reference"}
 
 
 def user_message(exc) -> str:

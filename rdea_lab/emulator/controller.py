@@ -39,7 +39,7 @@ MAX_FETCH = 1_000_000
 MAX_POINTS = 10_000_000
 _ERRORS_KEPT = 20
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
-_CHANNELS = {"FORC": "force", "CAP": "capacitance"}
+_CHANNELS = {"FORC": "force", "CAP": "capacitance", "CUR": "current"}
 _LIMITS = (("volt", "LIM:VOLT <V>"), ("str", "LIM:STR <max>"), ("forc", "LIM:FORC <N>"),
            ("fiel", "LIM:FIEL <V/m>"))
 
@@ -612,7 +612,7 @@ class RigController:
                 self._rows[0] = head[take:]
             got += take
         self._buffered -= got
-        return np.concatenate(out) if out else np.empty((0, 8))
+        return np.concatenate(out) if out else np.empty((0, len(self.run.config.columns)))
 
     def _abor(self, session, arg, block):
         self._no_arg("ABOR", arg)

@@ -82,4 +82,48 @@ def lcr_bridge(capacitance, voltage, parasitic: float, noise: float, rng: np.ran
     return np.where(measured, reading, np.nan)
 
 
-__all__ = ["FirstOrderLag", "lcr_bridge", "load_cell", "tau_of_bandwidth"]
+class CurrentMonitor:
+    """The amplifier's current monitor, sampled by an integrating (averaging) ADC, block by block.
+
+    Sample ``k`` is the mean current over ``(t_{k-1}, t_k]``: the charge the
+    amplifier delivered, ``(q_k - q_{k-1}) / dt`` with ``q = C v`` (whatever
+    the voltage does between samples, the charge at the sample instants
+    decides it: exact, not a finite-difference approximation), plus the
+    leakage through the film, ``(v_k + v_{k-1}) / (2 R)`` (trapezoid: exact
+    for a linear voltage over the interval), plus Gaussian noise of std
+    `noise` [A]. Before the first sample the roll holds no charge (0 V).
+
+    Parameters
+    ----------
+    dt : float
+        Sample interval [s].
+    leakage_resistance : float
+        [ohm], > 0.
+    noise : float
+        Standard deviation per sample [A], >= 0.
+    rng : numpy.random.Generator
+        One normal variate per sample (chunking does not matter).
+    """
+
+    def __init__(self, dt: float, leakage_resistance: float, noise: float, rng: np.random.Generator):
+        self.dt, self.R, self.noise, self.rng = float(dt), float(leakage_resistance), float(noise), rng
+        self.q, self.v = 0.0, 0.0
+
+    def __call__(self, capacitance, voltage) -> np.ndarray:
+        """Current samples [A] for the next samples' capacitance [F] and voltage [V]."""
+        C = np.asarray(capacitance, float)
+        v = np.asarray(voltage, float)
+        q = C * v
+        q_prev = np.concatenate(([self.q], q[:-1]))
+        v_prev = np.concatenate(([self.v], v[:-1]))
+        i = (q - q_prev) / self.dt + 0.5 * (v + v_prev) / self.R + self.noise * self.rng.standard_normal(v.shape)
+        if v.size:
+            self.q, self.v = float(q[-1]), float(v[-1])
+        return i
+
+    def reset(self) -> None:
+        """Voltage off: the roll discharged."""
+        self.q, self.v = 0.0, 0.0
+
+
+__all__ = ["CurrentMonitor", "FirstOrderLag", "lcr_bridge", "load_cell", "tau_of_bandwidth"]

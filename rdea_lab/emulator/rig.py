@@ -18,6 +18,12 @@ producing in chunks of any sizes gives bit-identical data:
 - load cell: + offset (drifting by ``force_drift`` from the run's start) +
   noise; LCR bridge: + parasitics + noise, and only where ``capacitance`` is
   measured and ``|voltage| < 1 V``;
+- amplifier current monitor (only where ``current`` is measured: a ninth
+  column, `CURRENT_COLUMN`): the true roll's charge ``C v`` (its true
+  capacitance, fringe included, at the amplifier's output voltage) through
+  an integrating ADC, plus leakage ``v / leakage_resistance`` and noise
+  ``current_noise`` (`rdea_lab.emulator.instruments.CurrentMonitor`); the
+  leads' parasitics are the LCR fixture's, not in this path;
 - aborts: dielectric breakdown (field estimate ``|v| sqrt(lambda) / L3`` with
   the true ``L3`` and the electroded zone's stretch ``lambda`` above
   ``breakdown_field``, or no stable equilibrium
@@ -36,14 +42,16 @@ import numpy as np
 
 from ..physics.result import LIMIT_POINT, OUTSIDE_RANGE, STATUS_NAMES, VALID
 from .roll import TrueRoll
-from .instruments import FirstOrderLag, lcr_bridge, load_cell, tau_of_bandwidth
+from .instruments import CurrentMonitor, FirstOrderLag, lcr_bridge, load_cell, tau_of_bandwidth
 from .truth import true_geometry
 
 #: Columns of a sample row, in order (the rows of ``FETC?``).
 COLUMNS = ("time", "stretch", "position", "voltage", "force", "capacitance", "stretch_setpoint",
            "voltage_setpoint")
+#: The column a row gains when ``current`` is measured (after `COLUMNS`).
+CURRENT_COLUMN = "current"
 #: Channels that can be measured.
-CHANNELS = ("force", "capacitance")
+CHANNELS = ("force", "capacitance", "current")
 #: The LCR bridge measures only below this |voltage| [V].
 LCR_MAX_VOLTAGE = 1.0
 #: Samples computed at once, in blocks aligned on the start of the run [samples].
@@ -96,6 +104,11 @@ class RunConfig:
     def n(self) -> int:
         """Number of samples of the run."""
         return self.stretch_setpoint.size
+
+    @property
+    def columns(self) -> tuple:
+        """The columns of this run's rows: `COLUMNS`, and ``current`` when it is measured."""
+        return COLUMNS + ((CURRENT_COLUMN,) if "current" in self.measure else ())
 
     @property
     def time(self) -> np.ndarray:
@@ -177,8 +190,9 @@ class EmulatedRig:
     truth : TruthSpec
         True physics and instrument effects.
     rng : numpy.random.Generator
-        Source of all noise (two independent streams are spawned from it:
-        load cell and LCR bridge).
+        Source of all noise (independent streams are spawned from it: load
+        cell and LCR bridge, and the current monitor when ``current`` is
+        measured).
     config : RunConfig
         Rate, setpoints, L1, limits, measured channels.
     breakdown_at : float, optional
@@ -211,6 +225,9 @@ class EmulatedRig:
         self._actuator = FirstOrderLag(inst.actuator_lag, dt, self._start)
         self._amplifier = FirstOrderLag(tau_of_bandwidth(inst.amplifier_bandwidth), dt, 0.0)
         self._force_rng, self._cap_rng = rng.spawn(2)
+        self._current = None
+        if "current" in config.measure:  # a third stream: the other two stay what they were
+            self._current = CurrentMonitor(dt, inst.leakage_resistance, inst.current_noise, rng.spawn(1)[0])
         self.breakdown_at = breakdown_at
         self.acquired = 0
         self._computed = 0
@@ -236,6 +253,8 @@ class EmulatedRig:
         self._pending = None
         self._amplifier.reset(0.0)
         self._actuator.reset(self._start)
+        if self._current is not None:
+            self._current.reset()
 
     def samples_before(self, t: float) -> int:
         """Number of samples of the run with time ``k / rate < t``."""
@@ -255,7 +274,7 @@ class EmulatedRig:
 
     # ------------------------------------------------------------ output
     def produce(self, n: int) -> np.ndarray:
-        """The next up to `n` samples, shape ``(m, 8)`` (`COLUMNS`), ``m <= n``.
+        """The next up to `n` samples, shape ``(m, 8)`` (`COLUMNS`; 9 with ``current``), ``m <= n``.
 
         Fewer than `n` (maybe none) when the run ends or aborts.
         """
@@ -278,7 +297,7 @@ class EmulatedRig:
                 self.state = "done"
                 self._amplifier.reset(0.0)
                 self._actuator.reset(self._start)
-        return np.concatenate(out) if out else np.empty((0, len(COLUMNS)))
+        return np.concatenate(out) if out else np.empty((0, len(self.config.columns)))
 
     def produce_until(self, t: float) -> np.ndarray:
         """Every not yet produced sample with time ``<= t`` [s]."""
@@ -307,7 +326,7 @@ class EmulatedRig:
             true = self._roll.step(t, np.maximum(stretch, 1.0), voltage)
         except RuntimeError as exc:  # the truth's physics has no solution here: stop, voltage off
             self.abort(f"the emulated roll has no solution from t = {seconds(t[0])} s: {exc}")
-            return np.empty((0, len(COLUMNS))), None
+            return np.empty((0, len(cfg.columns))), None
         force = load_cell(true["force"], inst.force_offset + inst.force_drift * t, inst.force_noise, self._force_rng)
         capacitance = lcr_bridge(true["capacitance"], voltage, inst.parasitic_capacitance, inst.capacitance_noise,
                                  self._cap_rng, enabled="capacitance" in cfg.measure, max_voltage=LCR_MAX_VOLTAGE)
@@ -315,6 +334,7 @@ class EmulatedRig:
             t, stretch, (stretch - 1.0) * cfg.L1, voltage,
             force if "force" in cfg.measure else np.full(m, np.nan),
             capacitance, s_sp, v_sp,
+            *([self._current(true["capacitance"], voltage)] if self._current is not None else []),
         ])
         event = self._first_event(t, np.where(np.isnan(true["lambda_a"]), stretch, true["lambda_a"]), voltage, force,
                                   true["model_status"])
@@ -362,4 +382,4 @@ class EmulatedRig:
         return first
 
 
-__all__ = ["CHANNELS", "COLUMNS", "EmulatedRig", "RunConfig", "limit_violation"]
+__all__ = ["CHANNELS", "COLUMNS", "CURRENT_COLUMN", "EmulatedRig", "RunConfig", "limit_violation"]

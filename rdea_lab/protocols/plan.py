@@ -41,7 +41,7 @@ class Plan:
     stretch : numpy.ndarray
         Stretch setpoints [-].
     voltage : numpy.ndarray
-        Voltage setpoints [V].
+        Voltage setpoints [V], with the probe (``spec.probe``) added if there is one.
     stretch_segment, voltage_segment : numpy.ndarray of int32
         Index of the segment each sample belongs to, per channel.
     duration : float
@@ -106,6 +106,10 @@ class Plan:
             f"|force| <= {format_quantity(lim.max_force, 'N', digits=4)}, "
             f"field <= {format_quantity(lim.max_field, 'V/um', digits=4)}",
         ]
+        if self.spec.probe is not None:
+            p = self.spec.probe
+            lines.append(f"  probe: {format_quantity(p.amplitude, 'V', digits=6)} sine at "
+                         f"{format_quantity(p.frequency, 'Hz', digits=6)} on the voltage (self-sensing)")
         for channel in ("stretch", "voltage"):
             start, previous = 0.0, REST[channel]
             for i, segment in enumerate(getattr(self.spec, channel)):
@@ -164,6 +168,9 @@ def expand(spec: ProtocolSpec, *, source: str | None = None) -> Plan:
     n = round(duration * rate) + 1
     stretch, stretch_segment = seg.render("stretch", explicit.stretch, rate, n)
     voltage, voltage_segment = seg.render("voltage", explicit.voltage, rate, n)
+    if explicit.probe is not None:  # on the whole channel, phase 0 at t = 0 (where the voltage rests at 0 V)
+        t = np.arange(n, dtype=float) / rate
+        voltage = voltage + explicit.probe.amplitude * np.sin(2.0 * np.pi * explicit.probe.frequency * t)
     return Plan(
         name=explicit.name, kind=explicit.kind, sample_rate=rate, measure=explicit.measure,
         limits=explicit.limits, time=_readonly(np.arange(n, dtype=float) / rate),
@@ -195,7 +202,7 @@ def check_plan(plan: Plan, L3: float | None = None) -> list[SpecError]:
     """Every limit violation of a plan, one `LimitError` per check and segment.
 
     Checks: stretch >= 1 (the roll must stay in tension), stretch <=
-    ``max_stretch``, ``|voltage| <= max_voltage`` and, if `L3` is given, the
+    ``max_stretch``, ``|voltage| <= max_voltage`` (with the probe, if any) and, if `L3` is given, the
     field estimate ``E = |v| sqrt(stretch) / L3 <= max_field``. ``max_force``
     is enforced while running, not here.
 
@@ -212,8 +219,16 @@ def check_plan(plan: Plan, L3: float | None = None) -> list[SpecError]:
         sample); see `rdea_lab.specs.limits.limit_violations`. Empty if the
         plan is within its limits.
     """
-    return limit_violations(plan.limits, plan.source, plan.time, plan.stretch, plan.voltage, L3,
-                            plan.stretch_segment, plan.voltage_segment)
+    problems = limit_violations(plan.limits, plan.source, plan.time, plan.stretch, plan.voltage, L3,
+                                plan.stretch_segment, plan.voltage_segment)
+    probe = getattr(getattr(plan, "spec", None), "probe", None)  # a plan-like object may have no spec
+    if probe is None:
+        return problems
+    with_probe = (f" (with the probe's {format_quantity(probe.amplitude, 'V', digits=6)} at "
+                  f"{format_quantity(probe.frequency, 'Hz', digits=6)} on top: lower the voltage or the probe "
+                  "amplitude)")
+    return [type(p)(p.source, p.field, p.message + with_probe) if p.field.startswith("voltage") else p
+            for p in problems]
 
 
 def first_violation(plan: Plan, L3: float | None = None) -> None:

@@ -130,7 +130,7 @@ def expand_preset(spec: ProtocolSpec) -> ProtocolSpec:
         explicit = ProtocolSpec(
             name=spec.name, kind=spec.kind, description=spec.description, source=spec.source,
             sample_rate=spec.sample_rate, measure=spec.measure, limits=spec.limits,
-            stretch=stretch, voltage=voltage,
+            stretch=stretch, voltage=voltage, probe=spec.probe,
         )
     except SpecError as err:
         raise err.with_source(spec.origin) from None

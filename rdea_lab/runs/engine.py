@@ -26,7 +26,7 @@ from ..physics.geometry import geometry_from_card
 from ..protocols import first_violation
 from ..specs import SpecError, dump_specimen
 from ..store.journal import DiskFull, JournalWriter, utc_now
-from ..store.schema import global_attrs, portable_command, portable_path
+from ..store.schema import OPTIONAL_RUN_VARIABLES, global_attrs, portable_command, portable_path
 from .callbacks import RunBlock, subscriber_name
 
 #: Exit status of a run by its dataset status (the CLI's, and `RunResult.exit_code`).
@@ -174,7 +174,8 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
         first_violation(plan, L3=geometry_from_card(card).L3)  # before anything moves, whoever calls
         attrs = run_attrs(plan, card, backend, seed, command, metadata)
         # the output is claimed (journal folder and lock) before anything moves: a second run on it is refused
-        writer = JournalWriter(out, None, extra=backend.extra_variables)
+        measured = tuple(m for m in plan.measure if m in OPTIONAL_RUN_VARIABLES)  # e.g. current
+        writer = JournalWriter(out, None, extra=(*backend.extra_variables, *measured))
         for cb in subscribers:  # a subscriber that cannot start stops the run before anything moves
             start = getattr(cb, "start", None)
             if start is not None:

@@ -37,7 +37,8 @@ from .protocol_presets import (  # noqa: F401  (re-exported: part of the protoco
     BlockingForceSettings, CapacitanceSweepSettings, PRESETS, PresetSchema, Settings, TensileRampSineSettings,
 )
 from .protocol_segments import (  # noqa: F401  (re-exported: part of the protocol spec)
-    Angle, CHANNELS, Cycles, Duration, Frequency, KINDS, Limits, MAX_SAMPLES, MAX_SAMPLE_RATE, MEASURABLE, REST,
+    Angle, CHANNELS, Cycles, Duration, Frequency, KINDS, Limits, MAX_PROBE_AMPLITUDE, MAX_SAMPLES, MAX_SAMPLE_RATE,
+    MEASURABLE, Probe, REST,
     SEGMENTS, SEGMENT_KINDS, STRETCH_SEGMENTS, SampleRate, Stretch, StretchAmplitude, StretchChirp, StretchHold,
     StretchRamp, StretchRampSine, StretchSegment, StretchSine, StretchStep, StretchTable, VOLTAGE_SEGMENTS, Voltage,
     VoltageAmplitude, VoltageChirp, VoltageHold, VoltageRamp, VoltageRampSine, VoltageSegment, VoltageSine,
@@ -63,6 +64,9 @@ class ProtocolSpec(SpecModel):
     limits : Limits
     stretch, voltage : tuple of segment models or None
         Explicit channels (None for a preset).
+    probe : Probe or None
+        A small sine on the voltage for self-sensing (needs ``current`` in
+        `measure`; its frequency below ``sample_rate / 2``).
     preset : str or None
         A key of `PRESETS`.
     settings : settings model or None
@@ -83,6 +87,7 @@ class ProtocolSpec(SpecModel):
     limits: Limits = Limits()
     stretch: tuple[StretchSegment, ...] | None = None
     voltage: tuple[VoltageSegment, ...] | None = None
+    probe: Probe | None = None
     preset: str | None = None
     settings: Settings | None = None
     _origin: str = PrivateAttr("<python>")
@@ -176,6 +181,23 @@ class ProtocolSpec(SpecModel):
         if len(set(value)) != len(value):
             raise SpecError("", "", f"a quantity is listed twice in {show(list(value))}")
         return tuple(value)
+
+    @model_validator(mode="after")
+    def _probe_fits(self) -> "ProtocolSpec":
+        if self.probe is None:
+            return self
+        nyquist = 0.5 * self.sample_rate
+        if not self.probe.frequency < nyquist:
+            raise SpecError(
+                "", "probe.frequency",
+                f"{rate_text(self.probe.frequency, 6)} is not below the Nyquist frequency "
+                f"{rate_text(nyquist, 6)} of the sample rate {rate_text(self.sample_rate, 6)}; "
+                "allowed: 0 < frequency < sample_rate / 2",
+            )
+        if "current" not in self.measure:
+            raise SpecError("", "measure", f"a probe is for self-sensing from the amplifier current: add current "
+                                           f"to measure (got {', '.join(self.measure)})")
+        return self
 
     @model_validator(mode="after")
     def _same_duration(self) -> "ProtocolSpec":
@@ -295,6 +317,9 @@ def dump_protocol(spec: ProtocolSpec) -> str:
         "max_force": format_quantity(spec.limits.max_force, "N"),
         "max_field": format_quantity(spec.limits.max_field, "V/um"),
     }
+    if spec.probe is not None:
+        data["probe"] = _Flow({"amplitude": format_quantity(spec.probe.amplitude, "V"),
+                               "frequency": format_quantity(spec.probe.frequency, "Hz")})
     if spec.preset is not None:
         data["preset"] = spec.preset
         settings = _dump_fields(spec.settings, "settings", only_set=True)
@@ -309,7 +334,8 @@ def dump_protocol(spec: ProtocolSpec) -> str:
 __all__ = [
     "CHANNELS", "KINDS", "MAX_SAMPLES", "MAX_SAMPLE_RATE", "MEASURABLE", "PRESETS", "REST", "SEGMENTS",
     "SEGMENT_KINDS", "STRETCH_SEGMENTS", "VOLTAGE_SEGMENTS",
-    "BlockingForceSettings", "CapacitanceSweepSettings", "Limits", "PresetSchema", "ProtocolSpec",
+    "BlockingForceSettings", "CapacitanceSweepSettings", "Limits", "MAX_PROBE_AMPLITUDE", "PresetSchema", "Probe",
+    "ProtocolSpec",
     "StretchChirp", "StretchHold", "StretchRamp", "StretchRampSine", "StretchSegment", "StretchSine", "StretchStep",
     "StretchTable", "VoltageTable", "MAX_TABLE_VALUES",
     "TensileRampSineSettings", "VoltageChirp", "VoltageHold", "VoltageRamp", "VoltageRampSine", "VoltageSegment",

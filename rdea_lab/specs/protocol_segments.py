@@ -17,7 +17,7 @@ from .units import _NUMBER, format_quantity, parse_quantity, quantity, ureg
 
 
 KINDS = ("tensile", "blocking", "capacitance", "custom")
-MEASURABLE = ("force", "capacitance")
+MEASURABLE = ("force", "capacitance", "current")
 SEGMENT_KINDS = ("hold", "step", "ramp", "sine", "ramp_sine", "chirp", "table")
 #: most values a ``table`` segment may hold (a sampled setpoint history, e.g. a planned voltage)
 MAX_TABLE_VALUES = 1_000_000
@@ -134,6 +134,38 @@ class Limits(SpecModel):
             return cls(**values)
         except SpecError as err:
             raise SpecError(source, "--" + err.field.replace("_", "-"), err.message) from None
+
+
+#: Largest probe amplitude [V]: a probe is a small signal on the high voltage, not an actuation.
+MAX_PROBE_AMPLITUDE = 200.0
+
+
+def _small_probe(value: float) -> float:
+    if value > MAX_PROBE_AMPLITUDE:
+        raise SpecError("", "", f"{format_quantity(value, 'V', digits=6)} is above "
+                                f"{format_quantity(MAX_PROBE_AMPLITUDE, 'V')}: a probe is a small signal on the "
+                                "high voltage, not an actuation; allowed: 0 V < amplitude <= 200 V")
+    return value
+
+
+class Probe(SpecModel):
+    """A small sine added to the whole voltage channel, for self-sensing (SI).
+
+    ``v = v_setpoint + amplitude sin(2 pi frequency t)``: the capacitance is
+    estimated from the current it drives (`rdea_lab.twin.selfsense`). The
+    frequency must lie below the Nyquist frequency of the sample rate, and
+    the voltage limits hold with the probe on (`rdea_lab.protocols.check_plan`).
+
+    Attributes
+    ----------
+    amplitude : float
+        Peak of the probe [V], ``0 < amplitude <= 200 V``.
+    frequency : float
+        [Hz], ``0 < frequency < sample_rate / 2``.
+    """
+
+    amplitude: Annotated[quantity("voltage", "V", gt=0.0), AfterValidator(_small_probe)]
+    frequency: quantity("frequency", "Hz", gt=0.0)
 
 
 # ------------------------------------------------------------- segments

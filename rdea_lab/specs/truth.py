@@ -33,6 +33,8 @@ magnitude)::
       parasitic_capacitance: 25 pF  # LCR parasitics, added to the true capacitance
       capacitance_noise: 0.5 pF
       breakdown_field: 100 V/um     # dielectric breakdown above this field estimate
+      current_noise: 20 nA          # amplifier current monitor noise (default 20 nA)
+      leakage_resistance: 100 Gohm  # through the film, electrode to electrode (default 100 Gohm)
     seed: 2021
 
 The material part (``yeoh``, ``eps_r``, ``viscoelastic``) is a parameter set
@@ -75,6 +77,12 @@ Number = quantity("dimensionless", "")
 Compliance = quantity("compliance", "um/N", ge=0.0, le=100e-6)
 ForceRate = quantity("force_rate", "mN/min")
 Energy = quantity("pressure", "kPa", gt=0.0)  # an energy density, J/m^3 = Pa
+#: Current-monitor noise [A]: 0 (ideal) to 1 mA (more is not a monitor of a nF roll's uA currents).
+CurrentNoise = quantity("current", "nA", ge=0.0, le=1e-3)
+#: Leakage resistance [ohm]: 1 Mohm (a damaged film) to 1e18 ohm (none to speak of).
+Resistance = quantity("resistance", "Gohm", ge=1e6, le=1e18)
+#: Defaults of the current monitor, argued in `Instrument`.
+CURRENT_NOISE, LEAKAGE_RESISTANCE = 20e-9, 100e9
 
 
 def _in_factor_range(value: float) -> float:
@@ -206,6 +214,16 @@ class Instrument(SpecModel):
     force_drift : float
         Drift of the load-cell offset [N/s] (0: none); the offset is
         ``force_offset + force_drift t`` with ``t`` from the run's start.
+    current_noise : float
+        Noise of the amplifier's current monitor, standard deviation per DAQ
+        sample [A], 0 to 1 mA; 20 nA by default: a low-side shunt monitor
+        (10 kohm, 16 bits over +-100 uA: 3 nA a bit, a few bits of noise),
+        as self-sensing rigs use; an HV amplifier's own monitor is uA-class.
+    leakage_resistance : float
+        Resistance through the film, electrode to electrode [ohm], 1 Mohm to
+        1e18 ohm; 100 Gohm by default: silicone's volume resistivity of about
+        1e13 ohm m across 48 um over the 2 x 29 mm x 76 mm of electrode that
+        faces film in a roll (specimen 2) gives 1.1e11 ohm.
     """
 
     force_noise: Force
@@ -216,6 +234,8 @@ class Instrument(SpecModel):
     capacitance_noise: Capacitance
     breakdown_field: Field
     force_drift: ForceRate = 0.0
+    current_noise: CurrentNoise = CURRENT_NOISE
+    leakage_resistance: Resistance = LEAKAGE_RESISTANCE
 
 
 class TruthSpec(SpecModel):
@@ -331,6 +351,12 @@ def truth_as_mapping(truth: TruthSpec) -> dict:
                                       "energy_scale": format_quantity(e.mullins.energy_scale, "kPa")}
     data["instrument"] = {k: format_quantity(getattr(truth.instrument, k), unit)
                           for k, unit in _INSTRUMENT_UNITS.items()}
+    # the current monitor's settings only where they differ from the defaults: the truth of a run
+    # that does not record the current reads as it did before the current channel existed
+    for key, unit, default in (("current_noise", "nA", CURRENT_NOISE), ("leakage_resistance", "Gohm",
+                                                                         LEAKAGE_RESISTANCE)):
+        if getattr(truth.instrument, key) != default:
+            data["instrument"][key] = format_quantity(getattr(truth.instrument, key), unit)
     data["seed"] = truth.seed
     return data
 

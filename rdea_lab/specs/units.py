@@ -37,6 +37,8 @@ _DIMENSIONS: dict[str, tuple[str, str, str]] = {
     "force_rate": ("N/s", "force rate", "0.5 mN/min"),
     "stiffness": ("N/m", "stiffness", "200 N/m"),
     "mass": ("kg", "mass", "100 g"),
+    "current": ("A", "current", "20 nA"),
+    "resistance": ("ohm", "resistance", "100 Gohm"),
 }
 _NOTES = {"viscosity": " (pressure times time)", "electric_field": " (voltage per length)",
           "compliance": " (length per force)", "force_rate": " (force per time)",
@@ -82,7 +84,7 @@ def parse_quantity(
         [Pa s], ``voltage`` [V], ``frequency`` [Hz], ``time`` [s],
         ``dimensionless`` [-], ``force`` [N], ``capacitance`` [F],
         ``electric_field`` [V/m], ``compliance`` [m/N], ``force_rate`` [N/s],
-        ``stiffness`` [N/m], ``mass`` [kg].
+        ``stiffness`` [N/m], ``mass`` [kg], ``current`` [A], ``resistance`` [ohm].
     source, field : str
         Where the value came from, for the error message.
     example_unit : str, optional

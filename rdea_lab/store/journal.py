@@ -261,7 +261,7 @@ def read_journal(folder: Path) -> xr.Dataset:
     rows = raw[: n * len(columns)].reshape(n, len(columns))
     data_vars = {}
     for j, name in enumerate(columns[1:], start=1):
-        if name in VARIABLES:
+        if name in VARIABLES or EXTRA_VARIABLES[name][2] == "f8":
             values = rows[:, j]
         else:
             values = np.nan_to_num(rows[:, j], nan=-1).astype(EXTRA_VARIABLES[name][2])

@@ -5,15 +5,17 @@ from __future__ import annotations
 from pathlib import Path, PurePath
 
 from ..paths import project_root
-from ..twin.cf import (FLAGS, MODEL_VARIABLES, NO_INSTITUTION, REFERENCES, RUN_VARIABLES, TIME_ENCODING,
-                       TIME_LONG_NAME, global_attrs, time_attrs, variable_attrs)
+from ..twin.cf import (FLAGS, MODEL_VARIABLES, NO_INSTITUTION, OPTIONAL_RUN_VARIABLES, REFERENCES, RUN_VARIABLES,
+                       TIME_ENCODING, TIME_LONG_NAME, global_attrs, time_attrs, variable_attrs)
 
 #: Variables of every run, in journal column order after ``time``: name -> (units, long_name).
 #: The one table is `rdea_lab.twin.cf` (the twin, a layer below the store, writes datasets too).
 VARIABLES: dict[str, tuple[str, str]] = RUN_VARIABLES
 
-#: Optional per-backend variables: name -> (units, long_name, netCDF dtype).
-EXTRA_VARIABLES: dict[str, tuple[str, str, str]] = {"model_status": MODEL_VARIABLES["model_status"]}
+#: Optional variables: per backend (``model_status``) or recorded when the protocol measures them
+#: (``current``): name -> (units, long_name, netCDF dtype).
+EXTRA_VARIABLES: dict[str, tuple[str, str, str]] = {"model_status": MODEL_VARIABLES["model_status"],
+                                                    **OPTIONAL_RUN_VARIABLES}
 
 #: ``(units, long_name)`` of ``time`` as a reader gets it from `open_run`: float seconds since the
 #: run's start (the file's ``units`` say since when: `time_attrs`).
@@ -70,6 +72,6 @@ def portable_command(command: str) -> str:
     return " ".join(one(w) for w in str(command).split(" "))
 
 
-__all__ = ["EXTRA_VARIABLES", "FLAGS", "NO_INSTITUTION", "REFERENCES", "REQUIRED_ATTRS", "STATUSES", "TIME",
-           "TIME_ENCODING", "VARIABLES", "global_attrs", "is_emulated", "portable_command", "portable_path",
-           "time_attrs", "variable_attrs"]
+__all__ = ["EXTRA_VARIABLES", "FLAGS", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES", "REFERENCES", "REQUIRED_ATTRS",
+           "STATUSES", "TIME", "TIME_ENCODING", "VARIABLES", "global_attrs", "is_emulated", "portable_command",
+           "portable_path", "time_attrs", "variable_attrs"]

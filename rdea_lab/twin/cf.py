@@ -40,6 +40,26 @@ MODEL_VARIABLES: dict[str, tuple[str, str, str]] = {
 }
 
 
+#: Run variables recorded only when the protocol measures them (``measure: [force, current]``), so runs
+#: without them keep the schema they had: name -> (units, long_name, netCDF dtype).
+OPTIONAL_RUN_VARIABLES: dict[str, tuple[str, str, str]] = {
+    "current": ("A", "current into the electrodes from the amplifier's current monitor, mean over each sample "
+                     "interval (charging d(C v)/dt plus leakage)", "f8"),
+}
+
+#: Variables of a self-sensing dataset (`rdea_lab.twin.selfsense`, ``rdea-lab selfsense``):
+#: name -> (units, long_name, netCDF dtype).
+SELFSENSE_VARIABLES: dict[str, tuple[str, str, str]] = {
+    "capacitance_estimate": ("F", "capacitance estimated from voltage and current (self-sensing, recursive "
+                                  "least squares with forgetting on the charge balance)", "f8"),
+    "stretch_estimate": ("1", "axial stretch lambda1 from the estimated capacitance (inverse of the calibrated "
+                              "capacitance model)", "f8"),
+    "stretch_error": ("1", "stretch_estimate minus the encoder's stretch", "f8"),
+    "stretch_error_percent": ("percent", "stretch_error as a percentage of the run's stretch range (encoder)", "f8"),
+    "estimate_valid": ("1", "whether the estimate is used (estimator settled, roll taut, model invertible)", "i1"),
+}
+
+
 def flag_word(name: str) -> str:
     """A status name as one CF ``flag_meanings`` word: ``"past limit point"`` -> ``"past_limit_point"``
     (a parenthesis dropped, anything but letters and digits an underscore)."""
@@ -51,6 +71,7 @@ FLAGS: dict[str, tuple[np.ndarray, str]] = {
     "model_status": (np.array(sorted(STATUS_NAMES), np.int8),
                      " ".join(flag_word(STATUS_NAMES[code]) for code in sorted(STATUS_NAMES))),
     "converged": (np.array([0, 1], np.int8), "no_stable_equilibrium stable_equilibrium"),
+    "estimate_valid": (np.array([0, 1], np.int8), "not_used used"),
 }
 
 TIME_LONG_NAME = "time since the start of the run"
@@ -69,7 +90,7 @@ def variable_attrs(name: str) -> dict:
     if name in RUN_VARIABLES:
         units, long_name = RUN_VARIABLES[name]
     else:
-        units, long_name, _ = MODEL_VARIABLES[name]
+        units, long_name, _ = {**MODEL_VARIABLES, **OPTIONAL_RUN_VARIABLES, **SELFSENSE_VARIABLES}[name]
     attrs = {"units": units, "long_name": long_name}
     if name in FLAGS:
         values, meanings = FLAGS[name]

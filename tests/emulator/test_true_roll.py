@@ -181,3 +181,18 @@ def test_a_block_without_solution_aborts_the_run_with_voltage_off(card, truth, m
     from rdea_lab.emulator.rig import BLOCK
     assert first.shape[0] + rows.shape[0] == BLOCK  # the solved block kept, nothing after it
     assert rig._amplifier.y == 0.0  # voltage off
+
+
+def test_a_roll_just_taut_under_voltage_is_solved(truth, geom):
+    # At 1 kHz the first samples of a stretch leaving 1 under voltage carry forces of a few nN:
+    # below what a stretch near 1 resolves in double precision (6 C10 A eps, about 2e-14 N), so
+    # the passive ends' secant stalls at rounding. It must give that state, not abort the run
+    # (before the fix: "passive ends: the secant iteration did not converge" at t = 0 s).
+    rate = 1000.0
+    t = np.arange(2001) / rate
+    x = 1.0 + 0.25 * (1.0 - np.cos(2.0 * np.pi * 0.1 * t))
+    v = 1300.0 * (1.0 - np.cos(2.0 * np.pi * t))
+    roll = TrueRoll(geom, truth)
+    out = [roll.step(t[i:i + 1000], x[i:i + 1000], v[i:i + 1000]) for i in (0, 1000)]
+    force = np.concatenate([o["force"] for o in out])
+    assert np.all(np.isfinite(force)) and force.max() > 0.1

@@ -25,7 +25,7 @@ COVERED = [
 #: files that load: the problem is found by the plan check
 PLAN_LEVEL = {
     "sine_dips_below_one", "voltage_above_limit", "field_above_limit", "stretch_above_max",
-    "preset_above_max_stretch", "negative_voltage_above_limit",
+    "preset_above_max_stretch", "negative_voltage_above_limit", "probe_above_voltage_limit",
 }
 
 

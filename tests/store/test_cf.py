@@ -236,3 +236,29 @@ def test_a_protocol_inside_the_project_is_named_relative_to_its_root(tmp_path):
                                out=tmp_path / "b.nc", command=f"rdea-lab run {ROOT / 'protocols' / 'blocking_force.yaml'}")
     assert ds.attrs["protocol_source"] == "protocols/blocking_force.yaml"
     assert ds.attrs["history"].split("\n")[0].endswith(": rdea-lab run protocols/blocking_force.yaml")
+
+
+SENSE = """name: cf_sense
+kind: custom
+sample_rate: 1 kHz
+measure: [force, current]
+probe: {amplitude: 20 V, frequency: 100 Hz}
+stretch:
+  - {kind: hold, duration: 0.5 s, value: 1.0}
+  - {kind: ramp, duration: 1.5 s, to: 1.2}
+voltage:
+  - {kind: hold, duration: 0.5 s, value: 0 V}
+  - {kind: sine, duration: 1.5 s, mean: 1 kV, amplitude: 1 kV, frequency: 1 Hz, phase: -90 deg}
+"""
+
+
+def test_a_run_with_current_and_its_selfsense_dataset_pass_both_checkers(tmp_path):
+    protocol = tmp_path / "sense.yaml"
+    protocol.write_text(SENSE)
+    rdea_lab.run_protocol(protocol, CARD, "emulator", out=tmp_path / "run.nc")
+    rdea_lab.selfsense_run(tmp_path / "run.nc", PARAMS, out=tmp_path / "sense.nc")
+    for path in (tmp_path / "run.nc", tmp_path / "sense.nc"):
+        assert ioos(path) == {"high": [], "medium": [], "low": [], "exceptions": []}, path.name
+        found = cfchecks(path)
+        assert found["FATAL"] == found["ERROR"] == found["WARN"] == [], path.name
+    assert open_run(tmp_path / "run.nc")["current"].attrs["units"] == "A"
