@@ -44,6 +44,7 @@ def server(card, truth, request):
     srv.shutdown()
 
 
+@pytest.mark.slow  # 12 s; one preset per specimen: tests/cli/test_run.py
 def test_every_preset_on_every_specimen_is_complete(tmp_path):
     spec, root = load_campaign(ROOT / "campaigns" / "paper2021.yaml")
     results = run_campaign(spec, root, out_dir=tmp_path)

@@ -156,6 +156,7 @@ def test_cli_calibrates_twin_runs_and_refuses_bad_input(capsys, tmp_path):
     assert rc == 2 and "no such dataset" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # 17 s
 def test_growing_branch_by_branch_recovers_two_time_scales():
     """Twin data from a material with two branches (tau 0.3 s and 15 s); fitting M = 2
     by growth from a one-branch start finds both time scales (within 5 %: a stated

@@ -23,6 +23,7 @@ def reproduced(tmp_path_factory):
     return out / "models", proc.stdout
 
 
+@pytest.mark.slow  # the whole reproduce (45 s); the same figures: tests/physics
 def test_reproduce_writes_tables_and_figures(reproduced):
     folder, stdout = reproduced
     for name in ("models.md", "models.json", "figure5_hollow-core.png", "figure6_active-core.png",
@@ -31,6 +32,7 @@ def test_reproduce_writes_tables_and_figures(reproduced):
     assert "[5/5] Table 2 and Section 3.4" in stdout and "models.md" in stdout
 
 
+@pytest.mark.slow  # the whole reproduce (45 s); the same figures: tests/physics
 def test_reproduced_table2_is_the_paper_within_half_a_percent(reproduced):
     summary = json.loads((reproduced[0] / "models.json").read_text())
     assert [r["specimen"] for r in summary["table2"]] == ["specimen-1", "specimen-2", "specimen-3"]
@@ -39,6 +41,7 @@ def test_reproduced_table2_is_the_paper_within_half_a_percent(reproduced):
             assert abs(row[key] / paper - 1) < 0.005
 
 
+@pytest.mark.slow  # the whole reproduce (45 s); the same figures: tests/physics
 def test_reproduced_section_3_4_matches_the_papers_findings(reproduced):
     """Within +-25 % of the paper's read-off values (see tests/physics/test_models.py)."""
     s = json.loads((reproduced[0] / "models.json").read_text())["section_3_4"]
