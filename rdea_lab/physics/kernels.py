@@ -50,11 +50,13 @@ def _jit(func, parallel=False, **deps):
     return numba.njit(cache=True, error_model="numpy", parallel=parallel)(clone)
 
 
-_psi2 = _jit(yeoh.psi2_terms)
+_parts = _jit(yeoh._psi2_parts)
+_psi2 = _jit(yeoh.psi2_terms, _psi2_parts=_parts)
+_psi2_first = _jit(yeoh.psi2_first, _psi2_parts=_parts)
 _slope = _jit(yeoh.slope)
 _basis = _jit(su.basis)
 _radius = _jit(three_ring._radius)
-_ring = _jit(three_ring.ring_terms, _radius=_radius, psi2_terms=_psi2)
+_ring = _jit(three_ring.ring_terms, _radius=_radius, psi2_terms=_psi2, psi2_first=_psi2_first)
 _node = _jit(continuum.node_terms, slope=_slope)
 
 #: Model codes of `branch_roots`.

@@ -110,17 +110,28 @@ def psi2_terms(l1, l2, C10, C20, C30):
     this is the hot path. Scalar or array arguments; the compiled kernels
     (:mod:`rdea_lab.physics.kernels`) compile this same function.
     """
-    e = 1.0 / (l1 * l2) ** 2  # (l1 l2)**-2
-    inv2 = 1.0 / (l2 * l2)
-    x = l1 * l1 + l2 * l2 + e - 3.0
-    W1 = C10 + x * (2.0 * C20 + 3.0 * C30 * x)
-    I_2 = 2.0 * l2 * (1.0 - e * inv2)
+    e, inv2, x, W1, I_2 = _psi2_parts(l1, l2, C10, C20, C30)
     W2 = 2.0 * C20 + 6.0 * C30 * x
     return W1 * I_2, W2 * I_2 * I_2 + W1 * (2.0 + 6.0 * e * inv2)
 
 
+def psi2_first(l1, l2, C10, C20, C30):
+    """``psi_2`` [Pa] alone (:func:`psi2_terms` without the second derivative)."""
+    _, _, _, W1, I_2 = _psi2_parts(l1, l2, C10, C20, C30)
+    return W1 * I_2
+
+
+def _psi2_parts(l1, l2, C10, C20, C30):
+    e = 1.0 / (l1 * l2) ** 2  # (l1 l2)**-2
+    inv2 = 1.0 / (l2 * l2)
+    x = l1 * l1 + l2 * l2 + e - 3.0
+    W1 = C10 + x * (2.0 * C20 + 3.0 * C30 * x)
+    return e, inv2, x, W1, 2.0 * l2 * (1.0 - e * inv2)
+
+
 def d_psi_d_l2(l1, l2, C, second=True):
-    """``(psi_2, psi_22)`` of :func:`psi2_terms` for coefficients ``C``; ``psi_22`` is None when
-    ``second`` is False."""
-    p_2, p_22 = psi2_terms(l1, l2, C[0], C[1], C[2])
-    return p_2, (p_22 if second else None)
+    """``(psi_2, psi_22)`` of :func:`psi2_terms` for coefficients ``C``; ``psi_22`` is None (and not
+    computed) when ``second`` is False."""
+    if not second:
+        return psi2_first(l1, l2, C[0], C[1], C[2]), None
+    return psi2_terms(l1, l2, C[0], C[1], C[2])

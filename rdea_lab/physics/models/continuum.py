@@ -194,18 +194,20 @@ class _Roll:
         return np.sqrt(xi0 * xi0 + self.s_ie * (l2 * l2 - 1.0 / l1))
 
 
-def node_terms(A, B, x0, s, C10, C20, C30):
+def node_terms(A, B, x0, s, C10, C20, C30, second=True):
     """What `_terms` integrates at quadrature nodes ``s``: ``(W' tt, W'' tt**2, W' (1 - t) / (s + B)**2)``
     with ``t = B / (s + B)``, ``tt = t (2 - t)``, ``x = x0 + A t / s`` (``A`` the opening, ``B = lambda1 A``).
 
     Scalar or broadcast arrays; the compiled kernels (:mod:`rdea_lab.physics.kernels`) compile this
-    same function for one node.
+    same function for one node. With ``second`` False only the first is computed (0 for the others).
     """
     inv = 1.0 / (s + B)
     t = B * inv
     x = x0 + A * t * (1.0 / s)
     W1, W2 = slope(x, (C10, C20, C30))
     tt = t * (2.0 - t)
+    if not second:
+        return W1 * tt, 0.0, 0.0
     return W1 * tt, W2 * tt * tt, W1 * (1.0 - t) * inv * inv
 
 
@@ -221,7 +223,7 @@ def _terms(roll, C):
     def block(xi, idx, second):
         l1 = roll.l1[idx]
         A = roll.opening(xi, roll.xi0[idx])
-        a1, a2, a3 = node_terms(A[:, None], (l1 * A)[:, None], roll.x0[idx][:, None], s, *C)
+        a1, a2, a3 = node_terms(A[:, None], (l1 * A)[:, None], roll.x0[idx][:, None], s, *C, second)
         p_A = a1 @ ws
         if not second:
             return p_A, None

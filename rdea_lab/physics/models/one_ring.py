@@ -43,8 +43,8 @@ def problem(geom, material, l1, v) -> Problem:
     kap = kappa(geom, material)
 
     def terms(y, idx, second):
-        p_y, p_yy = yeoh.psi2_terms(l1[idx], y, *C)
-        return p_y, (p_yy if second else None), 2.0 * y, 2.0
+        p_y, p_yy = yeoh.d_psi_d_l2(l1[idx], y, C, second)
+        return p_y, p_yy, 2.0 * y, 2.0
 
     y0, y_max, load = bounds(l1, kap)
     return Problem(terms, y0, y_max, load * v * v, load,

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import yeoh
-from ..yeoh import gradient_terms, psi2_terms
+from ..yeoh import gradient_terms, psi2_first, psi2_terms
 from ..branch import Problem
 from ..result import ModelNotApplicable, ModelResult
 from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
@@ -104,12 +104,13 @@ def _radius(s, xi, D, inv):
     return r, xi * q, D * inv * q * q * q
 
 
-def ring_terms(xi, l1, R, C10, C20, C30):
+def ring_terms(xi, l1, R, C10, C20, C30, second=True):
     """``(psi_y, psi_yy, c_y, c_yy)`` of the 3R problem in ``xi = r_i / Ro`` (``c = lambda2b**2``).
 
     ``R = (Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c)`` (`_Rings.constants`); scalar or
     array ``xi`` and ``l1``. The reference solver calls it on arrays, the compiled kernels
-    (:mod:`rdea_lab.physics.kernels`) compile this same function for one sample.
+    (:mod:`rdea_lab.physics.kernels`) compile this same function for one sample. With ``second``
+    False the second derivatives are not computed (0).
     """
     Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c = R
     inv = 1.0 / l1
@@ -121,20 +122,29 @@ def ring_terms(xi, l1, R, C10, C20, C30):
     p_yy = 0.0
     if eta_a > 0.0:  # rings of zero volume carry no energy and are left out
         l2, d, dd = (xi + r_ie) / Sa, (1.0 + d_ie) / Sa, dd_ie / Sa
-        psi_2, psi_22 = psi2_terms(l1, l2, C10, C20, C30)
+        if second:
+            psi_2, psi_22 = psi2_terms(l1, l2, C10, C20, C30)
+            p_yy = p_yy + eta_a * (psi_22 * d * d + psi_2 * dd)
+        else:
+            psi_2 = psi2_first(l1, l2, C10, C20, C30)
         p_y = p_y + eta_a * psi_2 * d
-        p_yy = p_yy + eta_a * (psi_22 * d * d + psi_2 * dd)
     l2b = (r_ie + r_oe) / Sb
     d_b = (d_ie + d_oe) / Sb
     dd_b = (dd_ie + dd_oe) / Sb
-    psi_2, psi_22 = psi2_terms(l1, l2b, C10, C20, C30)
+    if second:
+        psi_2, psi_22 = psi2_terms(l1, l2b, C10, C20, C30)
+        p_yy = p_yy + eta_b * (psi_22 * d_b * d_b + psi_2 * dd_b)
+    else:
+        psi_2 = psi2_first(l1, l2b, C10, C20, C30)
     p_y = p_y + eta_b * psi_2 * d_b
-    p_yy = p_yy + eta_b * (psi_22 * d_b * d_b + psi_2 * dd_b)
     if eta_c > 0.0:
         l2, d, dd = (r_oe + r_o) / Sc, (d_oe + d_o) / Sc, (dd_oe + dd_o) / Sc
-        psi_2, psi_22 = psi2_terms(l1, l2, C10, C20, C30)
+        if second:
+            psi_2, psi_22 = psi2_terms(l1, l2, C10, C20, C30)
+            p_yy = p_yy + eta_c * (psi_22 * d * d + psi_2 * dd)
+        else:
+            psi_2 = psi2_first(l1, l2, C10, C20, C30)
         p_y = p_y + eta_c * psi_2 * d
-        p_yy = p_yy + eta_c * (psi_22 * d * d + psi_2 * dd)
     return p_y, p_yy, 2.0 * l2b * d_b, 2.0 * (d_b * d_b + l2b * dd_b)
 
 
@@ -171,7 +181,7 @@ def _terms(rings, C):
     R = rings.constants
 
     def terms(xi, idx, second):
-        p_y, p_yy, c_y, c_yy = ring_terms(xi, rings.l1[idx], R, *C)
+        p_y, p_yy, c_y, c_yy = ring_terms(xi, rings.l1[idx], R, *C, second)
         return (p_y, p_yy, c_y, c_yy) if second else (p_y, None, c_y, None)
 
     return terms
