@@ -41,13 +41,14 @@ from . import yeoh
 from .models import continuum, su, three_ring
 
 
-def _jit(func, parallel=False, **deps):
-    """``func`` compiled, its global helpers ``deps`` replaced by their compiled forms (one source)."""
+def _jit(func, parallel=False, inline="never", **deps):
+    """``func`` compiled, its global helpers ``deps`` replaced by their compiled forms (one source);
+    ``inline="always"`` inlines it at numba's level into its callers (constant arguments fold)."""
     scope = dict(func.__globals__)
     scope.update(deps)
     clone = types.FunctionType(func.__code__, scope, func.__name__, func.__defaults__, func.__closure__)
     clone.__module__, clone.__qualname__, clone.__doc__ = func.__module__, func.__qualname__, func.__doc__
-    return numba.njit(cache=True, error_model="numpy", parallel=parallel)(clone)
+    return numba.njit(cache=True, error_model="numpy", parallel=parallel, inline=inline)(clone)
 
 
 _parts = _jit(yeoh._psi2_parts)
@@ -56,8 +57,8 @@ _psi2_first = _jit(yeoh.psi2_first, _psi2_parts=_parts)
 _slope = _jit(yeoh.slope)
 _basis = _jit(su.basis)
 _radius = _jit(three_ring._radius)
-_ring = _jit(three_ring.ring_terms, _radius=_radius, psi2_terms=_psi2, psi2_first=_psi2_first)
-_node = _jit(continuum.node_terms, slope=_slope)
+_ring = _jit(three_ring.ring_terms, inline="always", _radius=_radius, psi2_terms=_psi2, psi2_first=_psi2_first)
+_node = _jit(continuum.node_terms, inline="always", slope=_slope)
 
 #: Model codes of `branch_roots`.
 CODES = {"1r": 1, "3r": 3, "cr": 4}
@@ -72,7 +73,7 @@ def _terms(code, y, l1, R, Q, C10, C20, C30):
         p, pp = _psi2(l1, y, C10, C20, C30)
         return p, pp, 2.0 * y, 2.0
     if code == 3:
-        return _ring(y, l1, R, C10, C20, C30)
+        return _ring(y, l1, R, C10, C20, C30, True)
     # CR: Q = (s, w / s, w / s**2, w) of the quadrature nodes; R = (xi0, x0, Lb, ...)
     xi0, x0, Lb = R[0], R[1], R[2]
     A = (y - xi0) * (y + xi0)
@@ -81,7 +82,7 @@ def _terms(code, y, l1, R, Q, C10, C20, C30):
     p_AA1 = 0.0
     p_AA2 = 0.0
     for j in range(Q.shape[1]):
-        a1, a2, a3 = _node(A, B, x0, Q[0, j], C10, C20, C30)
+        a1, a2, a3 = _node(A, B, x0, Q[0, j], C10, C20, C30, True)
         p_A += a1 * Q[1, j]
         p_AA1 += a2 * Q[2, j]
         p_AA2 += a3 * Q[3, j]

@@ -275,18 +275,23 @@ def _inline_samples(data, quantity, source):
     return out[0], out[1], None
 
 
+def _read_text(source):
+    """A target file's text; a missing or unreadable file is a SpecError naming it."""
+    try:
+        return Path(source).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SpecError(source, DOCUMENT, "file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SpecError(source, DOCUMENT, f"cannot read the file as UTF-8 text ({type(exc).__name__})") from None
+
+
 def read_csv_samples(path, quantity=None):
     """``(time [s], values, quantity, rows)`` of a CSV with a header ``time [s],force [N]`` (or ``stretch [-]``).
 
     Lines starting with ``#`` are comments; `rows` gives each sample's line number.
     """
     source = os.fspath(path)
-    try:
-        text = Path(source).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SpecError(source, DOCUMENT, "file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SpecError(source, DOCUMENT, f"cannot read the file as UTF-8 text ({type(exc).__name__})") from None
+    text = _read_text(source)
     lines = [(i + 1, line) for i, line in enumerate(text.splitlines()) if line.strip() and
              not line.lstrip().startswith("#")]
     if not lines:
@@ -386,12 +391,7 @@ def load_target(path: str | os.PathLike, **settings) -> Target:
     if settings:
         raise SpecError(source, DOCUMENT, f"the target file gives its own settings; {', '.join(settings)} "
                         "only go with a bare CSV target")
-    try:
-        text = Path(source).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise SpecError(source, DOCUMENT, "file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SpecError(source, DOCUMENT, f"cannot read the file as UTF-8 text ({type(exc).__name__})") from None
+    text = _read_text(source)
     return target_from_mapping(parse_yaml_mapping(text, source), source, Path(source).parent)
 
 

@@ -122,29 +122,23 @@ def ring_terms(xi, l1, R, C10, C20, C30, second=True):
     p_yy = 0.0
     if eta_a > 0.0:  # rings of zero volume carry no energy and are left out
         l2, d, dd = (xi + r_ie) / Sa, (1.0 + d_ie) / Sa, dd_ie / Sa
-        if second:
-            psi_2, psi_22 = psi2_terms(l1, l2, C10, C20, C30)
-            p_yy = p_yy + eta_a * (psi_22 * d * d + psi_2 * dd)
-        else:
-            psi_2 = psi2_first(l1, l2, C10, C20, C30)
+        psi_2, psi_22 = psi2_terms(l1, l2, C10, C20, C30) if second else (psi2_first(l1, l2, C10, C20, C30), 0.0)
         p_y = p_y + eta_a * psi_2 * d
+        if second:
+            p_yy = p_yy + eta_a * (psi_22 * d * d + psi_2 * dd)
     l2b = (r_ie + r_oe) / Sb
     d_b = (d_ie + d_oe) / Sb
     dd_b = (dd_ie + dd_oe) / Sb
-    if second:
-        psi_2, psi_22 = psi2_terms(l1, l2b, C10, C20, C30)
-        p_yy = p_yy + eta_b * (psi_22 * d_b * d_b + psi_2 * dd_b)
-    else:
-        psi_2 = psi2_first(l1, l2b, C10, C20, C30)
+    psi_2, psi_22 = psi2_terms(l1, l2b, C10, C20, C30) if second else (psi2_first(l1, l2b, C10, C20, C30), 0.0)
     p_y = p_y + eta_b * psi_2 * d_b
+    if second:
+        p_yy = p_yy + eta_b * (psi_22 * d_b * d_b + psi_2 * dd_b)
     if eta_c > 0.0:
         l2, d, dd = (r_oe + r_o) / Sc, (d_oe + d_o) / Sc, (dd_oe + dd_o) / Sc
-        if second:
-            psi_2, psi_22 = psi2_terms(l1, l2, C10, C20, C30)
-            p_yy = p_yy + eta_c * (psi_22 * d * d + psi_2 * dd)
-        else:
-            psi_2 = psi2_first(l1, l2, C10, C20, C30)
+        psi_2, psi_22 = psi2_terms(l1, l2, C10, C20, C30) if second else (psi2_first(l1, l2, C10, C20, C30), 0.0)
         p_y = p_y + eta_c * psi_2 * d
+        if second:
+            p_yy = p_yy + eta_c * (psi_22 * d * d + psi_2 * dd)
     return p_y, p_yy, 2.0 * l2b * d_b, 2.0 * (d_b * d_b + l2b * dd_b)
 
 
