@@ -16,7 +16,7 @@ Quick start (a notebook cell)::
 
 Runs: `run_protocol`, `prepare_run`, `run_campaign`, callbacks `LiveTable`,
 `LivePlot`. Data: `open_run`, `catalog` (a DataFrame), `recover`,
-`import_files`. Model: `predict`, `simulate`, `quasi_static_curves`,
+`import_files`. Model: `predict`, `simulate`, `TwinStream`, `TwinStep`, `quasi_static_curves`,
 `geometry`. Calibration: `calibrate_runs`, `format_result`, `cross_validate`,
 `format_cv`, `envelope`, `beyond`. Reports:
 `validation_report`, `speed_study`, `reproduce`, `selfsense_run`. Self-sensing: `capacitance_rls`,
@@ -46,7 +46,7 @@ _EXPORTS = {
     "SpecError": "rdea_lab.specs", "LimitError": "rdea_lab.specs", "read_token": "rdea_lab.specs",
     "load_plan": "rdea_lab.protocols", "as_plan": "rdea_lab.protocols", "check_plan": "rdea_lab.api.helpers",
     # physics and twin
-    "predict": "rdea_lab.twin", "simulate": "rdea_lab.twin", "TwinStream": "rdea_lab.twin",
+    "predict": "rdea_lab.twin", "simulate": "rdea_lab.twin", "TwinStream": "rdea_lab.twin", "TwinStep": "rdea_lab.twin",
     "quasi_static_curves": "rdea_lab.twin", "CURVE_FIELDS": "rdea_lab.twin.curves",
     "CURVE_MAX_FIELD": "rdea_lab.twin.curves",
     "geometry": "rdea_lab.api.helpers", "StretchBelowOneError": "rdea_lab.physics.result",
