@@ -5,7 +5,7 @@ from __future__ import annotations
 #: Kernel choices of `rdea_lab.physics.models.solve` and the branch updates.
 KERNELS = ("auto", "numba", "numpy")
 #: ``auto`` uses the compiled kernels for calls of at least this many samples: loading numba and the
-#: cached machine code costs a process about 0.9 s once, more than the kernels save on small calls.
+#: cached machine code costs a process about 1.5 s once, more than the kernels save on small calls.
 #: The choice depends on the call alone (not on what the process loaded before), so a result does not
 #: depend on the history of the process (the two agree to 1e-12 anyway, mostly to the last bit).
 AUTO_MIN_SAMPLES = 16384

@@ -21,10 +21,13 @@ the work around them, fused per sample with no temporaries:
   it covers the whole range, which certifies the sample's single basin.
 - `linear_strains`: eq. (44)'s exact update as the sequential recurrence.
 
-Importing this module imports numba (about 0.6 s) and loads the cached
-machine code; the first call in a fresh install compiles (measured by
-``rdea-lab bench``: ``compile_s``). Set ``RDEA_LAB_KERNELS=numpy`` to run the
-reference everywhere.
+Importing this module imports numba and loads the cached machine code
+(about 1.5 s); the first call in a fresh install compiles (about 25 s for
+every kernel, measured by ``rdea-lab bench``: ``compile_s``). numba checks a
+cached function only against its own file, so a kernel that calls an
+equation from another module would keep an old copy of it after an edit:
+`_check_cache` clears the physics package's numba cache whenever any of its
+sources changed. Set ``RDEA_LAB_KERNELS=numpy`` to run the reference everywhere.
 """
 
 from __future__ import annotations
@@ -39,6 +42,32 @@ from numba import prange
 
 from . import yeoh
 from .models import continuum, su, three_ring
+
+
+def _check_cache():
+    """Clear the numba cache of `rdea_lab.physics` when any of its sources differs from the last build's."""
+    import hashlib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent
+    sources = sorted(root.rglob("*.py"))
+    digest = hashlib.sha256(b"".join(p.read_bytes() for p in sources)).hexdigest()
+    stamp = root / "__pycache__" / "kernels.sources.sha256"
+    try:
+        if stamp.read_text() == digest:
+            return
+    except OSError:
+        pass
+    try:
+        for f in list(root.rglob("__pycache__/*.nbi")) + list(root.rglob("__pycache__/*.nbc")):
+            f.unlink(missing_ok=True)
+        stamp.parent.mkdir(exist_ok=True)
+        stamp.write_text(digest)
+    except OSError:  # a read-only install: numba then compiles in memory or its own cache dir
+        pass
+
+
+_check_cache()
 
 
 def _jit(func, parallel=False, inline="never", **deps):
@@ -267,9 +296,15 @@ def _arr(x, shape=None):
 
 
 def _variants(loop):
-    """``(serial, parallel)`` compiled forms of one loop (``prange`` is ``range`` in the serial one)."""
+    """``(serial, parallel)`` compiled forms of one loop (``prange`` is ``range`` in the serial one).
+
+    The parallel one is a clone under its own name: numba's cache keys a function by its name, line and
+    signature, not by ``parallel``, so one name would let each variant load the other's machine code."""
+    twin = types.FunctionType(loop.__code__, loop.__globals__, loop.__name__ + "_parallel", loop.__defaults__,
+                              loop.__closure__)
+    twin.__qualname__ = loop.__qualname__ + "_parallel"
     return (numba.njit(cache=True, error_model="numpy")(loop),
-            numba.njit(cache=True, error_model="numpy", parallel=True)(loop))
+            numba.njit(cache=True, error_model="numpy", parallel=True)(twin))
 
 
 

@@ -196,8 +196,10 @@ def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
 def step(code, S, P, R, B, offsets, pitchfork, t, l1, v, out):
     """One sample: `DONE` (``out`` written, ``S`` advanced), `NEEDS_REFERENCE` or `TIME_NOT_INCREASING`."""
     started = S[0] != 0.0
-    if started and not (t > S[1]):
+    if not (abs(t) < math.inf) or (started and not (t > S[1])):
         return TIME_NOT_INCREASING
+    if code < 0:
+        return NEEDS_REFERENCE
     if not (l1 >= 1.0 and l1 < math.inf and abs(v) < math.inf):
         return NEEDS_REFERENCE
     sigma, cap, l2b, y, ok = _state(code, P, R, B, offsets, pitchfork, l1, v, S[3] if started else math.nan,

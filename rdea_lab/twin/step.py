@@ -22,9 +22,12 @@ class TwinStep:
     sample, which a stepper cannot know yet and takes as 0 (the series takes
     the first interval's slope). Each call is one compiled function
     (:mod:`rdea_lab.physics.step_kernel`) on preallocated state; a sample the
-    kernel cannot certify (a fold, a snap, pull-in, a slack roll's free state,
-    a bad input; every CR sample of a roll with a core) is solved by the reference solver from the
-    same state, which costs a few hundred microseconds instead of a few.
+    kernel cannot certify (a fold, a snap, pull-in, a slack roll's free state it
+    cannot find, a bad input; every CR sample of a roll with a core) is solved by the reference solver
+    from the same state, which costs milliseconds to tens of milliseconds instead of microseconds. The
+    reference grades its scan near a small core to the largest span of the block it solves, so where a
+    fold hides between its nodes the label can depend on how the series is cut into blocks: there a
+    stepped run can differ from a whole-series run, as two block sizes already could.
 
     Parameters
     ----------
@@ -79,6 +82,8 @@ class TwinStep:
             self._label = None
             return self._out
         if r == self._time_error:
+            if not np.isfinite(t):
+                raise ValueError(f"t = {t!r}: the time must be finite")
             raise ValueError(f"t = {t!r} is not after the previous sample's {self._S[1]!r}")
         return self._reference(float(t), float(stretch), float(voltage))
 
