@@ -37,14 +37,10 @@ RIZZELLO = SimpleNamespace(C10=241e3, C20=-33.2e3, C30=20.1e3, eps_r=2.8)
 
 
 def _median_rate(fn, n, repeat):
-    fn()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    r = n / np.array(times)
-    return float(np.median(r)), float(r.min()), float(r.max())
+    """``(median, slowest, fastest)`` samples/s of ``repeat`` calls after a warm-up (bench_models' timing)."""
+    from bench_models import _rate, _times  # imported here: bench_models imports this module
+
+    return _rate(n, _times(fn, repeat))
 
 
 def _pair(compiled, reference, n, repeat):

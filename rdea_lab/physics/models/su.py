@@ -64,14 +64,16 @@ def stress_from_basis(stress_basis_, geom, material):
 def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
     """Closed-form SU state at clean 1-D inputs (no free coordinate: a path changes nothing)."""
     fast = compiled(kernel, l1.size)
+    C0 = geom.C0(material.eps_r)
     if fast is not None:
-        sigma1, l2, _ = fast.su_state(l1, v, yeoh_coefficients(material), kappa(geom, material), 0.0)
+        sigma1, l2, capacitance = fast.su_state(l1, v, yeoh_coefficients(material), kappa(geom, material), C0)
     else:
         sigma1 = stress_from_basis(stress_basis(l1, v), geom, material)
         l2 = 1.0 / np.sqrt(l1)
+        capacitance = C0 * l1
     n = l1.size
     fields = {"sigma1": sigma1, "lambda2a": l2, "lambda2b": l2, "lambda2c": l2,
-              "capacitance": geom.C0(material.eps_r) * l1, "r_i": geom.Ri * l2}
+              "capacitance": capacitance, "r_i": geom.Ri * l2}
     return Evaluation(np.full(n, OK, np.int8), np.full(n, np.nan), np.full(n, np.nan), fields, None)
 
 
