@@ -88,27 +88,32 @@ def spiral_angle(r0, d, length, *, rtol=1e-15, max_iter=50):
     return theta
 
 
-def radii_from_membrane(L2, L3, Lp1, L2e, Ri=0.0):
+def radii_from_membrane(L2, L3, Lp1, L2e, Ri=0.0, *, check=True):
     """Radii of the three rings from the unwound membrane (Appendix of [1]).
 
     Parameters
     ----------
-    L2 : float
+    L2 : float or array_like
         Membrane length in the rolling direction [m].
-    L3 : float
+    L3 : float or array_like
         Thickness of one membrane [m]; the rolled stack is two membranes.
-    Lp1 : float
+    Lp1 : float or array_like
         Electrode-free length at the start of rolling [m].
-    L2e : float
+    L2e : float or array_like
         Electrode length in the rolling direction [m].
-    Ri : float, optional
+    Ri : float or array_like, optional
         Inner radius of the roll [m]; eq. (52) sets it to 0.
+    check : bool, optional
+        Raise a ValueError for a membrane that rolls into no roll (no fully
+        active region, ``Lp1 + L2e > L2``). With ``check=False`` such entries
+        are NaN instead (a design study's arrays of membranes).
 
     Returns
     -------
     dict
         ``Ri, Rie, Roe, Ro`` [m] and the intermediate lengths ``theta_p1``
-        [rad], ``L_pa``, ``L_fa``, ``L_p2`` [m].
+        [rad], ``L_pa``, ``L_fa``, ``L_p2`` [m]: floats for scalar inputs,
+        arrays of the inputs' broadcast shape otherwise.
 
     Notes
     -----
@@ -117,26 +122,35 @@ def radii_from_membrane(L2, L3, Lp1, L2e, Ri=0.0):
     By construction ``pi (Ro**2 - Ri**2) = 2 L2 L3``: the rolled volume equals
     the flat one.
     """
+    L2, L3, Lp1, L2e, Ri = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (L2, L3, Lp1, L2e, Ri)))
     d = 2.0 * L3
-    theta_p1 = float(spiral_angle(Ri, d, Lp1))
-    L_pa = float(spiral_length(Ri, d, theta_p1 + 2.0 * np.pi)) - Lp1
+    theta_p1 = spiral_angle(Ri, d, Lp1)
+    L_pa = spiral_length(Ri, d, theta_p1 + 2.0 * np.pi) - Lp1
     L_fa = L2e - L_pa
     L_p2 = L2 - Lp1 - L2e
-    if L_fa <= 0:
-        raise ValueError(
-            f"the electrode length L2e = {L2e:g} m is shorter than the partially "
-            f"active first turn ({L_pa:g} m): no fully active region; that turn's length comes from "
-            f"the thickness L3 = {L3:g} m and Lp1 = {Lp1:g} m, so check their units as well as L2e's"
-        )
-    if L_p2 < 0:
-        raise ValueError(f"Lp1 + L2e = {Lp1 + L2e:g} m exceeds L2 = {L2:g} m")
-    Rie = np.sqrt(L3 * (2.0 * Lp1 + L_pa) / np.pi + Ri**2)
-    Roe = np.sqrt(L3 * (2.0 * L_fa + L_pa) / np.pi + Rie**2)
-    Ro = np.sqrt(2.0 * L3 * L_p2 / np.pi + Roe**2)
-    return {
-        "Ri": float(Ri), "Rie": float(Rie), "Roe": float(Roe), "Ro": float(Ro),
-        "theta_p1": theta_p1, "L_pa": L_pa, "L_fa": L_fa, "L_p2": L_p2,
-    }
+    bad = ~(L_fa > 0) | ~(L_p2 >= 0)
+    if check and np.any(bad):
+        i = np.flatnonzero(bad.ravel())[0]
+        fa, p2 = L_fa.ravel()[i], L_p2.ravel()[i]
+        where = f" (entry {i} of {bad.size})" if bad.ndim else ""
+        if not fa > 0:
+            raise ValueError(
+                f"the electrode length L2e = {L2e.ravel()[i]:g} m is shorter than the partially "
+                f"active first turn ({L_pa.ravel()[i]:g} m): no fully active region; that turn's length comes "
+                f"from the thickness L3 = {L3.ravel()[i]:g} m and Lp1 = {Lp1.ravel()[i]:g} m, so check their "
+                f"units as well as L2e's{where}"
+            )
+        raise ValueError(f"Lp1 + L2e = {Lp1.ravel()[i] + L2e.ravel()[i]:g} m exceeds L2 = {L2.ravel()[i]:g} m"
+                         f"{where} (by {-p2:g} m)")
+    with np.errstate(invalid="ignore"):
+        Rie = np.sqrt(L3 * (2.0 * Lp1 + L_pa) / np.pi + Ri**2)
+        Roe = np.sqrt(L3 * (2.0 * L_fa + L_pa) / np.pi + Rie**2)
+        Ro = np.sqrt(2.0 * L3 * L_p2 / np.pi + Roe**2)
+    out = {"Ri": Ri, "Rie": Rie, "Roe": Roe, "Ro": Ro, "theta_p1": theta_p1, "L_pa": L_pa, "L_fa": L_fa,
+           "L_p2": L_p2}
+    if bad.ndim == 0:
+        return {k: float(v) for k, v in out.items()}
+    return {k: np.where(bad, np.nan, v) for k, v in out.items()}
 
 
 @dataclass(frozen=True)
@@ -164,19 +178,26 @@ class RollGeometry:
     L3: float
 
     def __post_init__(self):
-        if not (0.0 <= self.Ri <= self.Rie < self.Roe <= self.Ro):
+        # scalars (one roll) or arrays of one shape (a design study's rolls, broadcast against samples)
+        Ri, Rie, Roe, Ro, L1, L1e, L3 = (np.asarray(getattr(self, k), float)
+                                         for k in ("Ri", "Rie", "Roe", "Ro", "L1", "L1e", "L3"))
+        order = (0.0 <= Ri) & (Ri <= Rie) & (Rie < Roe) & (Roe <= Ro)
+        if not np.all(order):
+            i = np.flatnonzero(~np.broadcast_to(order, np.broadcast(Ri, Rie, Roe, Ro).shape).ravel())[0]
+            at = lambda a: float(np.broadcast_to(a, order.shape).ravel()[i])  # noqa: E731
             raise ValueError(
                 "radii must satisfy 0 <= Ri <= Rie < Roe <= Ro, got "
-                f"Ri={self.Ri:g}, Rie={self.Rie:g}, Roe={self.Roe:g}, Ro={self.Ro:g} m"
+                f"Ri={at(Ri):g}, Rie={at(Rie):g}, Roe={at(Roe):g}, Ro={at(Ro):g} m"
             )
-        if self.Ri == 0.0 and self.Rie < 1e-6 * self.Ro:
+        if np.any((Ri == 0.0) & (Rie < 1e-6 * Ro)):
             raise ValueError(
-                f"Rie = {self.Rie:g} m is below 1e-6 Ro with Ri = 0: as the passive core shrinks "
+                f"Rie = {float(np.min(Rie)):g} m is below 1e-6 Ro with Ri = 0: as the passive core shrinks "
                 "the 3R model tends to the SU model (the core forbids the hole to open), and "
                 "Rie = 0 would drop that constraint; give Rie >= 1e-6 Ro or use the SU model"
             )
-        if not (0.0 < self.L1e <= self.L1) or not self.L3 > 0.0:
-            raise ValueError(f"need 0 < L1e <= L1 and L3 > 0, got L1e={self.L1e:g}, L1={self.L1:g}, L3={self.L3:g} m")
+        if not (np.all(0.0 < L1e) and np.all(L1e <= L1)) or not np.all(L3 > 0.0):
+            raise ValueError(f"need 0 < L1e <= L1 and L3 > 0, got L1e={np.min(L1e):g}, L1={np.min(L1):g}, "
+                             f"L3={np.min(L3):g} m")
 
     @property
     def area(self) -> float:

@@ -39,10 +39,15 @@ _DIMENSIONS: dict[str, tuple[str, str, str]] = {
     "mass": ("kg", "mass", "100 g"),
     "current": ("A", "current", "20 nA"),
     "resistance": ("ohm", "resistance", "100 Gohm"),
+    "energy": ("J", "energy", "5 mJ"),
+    "specific_energy": ("J/kg", "specific energy", "2 J/kg"),
+    "volume": ("m^3", "volume", "300 mm^3"),
+    "density": ("kg/m^3", "density", "1100 kg/m^3"),
 }
 _NOTES = {"viscosity": " (pressure times time)", "electric_field": " (voltage per length)",
           "compliance": " (length per force)", "force_rate": " (force per time)",
-          "stiffness": " (force per length)"}
+          "stiffness": " (force per length)", "specific_energy": " (energy per mass)",
+          "density": " (mass per volume)"}
 DIMENSIONS = tuple(_DIMENSIONS)
 
 _NUMBER = re.compile(
@@ -84,7 +89,8 @@ def parse_quantity(
         [Pa s], ``voltage`` [V], ``frequency`` [Hz], ``time`` [s],
         ``dimensionless`` [-], ``force`` [N], ``capacitance`` [F],
         ``electric_field`` [V/m], ``compliance`` [m/N], ``force_rate`` [N/s],
-        ``stiffness`` [N/m], ``mass`` [kg], ``current`` [A], ``resistance`` [ohm].
+        ``stiffness`` [N/m], ``mass`` [kg], ``current`` [A], ``resistance`` [ohm], ``energy`` [J],
+        ``specific_energy`` [J/kg], ``volume`` [m^3], ``density`` [kg/m^3].
     source, field : str
         Where the value came from, for the error message.
     example_unit : str, optional

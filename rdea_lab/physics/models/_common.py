@@ -23,8 +23,15 @@ FREE_STRETCH_MAX = 100.0
 
 
 def yeoh_coefficients(material):
-    """``(C10, C20, C30)`` [Pa] of a parameter set."""
-    return (float(material.C10), float(material.C20), float(material.C30))
+    """``(C10, C20, C30)`` [Pa] of a parameter set: floats, or arrays where a design study varies them
+    (`rdea_lab.physics.designs`)."""
+    return tuple(_number(getattr(material, key)) for key in ("C10", "C20", "C30"))
+
+
+def _number(value):
+    """A float for a scalar, a float array (broadcast against the samples) otherwise."""
+    value = np.asarray(value, float)
+    return float(value) if value.ndim == 0 else value
 
 
 def kappa(geom, material):
@@ -35,7 +42,7 @@ def kappa(geom, material):
     ``C0 / Omega = eps0 eps_r alpha_e1 eta_b / L3**2`` (ERRATA, "Things the
     paper leaves implicit").
     """
-    return EPS0 * float(material.eps_r) * geom.alpha_e1 * geom.eta_b / (2.0 * geom.L3**2)
+    return EPS0 * _number(material.eps_r) * geom.alpha_e1 * geom.eta_b / (2.0 * geom.L3**2)
 
 
 @dataclass
@@ -144,7 +151,7 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
         start = (start.y, start.label)
     if path and bad.any():  # a NaN sample has no state: the path runs on across it
         good = np.flatnonzero(~bad)
-        ev = _expand(evaluate(geom, material, l1[good], v[good], path=True, start=start, kernel=kernel), good, l1.size, start)
+        ev = _expand(evaluate(geom, _take(material, good), l1[good], v[good], path=True, start=start, kernel=kernel), good, l1.size, start)
     else:
         ev = evaluate(geom, material, l1, v, path=path, start=start, kernel=kernel)
     fields = dict(ev.fields)
@@ -156,7 +163,7 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
     if len(slack):
         # a path's free state continues the branch the clamped state is on
         origin = ev.y[slack] if (path and ev.y is not None) else None
-        lam_f, st_f, f_free = free_state(evaluate, geom, material, l1[slack], v[slack], fields["sigma1"][slack],
+        lam_f, st_f, f_free = free_state(evaluate, geom, _take(material, slack), l1[slack], v[slack], fields["sigma1"][slack],
                                          origin=origin, kernel=kernel)
         # slack either way (force 0: the clamped state pushes); a snap-through stays the event it is.
         # Where the free state lies beyond what the model solves (outside its range, past a fold, or
@@ -272,9 +279,17 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
 
 
 def _trial(kernel, evaluate, geom, material, l1, v, origin, idx):
+    material = _take(material, idx)
     if origin is None:
         return evaluate(geom, material, l1, v)
     return evaluate(geom, material, l1, v, origin=origin[idx])
+
+
+def _take(material, idx):
+    """The material of the samples ``idx``: itself, or its entries where it varies per sample
+    (`rdea_lab.physics.designs.SampleMaterial`)."""
+    take = getattr(material, "take", None)
+    return material if take is None else take(idx)
 
 
 def _expand(ev: Evaluation, good, n, start) -> Evaluation:

@@ -63,10 +63,12 @@ def stress_from_basis(stress_basis_, geom, material):
 
 def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
     """Closed-form SU state at clean 1-D inputs (no free coordinate: a path changes nothing)."""
-    fast = compiled(kernel, l1.size)
+    C = yeoh_coefficients(material)
+    # per-sample Yeoh coefficients (a design study's material sweep) take the numpy form
+    fast = compiled(kernel, l1.size) if all(isinstance(c, float) for c in C) else None
     C0 = geom.C0(material.eps_r)
     if fast is not None:
-        sigma1, l2, capacitance = fast.su_state(l1, v, yeoh_coefficients(material), kappa(geom, material), C0)
+        sigma1, l2, capacitance = fast.su_state(l1, v, C, kappa(geom, material), C0)
     else:
         sigma1 = stress_from_basis(stress_basis(l1, v), geom, material)
         l2 = 1.0 / np.sqrt(l1)

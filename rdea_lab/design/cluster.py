@@ -1,0 +1,103 @@
+"""Where a study's tasks run: a dask.distributed cluster (local or a lab's), or in-process.
+
+`connect` gives a `distributed.Client`: to ``address`` (``tcp://HOST:PORT``,
+or the ``DASK_SCHEDULER_ADDRESS`` environment variable), or to a new
+`LocalCluster` on this machine (one single-threaded worker process per core,
+bound to loopback, its dashboard on a free loopback port). ``synchronous``
+runs every task in this process, one after the other (dask's synchronous
+scheduler): for debugging and for the reference a test compares against.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import sys
+import time
+
+from ..specs.errors import UserError
+
+#: seconds a scheduler has to answer
+CONNECT_TIMEOUT = 3.0
+_ADDRESS = re.compile(r"^(tcp|tls|ucx|inproc)://[^\s/:]+(:\d{1,5})?$")
+
+
+class SchedulerError(UserError):
+    """The scheduler address is malformed or nothing answers there (exit status 2)."""
+
+
+def scheduler_address(given: str | None) -> str | None:
+    """The address to connect to: ``given``, else ``DASK_SCHEDULER_ADDRESS``, else None (a local cluster)."""
+    address = given or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
+    if address is None:
+        return None
+    where = "--scheduler" if given else "DASK_SCHEDULER_ADDRESS"
+    if address.startswith("synchronous") or not _ADDRESS.match(address):
+        raise SchedulerError(f"{where}: {address!r} is not a scheduler address; give tcp://HOST:PORT "
+                             "(e.g. tcp://10.0.0.5:8786)")
+    return address
+
+
+@contextlib.contextmanager
+def connect(address: str | None = None, *, workers: int | None = None, quiet: bool = False):
+    """A `distributed.Client` for the block: to ``address`` or to a new local cluster of ``workers``
+    single-threaded processes (default: one per core). Prints where the dashboard is."""
+    import logging
+
+    from distributed import Client, LocalCluster
+
+    for name in ("distributed", "distributed.worker", "distributed.scheduler", "distributed.nanny",
+                 "bokeh", "tornado"):
+        logging.getLogger(name).setLevel(logging.ERROR)
+    address = scheduler_address(address)
+    if address is not None:
+        t0 = time.monotonic()
+        try:
+            client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+        except (OSError, TimeoutError) as exc:
+            raise SchedulerError(f"scheduler {address}: no answer within {CONNECT_TIMEOUT:g} s "
+                                 f"({type(exc).__name__}); is it running and reachable?") from None
+        with client:
+            if not quiet:
+                n = len(client.scheduler_info().get("workers", {}))
+                _say(f"dask: scheduler {address} ({n} workers, connected in {time.monotonic() - t0:.1f} s), "
+                     f"dashboard {client.dashboard_link}")
+            yield client
+        return
+    n = workers or os.cpu_count() or 1
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR) as cluster, \
+            Client(cluster, set_as_default=False) as client:
+        if not quiet:
+            _say(f"dask: local cluster, {n} worker{'s' if n > 1 else ''}, dashboard {client.dashboard_link}")
+        yield client
+
+
+def _say(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+class Progress:
+    """A one-line progress bar on stderr (redrawn in place on a terminal, a line per 10 % otherwise)."""
+
+    def __init__(self, total: int, label: str, enabled: bool = True):
+        self.total, self.label, self.enabled = total, label, enabled
+        self.done = 0
+        self.t0 = time.monotonic()
+        self._tty = sys.stderr.isatty()
+        self._shown = -1
+
+    def update(self, k: int = 1) -> None:
+        self.done += k
+        if not self.enabled:
+            return
+        frac = self.done / max(self.total, 1)
+        if not self._tty and int(frac * 10) == self._shown and self.done < self.total:
+            return
+        self._shown = int(frac * 10)
+        bar = "#" * int(30 * frac)
+        line = (f"{self.label} [{bar:<30}] {self.done}/{self.total} tasks, "
+                f"{time.monotonic() - self.t0:.1f} s")
+        print(("\r" if self._tty else "") + line, end="" if self._tty and self.done < self.total else "\n",
+              file=sys.stderr, flush=True)

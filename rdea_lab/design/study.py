@@ -1,0 +1,392 @@
+"""A design study end to end: sample the designs, evaluate them on a cluster, rank, refine, write.
+
+`run_study` returns a `StudyResult`: one xarray Dataset over the ``design``
+dimension (the variables, every metric, the design's status, feasibility, the
+Pareto front; with tolerances each metric's Monte Carlo samples over ``mc`` and
+their mean, spread and 5th/95th percentiles; with ``sensitivity`` the Sobol
+indices over ``objective`` x ``variable``), the optimizer's result and the
+specimen card of the best design.
+
+Results never depend on where the tasks ran: the designs are sampled on the
+client from the study's seed, the chunks are the study's (``chunk`` designs
+each, not a share of the workers), each Monte Carlo draw is seeded by the
+design's index, and a chunk's arithmetic is the same in any process.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import xarray as xr
+
+from .. import __version__
+from ..specs.errors import UserError
+from ..specs.specimen import Membrane, SpecimenCard, dump_specimen
+from ..specs.study import METRICS, MEMBRANE, Study
+from .cluster import Progress, connect
+from .evaluate import STATUS, Fixed, evaluate, evaluate_chunk, membrane
+
+
+class StudyError(UserError):
+    """A study that cannot give an answer as posed (no design meets its constraints): exit status 2."""
+
+
+@dataclass
+class StudyResult:
+    """`dataset` (the sweep), `optimum` (dict or None), `card` (the best design's SpecimenCard or None)."""
+
+    study: Study
+    dataset: xr.Dataset
+    optimum: dict | None = None
+    card: SpecimenCard | None = None
+    timings: dict = field(default_factory=dict)
+
+
+# ------------------------------------------------------------------ sampling
+
+def sample(study: Study, n: int | None = None, seed: int | None = None) -> np.ndarray:
+    """Unit-cube coordinates ``(n, variables)`` of the study's designs (grid, Latin hypercube or Sobol)."""
+    from scipy.stats import qmc
+
+    d = len(study.variables)
+    n = study.n if n is None else n
+    seed = study.seed if seed is None else seed
+    if study.method == "grid":
+        axes = [np.linspace(0.0, 1.0, v.levels) for v in study.variables]
+        return np.array(list(itertools.product(*axes)), float).reshape(-1, d)
+    if study.method == "lhs":
+        return qmc.LatinHypercube(d=d, seed=np.random.default_rng(seed)).random(n)
+    sobol = qmc.Sobol(d=d, scramble=True, seed=np.random.default_rng(seed))
+    return sobol.random(n)  # scipy warns when n is not a power of 2 (balance); any n is allowed
+
+
+def table_of(study: Study, unit: np.ndarray) -> dict:
+    """``{variable: values}`` (SI) at unit-cube coordinates."""
+    return {v.name: v.from_unit(unit[:, j]) for j, v in enumerate(study.variables)}
+
+
+# ------------------------------------------------------------------ evaluation
+
+def evaluate_table(study: Study, table: dict, *, client=None, progress: bool = False, label: str = "designs",
+                   fixed: Fixed | None = None) -> dict:
+    """Every metric of the designs ``table``, in chunks of ``study.chunk`` designs.
+
+    ``client``: a `distributed.Client`, or None for dask's synchronous scheduler (in this process).
+    """
+    import dask
+
+    fixed = fixed or Fixed.of(study)
+    n = len(next(iter(table.values())))
+    bounds = [(a, min(a + study.chunk, n)) for a in range(0, n, study.chunk)]
+    bar = Progress(len(bounds), label, enabled=progress)
+    if client is None:
+        parts = []
+        for a, b in bounds:
+            task = dask.delayed(evaluate_chunk, pure=True)(fixed, np.arange(a, b), {k: v[a:b] for k, v in table.items()})
+            parts.append(dask.compute(task, scheduler="synchronous")[0])
+            bar.update()
+    else:
+        from distributed import as_completed
+
+        shared = client.scatter(fixed, broadcast=True, hash=False)
+        futures = [client.submit(evaluate_chunk, shared, np.arange(a, b), {k: v[a:b] for k, v in table.items()},
+                                 key=f"rdea-design-{label}-{a}-{b}-{dask.base.tokenize(study.text, a, b)}")
+                   for a, b in bounds]
+        with client.as_current():
+            for _ in as_completed(futures):
+                bar.update()
+        parts = client.gather(futures)
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+# ------------------------------------------------------------------ ranking
+
+def feasible(study: Study, metrics: dict) -> np.ndarray:
+    """Designs that are rolls with equilibria and meet every constraint."""
+    ok = metrics["design_status"] == 0
+    for b in study.constraints:
+        v = metrics[b.metric]
+        with np.errstate(invalid="ignore"):
+            ok &= (v >= b.low) & (v <= b.high)
+    return ok
+
+
+def pareto(study: Study, metrics: dict, mask: np.ndarray) -> np.ndarray:
+    """The non-dominated feasible designs of the objectives (each maximized or minimized)."""
+    idx = np.flatnonzero(mask)
+    front = np.zeros(mask.size, bool)
+    if idx.size == 0:
+        return front
+    y = np.stack([g.sense * metrics[g.metric][idx] for g in study.objectives], axis=1)  # larger is better
+    order = np.lexsort(tuple(-y[:, j] for j in reversed(range(y.shape[1]))))
+    y = y[order]
+    keep = np.ones(len(y), bool)
+    for i in range(len(y)):  # sorted by the first objective: only earlier points can dominate
+        if not keep[i]:
+            continue
+        dominated = np.all(y[i] >= y[i + 1:], axis=1) & np.any(y[i] > y[i + 1:], axis=1)
+        keep[i + 1:] &= ~dominated
+    front[idx[order[keep]]] = True
+    return front
+
+
+def sensitivity(study: Study, *, client=None, progress=False, fixed=None) -> dict | None:
+    """First-order and total Sobol indices of each objective over the variables (SALib, Saltelli's
+    sampling of ``n (D + 2)`` designs, without second order), with their 95 % confidence half-widths."""
+    if not study.sensitivity_n:
+        return None
+    from SALib.analyze import sobol as sobol_analyze
+    from SALib.sample import sobol as sobol_sample
+
+    problem = {"num_vars": len(study.variables), "names": list(study.names),
+               "bounds": [[0.0, 1.0]] * len(study.variables)}
+    unit = sobol_sample.sample(problem, study.sensitivity_n, calc_second_order=False, seed=study.sensitivity_seed)
+    metrics = evaluate_table(study, table_of(study, unit), client=client, progress=progress, label="sobol",
+                             fixed=fixed)
+    out = {}
+    for g in study.objectives:
+        y = metrics[g.metric]
+        finite = np.isfinite(y)
+        if not finite.all():  # Saltelli's estimator needs every sample: the indices are undefined
+            out[g.metric] = {"S1": np.full(len(study.variables), np.nan), "ST": np.full(len(study.variables), np.nan),
+                             "S1_conf": np.full(len(study.variables), np.nan),
+                             "ST_conf": np.full(len(study.variables), np.nan), "missing": int((~finite).sum())}
+            continue
+        # the bootstrap of the confidence intervals is seeded too (SALib ignores a seed of 0: "if seed:")
+        res = sobol_analyze.analyze(problem, y, calc_second_order=False, seed=study.sensitivity_seed + 1,
+                                    print_to_console=False)
+        out[g.metric] = {k: np.asarray(res[k], float) for k in ("S1", "ST", "S1_conf", "ST_conf")}
+        out[g.metric]["missing"] = 0
+    return {"indices": out, "designs": int(unit.shape[0])}
+
+
+# ------------------------------------------------------------------ optimization
+
+def optimize(study: Study, unit: np.ndarray, metrics: dict, ok: np.ndarray, fixed: Fixed) -> dict | None:
+    """Refine the best feasible sweep points with scipy's SLSQP (bounds and the constraints); nominal radii."""
+    if study.optimize is None or not ok.any():
+        return None
+    from scipy.optimize import minimize
+
+    metric = study.optimize["objective"]
+    sense = next(g.sense for g in study.objectives if g.metric == metric)
+    best = np.flatnonzero(ok)[np.argsort(-sense * metrics[metric][ok], kind="stable")][: study.optimize["starts"]]
+    scale = abs(float(metrics[metric][best[0]])) or 1.0
+    evals = {"n": 0}
+
+    def at(x):
+        evals["n"] += 1
+        x = np.clip(np.asarray(x, float), 0.0, 1.0)
+        return evaluate(fixed, table_of(study, x[None, :]))
+
+    cache = {}
+
+    def cached(x):
+        key = tuple(np.round(x, 15))
+        if key not in cache:
+            cache[key] = at(x)
+        return cache[key]
+
+    def objective(x):
+        v = cached(x)[metric][0]
+        return -sense * v / scale if np.isfinite(v) else 1e3
+
+    cons = []
+    for b in study.constraints:
+        for side, lim in (("low", b.low), ("high", b.high)):
+            if math.isfinite(lim):
+                s = abs(lim) or 1.0
+                sign = 1.0 if side == "low" else -1.0
+
+                def g(x, m=b.metric, lim=lim, s=s, sign=sign):
+                    v = cached(x)[m][0]
+                    return sign * (v - lim) / s if np.isfinite(v) else -1.0
+                cons.append({"type": "ineq", "fun": g})
+    runs = []
+    for i in best:
+        res = minimize(objective, unit[i], method="SLSQP", bounds=[(0.0, 1.0)] * unit.shape[1], constraints=cons,
+                       options={"maxiter": study.optimize["max_iter"], "ftol": 1e-10})
+        x = np.clip(res.x, 0.0, 1.0)
+        m = at(x)
+        good = bool(feasible(study, m)[0])
+        runs.append((good, -sense * m[metric][0] if good else np.inf, x, m, res, int(i)))
+    good_runs = [r for r in runs if r[0]]
+    sweep_best = -sense * metrics[metric][best[0]]
+    if not good_runs or min(r[1] for r in good_runs) > sweep_best:
+        x, m, res, start = unit[best[0]], {k: v[best[0]:best[0] + 1] for k, v in metrics.items()}, None, int(best[0])
+        how = "the best sweep point (the optimizer found nothing better that meets the constraints)"
+    else:
+        _, _, x, m, res, start = min(good_runs, key=lambda r: r[1])
+        how = f"SLSQP from sweep design {start}: {res.message} ({res.nit} iterations)"
+    return {"objective": metric, "unit": x, "variables": {k: float(v[0]) for k, v in table_of(study, x[None]).items()},
+            "metrics": {k: float(np.asarray(v)[0]) for k, v in m.items() if not k.endswith("_mc")},
+            "start": start, "how": how, "evaluations": evals["n"], "sweep_best": float(metrics[metric][best[0]]),
+            "starts": [int(i) for i in best]}
+
+
+def card_of(study: Study, variables: dict) -> SpecimenCard:
+    """The specimen card of a design: its unwound membrane, ready to cut and roll."""
+    mem = membrane(study, {k: np.array([v]) for k, v in variables.items()})
+    dims = {k: float(mem[k][0]) for k in ("L1", "L2", "L3", "L1e", "Lp1", "L2e")}
+    dims["Ri"] = float(mem["Ri"][0])
+    label = ", ".join(f"{k} {v:.6g}" for k, v in variables.items())
+    return SpecimenCard(id=f"{study.name}-optimum", kind="roll", membrane=Membrane(**dims),
+                        description=f"design study {study.name}: best design ({label}, SI)",
+                        source=f"rdea-lab design {study.source}")
+
+
+# ------------------------------------------------------------------ the study
+
+def run_study(study: Study, *, scheduler: str | None = None, workers: int | None = None, synchronous: bool = False,
+              client=None, progress: bool = False, quiet: bool = True) -> StudyResult:
+    """Run a study: the sweep (and its Monte Carlo), the sensitivity, the optimization.
+
+    Parameters
+    ----------
+    study : Study
+        `rdea_lab.specs.study.load_study`.
+    scheduler : str, optional
+        ``tcp://HOST:PORT`` of a running dask scheduler (default ``DASK_SCHEDULER_ADDRESS``, else a new
+        local cluster of ``workers`` processes).
+    synchronous : bool
+        Every task in this process (dask's synchronous scheduler), no cluster.
+    client : distributed.Client, optional
+        An open client to use as it is.
+
+    Raises
+    ------
+    StudyError
+        No design of the sweep meets the constraints.
+    SchedulerError
+        The scheduler does not answer.
+    """
+    import time
+
+    timings = {}
+    if client is None and not synchronous:
+        with connect(scheduler, workers=workers, quiet=quiet) as c:
+            return run_study(study, client=c, progress=progress, quiet=quiet)
+    fixed = Fixed.of(study)
+    unit = sample(study)
+    table = table_of(study, unit)
+    t0 = time.perf_counter()
+    metrics = evaluate_table(study, table, client=client, progress=progress, fixed=fixed)
+    timings["sweep_s"] = time.perf_counter() - t0
+    ok = feasible(study, metrics)
+    if not ok.any():
+        raise StudyError(f"{study.source}: constraints: no design of the {unit.shape[0]} sampled meets them "
+                         f"({_why(study, metrics)}); widen the ranges or relax the constraints")
+    front = pareto(study, metrics, ok)
+    t0 = time.perf_counter()
+    sens = sensitivity(study, client=client, progress=progress, fixed=fixed)
+    timings["sensitivity_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    opt = optimize(study, unit, metrics, ok, fixed)
+    timings["optimize_s"] = time.perf_counter() - t0
+    card = card_of(study, opt["variables"]) if opt is not None else None
+    ds = dataset(study, unit, table, metrics, ok, front, sens, opt, card)
+    return StudyResult(study, ds, opt, card, timings)
+
+
+def _why(study, metrics) -> str:
+    status = metrics["design_status"]
+    parts = [f"{int((status == c).sum())} {STATUS[c].replace('_', ' ')}" for c in STATUS if c and (status == c).any()]
+    good = status == 0
+    for b in study.constraints:
+        v = metrics[b.metric][good]
+        if v.size:
+            si, shown, _ = METRICS[b.metric]
+            parts.append(f"{b.metric} spans {np.nanmin(v):.4g} to {np.nanmax(v):.4g} {si}")
+    return "; ".join(parts) or "none is a roll"
+
+
+def dataset(study, unit, table, metrics, ok, front, sens, opt, card) -> xr.Dataset:
+    """The study's one Dataset (see the module docstring)."""
+    n = unit.shape[0]
+    data = {}
+    for v in study.variables:
+        data[v.name] = ("design", table[v.name], {"units": _si(v.name), "long_name": f"design variable {v.name}",
+                                                  "valid_min": v.low, "valid_max": v.high})
+    for k in study.metrics:
+        si, _, text = METRICS[k]
+        data[k] = ("design", metrics[k], {"units": si, "long_name": text})
+        if f"{k}_mc" in metrics:
+            mc = metrics[f"{k}_mc"]
+            data[f"{k}_mc"] = (("design", "mc"), mc, {"units": si, "long_name": f"{text}: Monte Carlo samples"})
+            with np.errstate(invalid="ignore"), _quiet():
+                data[f"{k}_mean"] = ("design", np.nanmean(mc, axis=1), {"units": si, "long_name": f"{text}: mean"})
+                data[f"{k}_std"] = ("design", np.nanstd(mc, axis=1, ddof=1), {"units": si,
+                                                                              "long_name": f"{text}: std"})
+                data[f"{k}_p05"] = ("design", np.nanpercentile(mc, 5, axis=1), {"units": si,
+                                                                                "long_name": f"{text}: 5th pct"})
+                data[f"{k}_p95"] = ("design", np.nanpercentile(mc, 95, axis=1), {"units": si,
+                                                                                 "long_name": f"{text}: 95th pct"})
+    codes = sorted(STATUS)
+    data["design_status"] = ("design", metrics["design_status"].astype(np.int8),
+                             {"long_name": "design status", "flag_values": np.array(codes, np.int8),
+                              "flag_meanings": " ".join(STATUS[c] for c in codes)})
+    data["feasible"] = ("design", ok.astype(np.int8), {"long_name": "a roll meeting every constraint",
+                                                       "flag_values": np.array([0, 1], np.int8),
+                                                       "flag_meanings": "infeasible feasible"})
+    data["pareto"] = ("design", front.astype(np.int8), {"long_name": "on the Pareto front of the objectives",
+                                                        "flag_values": np.array([0, 1], np.int8),
+                                                        "flag_meanings": "dominated front"})
+    if "design_status_mc" in metrics:
+        mc_ok = np.ones(metrics["design_status_mc"].shape, bool) & (metrics["design_status_mc"] == 0)
+        for b in study.constraints:
+            v = metrics[f"{b.metric}_mc"]
+            with np.errstate(invalid="ignore"):
+                mc_ok &= (v >= b.low) & (v <= b.high)
+        data["feasible_fraction"] = ("design", mc_ok.mean(axis=1), {
+            "units": "1", "long_name": "share of the Monte Carlo rolls meeting every constraint"})
+    coords = {"design": ("design", np.arange(n), {"long_name": "design index"})}
+    if study.mc_samples:
+        coords["mc"] = ("mc", np.arange(study.mc_samples), {"long_name": "Monte Carlo sample of the radii"})
+    if sens is not None:
+        coords["objective"] = ("objective", [g.metric for g in study.objectives])
+        coords["variable"] = ("variable", list(study.names))
+        for key in ("S1", "ST", "S1_conf", "ST_conf"):
+            data[f"sobol_{key}"] = (("objective", "variable"),
+                                    np.stack([sens["indices"][g.metric][key] for g in study.objectives]),
+                                    {"units": "1", "long_name": f"Sobol index {key} (SALib, Saltelli sampling, "
+                                     f"{sens['designs']} designs)"})
+    ds = xr.Dataset(data, coords=coords)
+    ds.attrs.update({
+        "Conventions": "CF-1.8", "title": f"rdea-lab design study {study.name}",
+        "study": study.name, "study_file": study.source, "study_yaml": study.text, "model": study.model,
+        "sampling": f"{study.method} n={n} seed={study.seed}", "chunk": study.chunk,
+        "objectives": ", ".join(g.label for g in study.objectives),
+        "constraints": json.dumps([[b.metric, b.low, b.high] for b in study.constraints]),
+        "radii_tolerance": study.radii_tolerance, "mc_samples": study.mc_samples, "mc_seed": study.mc_seed,
+        "rdea_lab_version": __version__,
+    })
+    if opt is not None:
+        ds.attrs["optimum"] = json.dumps({k: opt[k] for k in ("objective", "variables", "metrics", "start", "how",
+                                                              "evaluations", "sweep_best")})
+        ds.attrs["optimum_card"] = dump_specimen(card)
+    return ds
+
+
+class _quiet:
+    def __enter__(self):
+        import warnings
+        self._w = warnings.catch_warnings()
+        self._w.__enter__()
+        warnings.simplefilter("ignore", RuntimeWarning)
+
+    def __exit__(self, *exc):
+        self._w.__exit__(*exc)
+
+
+def _si(name: str) -> str:
+    from ..specs.study import VARIABLES
+    from ..specs.units import _DIMENSIONS
+    return {"dimensionless": "1"}.get(VARIABLES[name][0], _DIMENSIONS[VARIABLES[name][0]][0])
+
+
+__all__ = ["StudyError", "StudyResult", "card_of", "evaluate_table", "feasible", "optimize", "pareto", "run_study",
+           "sample", "sensitivity", "table_of", "MEMBRANE"]

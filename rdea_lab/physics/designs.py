@@ -1,0 +1,168 @@
+"""The quasi-static models over many rolls at once: arrays of geometry and material broadcast against samples.
+
+A design study evaluates thousands of rolls on one history. For the SU and 1R
+models of [1] a roll's geometry enters the equilibrium only through the
+electrical load factor ``kappa = eps0 eps_r alpha_e1 eta_b / (2 L3**2)``
+(`rdea_lab.physics.models._common.kappa`): the stationary conditions (33) and
+(39) contain ``kappa v**2`` and nothing else of the roll. So roll ``d`` at
+voltage ``v`` is the reference roll at the *effective voltage*
+``v sqrt(kappa_d / kappa_ref)``, with the force scaled by the cross-sections
+``A_d / A_ref`` (eq. (16)) and the capacitance by ``C0_d / C0_ref`` (eqs. (34),
+(41)). :func:`solve_designs` flattens designs x samples into one call of the
+models' own `~rdea_lab.physics.models.solve` (its compiled kernels, its
+branch certification, its slack free states), so no equation is written a
+second time. The 3R and CR models see the ring fractions and radii
+themselves and are not mapped (a study runs them one roll at a time).
+
+Material arrays: ``eps_r`` enters only ``kappa`` and ``C0`` (so any model);
+per-design Yeoh coefficients enter the SU closed form sample by sample
+(:class:`SampleMaterial`, the numpy form of `su.evaluate`); the 1R branch
+solver takes one material, so a 1R study varies geometry and ``eps_r`` only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import RollGeometry
+from .models import solve
+from .models._common import kappa
+from .result import LIMIT_POINT, OUTSIDE_RANGE, SNAPPED
+
+#: The models :func:`solve_designs` maps (geometry only through kappa).
+DESIGN_MODELS = ("su", "1r")
+_GEOMETRY = ("Ri", "Rie", "Roe", "Ro", "L1", "L1e", "L3")
+_MATERIAL = ("C10", "C20", "C30", "eps_r")
+
+
+@dataclass(frozen=True)
+class SampleMaterial:
+    """A material whose Yeoh coefficients vary per sample (SU only): the models' machinery takes the
+    entries of the samples it works on (`take`)."""
+
+    C10: np.ndarray
+    C20: np.ndarray
+    C30: np.ndarray
+    eps_r: float
+
+    def take(self, idx) -> "SampleMaterial":
+        return SampleMaterial(self.C10[idx], self.C20[idx], self.C30[idx], self.eps_r)
+
+
+@dataclass(frozen=True)
+class Material:
+    """Yeoh coefficients [Pa] and ``eps_r`` [-], each a float or an array over designs."""
+
+    C10: object
+    C20: object
+    C30: object
+    eps_r: object
+
+    @classmethod
+    def of(cls, material, **overrides) -> "Material":
+        """A parameter set's material with some fields replaced (arrays over designs)."""
+        return cls(**{k: np.asarray(overrides.get(k, getattr(material, k)), float) for k in _MATERIAL})
+
+
+@dataclass(frozen=True)
+class DesignResult:
+    """Quasi-static response of ``n`` rolls to a history: every array has shape ``(n, samples)``.
+
+    ``force`` [N], ``sigma1`` and ``tension`` [Pa], ``capacitance`` [F], ``lambda2b`` [-],
+    ``free_stretch`` [-], ``status`` (int8, the codes of `rdea_lab.physics.result`),
+    ``critical_voltage`` and ``range_voltage`` [V]: as `~rdea_lab.physics.result.ModelResult`'s.
+    """
+
+    model: str
+    force: np.ndarray
+    sigma1: np.ndarray
+    tension: np.ndarray
+    capacitance: np.ndarray
+    lambda2b: np.ndarray
+    free_stretch: np.ndarray
+    status: np.ndarray
+    critical_voltage: np.ndarray
+    range_voltage: np.ndarray
+
+
+def design_geometry(**fields) -> RollGeometry:
+    """A `RollGeometry` whose fields are 1-D arrays over designs (checked as one roll each)."""
+    arrays = np.broadcast_arrays(*(np.atleast_1d(np.asarray(fields[k], float)) for k in _GEOMETRY))
+    if arrays[0].ndim != 1:
+        raise ValueError(f"design geometry: expected 1-D arrays over designs, got shape {arrays[0].shape}")
+    return RollGeometry(**dict(zip(_GEOMETRY, arrays)))
+
+
+def _entry(geom: RollGeometry, i: int) -> RollGeometry:
+    return RollGeometry(**{k: float(np.broadcast_to(getattr(geom, k), np.shape(geom.Ro))[i]) for k in _GEOMETRY})
+
+
+def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *, slack=True,
+                  kernel="auto") -> DesignResult:
+    """Solve the quasi-static model for every roll of ``geom`` on the same (or its own) history.
+
+    Parameters
+    ----------
+    model : {"su", "1r"}
+    geom : RollGeometry
+        Fields 1-D arrays over ``n`` designs (:func:`design_geometry`), or scalars (one roll).
+    material : parameter set or Material
+        ``C10, C20, C30`` [Pa] and ``eps_r`` [-]: floats, or arrays of length ``n`` (Yeoh
+        coefficients per design with the SU model only).
+    stretch, voltage : array_like
+        Shape ``(samples,)`` (one history for every roll) or ``(n, samples)``.
+    slack, kernel
+        As `~rdea_lab.physics.models.solve`.
+
+    Returns
+    -------
+    DesignResult
+        Equal to solving each roll on its own (to rounding: the effective voltage is
+        ``v sqrt(kappa_d / kappa_ref)``), see the module docstring.
+    """
+    model = model.lower()
+    if model not in DESIGN_MODELS:
+        raise ValueError(f"solve_designs: model {model!r} sees the rings' radii, not only kappa; allowed: "
+                         f"{', '.join(DESIGN_MODELS)} (solve a 3R or CR roll one at a time)")
+    n = int(np.size(geom.Ro))
+    if np.ndim(geom.Ro) == 0:
+        geom = design_geometry(**{k: getattr(geom, k) for k in _GEOMETRY})
+    stretch = np.asarray(stretch, float)
+    voltage = np.asarray(voltage, float)
+    shape = np.broadcast_shapes((n, 1), stretch.shape if stretch.ndim else (1,), voltage.shape if voltage.ndim
+                                else (1,))
+    if len(shape) != 2 or shape[0] != n:
+        raise ValueError(f"solve_designs: stretch {stretch.shape} and voltage {voltage.shape} do not broadcast "
+                         f"against {n} designs as (samples,) or ({n}, samples)")
+    mat = Material.of(material)
+    ref = _entry(geom, 0)
+    eps_ref = float(np.ravel(mat.eps_r)[0])
+    ref_mat = Material(*(np.ravel(getattr(mat, k))[0] for k in ("C10", "C20", "C30")), eps_ref)
+    kap = np.broadcast_to(kappa(geom, mat), (n,))
+    kap_ref = float(kappa(ref, ref_mat))
+    gain = np.sqrt(kap / kap_ref)[:, None]              # effective voltage per design
+    per_design = [np.ndim(getattr(mat, k)) > 0 and np.ptp(getattr(mat, k)) > 0 for k in ("C10", "C20", "C30")]
+    l1 = np.broadcast_to(stretch, shape).ravel()
+    v_eff = (np.broadcast_to(voltage, shape) * gain).ravel()
+    if any(per_design):
+        if model != "su":
+            raise ValueError("solve_designs: the 1R branch solver takes one material; vary C10, C20, C30 with the "
+                             "SU model (eps_r may vary with either)")
+        cols = [np.repeat(np.broadcast_to(getattr(mat, k), (n,)), shape[1]) for k in ("C10", "C20", "C30")]
+        sample_mat = SampleMaterial(*cols, eps_ref)
+    else:
+        sample_mat = Material(*(float(np.ravel(getattr(mat, k))[0]) for k in ("C10", "C20", "C30")), eps_ref)
+    res = solve(model, ref, sample_mat, l1, v_eff, slack=slack, kernel=kernel)
+
+    def grid(a):
+        return np.asarray(a, float).reshape(shape)
+
+    area = (geom.area / ref.area)[:, None]
+    c0 = (np.broadcast_to(geom.C0(mat.eps_r), (n,)) / ref.C0(eps_ref))[:, None]
+    status = res.status.reshape(shape)
+    crit = np.where(np.isin(status, (LIMIT_POINT, SNAPPED)), grid(res.critical_voltage) / gain, np.nan)
+    rng = np.where(status == OUTSIDE_RANGE, grid(res.range_voltage) / gain, np.nan)
+    return DesignResult(model, grid(res.force) * area, grid(res.sigma1), grid(res.tension),
+                        grid(res.capacitance) * c0, grid(res.lambda2b), grid(res.free_stretch), status, crit, rng)
