@@ -21,7 +21,9 @@ Runs: `run_protocol`, `prepare_run`, `run_campaign`, callbacks `LiveTable`,
 `format_cv`, `envelope`, `beyond`. Reports:
 `validation_report`, `speed_study`, `reproduce`, `selfsense_run`. Self-sensing: `capacitance_rls`,
 `capacitance_secant`, `stretch_from_capacitance`. Rig: `RigServer`. Voltage from a target:
-`load_target`, `plan_target`, `write_protocol`, `tracking_error`, `track_target`.
+`load_target`, `plan_target`, `write_protocol`, `tracking_error`, `track_target`. Design studies:
+`load_study`, `run_study` (on dask.distributed), `write_study`, `study_summary`, `solve_designs` (the
+models over arrays of rolls).
 """
 
 from __future__ import annotations
@@ -79,6 +81,11 @@ _EXPORTS = {
     "load_target": "rdea_lab.specs.target", "plan_target": "rdea_lab.protocols.target",
     "write_protocol": "rdea_lab.protocols.target", "tracking_error": "rdea_lab.reports.tracking",
     "track_target": "rdea_lab.reports.tracking",
+    # design studies
+    "load_study": "rdea_lab.specs.study", "run_study": "rdea_lab.design", "StudyResult": "rdea_lab.design",
+    "StudyError": "rdea_lab.design", "SchedulerError": "rdea_lab.design", "write_study": "rdea_lab.design.outputs",
+    "check_study_out": "rdea_lab.design.outputs", "study_summary": "rdea_lab.design.outputs",
+    "study_lines": "rdea_lab.design.outputs", "solve_designs": "rdea_lab.physics.designs",
     # misc
     "project_root": "rdea_lab.paths", "benchmarks_dir": "rdea_lab.paths",}
 

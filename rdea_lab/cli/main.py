@@ -15,7 +15,7 @@ import numpy as np
 from .. import __version__, api
 from ..specs import MODELS, load_params, load_specimen, parse_quantity
 from . import calibrate as calibrate_cmd
-from . import importer, plan as plan_cmd, report, rig, runs, selfsense
+from . import design as design_cmd, importer, plan as plan_cmd, report, rig, runs, selfsense
 from .errors import EXIT_HELP, die, run
 
 #: Table 1 of [1]: the datasheet permittivity of the silicone.
@@ -259,7 +259,7 @@ def bench(samples, baseline_samples, repeat, as_json, no_vhb, steps, no_compile_
 
 for command in (geometry, curve, reproduce, bench, runs.run, runs.recover, runs.ls_, runs.show, runs.protocol,
                 runs.campaign, rig.rig, calibrate_cmd.calibrate, report.report, importer.import_, plan_cmd.plan,
-                selfsense.selfsense):
+                selfsense.selfsense, design_cmd.design):
     cli.add_command(command)
 
 

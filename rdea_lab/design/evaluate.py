@@ -21,13 +21,15 @@ import numpy as np
 from ..physics.designs import Material, design_geometry, solve_designs
 from ..physics.geometry import RollGeometry, radii_from_membrane
 from ..physics.result import VALID
-from ..specs.study import MEMBRANE, Study
+from ..specs.limits import field_estimate
+from ..specs.study import MEMBRANE, PROTOCOL_METRICS, Study
 from ..specs.target import G, MassBias, SpringBias
 from ..twin.simulate import compose, viscous
 
 #: design_status codes (flag_values / flag_meanings in the dataset)
-STATUS = {0: "ok", 1: "no_roll", 2: "no_equilibrium", 3: "model_failed", 4: "radii_out_of_order"}
-OK, NO_ROLL, NO_EQUILIBRIUM, MODEL_FAILED, RADII_ORDER = range(5)
+STATUS = {0: "ok", 1: "no_roll", 2: "no_equilibrium", 3: "model_failed", 4: "radii_out_of_order",
+          5: "protocol_limits"}
+OK, NO_ROLL, NO_EQUILIBRIUM, MODEL_FAILED, RADII_ORDER, PROTOCOL_LIMITS = range(6)
 #: largest stretch the equilibrium search looks at [-]
 MAX_STRETCH = 2.5
 _BISECTIONS = 64
@@ -103,10 +105,18 @@ def _column(table, key, default, n):
     return np.asarray(table[key], float) if key in table else np.full(n, float(default))
 
 
-def evaluate(fixed: Fixed, table: dict, factors=None) -> dict:
+def protocol_needed(study: Study) -> bool:
+    """Whether an objective or a constraint is a protocol's metric (then the Monte Carlo rolls and the
+    sensitivity's designs run the protocol too; otherwise only the nominal designs do)."""
+    return any(m in PROTOCOL_METRICS for m in [g.metric for g in study.objectives]
+               + [b.metric for b in study.constraints])
+
+
+def evaluate(fixed: Fixed, table: dict, factors=None, *, protocol: bool = True) -> dict:
     """Metrics of the designs ``table`` (``{variable: array(n)}``, SI).
 
     ``factors`` ``(n, 3)``: radius factors of Rie, Roe, Ro (a Monte Carlo sample); None: nominal.
+    ``protocol=False`` leaves the protocol's metrics out (NaN).
     Returns ``{metric: array(n)}`` and ``design_status`` (codes of `STATUS`).
     """
     study = fixed.study
@@ -156,18 +166,26 @@ def evaluate(fixed: Fixed, table: dict, factors=None) -> dict:
         # (n,) or (n, k) stretches; the bias's parameters are (n,): broadcast over the last axis
         return np.broadcast_to(bias.force(np.asarray(stretch).T, L1).T, np.shape(stretch))
 
+    def excess(stretch, voltage):
+        # the roll's pull at the equilibrium's tension (negative where it would be slack) minus the bias's:
+        # strictly rising in stretch, so a root has no flat stretch of slack around it
+        res = solve_designs(study.model, geom, mat, stretch[:, None], voltage[:, None])
+        return res.tension[:, 0] * geom.area / stretch - bias_force(stretch)
+
     def equilibrium(voltage):
-        lo, hi = np.ones(n), np.full(n, MAX_STRETCH)
-        top = roll_force(hi, voltage)[1] - bias_force(hi)
-        reach = top > 0
-        for _ in range(_BISECTIONS):
-            mid = 0.5 * (lo + hi)
-            g = roll_force(mid, voltage)[1] - bias_force(mid)
-            up = ~(g > 0)  # NaN (no equilibrium there) treated as too short: the search goes on upwards
-            lo = np.where(up, mid, lo)
-            hi = np.where(up, hi, mid)
-        res, _ = roll_force(hi, voltage)
-        return hi, reach, res
+        lam, reach = _root(lambda x, idx: excess_at(x, voltage, idx), n)
+        res = solve_designs(study.model, geom, mat, lam[:, None], voltage[:, None])
+        return lam, reach, res
+
+    def excess_at(stretch, voltage, idx):
+        if idx is None:
+            return excess(stretch, voltage)
+        sub = _subset(geom, mat, idx)
+        res = solve_designs(study.model, sub[0], sub[1], stretch[:, None], voltage[idx, None])
+        return res.tension[:, 0] * sub[0].area / stretch - bias_force_at(stretch, idx)
+
+    def bias_force_at(stretch, idx):
+        return np.asarray(_take_bias(bias, idx).force(stretch, L1[idx]), float) * np.ones_like(stretch)
 
     zero = np.zeros(n)
     lam0, reach0, res0 = equilibrium(zero)
@@ -199,11 +217,68 @@ def evaluate(fixed: Fixed, table: dict, factors=None) -> dict:
     if study.density is not None:
         out["mass"] = volume * study.density
         out["specific_energy"] = work / out["mass"]
-    if fixed.history is not None:
+    if fixed.history is not None and protocol:
         out.update(_protocol(study, fixed.history, geom, mat, L1, L3))
-    out = {k: np.where(status == OK, np.asarray(v, float), np.nan) for k, v in out.items() if k in study.metrics}
+        # a design the protocol could not test: its field estimate or its force past the protocol's limits
+        status[(status == OK) & ~out.pop("within_limits")] = PROTOCOL_LIMITS
+    out = {k: np.where(status == OK, np.asarray(out[k], float), np.nan) if k in out else np.full(n, np.nan)
+           for k in study.metrics}
     out["design_status"] = status
     return out
+
+
+def _root(excess, n, lo=1.0, hi=MAX_STRETCH, rtol=1e-15, max_iter=100):
+    """The stretch in ``[lo, hi]`` where ``excess(stretch, idx)`` (rising) changes sign, every design at
+    once: the Illinois variant of regula falsi on the active designs (the bracket's ends kept), bisection
+    where the secant leaves the bracket or the excess is NaN. Returns ``(stretch, reached)``; ``reached``
+    False where the excess is still negative at ``hi`` (no equilibrium up to it)."""
+    a, b = np.full(n, lo), np.full(n, hi)
+    fa, fb = excess(a, None), excess(b, None)
+    reached = fb > 0
+    x = np.where(fa >= 0, a, b)  # already in equilibrium at lo (a roll with nothing pulling)
+    active = np.flatnonzero(reached & (fa < 0))
+    side = np.zeros(n, np.int8)
+    scale = np.abs(fa) + np.abs(np.where(np.isfinite(fb), fb, 0.0))
+    iterations = 0
+    for iterations in range(1, max_iter + 1):
+        if active.size == 0:
+            break
+        xa, xb, ya, yb = a[active], b[active], fa[active], fb[active]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            xn = (xa * yb - xb * ya) / (yb - ya)
+        xn = np.where((xn > xa) & (xn < xb), xn, 0.5 * (xa + xb))
+        yn = excess(xn, active)
+        nan = ~np.isfinite(yn)
+        xn = np.where(nan, 0.5 * (xa + xb), xn)
+        if nan.any():
+            yn = np.where(nan, excess(xn, active), yn)
+            yn = np.where(np.isfinite(yn), yn, 1.0)  # no equilibrium there: search below
+        neg = yn < 0
+        s = side[active]
+        a[active], fa[active] = np.where(neg, xn, xa), np.where(neg, yn, np.where(s == 1, 0.5 * ya, ya))
+        b[active], fb[active] = np.where(neg, xb, xn), np.where(neg, np.where(s == -1, 0.5 * yb, yb), yn)
+        side[active] = np.where(neg, -1, 1)
+        x[active] = xn
+        done = (np.abs(yn) <= 1e-14 * scale[active]) | (b[active] - a[active] <= rtol * b[active])
+        active = active[~done]
+    _root.iterations = iterations
+    return x, reached
+
+
+def _subset(geom, mat, idx):
+    g = design_geometry(**{k: np.asarray(getattr(geom, k))[idx] for k in ("Ri", "Rie", "Roe", "Ro", "L1", "L1e",
+                                                                           "L3")})
+    m = Material(*(np.asarray(getattr(mat, k))[idx] if np.ndim(getattr(mat, k)) else getattr(mat, k)
+                   for k in ("C10", "C20", "C30", "eps_r")))
+    return g, m
+
+
+def _take_bias(bias, idx):
+    if bias.kind == "spring":
+        return SpringBias.model_construct(kind="spring", stiffness=bias.stiffness[idx], preload=bias.preload[idx])
+    if bias.kind == "mass":
+        return MassBias.model_construct(kind="mass", mass=bias.mass[idx])
+    return bias
 
 
 def _protocol(study, history, geom, mat, L1, L3) -> dict:
@@ -216,7 +291,10 @@ def _protocol(study, history, geom, mat, L1, L3) -> dict:
     with np.errstate(invalid="ignore"):
         field = voltage * stretch * res.lambda2b / L3[:, None]
     dx = np.diff(stretch) * L1[:, None]
-    return {
+    limits = history[3]
+    estimate = np.max(field_estimate(voltage, stretch, L3[:, None]), axis=1)
+    within = (estimate <= limits.max_field) & (np.max(force, axis=1) <= limits.max_force)
+    return {"within_limits": within, "limit_field": estimate,
         "peak_force": np.max(force, axis=1), "force_range": np.ptp(force, axis=1),
         "hysteresis": 0.5 * np.sum((force[:, 1:] + force[:, :-1]) * dx, axis=1),
         "peak_field": np.max(field, axis=1), "peak_capacitance": np.max(res.capacitance, axis=1),
@@ -244,7 +322,7 @@ def evaluate_chunk(fixed: Fixed, index, table: dict) -> dict:
             table["preload" if key == "preload" else "mass"] = out[key]
             del table["prestretch"]
         rep = {k: np.repeat(np.asarray(v, float), m) for k, v in table.items()}
-        mc = evaluate(fixed, rep, f.reshape(n * m, 3))
+        mc = evaluate(fixed, rep, f.reshape(n * m, 3), protocol=protocol_needed(study))
         for k, v in mc.items():
             out[f"{k}_mc"] = np.asarray(v).reshape(n, m)
     return out

@@ -18,7 +18,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import xarray as xr
@@ -26,9 +26,9 @@ import xarray as xr
 from .. import __version__
 from ..specs.errors import UserError
 from ..specs.specimen import Membrane, SpecimenCard, dump_specimen
-from ..specs.study import METRICS, MEMBRANE, Study
+from ..specs.study import METRICS, MEMBRANE, Bound, Study
 from .cluster import Progress, connect
-from .evaluate import STATUS, Fixed, evaluate, evaluate_chunk, membrane
+from .evaluate import STATUS, Fixed, evaluate, evaluate_chunk, membrane, protocol_needed
 
 
 class StudyError(UserError):
@@ -145,8 +145,12 @@ def sensitivity(study: Study, *, client=None, progress=False, fixed=None) -> dic
     problem = {"num_vars": len(study.variables), "names": list(study.names),
                "bounds": [[0.0, 1.0]] * len(study.variables)}
     unit = sobol_sample.sample(problem, study.sensitivity_n, calc_second_order=False, seed=study.sensitivity_seed)
-    metrics = evaluate_table(study, table_of(study, unit), client=client, progress=progress, label="sobol",
-                             fixed=fixed)
+    fixed = fixed or Fixed.of(study)
+    if not protocol_needed(study):  # the objectives need no protocol: the sensitivity's designs skip it
+        fixed = Fixed(fixed.study, None)
+    nominal = replace(study, mc_samples=0)  # indices of the nominal design's objectives
+    metrics = evaluate_table(nominal, table_of(study, unit), client=client, progress=progress, label="sobol",
+                             fixed=Fixed(nominal, fixed.history))
     out = {}
     for g in study.objectives:
         y = metrics[g.metric]
@@ -166,29 +170,21 @@ def sensitivity(study: Study, *, client=None, progress=False, fixed=None) -> dic
 
 # ------------------------------------------------------------------ optimization
 
-def optimize(study: Study, unit: np.ndarray, metrics: dict, ok: np.ndarray, fixed: Fixed) -> dict | None:
-    """Refine the best feasible sweep points with scipy's SLSQP (bounds and the constraints); nominal radii."""
-    if study.optimize is None or not ok.any():
-        return None
+def refine(fixed: Fixed, x0, metric: str, sense: int, scale: float, max_iter: int) -> dict:
+    """One SLSQP run from the unit-cube point ``x0``: maximize (``sense`` +1) or minimize the metric under the
+    study's constraints and, with a protocol, its limits (the card must be testable with it). One task."""
     from scipy.optimize import minimize
 
-    metric = study.optimize["objective"]
-    sense = next(g.sense for g in study.objectives if g.metric == metric)
-    best = np.flatnonzero(ok)[np.argsort(-sense * metrics[metric][ok], kind="stable")][: study.optimize["starts"]]
-    scale = abs(float(metrics[metric][best[0]])) or 1.0
-    evals = {"n": 0}
-
-    def at(x):
-        evals["n"] += 1
-        x = np.clip(np.asarray(x, float), 0.0, 1.0)
-        return evaluate(fixed, table_of(study, x[None, :]))
-
+    study = fixed.study
+    evals = [0]
     cache = {}
 
     def cached(x):
-        key = tuple(np.round(x, 15))
+        x = np.clip(np.asarray(x, float), 0.0, 1.0)
+        key = x.tobytes()
         if key not in cache:
-            cache[key] = at(x)
+            evals[0] += 1
+            cache[key] = evaluate(fixed, table_of(study, x[None, :]), protocol=fixed.history is not None)
         return cache[key]
 
     def objective(x):
@@ -196,36 +192,58 @@ def optimize(study: Study, unit: np.ndarray, metrics: dict, ok: np.ndarray, fixe
         return -sense * v / scale if np.isfinite(v) else 1e3
 
     cons = []
-    for b in study.constraints:
-        for side, lim in (("low", b.low), ("high", b.high)):
+    for b in _bounds(fixed):
+        for lim, sign in ((b.low, 1.0), (b.high, -1.0)):
             if math.isfinite(lim):
-                s = abs(lim) or 1.0
-                sign = 1.0 if side == "low" else -1.0
-
-                def g(x, m=b.metric, lim=lim, s=s, sign=sign):
+                def g(x, m=b.metric, lim=lim, s=abs(lim) or 1.0, sign=sign):
                     v = cached(x)[m][0]
                     return sign * (v - lim) / s if np.isfinite(v) else -1.0
                 cons.append({"type": "ineq", "fun": g})
-    runs = []
-    for i in best:
-        res = minimize(objective, unit[i], method="SLSQP", bounds=[(0.0, 1.0)] * unit.shape[1], constraints=cons,
-                       options={"maxiter": study.optimize["max_iter"], "ftol": 1e-10})
-        x = np.clip(res.x, 0.0, 1.0)
-        m = at(x)
-        good = bool(feasible(study, m)[0])
-        runs.append((good, -sense * m[metric][0] if good else np.inf, x, m, res, int(i)))
-    good_runs = [r for r in runs if r[0]]
+    res = minimize(objective, np.asarray(x0, float), method="SLSQP", bounds=[(0.0, 1.0)] * len(x0),
+                   constraints=cons, options={"maxiter": max_iter, "ftol": 1e-6})
+    x = np.clip(res.x, 0.0, 1.0)
+    return {"x": x, "metrics": cached(x), "message": str(res.message), "nit": int(res.nit), "evaluations": evals[0]}
+
+
+def _bounds(fixed: Fixed) -> list:
+    bounds = list(fixed.study.constraints)
+    if fixed.history is not None:
+        limits = fixed.history[3]
+        bounds += [Bound("limit_field", high=limits.max_field), Bound("peak_force", high=limits.max_force)]
+    return bounds
+
+
+def optimize(study: Study, unit: np.ndarray, metrics: dict, ok: np.ndarray, fixed: Fixed, client=None) -> dict | None:
+    """Refine the best feasible sweep points with scipy's SLSQP (bounds and the constraints; nominal radii),
+    one task per start; the best feasible result, or the best sweep point if none is better."""
+    if study.optimize is None or not ok.any():
+        return None
+    metric = study.optimize["objective"]
+    sense = next(g.sense for g in study.objectives if g.metric == metric)
+    best = np.flatnonzero(ok)[np.argsort(-sense * metrics[metric][ok], kind="stable")][: study.optimize["starts"]]
+    scale = abs(float(metrics[metric][best[0]])) or 1.0
+    args = [(unit[i], metric, sense, scale, study.optimize["max_iter"]) for i in best]
+    if client is None:
+        runs = [refine(fixed, *a) for a in args]
+    else:
+        shared = client.scatter(fixed, broadcast=True, hash=False)
+        runs = client.gather([client.submit(refine, shared, *a, pure=False) for a in args])
+    scored = []
+    for i, r in zip(best, runs):
+        good = bool(feasible(study, r["metrics"])[0]) and r["metrics"]["design_status"][0] == 0
+        scored.append((-sense * r["metrics"][metric][0] if good else np.inf, int(i), r))
     sweep_best = -sense * metrics[metric][best[0]]
-    if not good_runs or min(r[1] for r in good_runs) > sweep_best:
-        x, m, res, start = unit[best[0]], {k: v[best[0]:best[0] + 1] for k, v in metrics.items()}, None, int(best[0])
+    value, start, r = min(scored, key=lambda t: t[0])
+    if not value < sweep_best:
+        x, m, start = unit[best[0]], {k: v[best[0]:best[0] + 1] for k, v in metrics.items()}, int(best[0])
         how = "the best sweep point (the optimizer found nothing better that meets the constraints)"
     else:
-        _, _, x, m, res, start = min(good_runs, key=lambda r: r[1])
-        how = f"SLSQP from sweep design {start}: {res.message} ({res.nit} iterations)"
+        x, m = r["x"], r["metrics"]
+        how = f"SLSQP from sweep design {start}: {r['message']} ({r['nit']} iterations)"
     return {"objective": metric, "unit": x, "variables": {k: float(v[0]) for k, v in table_of(study, x[None]).items()},
             "metrics": {k: float(np.asarray(v)[0]) for k, v in m.items() if not k.endswith("_mc")},
-            "start": start, "how": how, "evaluations": evals["n"], "sweep_best": float(metrics[metric][best[0]]),
-            "starts": [int(i) for i in best]}
+            "start": start, "how": how, "evaluations": int(sum(r["evaluations"] for r in runs)),
+            "sweep_best": float(metrics[metric][best[0]]), "starts": [int(i) for i in best]}
 
 
 def card_of(study: Study, variables: dict) -> SpecimenCard:
@@ -285,7 +303,7 @@ def run_study(study: Study, *, scheduler: str | None = None, workers: int | None
     sens = sensitivity(study, client=client, progress=progress, fixed=fixed)
     timings["sensitivity_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    opt = optimize(study, unit, metrics, ok, fixed)
+    opt = optimize(study, unit, metrics, ok, fixed, client)
     timings["optimize_s"] = time.perf_counter() - t0
     card = card_of(study, opt["variables"]) if opt is not None else None
     ds = dataset(study, unit, table, metrics, ok, front, sens, opt, card)

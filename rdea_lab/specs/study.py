@@ -88,8 +88,10 @@ METRICS = {
     "hysteresis": ("J", "mJ", "energy dissipated over the protocol, -integral of F dx"),
     "peak_field": ("V/m", "V/um", "largest nominal field over the protocol"),
     "peak_capacitance": ("F", "nF", "largest capacitance over the protocol"),
+    "limit_field": ("V/m", "V/um", "the protocol's field estimate |v| sqrt(stretch) / L3 at its worst sample "
+                    "(what its max_field limits)"),
 }
-PROTOCOL_METRICS = ("peak_force", "force_range", "hysteresis", "peak_field", "peak_capacitance")
+PROTOCOL_METRICS = ("peak_force", "force_range", "hysteresis", "peak_field", "peak_capacitance", "limit_field")
 DENSITY_METRICS = ("specific_energy", "mass")
 _KEYS = ("name", "description", "model", "params", "specimen", "variables", "sampling", "voltage", "bias",
          "objectives", "constraints", "tolerances", "sensitivity", "optimize", "protocol", "chunk", "density")
@@ -439,7 +441,7 @@ def study_from_mapping(mapping: Any, source: str = "<mapping>", folder: str | os
             raise SpecError(source, "optimize.objective", f"{show(metric)}; allowed: one of the objectives "
                             f"({', '.join(g.metric for g in goals)})")
         opt = {"objective": metric, "starts": _int(opt.get("starts", 4), source, "optimize.starts", 1, 64),
-               "max_iter": _int(opt.get("max_iter", 100), source, "optimize.max_iter", 1, 10000)}
+               "max_iter": _int(opt.get("max_iter", 25), source, "optimize.max_iter", 1, 10000)}
     chunk = _int(data.get("chunk", 256), source, "chunk", 1, 10**6)
     return Study(name=name, source=source, model=model, params=params, specimen=card, variables=var,
                  method=method, n=n, seed=seed, voltage=voltage, bias=bias, objectives=goals, constraints=bounds,
