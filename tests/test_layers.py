@@ -7,7 +7,7 @@ PKG = Path(__file__).resolve().parents[1] / "rdea_lab"
 #: Bottom to top. DESIGN.md's order, plus the emulator (below the backends that
 #: drive it) and the run engine (above backends and store: it couples the two).
 LAYERS = ["specs", "physics", "twin", "protocols", "emulator", "backends", "store", "runs", "calibration",
-          "reports", "api", "cli"]
+          "design", "reports", "api", "cli"]
 ANYWHERE = {"", "__version__", "paths"}  # the package root (__version__) and the path helper
 
 

@@ -1,4 +1,4 @@
-"""A study's figures: the Pareto front, parallel coordinates, the stroke map (matplotlib, Agg)."""
+"""A study's figures: the Pareto front, parallel coordinates, the stroke map (matplotlib)."""
 
 from __future__ import annotations
 
@@ -10,9 +10,7 @@ _DPI = 150
 
 
 def _plt():
-    import matplotlib
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # the backend is the caller's (the CLI runs headless)
     return plt
 
 

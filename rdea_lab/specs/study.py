@@ -64,6 +64,8 @@ MATERIAL = ("C10", "C20", "C30", "eps_r")
 BIAS_VARIABLES = {"none": (), "mass": ("mass", "prestretch"), "spring": ("stiffness", "preload", "prestretch"),
                   "curve": ()}
 SAMPLINGS = ("sobol", "lhs", "grid")
+#: the models a study maps over designs (`rdea_lab.physics.designs.DESIGN_MODELS`, which a test keeps equal)
+DESIGN_MODELS = ("su", "1r")
 #: metric -> (unit SI, display unit, description); `rdea_lab.design.evaluate` computes them
 METRICS = {
     "stroke": ("m", "mm", "lengthening from the 0 V equilibrium with the bias to the one at the voltage"),
@@ -339,7 +341,6 @@ def study_from_mapping(mapping: Any, source: str = "<mapping>", folder: str | os
     if not isinstance(name, str) or not name.replace("-", "").replace("_", "").replace(".", "").isalnum():
         raise SpecError(source, "name", f"{show(name)}; give letters, digits, '-', '_' or '.'")
     model = data.get("model", "su")
-    from ..physics.designs import DESIGN_MODELS
     if model not in DESIGN_MODELS:
         raise SpecError(source, "model", f"{show(model)}; allowed: {', '.join(DESIGN_MODELS)} (the models a study "
                         "maps over designs; 3R and CR see the ring radii themselves)")

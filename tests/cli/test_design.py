@@ -123,3 +123,9 @@ def test_a_malformed_scheduler_address_exits_2(tmp_path, capsys):
     code = run_cli(group, ["design", str(tmp_path / "s.yaml"), "--scheduler", "localhost:8786", "--quiet"])
     err = capsys.readouterr().err
     assert code == 2 and "tcp://HOST:PORT" in err, err
+
+
+def test_the_study_file_allows_exactly_the_models_physics_maps_over_designs():
+    from rdea_lab.physics.designs import DESIGN_MODELS
+    from rdea_lab.specs.study import DESIGN_MODELS as ALLOWED
+    assert ALLOWED == DESIGN_MODELS
