@@ -61,11 +61,11 @@ def design(study_path, out, scheduler, workers, synchronous, backend, overwrite,
         ds = api.run_protocol(study.protocol_path, paths["card.yaml"], backend, out=run_out, overwrite=overwrite,
                               metadata={"study": study.name}, command="rdea-lab design", **twin)
         peak = float(ds["force"].max())
-        predicted = result.optimum["metrics"].get("peak_force", float("nan"))
+        predicted = result.optimum["card_metrics"].get("peak_force", float("nan"))
         summary["run"] = {"backend": backend, "dataset": run_out, "peak_force": peak,
                           "predicted_peak_force": predicted}
-        text.append(f"{backend} run of card.yaml: {run_out}, peak force {peak:.4g} N (study's twin "
-                    f"{predicted:.4g} N, {peak / predicted - 1:+.1%})")
+        text.append(f"{backend} run of card.yaml: {run_out}, peak force {peak:.4g} N (the study's twin "
+                    f"for the card {predicted:.4g} N, {peak / predicted - 1:+.1%})")
     if as_json:
         click.echo(json.dumps(summary, indent=2, default=float))
     else:

@@ -68,6 +68,8 @@ def study_summary(result) -> dict:
         for key in ("preload", "bias_mass", "rest_stretch", "on_stretch", "field"):
             if key in o["metrics"]:
                 out["optimum"][key] = o["metrics"][key]
+        out["card"] = {"variables": o["card_variables"], "feasible": o["card_feasible"],
+                       **{k: o["card_metrics"][k] for k in out["optimum"] if k in o["card_metrics"]}}
     if "sobol_ST" in ds:
         out["sobol_ST"] = {str(o): {str(v): float(ds["sobol_ST"].sel(objective=o, variable=v))
                                     for v in ds["variable"].values} for o in ds["objective"].values}
@@ -90,6 +92,11 @@ def study_lines(result) -> list[str]:
         out.append("optimum: " + ", ".join(f"{k} {_shown(k, v)}" for k, v in o.items() if k in METRICS)
                    + " at " + ", ".join(_var(study, k, v) for k, v in o["variables"].items())
                    + f" ({o['how']}; {o['evaluations']} evaluations)")
+        c = s["card"]
+        out.append("card (cut to 0.01 mm, film to 0.1 um): " + ", ".join(
+            f"{k} {_shown(k, v)}" for k, v in c.items() if k in METRICS) + " at "
+            + ", ".join(_var(study, k, v) for k, v in c["variables"].items())
+            + ("" if c["feasible"] else " (NOT meeting the constraints once rounded)"))
     if "sobol_ST" in s:
         for obj, row in s["sobol_ST"].items():
             out.append(f"Sobol total index of {obj}: " + ", ".join(f"{k} {v:.2f}" for k, v in row.items()))

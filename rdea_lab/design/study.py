@@ -26,6 +26,7 @@ import xarray as xr
 from .. import __version__
 from ..specs.errors import UserError
 from ..specs.specimen import Membrane, SpecimenCard, dump_specimen
+from ..specs.units import format_quantity, parse_quantity
 from ..specs.study import METRICS, MEMBRANE, Bound, Study
 from .cluster import Progress, connect
 from .evaluate import STATUS, Fixed, evaluate, evaluate_chunk, membrane, protocol_needed
@@ -246,14 +247,42 @@ def optimize(study: Study, unit: np.ndarray, metrics: dict, ok: np.ndarray, fixe
             "sweep_best": float(metrics[metric][best[0]]), "starts": [int(i) for i in best]}
 
 
-def card_of(study: Study, variables: dict) -> SpecimenCard:
-    """The specimen card of a design: its unwound membrane, ready to cut and roll."""
+#: what a lab can cut: lengths to 0.01 mm; a film's thickness to 0.1 um, rounded up (a thicker film is
+#: the safe side of a field limit)
+LENGTH_STEP, THICKNESS_STEP = 1e-5, 1e-7
+
+
+def manufacturable(variables: dict) -> dict:
+    """The design's variables with its membrane dimensions rounded to what a lab can cut."""
+    out = dict(variables)
+    for k in MEMBRANE:
+        if k in out:
+            if k == "L3":
+                out[k] = math.ceil(out[k] / THICKNESS_STEP - 1e-9) * THICKNESS_STEP
+            else:
+                out[k] = round(out[k] / LENGTH_STEP) * LENGTH_STEP
+    return out
+
+
+def card_of(study: Study, variables: dict, metrics: dict | None = None) -> SpecimenCard:
+    """The specimen card of a design: its unwound membrane, ready to cut and roll (`manufacturable`), with the
+    bias and the operating point it was designed for in its description."""
     mem = membrane(study, {k: np.array([v]) for k, v in variables.items()})
     dims = {k: float(mem[k][0]) for k in ("L1", "L2", "L3", "L1e", "Lp1", "L2e")}
+    # the derived ones too (L1e = L1 - ends, ...), as the decimal a card file says ("59.98 mm")
+    dims = {k: parse_quantity(f"{v * 1e6:.1f} um" if k == "L3" else f"{v * 1e3:.2f} mm", "length",
+                              source="<design>", field=k) for k, v in dims.items()}
     dims["Ri"] = float(mem["Ri"][0])
-    label = ", ".join(f"{k} {v:.6g}" for k, v in variables.items())
-    return SpecimenCard(id=f"{study.name}-optimum", kind="roll", membrane=Membrane(**dims),
-                        description=f"design study {study.name}: best design ({label}, SI)",
+    bias = study.bias
+    text = f"design study {study.name}: best design at {format_quantity(study.voltage, 'kV')}"
+    if metrics is not None and bias.kind == "spring":
+        text += (f" against a {format_quantity(float(np.mean(variables.get('stiffness', bias.stiffness))), 'N/m', 4)}"
+                 f" spring preloaded with {format_quantity(metrics['preload'], 'N', 4)} at the rest length"
+                 f" (rest stretch {metrics['rest_stretch']:.4g}, stroke {format_quantity(metrics['stroke'], 'mm', 4)})")
+    elif metrics is not None and bias.kind == "mass":
+        text += (f" under a {format_quantity(metrics['bias_mass'], 'g', 4)} mass (rest stretch "
+                 f"{metrics['rest_stretch']:.4g}, stroke {format_quantity(metrics['stroke'], 'mm', 4)})")
+    return SpecimenCard(id=f"{study.name}-optimum", kind="roll", membrane=Membrane(**dims), description=text,
                         source=f"rdea-lab design {study.source}")
 
 
@@ -305,7 +334,14 @@ def run_study(study: Study, *, scheduler: str | None = None, workers: int | None
     t0 = time.perf_counter()
     opt = optimize(study, unit, metrics, ok, fixed, client)
     timings["optimize_s"] = time.perf_counter() - t0
-    card = card_of(study, opt["variables"]) if opt is not None else None
+    card = None
+    if opt is not None:  # the card as cut: its rounded dimensions evaluated again (what the lab will test)
+        cut = manufacturable(opt["variables"])
+        m = evaluate(fixed, {k: np.array([v]) for k, v in cut.items()})
+        opt["card_variables"] = cut
+        opt["card_metrics"] = {k: float(np.asarray(v)[0]) for k, v in m.items()}
+        opt["card_feasible"] = bool(feasible(study, m)[0])
+        card = card_of(study, cut, opt["card_metrics"])
     ds = dataset(study, unit, table, metrics, ok, front, sens, opt, card)
     return StudyResult(study, ds, opt, card, timings)
 
@@ -384,7 +420,8 @@ def dataset(study, unit, table, metrics, ok, front, sens, opt, card) -> xr.Datas
     })
     if opt is not None:
         ds.attrs["optimum"] = json.dumps({k: opt[k] for k in ("objective", "variables", "metrics", "start", "how",
-                                                              "evaluations", "sweep_best")})
+                                                              "evaluations", "sweep_best", "card_variables",
+                                                              "card_metrics", "card_feasible")})
         ds.attrs["optimum_card"] = dump_specimen(card)
     return ds
 
