@@ -13,7 +13,6 @@ what that moves in the other metrics.
 
 from __future__ import annotations
 
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -235,7 +234,8 @@ def test_designs_that_are_no_roll_get_status_and_nan(root):
 
 def test_a_bias_the_roll_cannot_meet_is_no_equilibrium(root, params, card):
     """A preload larger than the roll's force at the largest stretch searched: no equilibrium, NaN."""
-    study = make_study(root, {"preload": ["1 N", "500 N"]}, {"kind": "spring", "stiffness": "200 N/m", "preload": "1 N"})
+    study = make_study(root, {"preload": ["1 N", "500 N"]},
+                       {"kind": "spring", "stiffness": "200 N/m", "preload": "1 N"})
     geom, _ = roll_of(card, {})
     top = force(geom, params, MAX_STRETCH, 0.0)
     big = top + 200.0 * (MAX_STRETCH - 1.0) * card.membrane.L1 + 1.0  # the spring still pulls more at 2.5
