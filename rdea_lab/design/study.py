@@ -94,9 +94,13 @@ def evaluate_table(study: Study, table: dict, *, client=None, progress: bool = F
         from distributed import as_completed
 
         shared = client.scatter(fixed, broadcast=True, hash=False)
-        futures = [client.submit(evaluate_chunk, shared, np.arange(a, b), {k: v[a:b] for k, v in table.items()},
-                                 key=f"rdea-design-{label}-{a}-{b}-{dask.base.tokenize(study.text, a, b)}")
-                   for a, b in bounds]
+        # keys from the shared study's own (unique) key and the chunk's rows: no two studies on a shared
+        # scheduler can meet under one key
+        futures = []
+        for a, b in bounds:
+            rows = {k: v[a:b] for k, v in table.items()}
+            futures.append(client.submit(evaluate_chunk, shared, np.arange(a, b), rows,
+                                         key=f"rdea-design-{label}-{a}-{dask.base.tokenize(shared.key, rows)}"))
         with client.as_current():
             for _ in as_completed(futures):
                 bar.update()

@@ -131,9 +131,12 @@ def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *,
         geom = design_geometry(**{k: getattr(geom, k) for k in _GEOMETRY})
     stretch = np.asarray(stretch, float)
     voltage = np.asarray(voltage, float)
-    shape = np.broadcast_shapes((n, 1), stretch.shape if stretch.ndim else (1,), voltage.shape if voltage.ndim
-                                else (1,))
-    if len(shape) != 2 or shape[0] != n:
+    try:
+        shape = np.broadcast_shapes((n, 1), stretch.shape if stretch.ndim else (1,),
+                                    voltage.shape if voltage.ndim else (1,))
+    except ValueError:
+        shape = None
+    if shape is None or len(shape) != 2 or shape[0] != n:
         raise ValueError(f"solve_designs: stretch {stretch.shape} and voltage {voltage.shape} do not broadcast "
                          f"against {n} designs as (samples,) or ({n}, samples)")
     mat = Material.of(material)

@@ -148,9 +148,10 @@ def radii_from_membrane(L2, L3, Lp1, L2e, Ri=0.0, *, check=True):
         Ro = np.sqrt(2.0 * L3 * L_p2 / np.pi + Roe**2)
     out = {"Ri": Ri, "Rie": Rie, "Roe": Roe, "Ro": Ro, "theta_p1": theta_p1, "L_pa": L_pa, "L_fa": L_fa,
            "L_p2": L_p2}
+    out = {k: np.where(bad, np.nan, v) for k, v in out.items()}
     if bad.ndim == 0:
         return {k: float(v) for k, v in out.items()}
-    return {k: np.where(bad, np.nan, v) for k, v in out.items()}
+    return out
 
 
 @dataclass(frozen=True)

@@ -87,7 +87,8 @@ METRICS = {
     "bias_mass": ("kg", "g", "mass bias: its mass (a prestretch sets it)"),
     "peak_force": ("N", "N", "largest force over the protocol"),
     "force_range": ("N", "N", "largest minus smallest force over the protocol"),
-    "hysteresis": ("J", "mJ", "energy dissipated over the protocol, -integral of F dx"),
+    "hysteresis": ("J", "mJ", "net mechanical work done on the roll over the protocol, integral of F dx (the "
+                   "energy dissipated where it ends as it began and at 0 V)"),
     "peak_field": ("V/m", "V/um", "largest nominal field over the protocol"),
     "peak_capacitance": ("F", "nF", "largest capacitance over the protocol"),
     "limit_field": ("V/m", "V/um", "the protocol's field estimate |v| sqrt(stretch) / L3 at its worst sample "

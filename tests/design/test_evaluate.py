@@ -181,7 +181,7 @@ def test_protocol_metrics_equal_simulate(root, params, card):
     protocol = root / "protocols" / "tensile_ramp_sine_2.6kV.yaml"
     study = make_study(root, {"L1": ["20 mm", "60 mm"], "L3": ["30 um", "80 um"]},
                        {"kind": "spring", "stiffness": "200 N/m", "preload": "1 N"}, protocol=str(protocol))
-    table = {"L1": np.array([25e-3, 52e-3]), "L3": np.array([70e-6, 36e-6])}
+    table = {"L1": np.array([25e-3, 52e-3]), "L3": np.array([70e-6, 44e-6])}
     got = evaluate(Fixed.of(study), table)
     assert np.all(got["design_status"] == OK)
     plan = as_plan(protocol)
@@ -242,3 +242,17 @@ def test_a_bias_the_roll_cannot_meet_is_no_equilibrium(root, params, card):
     got = evaluate(Fixed.of(study), {"preload": np.array([1.0, big])})
     assert list(got["design_status"]) == [OK, NO_EQUILIBRIUM]
     assert np.isnan(got["stroke"][1]) and np.isfinite(got["stroke"][0])
+
+
+def test_a_design_past_the_protocols_field_limit_is_flagged(root, params, card):
+    """The protocol could not test a roll whose field estimate |v| sqrt(stretch) / L3 passes its max_field."""
+    protocol = root / "protocols" / "tensile_ramp_sine_2.6kV.yaml"
+    study = make_study(root, {"L3": ["30 um", "80 um"]},
+                       {"kind": "spring", "stiffness": "200 N/m", "preload": "1 N"}, protocol=str(protocol))
+    plan = as_plan(protocol)
+    worst = np.max(np.abs(plan.voltage) * np.sqrt(plan.stretch))  # by hand, per metre of film
+    L3 = np.array([0.95, 1.05]) * worst / plan.limits.max_field  # just past, just within the limit
+    got = evaluate(Fixed.of(study), {"L3": L3})
+    assert list(got["design_status"]) == [5, OK]
+    assert np.isnan(got["stroke"][0]) and np.isfinite(got["stroke"][1])
+    assert got["limit_field"][1] == pytest.approx(worst / L3[1], rel=1e-12)

@@ -104,9 +104,6 @@ def test_radii_from_membrane_check_raises_for_an_impossible_entry():
     assert np.isfinite(r["Ro"][0]) and np.isnan(r["Ro"][1]) and np.isnan(r["Rie"][1])
 
 
-@pytest.mark.xfail(strict=True, reason="geometry.py:151-152: a scalar call with check=False returns the raw "
-                   "radii (out of order: Ro < Roe, or Roe < Rie) for a membrane that rolls into no roll, "
-                   "not the NaN the docstring promises and an array call gives")
 @pytest.mark.parametrize("L2, L2e", [(50e-3, 76e-3), (99e-3, 1e-3)])  # Lp1 + L2e > L2; L2e < first turn
 def test_radii_from_membrane_scalar_check_false_gives_nan(L2, L2e):
     as_array = radii_from_membrane(np.array([L2]), 48e-6, 10e-3, L2e, check=False)
@@ -296,9 +293,6 @@ def test_solve_designs_refuses_what_it_cannot_map():
         solve_designs("su", geom, TABLE3, np.full((2, 3, 4), 1.1), [1e3])  # 3-D: the function's own message
 
 
-@pytest.mark.xfail(strict=True, reason="designs.py:134: np.broadcast_shapes raises numpy's own 'shape mismatch' "
-                   "ValueError for a (2, samples) history of 3 designs, before the function's message "
-                   "'do not broadcast against 3 designs as (samples,) or (3, samples)' (lines 136-137) can")
 def test_solve_designs_names_a_history_of_the_wrong_number_of_designs():
     geom, _ = random_rolls(np.random.default_rng(3), 3)
     with pytest.raises(ValueError, match=r"do not broadcast against 3 designs"):
