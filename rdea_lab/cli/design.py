@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import click
 
@@ -47,6 +48,12 @@ def design(study_path, out, scheduler, workers, synchronous, backend, overwrite,
     if backend and (study.optimize is None or study.protocol is None):
         die(f"--run: needs a study with optimize and protocol; {study_path} has "
             f"{'no optimize' if study.optimize is None else 'no protocol'}")
+    fixed_only = sorted(set(study.names) & {"C10", "C20", "C30", "eps_r", "voltage"})
+    if backend and fixed_only:
+        die(f"--run: the card holds the membrane only; {study_path} varies {', '.join(fixed_only)}, which a run "
+            "of the card would not see (run it yourself with the optimum's values from summary.json)")
+    if workers and scheduler is None and os.environ.get("DASK_SCHEDULER_ADDRESS"):
+        die("--workers: for a local cluster, but DASK_SCHEDULER_ADDRESS names a scheduler; unset it or drop --workers")
     out = out or f"designs/{study.name}"
     api.check_study_out(out, overwrite)
     result = api.run_study(study, scheduler=scheduler, workers=workers, synchronous=synchronous,

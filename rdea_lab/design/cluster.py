@@ -53,11 +53,7 @@ def connect(address: str | None = None, *, workers: int | None = None, quiet: bo
     address = scheduler_address(address)
     if address is not None:
         t0 = time.monotonic()
-        try:
-            client = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
-        except (OSError, TimeoutError) as exc:
-            raise SchedulerError(f"scheduler {address}: no answer within {CONNECT_TIMEOUT:g} s "
-                                 f"({type(exc).__name__}); is it running and reachable?") from None
+        client = _client(Client, address)
         with client:
             if not quiet:
                 n = len(client.scheduler_info().get("workers", {}))
@@ -72,6 +68,44 @@ def connect(address: str | None = None, *, workers: int | None = None, quiet: bo
         if not quiet:
             _say(f"dask: local cluster, {n} worker{'s' if n > 1 else ''}, dashboard {client.dashboard_link}")
         yield client
+
+
+def _client(Client, address):
+    """A client to ``address`` within a hard deadline: something that accepts the connection but is no
+    scheduler (a web server, the dashboard's port) can stall dask's handshake past its own timeout, and a
+    stranger's reply can make it fail in any way; each is the user's address, not our bug."""
+    import threading
+
+    box = {}
+
+    def attempt():
+        try:
+            box["client"] = Client(address, timeout=CONNECT_TIMEOUT, set_as_default=False)
+        except BaseException as exc:  # noqa: BLE001 (reported below, in one line)
+            box["error"] = exc
+
+    thread = threading.Thread(target=attempt, name="rdea-dask-connect", daemon=True)
+    thread.start()
+    thread.join(CONNECT_TIMEOUT + 2.0)
+    if thread.is_alive() or "client" not in box:
+        exc = box.get("error")
+        _quiet_half_open_clients()
+        why = "no reply" if exc is None else type(exc).__name__
+        raise SchedulerError(f"scheduler {address}: no answer within {CONNECT_TIMEOUT:g} s ({why}); is a dask "
+                             "scheduler running there and reachable (its port, not the dashboard's)?")
+    return box["client"]
+
+
+def _quiet_half_open_clients() -> None:
+    """A client whose handshake failed tries to close itself when collected and reports its own timeout as
+    an unraisable exception (a traceback after our one line): that one is dropped, any other shown."""
+    previous = sys.unraisablehook
+
+    def hook(unraisable):
+        if getattr(getattr(unraisable, "object", None), "__qualname__", "") != "Client.__del__":
+            previous(unraisable)
+
+    sys.unraisablehook = hook
 
 
 def _say(text: str) -> None:

@@ -166,26 +166,22 @@ def evaluate(fixed: Fixed, table: dict, factors=None, *, protocol: bool = True) 
         # (n,) or (n, k) stretches; the bias's parameters are (n,): broadcast over the last axis
         return np.broadcast_to(bias.force(np.asarray(stretch).T, L1).T, np.shape(stretch))
 
-    def excess(stretch, voltage):
-        # the roll's pull at the equilibrium's tension (negative where it would be slack) minus the bias's:
-        # strictly rising in stretch, so a root has no flat stretch of slack around it
-        res = solve_designs(study.model, geom, mat, stretch[:, None], voltage[:, None])
-        return res.tension[:, 0] * geom.area / stretch - bias_force(stretch)
-
-    def equilibrium(voltage):
-        lam, reach = _root(lambda x, idx: excess_at(x, voltage, idx), n)
-        res = solve_designs(study.model, geom, mat, lam[:, None], voltage[:, None])
-        return lam, reach, res
-
-    def excess_at(stretch, voltage, idx):
-        if idx is None:
-            return excess(stretch, voltage)
-        sub = _subset(geom, mat, idx)
-        res = solve_designs(study.model, sub[0], sub[1], stretch[:, None], voltage[idx, None])
-        return res.tension[:, 0] * sub[0].area / stretch - bias_force_at(stretch, idx)
+    def excess(stretch, voltage, idx=None):
+        # the roll's pull at the equilibrium at this stretch (negative where it would be slack: slack=False)
+        # minus the bias's; (n,) or (n, k) stretches, or the designs idx
+        g, m, v = (geom, mat, voltage) if idx is None else (*_subset(geom, mat, idx), voltage[idx])
+        x = np.asarray(stretch, float)
+        res = solve_designs(study.model, g, m, x if x.ndim == 2 else x[:, None], v[:, None], slack=False)
+        pull = res.force if x.ndim == 2 else res.force[:, 0]
+        return pull - (bias_force(x) if idx is None else bias_force_at(x, idx))
 
     def bias_force_at(stretch, idx):
         return np.asarray(_take_bias(bias, idx).force(stretch, L1[idx]), float) * np.ones_like(stretch)
+
+    def equilibrium(voltage):
+        lam, reach = _first_root(lambda x, idx=None: excess(x, voltage, idx), n)
+        res = solve_designs(study.model, geom, mat, lam[:, None], voltage[:, None])
+        return lam, reach, res
 
     zero = np.zeros(n)
     lam0, reach0, res0 = equilibrium(zero)
@@ -205,7 +201,7 @@ def evaluate(fixed: Fixed, table: dict, factors=None, *, protocol: bool = True) 
     out = {
         "stroke": (lam1 - lam0) * L1, "strain": lam1 / lam0 - 1.0,
         "blocking_force": res_b.force[:, 0] - res_b.force[:, 1], "work": work, "energy_density": work / volume,
-        "field": volt * lam1 * res1.lambda2b[:, 0] / L3,
+        "field": nominal_field(volt, res1.free_stretch[:, 0], res1.lambda2b[:, 0], L3),
         "stress": np.maximum(res0.sigma1[:, 0], res1.sigma1[:, 0]), "rest_stretch": lam0, "on_stretch": lam1,
         "rest_force": bias_force(lam0), "capacitance": res0.capacitance[:, 0], "outer_radius": geom.Ro,
         "volume": volume,
@@ -227,18 +223,36 @@ def evaluate(fixed: Fixed, table: dict, factors=None, *, protocol: bool = True) 
     return out
 
 
-def _root(excess, n, lo=1.0, hi=MAX_STRETCH, rtol=1e-15, max_iter=100):
-    """The stretch in ``[lo, hi]`` where ``excess(stretch, idx)`` (rising) changes sign, every design at
-    once: the Illinois variant of regula falsi on the active designs (the bracket's ends kept), bisection
-    where the secant leaves the bracket or the excess is NaN. Returns ``(stretch, reached)``; ``reached``
-    False where the excess is still negative at ``hi`` (no equilibrium up to it)."""
-    a, b = np.full(n, lo), np.full(n, hi)
-    fa, fb = excess(a, None), excess(b, None)
-    reached = fb > 0
-    x = np.where(fa >= 0, a, b)  # already in equilibrium at lo (a roll with nothing pulling)
-    active = np.flatnonzero(reached & (fa < 0))
+#: stretches at which the equilibrium search first looks for the excess to turn positive
+SCAN = np.linspace(1.0, MAX_STRETCH, 31)
+
+
+def nominal_field(voltage, stretch, lambda2b, L3):
+    """The nominal field ``v lambda1 lambda2b / L3`` [V/m] across the active film (thickness
+    ``L3 / (lambda1 lambda2b)``); at a slack sample the roll's own (free) stretch, not the clamps'."""
+    return voltage * stretch * lambda2b / L3
+
+
+def _first_root(excess, n, rtol=1e-15, max_iter=100):
+    """The first stretch above 1 where ``excess`` (the roll's pull minus the bias's) turns from negative to
+    positive, every design at once: a scan on `SCAN` brackets it (a stable equilibrium: the excess rises
+    through it; a later one, past a snap, is not the one the roll reaches from rest), then the Illinois
+    variant of regula falsi refines it on the active designs, bisection where the secant leaves the bracket
+    or the excess is NaN. Returns ``(stretch, reached)``; ``reached`` False where no node of the scan has a
+    positive excess after a negative one (no equilibrium up to `MAX_STRETCH`)."""
+    e = excess(np.broadcast_to(SCAN, (n, SCAN.size)))
+    pos = e > 0
+    at_rest = e[:, 0] >= 0  # in equilibrium at stretch 1 (nothing pulls)
+    turn = ~pos[:, :-1] & pos[:, 1:]
+    reached = at_rest | turn.any(axis=1)
+    j = np.argmax(turn, axis=1)
+    a, b = SCAN[j].copy(), SCAN[j + 1].copy()
+    fa, fb = e[np.arange(n), j], e[np.arange(n), j + 1]
+    x = np.where(at_rest, 1.0, b)
+    active = np.flatnonzero(reached & ~at_rest)
+    fa = np.where(np.isfinite(fa), fa, -np.abs(fb))  # a node without an equilibrium: bisect from it
     side = np.zeros(n, np.int8)
-    scale = np.abs(fa) + np.abs(np.where(np.isfinite(fb), fb, 0.0))
+    scale = np.abs(fa) + np.abs(fb)
     iterations = 0
     for iterations in range(1, max_iter + 1):
         if active.size == 0:
@@ -249,8 +263,8 @@ def _root(excess, n, lo=1.0, hi=MAX_STRETCH, rtol=1e-15, max_iter=100):
         xn = np.where((xn > xa) & (xn < xb), xn, 0.5 * (xa + xb))
         yn = excess(xn, active)
         nan = ~np.isfinite(yn)
-        xn = np.where(nan, 0.5 * (xa + xb), xn)
         if nan.any():
+            xn = np.where(nan, 0.5 * (xa + xb), xn)
             yn = np.where(nan, excess(xn, active), yn)
             yn = np.where(np.isfinite(yn), yn, 1.0)  # no equilibrium there: search below
         neg = yn < 0
@@ -261,7 +275,7 @@ def _root(excess, n, lo=1.0, hi=MAX_STRETCH, rtol=1e-15, max_iter=100):
         x[active] = xn
         done = (np.abs(yn) <= 1e-14 * scale[active]) | (b[active] - a[active] <= rtol * b[active])
         active = active[~done]
-    _root.iterations = iterations
+    _first_root.iterations = iterations
     return x, reached
 
 
@@ -284,12 +298,12 @@ def _take_bias(bias, idx):
 def _protocol(study, history, geom, mat, L1, L3) -> dict:
     """Protocol metrics: the twin's force and capacitance over the protocol's history, every design."""
     t, stretch, voltage, _ = history
-    res = solve_designs(study.model, geom, mat, stretch, voltage)
+    res = solve_designs(study.model, geom, mat, stretch, voltage, path=True)  # the twin's path (1R: per design)
     col = RollGeometry(**{k: np.asarray(getattr(geom, k))[:, None] for k in ("Ri", "Rie", "Roe", "Ro", "L1",
                                                                                 "L1e", "L3")})
     _, _, force, _ = compose(col, viscous(study.params), t, stretch, res.tension)
     with np.errstate(invalid="ignore"):
-        field = voltage * stretch * res.lambda2b / L3[:, None]
+        field = nominal_field(voltage, res.free_stretch, res.lambda2b, L3[:, None])
     dx = np.diff(stretch) * L1[:, None]
     limits = history[3]
     estimate = np.max(field_estimate(voltage, stretch, L3[:, None]), axis=1)

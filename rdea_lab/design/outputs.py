@@ -70,6 +70,8 @@ def study_summary(result) -> dict:
                 out["optimum"][key] = o["metrics"][key]
         out["card"] = {"variables": o["card_variables"], "feasible": o["card_feasible"],
                        **{k: o["card_metrics"][k] for k in out["optimum"] if k in o["card_metrics"]}}
+    if "sobol_missing" in ds:
+        out["sobol_missing"] = {str(o): int(ds["sobol_missing"].sel(objective=o)) for o in ds["objective"].values}
     if "sobol_ST" in ds:
         out["sobol_ST"] = {str(o): {str(v): float(ds["sobol_ST"].sel(objective=o, variable=v))
                                     for v in ds["variable"].values} for o in ds["objective"].values}
@@ -99,6 +101,11 @@ def study_lines(result) -> list[str]:
             + ("" if c["feasible"] else " (NOT meeting the constraints once rounded)"))
     if "sobol_ST" in s:
         for obj, row in s["sobol_ST"].items():
+            missing = s.get("sobol_missing", {}).get(obj, 0)
+            if missing:
+                out.append(f"Sobol indices of {obj}: undefined, {missing} of the Saltelli designs have no value "
+                           "(no roll, no equilibrium or past the protocol's limits); narrow the ranges")
+                continue
             out.append(f"Sobol total index of {obj}: " + ", ".join(f"{k} {v:.2f}" for k, v in row.items()))
     return out
 

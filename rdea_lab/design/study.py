@@ -278,11 +278,13 @@ def card_of(study: Study, variables: dict, metrics: dict | None = None) -> Speci
                               source="<design>", field=k) for k, v in dims.items()}
     dims["Ri"] = float(mem["Ri"][0])
     bias = study.bias
-    text = f"design study {study.name}: best design at {format_quantity(study.voltage, 'kV')}"
+    text = (f"design study {study.name}: best design at "
+            f"{format_quantity(float(variables.get('voltage', study.voltage)), 'kV', 4)}")
     if metrics is not None and bias.kind == "spring":
-        text += (f" against a {format_quantity(float(np.mean(variables.get('stiffness', bias.stiffness))), 'N/m', 4)}"
-                 f" spring preloaded with {format_quantity(metrics['preload'], 'N', 4)} at the rest length"
-                 f" (rest stretch {metrics['rest_stretch']:.4g}, stroke {format_quantity(metrics['stroke'], 'mm', 4)})")
+        text += (f" against a {format_quantity(float(variables.get('stiffness', bias.stiffness)), 'N/m', 4)}"
+                 f" spring that pulls {format_quantity(metrics['rest_force'], 'N', 4)} at the rest stretch "
+                 f"{metrics['rest_stretch']:.4g} (its preload {format_quantity(metrics['preload'], 'N', 4)} at "
+                 f"stretch 1, the card's own length; stroke {format_quantity(metrics['stroke'], 'mm', 4)})")
     elif metrics is not None and bias.kind == "mass":
         text += (f" under a {format_quantity(metrics['bias_mass'], 'g', 4)} mass (rest stretch "
                  f"{metrics['rest_stretch']:.4g}, stroke {format_quantity(metrics['stroke'], 'mm', 4)})")
@@ -394,6 +396,10 @@ def dataset(study, unit, table, metrics, ok, front, sens, opt, card) -> xr.Datas
                                                         "flag_values": np.array([0, 1], np.int8),
                                                         "flag_meanings": "dominated front"})
     if "design_status_mc" in metrics:
+        data["design_status_mc"] = (("design", "mc"), metrics["design_status_mc"].astype(np.int8),
+                                    {"long_name": "design status of each Monte Carlo roll",
+                                     "flag_values": np.array(codes, np.int8),
+                                     "flag_meanings": " ".join(STATUS[c] for c in codes)})
         mc_ok = np.ones(metrics["design_status_mc"].shape, bool) & (metrics["design_status_mc"] == 0)
         for b in study.constraints:
             v = metrics[f"{b.metric}_mc"]
@@ -412,6 +418,9 @@ def dataset(study, unit, table, metrics, ok, front, sens, opt, card) -> xr.Datas
                                     np.stack([sens["indices"][g.metric][key] for g in study.objectives]),
                                     {"units": "1", "long_name": f"Sobol index {key} (SALib, Saltelli sampling, "
                                      f"{sens['designs']} designs)"})
+        data["sobol_missing"] = ("objective", np.array([sens["indices"][g.metric]["missing"] for g in study.objectives]),
+                                 {"long_name": "Saltelli designs without a value (no roll, no equilibrium, past the "
+                                  "protocol's limits): the indices are undefined (NaN) where this is not 0"})
     ds = xr.Dataset(data, coords=coords)
     ds.attrs.update({
         "Conventions": "CF-1.8", "title": f"rdea-lab design study {study.name}",

@@ -99,7 +99,7 @@ def _entry(geom: RollGeometry, i: int) -> RollGeometry:
     return RollGeometry(**{k: float(np.broadcast_to(getattr(geom, k), np.shape(geom.Ro))[i]) for k in _GEOMETRY})
 
 
-def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *, slack=True,
+def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *, slack=True, path=False,
                   kernel="auto") -> DesignResult:
     """Solve the quasi-static model for every roll of ``geom`` on the same (or its own) history.
 
@@ -115,6 +115,9 @@ def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *,
         Shape ``(samples,)`` (one history for every roll) or ``(n, samples)``.
     slack, kernel
         As `~rdea_lab.physics.models.solve`.
+    path : bool
+        Each row a time series continuing from the previous sample's state (`solve`'s ``path=True``):
+        one call per design (a path cannot run across designs); SU, which has no path, stays one call.
 
     Returns
     -------
@@ -157,7 +160,14 @@ def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *,
         sample_mat = SampleMaterial(*cols, eps_ref)
     else:
         sample_mat = Material(*(float(np.ravel(getattr(mat, k))[0]) for k in ("C10", "C20", "C30")), eps_ref)
-    res = solve(model, ref, sample_mat, l1, v_eff, slack=slack, kernel=kernel)
+    if path and model != "su":
+        rows = [solve(model, ref, sample_mat, l1r, vr, slack=slack, kernel=kernel, path=True)
+                for l1r, vr in zip(l1.reshape(shape), v_eff.reshape(shape))]
+        res = type(rows[0])(**{f: (np.concatenate([getattr(r, f) for r in rows])
+                                   if isinstance(getattr(rows[0], f), np.ndarray) else getattr(rows[0], f))
+                               for f in rows[0].__dataclass_fields__})
+    else:
+        res = solve(model, ref, sample_mat, l1, v_eff, slack=slack, kernel=kernel)
 
     def grid(a):
         return np.asarray(a, float).reshape(shape)

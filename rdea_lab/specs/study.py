@@ -32,6 +32,7 @@ beyond them.
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 from collections.abc import Mapping
@@ -305,6 +306,9 @@ def _bias(value, source, L1):
         if unknown:
             raise SpecError(source, f"bias.{sorted(unknown)[0]}", "unknown key; allowed: extension, force, units")
         units = _mapping(value.get("units", {}), source, "bias.units")
+        if set(units) - {"extension", "force"}:
+            raise SpecError(source, f"bias.units.{sorted(set(units) - {'extension', 'force'})[0]}",
+                            "unknown key; allowed: extension, force")
         cols = {}
         for key, dim in (("extension", "length"), ("force", "force")):
             raw = value.get(key)
@@ -320,6 +324,8 @@ def _bias(value, source, L1):
         if np.any(np.diff(cols["extension"]) <= 0):
             raise SpecError(source, "bias.extension", "must increase strictly")
         return CurveBias(cols["extension"], cols["force"])
+    if value.get("kind") not in (*BIAS_KINDS, "curve"):
+        raise SpecError(source, "bias.kind", f"{show(value.get('kind'))}; allowed: {', '.join(BIAS_KINDS)}, curve")
     try:
         return bias_from_mapping(value, "bias")
     except SpecError as err:
@@ -445,12 +451,47 @@ def study_from_mapping(mapping: Any, source: str = "<mapping>", folder: str | os
         opt = {"objective": metric, "starts": _int(opt.get("starts", 4), source, "optimize.starts", 1, 64),
                "max_iter": _int(opt.get("max_iter", 25), source, "optimize.max_iter", 1, 10000)}
     chunk = _int(data.get("chunk", 256), source, "chunk", 1, 10**6)
-    return Study(name=name, source=source, model=model, params=params, specimen=card, variables=var,
+    if method != "grid":
+        for v in var:
+            if isinstance(variables[v.name], Mapping) and "levels" in variables[v.name]:
+                raise SpecError(source, f"variables.{v.name}.levels", f"a grid's; sampling is {method} (n designs)")
+    _check_material(var, params, source)
+    study = Study(name=name, source=source, model=model, params=params, specimen=card, variables=var,
                  method=method, n=n, seed=seed, voltage=voltage, bias=bias, objectives=goals, constraints=bounds,
                  description=data.get("description"), radii_tolerance=radii_tol, mc_samples=mc if radii_tol else 0,
                  mc_seed=mc_seed, sensitivity_n=sens_n, sensitivity_seed=_int(sens.get("seed", 0), source,
                                                                               "sensitivity.seed", 0, 2**32 - 1),
                  optimize=opt, protocol=protocol, protocol_path=protocol_path, chunk=chunk, density=density)
+    for what, metric in [(f"objectives[{i}]", g.metric) for i, g in enumerate(goals)] \
+            + [(f"constraints.{b.metric}", b.metric) for b in bounds]:
+        if metric not in study.metrics:
+            need = {"preload": "a spring bias", "bias_mass": "a mass bias"}.get(metric, "what this study lacks")
+            raise SpecError(source, what, f"{metric}: only with {need}")
+        if kind == "none" and metric in ("blocking_force", "rest_force"):
+            raise SpecError(source, what, f"{metric}: with no bias the roll rests at its own length, where it "
+                            "carries no force; give a bias")
+    return study
+
+
+#: largest I1 - 3 the equilibrium search reaches (stretch 2.5 in uniaxial tension)
+_X_MAX = 2.5**2 + 2.0 / 2.5 - 3.0
+
+
+def _check_material(var, params, source) -> None:
+    """Yeoh coefficients as variables must give a rising energy (W' > 0) everywhere in their box: W' is
+    linear in the coefficients, so the box's corners decide it (as `load_params` checks one set)."""
+    ranges = {v.name: (v.low, v.high) for v in var if v.name in ("C10", "C20", "C30")}
+    if not ranges:
+        return
+    x = np.linspace(0.0, _X_MAX, 200)
+    for corner in itertools.product(*[ranges.get(k, (getattr(params, k),) * 2) for k in ("C10", "C20", "C30")]):
+        c10, c20, c30 = corner
+        slope = c10 + 2.0 * c20 * x + 3.0 * c30 * x**2
+        if np.min(slope) <= 0:
+            name = sorted(ranges)[0]
+            raise SpecError(source, f"variables.{name}", f"at C10, C20, C30 = {c10:g}, {c20:g}, {c30:g} Pa the Yeoh "
+                            f"slope W' turns non-positive (at I1 - 3 = {x[np.argmin(slope)]:.3g}): no physical "
+                            "material; narrow the ranges")
 
 
 def load_study(path: str | os.PathLike) -> Study:
