@@ -62,7 +62,15 @@ def connect(address: str | None = None, *, workers: int | None = None, quiet: bo
             yield client
         return
     n = workers or os.cpu_count() or 1
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+    # dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, so glibc hands every freed buffer back to
+    # the system: a task's tens of MB of numpy temporaries then fault in again page by page, and more than
+    # half a worker's CPU went to the kernel (benchmarks/bench_design.py: 1e4 designs 34 s on 2 workers with
+    # it, 13-14 s without). Our workers keep glibc's own threshold.
+    import dask
+
+    spawn = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
+    spawn.pop("MALLOC_TRIM_THRESHOLD_", None)
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": spawn}), LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                       dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR) as cluster, \
             Client(cluster, set_as_default=False) as client:
         if not quiet:
