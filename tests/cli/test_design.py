@@ -1,9 +1,6 @@
 """``rdea-lab design``: a small study end to end; bad study files and an absent scheduler exit 2 with one line."""
 
 import json
-import os
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -35,19 +32,14 @@ chunk: 8
 """
 
 
-def cli(*args, cwd=None, env=None):
-    base = {k: v for k, v in os.environ.items() if k != "DASK_SCHEDULER_ADDRESS"}  # the test says which
-    env = {**base, "PYTHONPATH": str(ROOT), **(env or {})}
-    return subprocess.run([sys.executable, "-m", "rdea_lab.cli.main", *args], capture_output=True, text=True,
-                          cwd=cwd, env=env, timeout=300)
-
-
 def test_small_study_writes_its_outputs_and_a_card_the_run_command_reads(tmp_path, capsys):
     (tmp_path / "s.yaml").write_text(GOOD)
     out = tmp_path / "out"
-    r = cli("design", str(tmp_path / "s.yaml"), "--out", str(out), "--synchronous", "--json", "--quiet")
-    assert r.returncode == 0, r.stderr
-    summary = json.loads(r.stdout)
+    code = run_cli(group, ["design", str(tmp_path / "s.yaml"), "--out", str(out), "--synchronous", "--json",
+                           "--quiet"])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    summary = json.loads(captured.out)
     for name in ("study.nc", "pareto.csv", "card.yaml", "summary.json", "pareto.png", "parallel.png",
                  "stroke_map.png"):
         assert (out / name).is_file(), name

@@ -210,6 +210,7 @@ def test_constraints_nothing_meets_raise_study_error(root, tmp_path):
     assert str(path) in str(info.value) and "outer_radius spans" in str(info.value)
 
 
+@pytest.mark.slow  # the CLI tests (tests/cli/test_design.py) check the same path with its exit status
 def test_unreachable_scheduler_raises_scheduler_error_quickly(root, tmp_path):
     study = load_study(write_study(tmp_path, study_mapping(root)))
     t0 = time.monotonic()
