@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import json
-import os
 
 import click
 
 from .. import api
-from .errors import EXIT_HELP, die
+from .errors import EXIT_HELP
 
 
 @click.command("design", epilog=EXIT_HELP)
@@ -40,20 +39,9 @@ def design(study_path, out, scheduler, workers, synchronous, backend, overwrite,
       rdea-lab design studies/stroke_spring.yaml --out designs/stroke_spring --run emulator
       rdea-lab design STUDY.yaml --scheduler tcp://10.0.0.5:8786
     """
-    if synchronous and (scheduler or workers):
-        die("--synchronous: runs in this process; leave out --scheduler and --workers")
-    if scheduler and workers:
-        die("--workers: for the local cluster; a scheduler given by --scheduler has its own workers")
     study = api.load_study(study_path)
-    if backend and (study.optimize is None or study.protocol is None):
-        die(f"--run: needs a study with optimize and protocol; {study_path} has "
-            f"{'no optimize' if study.optimize is None else 'no protocol'}")
-    fixed_only = sorted(set(study.names) & {"C10", "C20", "C30", "eps_r", "voltage"})
-    if backend and fixed_only:
-        die(f"--run: the card holds the membrane only; {study_path} varies {', '.join(fixed_only)}, which a run "
-            "of the card would not see (run it yourself with the optimum's values from summary.json)")
-    if workers and scheduler is None and os.environ.get("DASK_SCHEDULER_ADDRESS"):
-        die("--workers: for a local cluster, but DASK_SCHEDULER_ADDRESS names a scheduler; unset it or drop --workers")
+    if backend:
+        api.check_card_run(study)  # before hours of work, not after
     out = out or f"designs/{study.name}"
     api.check_study_out(out, overwrite)
     result = api.run_study(study, scheduler=scheduler, workers=workers, synchronous=synchronous,
@@ -63,16 +51,10 @@ def design(study_path, out, scheduler, workers, synchronous, backend, overwrite,
     summary["outputs"] = paths
     text = api.study_lines(result)
     if backend:
-        run_out = f"{out}/{backend}.nc"
-        twin = {"params": study.params, "model": study.model} if backend == "twin" else {}
-        ds = api.run_protocol(study.protocol_path, paths["card.yaml"], backend, out=run_out, overwrite=overwrite,
-                              metadata={"study": study.name}, command="rdea-lab design", **twin)
-        peak = float(ds["force"].max())
-        predicted = result.optimum["card_metrics"].get("peak_force", float("nan"))
-        summary["run"] = {"backend": backend, "dataset": run_out, "peak_force": peak,
-                          "predicted_peak_force": predicted}
-        text.append(f"{backend} run of card.yaml: {run_out}, peak force {peak:.4g} N (the study's twin "
-                    f"for the card {predicted:.4g} N, {peak / predicted - 1:+.1%})")
+        summary["run"] = run = api.run_card(result, paths["card.yaml"], backend, f"{out}/{backend}.nc", overwrite)
+        text.append(f"{backend} run of card.yaml: {run['dataset']}, peak force {run['peak_force']:.4g} N (the "
+                    f"study's twin for the card {run['predicted_peak_force']:.4g} N, "
+                    f"{run['peak_force'] / run['predicted_peak_force'] - 1:+.1%})")
     if as_json:
         click.echo(json.dumps(summary, indent=2, default=float))
     else:

@@ -50,7 +50,11 @@ def connect(address: str | None = None, *, workers: int | None = None, quiet: bo
     for name in ("distributed", "distributed.worker", "distributed.scheduler", "distributed.nanny",
                  "bokeh", "tornado"):
         logging.getLogger(name).setLevel(logging.ERROR)
+    given = address
     address = scheduler_address(address)
+    if address is not None and workers:
+        raise SchedulerError(f"workers: for a local cluster; the scheduler "
+                             f"{'given' if given else 'of DASK_SCHEDULER_ADDRESS'} ({address}) has its own workers")
     if address is not None:
         t0 = time.monotonic()
         client = _client(Client, address)

@@ -20,6 +20,7 @@ from ..specs.specimen import dump_specimen
 from ..specs.study import METRICS
 from ..specs.units import format_quantity
 from ..store.outputs import check_writable
+from .study import _si
 
 FILES = ("study.nc", "pareto.csv", "sobol.csv", "card.yaml", "summary.json", "pareto.png", "parallel.png",
          "stroke_map.png")
@@ -177,6 +178,30 @@ def _sobol(ds):
     return pd.DataFrame(rows)
 
 
-def _si(name):
-    from .study import _si as si
-    return si(name)
+def check_card_run(study) -> None:
+    """Refuse (`StudyError`, exit 2) a run of the best design's card that the study cannot give: it needs
+    ``optimize`` and ``protocol``, and the card holds the membrane only, so no material or voltage variable."""
+    from .study import StudyError
+
+    if study.optimize is None or study.protocol is None:
+        raise StudyError(f"{study.source}: a run of the card needs a study with optimize and protocol; it has "
+                         f"{'no optimize' if study.optimize is None else 'no protocol'}")
+    varied = sorted(set(study.names) & {"C10", "C20", "C30", "eps_r", "voltage"})
+    if varied:
+        raise StudyError(f"{study.source}: variables: a run of the card would not see {', '.join(varied)} (the card "
+                         "holds the membrane only); run it yourself with the optimum's values from summary.json")
+
+
+def run_card(result, card_path, backend: str, out, overwrite: bool = False) -> dict:
+    """Run the study's protocol on the best design's card (``emulator`` or ``twin``); the run's peak force and
+    the study's prediction of it for the card."""
+    from ..runs.app import run_protocol
+
+    study = result.study
+    check_card_run(study)
+    twin = {"params": study.params, "model": study.model} if backend == "twin" else {}
+    ds = run_protocol(study.protocol_path, card_path, backend, out=out, overwrite=overwrite,
+                      metadata={"study": study.name}, command="rdea-lab design", **twin)
+    return {"backend": backend, "dataset": str(out), "peak_force": float(ds["force"].max()),
+            "predicted_peak_force": result.optimum["card_metrics"].get("peak_force", float("nan"))}
+

@@ -18,6 +18,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -320,6 +321,8 @@ def run_study(study: Study, *, scheduler: str | None = None, workers: int | None
     import time
 
     timings = {}
+    if synchronous and (scheduler or workers or client is not None):
+        raise StudyError("synchronous: runs every task in this process; give no scheduler, workers or client")
     if client is None and not synchronous:
         with connect(scheduler, workers=workers, quiet=quiet) as c:
             return run_study(study, client=c, progress=progress, quiet=quiet)
@@ -377,7 +380,8 @@ def dataset(study, unit, table, metrics, ok, front, sens, opt, card) -> xr.Datas
         if f"{k}_mc" in metrics:
             mc = metrics[f"{k}_mc"]
             data[f"{k}_mc"] = (("design", "mc"), mc, {"units": si, "long_name": f"{text}: Monte Carlo samples"})
-            with np.errstate(invalid="ignore"), _quiet():
+            with np.errstate(invalid="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # a design whose rolls are all NaN
                 data[f"{k}_mean"] = ("design", np.nanmean(mc, axis=1), {"units": si, "long_name": f"{text}: mean"})
                 data[f"{k}_std"] = ("design", np.nanstd(mc, axis=1, ddof=1), {"units": si,
                                                                               "long_name": f"{text}: std"})
@@ -439,17 +443,6 @@ def dataset(study, unit, table, metrics, ok, front, sens, opt, card) -> xr.Datas
     return ds
 
 
-class _quiet:
-    def __enter__(self):
-        import warnings
-        self._w = warnings.catch_warnings()
-        self._w.__enter__()
-        warnings.simplefilter("ignore", RuntimeWarning)
-
-    def __exit__(self, *exc):
-        self._w.__exit__(*exc)
-
-
 def _si(name: str) -> str:
     from ..specs.study import VARIABLES
     from ..specs.units import _DIMENSIONS
@@ -457,4 +450,4 @@ def _si(name: str) -> str:
 
 
 __all__ = ["StudyError", "StudyResult", "card_of", "evaluate_table", "feasible", "optimize", "pareto", "run_study",
-           "sample", "sensitivity", "table_of", "MEMBRANE"]
+           "sample", "sensitivity", "table_of"]

@@ -47,7 +47,7 @@ from .params import load_params
 from .protocol import load_protocol
 from .specimen import load_specimen
 from .target import BIAS_KINDS, bias_from_mapping
-from .units import format_quantity, parse_quantity
+from .units import _dimension_of, format_quantity, parse_quantity
 
 #: variable -> (dimension, display unit, lower bound it must stay above (SI), upper sanity bound (SI))
 VARIABLES = {
@@ -274,18 +274,13 @@ def _bound(metric, value, source) -> Bound:
     if unknown or not value:
         raise SpecError(source, where, f"{show(value)}; give {{min: ...}}, {{max: ...}} or both, with units")
     si, _, _ = METRICS[metric]
-    dim = _DIMENSION_OF_UNIT[si]
+    dim = _dimension_of(si)
     ex = METRICS[metric][1] or None
     sides = {k: parse_quantity(v, dim, source=source, field=f"{where}.{k}", example_unit=ex) for k, v in value.items()}
     low, high = sides.get("min", -math.inf), sides.get("max", math.inf)
     if low >= high:
         raise SpecError(source, where, f"min {low:g} >= max {high:g}: no value meets it")
     return Bound(metric, low, high)
-
-
-_DIMENSION_OF_UNIT = {"m": "length", "1": "dimensionless", "N": "force", "J": "energy", "J/m^3": "pressure",
-                      "J/kg": "specific_energy", "V/m": "electric_field", "Pa": "pressure", "F": "capacitance",
-                      "m^3": "volume", "kg": "mass"}
 
 
 def _resolve(folder: Path, rel, source, key, loader):
