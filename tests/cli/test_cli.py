@@ -281,8 +281,8 @@ def test_help_has_example(command):
     assert "Example" in proc.stdout
 
 
+@pytest.mark.slow  # 35 s here even at these sizes (the calibration and path benches keep their own sizes)
 def test_bench_json():
-    # a few seconds with these sizes, so not marked slow
     out = ok_json("bench", "--samples", 1000, "--baseline-samples", 10, "--repeat", 1, "--no-vhb", "--steps", 200,
                   "--no-compile-probe", "--json")
     assert set(out["samples_per_s"]) >= {"su", "1r", "3r", "cr"}
