@@ -81,9 +81,9 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-SPECIMEN = ROOT / "specimens" / "specimen2.yaml"
-PARAMS = ROOT / "params" / "paper2021_table3.yaml"
-PROTOCOL = ROOT / "protocols" / "tensile_ramp_sine_2.6kV.yaml"
+SPECIMEN = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
+PARAMS = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
+PROTOCOL = ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_2.6kV.yaml"
 AIM_SECONDS, AIM_DESIGNS, AIM_SPEEDUP = 30.0, 10_000, 1.8
 #: glibc reads MALLOC_TRIM_THRESHOLD_ at start-up: this process's, before dask's nanny sets it in os.environ
 _MALLOC_AT_START = os.environ.get("MALLOC_TRIM_THRESHOLD_")

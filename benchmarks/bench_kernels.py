@@ -113,8 +113,8 @@ def step_latency(steps=20_000) -> dict:
     from rdea_lab.specs import load_params
     from rdea_lab.twin import TwinStep, TwinStream
 
-    params = load_params(ROOT / "params" / "paper2021_table3.yaml")
-    card = ROOT / "specimens" / "specimen2.yaml"
+    params = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
+    card = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
     out = {}
     for model in ("su", "3r"):
         t, lam, v = tensile_10khz(steps + min(1000, steps))
@@ -153,8 +153,8 @@ print(time.perf_counter() - t1)
 
 def compile_seconds() -> dict:
     """Seconds from the first call to the first results of every kernel: cold (empty cache) and warm."""
-    code = _PROBE.format(params=str(ROOT / "params" / "paper2021_table3.yaml"),
-                         card=str(ROOT / "specimens" / "specimen2.yaml"))
+    code = _PROBE.format(params=str(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"),
+                         card=str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"))
     out = {}
     with tempfile.TemporaryDirectory() as cache:
         for label in ("cold", "warm"):  # the second run finds the first one's cache

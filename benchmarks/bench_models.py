@@ -35,7 +35,7 @@ from rdea_lab.physics.models import solve
 from rdea_lab.specs import load_params, load_specimen
 
 import bench_kernels
-from baseline_3r_fsolve import solve_3r_fsolve
+from rdea_lab.reports.baseline_3r_fsolve import solve_3r_fsolve
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ("su", "1r", "3r", "cr")
@@ -83,10 +83,10 @@ def run(samples=100_000, baseline_samples=1000, repeat=5, vhb=True, steps=20_000
         rate[model], *spread[model] = _rate(samples, _times(lambda: solve(model, hollow, RIZZELLO, l1, v), repeat))
 
     scenes = {}
-    table3 = load_params(ROOT / "params" / "paper2021_table3.yaml")
+    table3 = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
     pl1, pv = _envelope(samples, 1.5, 2600.0, seed=1)
     for i in (1, 2, 3):
-        geom = geometry_from_card(load_specimen(ROOT / "specimens" / f"specimen{i}.yaml"))
+        geom = geometry_from_card(load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / f"specimen{i}.yaml"))
         scenes[f"specimen-{i}"] = {m: _rate(samples, _times(lambda: solve(m, geom, table3, pl1, pv), repeat))[0]
                                    for m in MODELS}
     for name in ("active-core", "passive-core"):
@@ -144,13 +144,13 @@ def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
     from rdea_lab.protocols import load_plan
     from rdea_lab.specs.truth import load_truth
 
-    card = load_specimen(ROOT / "specimens" / "specimen2.yaml")
-    truth = load_truth(ROOT / "truth" / "paper2021.yaml")
+    card = load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
+    truth = load_truth(ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml")
     with tempfile.TemporaryDirectory() as tmp, _emulator(card, truth, realtime=False) as address:
         paths = []
         for name in ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV"):
             out = Path(tmp) / f"{name}.nc"
-            execute(load_plan(ROOT / "protocols" / f"{name}.yaml"), card, RigBackend(address, card), out)
+            execute(load_plan(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml"), card, RigBackend(address, card), out)
             paths.append(out)
         runs = [load_run(p) for p in paths]
     start = initial_guess(runs, 1, 2.8)
@@ -180,7 +180,7 @@ def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
         with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(io.StringIO()):  # the import's lines
             rc = run_cli(cli, ["import", *map(str, sorted(vhb.glob("*.csv"))), "--format", "csv", "--map",
                                "time=0,position=1,force=2", "--protocol-kind", "tensile", "--specimen",
-                               str(ROOT / "specimens" / "vhb4910_strip.yaml"), "--out", tmp])
+                               str(ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"), "--out", tmp])
             if rc == 0:
                 kw = dict(model="su", law="finite_strain", branches=2, max_time=900)
                 _, out["vhb5_finite_strain_M2_least_squares"] = timed(

@@ -43,8 +43,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def loop(seconds=5.0, model="su", rate=10_000.0, gain=(2e3, 2e5)) -> dict:
-    params = load_params(ROOT / "params" / "paper2021_table3.yaml")
-    card = ROOT / "specimens" / "specimen2.yaml"
+    params = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
+    card = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
     n = int(seconds * rate)
     dt = 1.0 / rate
     t = np.arange(n) * dt

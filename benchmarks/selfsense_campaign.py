@@ -30,8 +30,8 @@ from rdea_lab.emulator.roll import TrueRoll  # noqa: E402
 from rdea_lab.physics.geometry import geometry_from_card  # noqa: E402
 from rdea_lab.reports.selfsense import selfsense_run  # noqa: E402
 
-PARAMS = ROOT / "params" / "paper2021_table3.yaml"
-TRUTH = ROOT / "truth" / "paper2021.yaml"
+PARAMS = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
+TRUTH = ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml"
 
 
 def breakdown(run, result):
@@ -56,12 +56,12 @@ def breakdown(run, result):
 def main(folder: Path):
     rows = []
     for s in (1, 2, 3):
-        card = ROOT / "specimens" / f"specimen{s}.yaml"
+        card = ROOT / "rdea_lab" / "data" / "specimens" / f"specimen{s}.yaml"
         runs = {}
         for name in ("selfsense_2.6kV", "selfsense_0V"):
             out = folder / f"specimen{s}-{name}.nc"
             t0 = time.perf_counter()
-            rdea_lab.run_protocol(ROOT / "protocols" / f"{name}.yaml", card, "emulator", truth=TRUTH, out=out,
+            rdea_lab.run_protocol(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml", card, "emulator", truth=TRUTH, out=out,
                                   overwrite=True)
             runs[name] = (out, time.perf_counter() - t0)
         run, run_time = runs["selfsense_2.6kV"]

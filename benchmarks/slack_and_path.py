@@ -32,8 +32,8 @@ def main():
     for label, kw in (("SU, slack", {}), ("SU, slack=False", {"slack": False})):
         print(label, "%.3g (%.3g-%.3g)" % _rate(l1.size, _times(lambda: solve("su", hollow, RIZZELLO, l1, v, **kw), 5)))
     ds = open_run(ROOT / "datasets" / "paper2021" / "specimen-2" / "tensile_ramp_sine_2.6kV.nc")
-    geom = geometry_from_card(load_specimen(ROOT / "specimens" / "specimen2.yaml"))
-    params = load_params(ROOT / "params" / "paper2021_table3.yaml")
+    geom = geometry_from_card(load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"))
+    params = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
     x, volts = np.maximum(ds["stretch"].values, 1.0), ds["voltage"].values
     for model in ("1r", "3r"):
         rate = _rate(x.size, _times(lambda: solve(model, geom, params, x, volts, path=True), 5))

@@ -75,7 +75,7 @@ def campaign(truth, folder: Path) -> Path:
     from rdea_lab.specs.campaign import load_campaign
     from rdea_lab.specs.truth import dump_truth
 
-    spec, root = load_campaign(ROOT / "campaigns" / "paper2021.yaml")
+    spec, root = load_campaign(ROOT / "rdea_lab" / "data" / "campaigns" / "paper2021.yaml")
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "truth.yaml"
     path.write_text(dump_truth(truth), encoding="utf-8")
@@ -142,7 +142,7 @@ def main(argv=None) -> int:
     parts = set(args.part.split(","))
     from rdea_lab.specs.truth import load_truth
 
-    truth = load_truth(ROOT / "truth" / "paper2021.yaml")
+    truth = load_truth(ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml")
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
         base = args.out or Path(tmp)

@@ -32,7 +32,7 @@ def imported(folder: Path) -> Path:
 
     rc = run_cli(cli, ["import", *map(str, sorted(VHB.glob("*.csv"))), "--format", "csv", "--map",
                        "time=0,position=1,force=2", "--protocol-kind", "tensile", "--specimen",
-                       str(ROOT / "specimens" / "vhb4910_strip.yaml"), "--credit",
+                       str(ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"), "--credit",
                        "Chongran-Zhao/VHB4910_data (GitHub)", "--out", str(folder)])
     if rc:
         sys.exit(f"import failed ({rc})")

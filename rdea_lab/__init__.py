@@ -26,7 +26,7 @@ campaigns), `calibration`, `reports`, `api`, `cli`.
     doi:10.1088/1361-665X/ac34be.
 """
 
-__version__ = "0.1.0"
+from ._version import __version__  # noqa: E402,F401
 
 import importlib.abc  # noqa: E402
 import importlib.machinery  # noqa: E402

@@ -32,7 +32,7 @@ def imported(tmp_path_factory):
     out = tmp_path_factory.mktemp("vhb")
     rc = run_cli(cli, ["import", *map(str, sorted(VHB.glob("*.csv"))), "--format", "csv", "--map",
                        "time=0,position=1,force=2", "--protocol-kind", "tensile", "--specimen",
-                       str(ROOT / "specimens" / "vhb4910_strip.yaml"), "--credit",
+                       str(ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"), "--credit",
                        "Chongran-Zhao/VHB4910_data (GitHub)", "--out", str(out)])
     assert rc == 0
     return out

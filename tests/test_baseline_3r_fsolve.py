@@ -1,4 +1,4 @@
-"""Independent checks of the fsolve 3R baseline (benchmarks/baseline_3r_fsolve.py).
+"""Independent checks of the fsolve 3R baseline (rdea_lab/reports/baseline_3r_fsolve.py).
 
 The fast solver in rdea_lab.physics has its own tests; these only establish
 that the baseline is a trustworthy reference.  The closed forms below (Yeoh
@@ -17,7 +17,7 @@ import pytest
 from scipy.constants import epsilon_0
 from scipy.optimize import brentq
 
-_PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "baseline_3r_fsolve.py"
+_PATH = Path(__file__).resolve().parents[1] / "rdea_lab" / "reports" / "baseline_3r_fsolve.py"
 _spec = importlib.util.spec_from_file_location("baseline_3r_fsolve", _PATH)
 baseline = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(baseline)

@@ -88,7 +88,7 @@ _EXPORTS = {
     "study_lines": "rdea_lab.design.outputs", "check_card_run": "rdea_lab.design.outputs",
     "run_card": "rdea_lab.design.outputs", "solve_designs": "rdea_lab.physics.designs",
     # misc
-    "project_root": "rdea_lab.paths", "benchmarks_dir": "rdea_lab.paths",}
+    "benchmarks_dir": "rdea_lab.paths",}
 
 __all__ = sorted(_EXPORTS)
 

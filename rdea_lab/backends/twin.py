@@ -7,7 +7,7 @@ import time as _time
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..physics.geometry import geometry_from_card
 from ..physics.models import three_ring
 from ..physics.selection import select_model

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..specs import ParameterSet
 from .methods import METHODS, Objective, OutOfBudget, bounded_least_squares, nelder_mead
 from .objective import goodness, predict_force, residuals

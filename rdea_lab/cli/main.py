@@ -12,7 +12,8 @@ from pathlib import Path
 import click
 import numpy as np
 
-from .. import __version__, api
+from .. import api
+from .._version import __version__
 from ..specs import MODELS, load_params, load_specimen, parse_quantity
 from . import calibrate as calibrate_cmd
 from . import design as design_cmd, importer, plan as plan_cmd, report, rig, runs, selfsense
@@ -171,31 +172,34 @@ def curve(card, params_path, model, stretch_text, voltage_text, as_json, as_csv,
                        f"{c['lambda2b'][i]:9.5f} {c['capacitance'][i] * 1e12:9.2f}")
 
 
-@click.command()
-@click.option("--out", "out_dir", default="reports/paper2021", show_default=True,
-              type=click.Path(file_okay=False), help="Folder for everything reproduce writes.")
+@click.command(epilog=EXIT_HELP)
+@click.option("--out", "out_dir", default="rdea-lab-reproduce", show_default=True,
+              type=click.Path(file_okay=False), help="Folder for everything reproduce writes (refused if it "
+              "holds files, unless --force).")
+@click.option("--datasets", "datasets_dir", type=click.Path(file_okay=False),
+              help="Folder for the campaign's datasets [default: OUT/datasets].")
 @click.option("--campaign", "campaign_path", type=click.Path(dir_okay=False),
-              help="Campaign file [default: campaigns/paper2021.yaml]; must include specimen 2's tensile tests.")
+              help="Campaign file [default: the packaged paper2021]; must include specimen 2's tensile tests.")
+@click.option("--force", "overwrite", is_flag=True, help="Write over an output folder that holds files.")
 @click.option("--no-speed", is_flag=True, help="Skip the speed-against-error study.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def reproduce(out_dir, campaign_path, no_speed, quiet):
+def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet):
     """The paper's campaign end to end, on the built-in emulated rig.
 
     Runs the experiments of Section 4.2 on the three specimens (emulator), stores
     the datasets, calibrates the SU model on specimen 2, writes the Table 4
     analogue with its figures, the speed-against-error study, and Table 2 and
-    Section 3.4 (Figures 5-8); prints where everything is and the table.
+    Section 3.4 (Figures 5-8); prints the table, where everything is and the
+    time of each stage. It reads only the packaged inputs and writes only OUT.
 
     \b
     Example:
       rdea-lab reproduce
+      rdea-lab reproduce --out reports/paper2021 --datasets datasets/paper2021 --force   # the reference report
     """
     from .errors import headless
 
     headless()
-    root = api.project_root()
-    if root is None:
-        die("reproduce: specimens/, params/ and campaigns/ not found; run from the rdea-lab checkout")
     out = Path(out_dir)
 
     def bar(total, label):
@@ -204,8 +208,8 @@ def reproduce(out_dir, campaign_path, no_speed, quiet):
             return contextlib.nullcontext(type("NoBar", (), {"update": staticmethod(lambda n: None)})())
         return click.progressbar(length=total, label=label, file=sys.stderr)
 
-    result = api.reproduce(root, out, campaign=campaign_path, speed=not no_speed, echo=click.echo,
-                           progress_factory=bar)
+    result = api.reproduce(out, datasets=datasets_dir, campaign=campaign_path, speed=not no_speed,
+                           overwrite=overwrite, echo=click.echo, progress_factory=bar)
     v = result["validation"]
     click.echo("")
     click.echo(f"Table 4 analogue ({v['origin']})")
@@ -213,13 +217,16 @@ def reproduce(out_dir, campaign_path, no_speed, quiet):
     click.echo(v["legend"] + "\n")
     click.echo("outputs:")
     click.echo(f"  index           {result['index']} (links to everything below)")
-    click.echo(f"  datasets        {out / 'datasets'}/<specimen>/<protocol>.nc")
+    click.echo(f"  datasets        {result['datasets']}/<specimen>/<protocol>.nc")
     click.echo(f"  parameters      {result['calibration']['params']} (+ .history.csv, .history.png)")
-    click.echo(f"  validation      {v['files']['html']} (table4.md/.csv/.tex, figures .png/.pdf)")
+    click.echo(f"  validation      {v['files']['html']} (table4.md/.csv/.tex, figures)")
     if "speed" in result:
-        click.echo(f"  speed vs error  {out / 'speed'}/speed.md, pareto.png/.pdf, figure8_sweep.png/.pdf")
-    click.echo(f"  models          {out / 'models'}/models.md, figure5-8*.png/.pdf")
-    click.echo(f"done in {result['seconds']:.1f} s")
+        click.echo(f"  speed vs error  {out / 'speed'}/speed.md, pareto.png, figure8_sweep.png")
+    click.echo(f"  models          {out / 'models'}/models.md, figure5-8*.png")
+    click.echo("time by stage:")
+    for name, seconds in result["stages"]:
+        click.echo(f"  {name:<15} {seconds:6.1f} s")
+    click.echo(f"  {'total':<15} {result['seconds']:6.1f} s")
 
 
 @click.command()

@@ -93,11 +93,8 @@ def speed(out_dir, repeats, tolerance):
       rdea-lab report speed --out reports/speed
     """
     headless()
-    root = api.project_root()
-    if root is None:
-        die("report speed: specimens/, params/ and protocols/ not found; run from the rdea-lab checkout")
     click.echo(f"timing SU, 1R, 3R, CR and auto (best of {repeats}) ...")
-    result = api.speed_study(out_dir, root, repeats=repeats, tolerance=tolerance)
+    result = api.speed_study(out_dir, repeats=repeats, tolerance=tolerance)
     for a in result["auto"]:
         click.echo(f"  {a['scene']}: auto picks {a['model_used']} ({a['auto_reason']})")
     for c in result["reference_check"]:

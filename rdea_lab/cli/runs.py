@@ -265,7 +265,7 @@ def campaign():
 @campaign.command(name="run", epilog=EXIT_HELP)
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--out", "out_dir", type=click.Path(file_okay=False),
-              help="Folder for the datasets [default: the campaign's 'out', e.g. datasets/paper2021].")
+              help="Folder for the datasets [default: the campaign's 'out' in the working folder, e.g. datasets/paper2021].")
 @click.option("--force", "overwrite", is_flag=True, help="Overwrite existing datasets.")
 @click.option("--realtime", is_flag=True, help="Pace the runs at wall-clock speed.")
 @click.option("--live", metavar="table|plot|FILE.png", help=LIVE_HELP)

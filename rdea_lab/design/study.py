@@ -24,7 +24,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import xarray as xr
 
-from .. import __version__
+from .._version import __version__
 from ..specs.errors import UserError
 from ..specs.specimen import Membrane, SpecimenCard, dump_specimen
 from ..specs.units import format_quantity, parse_quantity
@@ -320,6 +320,10 @@ def run_study(study: Study, *, scheduler: str | None = None, workers: int | None
     """
     import time
 
+    from ..extras import require
+
+    for module in ("dask", "distributed") + (("SALib",) if study.sensitivity_n else ()):
+        require(module, "a design study")
     timings = {}
     if synchronous and (scheduler or workers or client is not None):
         raise StudyError("synchronous: runs every task in this process; give no scheduler, workers or client")

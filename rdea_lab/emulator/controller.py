@@ -24,7 +24,7 @@ import time
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..physics import viscoelastic
 from ..specs.truth import truth_json
 from .framing import FramingError, decode_block, encode_block

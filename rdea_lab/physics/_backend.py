@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 #: Kernel choices of `rdea_lab.physics.models.solve` and the branch updates.
 KERNELS = ("auto", "numba", "numpy")
 #: ``auto`` uses the compiled kernels for calls of at least this many samples: loading numba and the
@@ -9,6 +11,16 @@ KERNELS = ("auto", "numba", "numpy")
 #: The choice depends on the call alone (not on what the process loaded before), so a result does not
 #: depend on the history of the process (the two agree to 1e-12 anyway, mostly to the last bit).
 AUTO_MIN_SAMPLES = 16384
+
+
+_SAID = set()
+
+
+def _say_once(line: str) -> None:
+    """One line on stderr, once per process (where speed matters and the fast path is missing)."""
+    if line not in _SAID:
+        _SAID.add(line)
+        print(line, file=sys.stderr)
 
 
 def compiled(kernel, n=None):
@@ -22,6 +34,10 @@ def compiled(kernel, n=None):
         from . import kernels
     except ImportError:  # numba missing: the reference is the fallback
         if kernel == "numba":
-            raise
+            from ..extras import MissingExtra
+
+            raise MissingExtra("numba", "kernel='numba' (the compiled kernels)") from None
+        _say_once("rdea-lab: numba is not installed, so the models run at numpy speed "
+                  "(python3 -m pip install 'rdea-lab[fast]' compiles them)")
         return None
     return kernels if (kernel == "numba" or kernels.enabled()) else None

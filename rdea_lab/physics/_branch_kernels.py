@@ -2,11 +2,19 @@
 
 Imported on first use, so that commands which never integrate a branch do not
 import numba. See that module's docstring for the equations and the integrator.
+Without numba (the ``[fast]`` extra) the same functions run as plain Python: one
+5401-sample run with two branches takes about 0.2 s instead of 2 ms.
 """
 
 import math
 
-import numba
+try:
+    import numba
+
+    _njit = numba.njit(cache=True)
+except ImportError:  # no [fast] extra: the very same code, interpreted
+    def _njit(function):
+        return function
 
 from .viscoelastic import _RADAU_A, _RADAU_C
 
@@ -15,7 +23,7 @@ from .viscoelastic import _RADAU_A, _RADAU_C
 (c1, c2, _), ((a11, a12, a13), (a21, a22, a23), (a31, a32, a33)) = _RADAU_C, _RADAU_A
 
 
-@numba.njit(cache=True)
+@_njit
 def radau(u0, e, r1, r2, r3, hr, hs):
     # stages U_i = u0 + hs sum_j A_ij r_j - hr sum_j A_ij f(U_j), e = exp(u0); returns U_3 (stiffly accurate)
     d1 = hs * (a11 * r1 + a12 * r2 + a13 * r3)
@@ -62,7 +70,7 @@ def radau(u0, e, r1, r2, r3, hr, hs):
     return U3 if last < 1e-12 else math.nan
 
 
-@numba.njit(cache=True)
+@_njit
 def interval(u, t0, t1, lam0, lam1, tau, step0, grow, dstep):
     """The elastic log-stretch ``u`` of one branch carried from ``t0`` to ``t1`` [s] (stretch linear
     from ``lam0`` to ``lam1`` in between) on the graded Radau substeps of the module docstring."""
@@ -87,7 +95,7 @@ def interval(u, t0, t1, lam0, lam1, tau, step0, grow, dstep):
     return u
 
 
-@numba.njit(cache=True)
+@_njit
 def finite(t, lam, tau, u0, out, step0, grow, dstep):
     for j in range(tau.size):
         u = u0[j]

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
-from .. import __version__
+from .._version import __version__
 from ..physics.geometry import geometry_from_card
 from ..specs import SpecError, as_params, protocol_from_yaml, specimen_from_yaml
 from ..specs.errors import DOCUMENT

@@ -18,7 +18,7 @@ The reference is the continuum roll model CR
 cross-section; it is checked against a rule of 48 points per panel on the
 scenes with ``Ri > 0`` (with ``Ri = 0`` CR is the SU state exactly). 3R is
 checked against the independent per-sample fsolve baseline
-(``benchmarks/baseline_3r_fsolve.py``) on a subsample of the cores with
+(``rdea_lab/reports/baseline_3r_fsolve.py``) on a subsample of the cores with
 ``Ri > 0``, where the baseline's stationary point is the physical one.
 
 [1] Prechtl et al., Smart Mater. Struct. 30 (2021), doi:10.1088/1361-665X/ac34be.
@@ -26,7 +26,6 @@ checked against the independent per-sample fsolve baseline
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import platform
 import time
@@ -38,6 +37,7 @@ import matplotlib.ticker
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..paths import data_dir
 from ..runs import check_writable
 from ..physics.geometry import geometry_from_card
 from ..physics.models import continuum, solve
@@ -165,26 +165,14 @@ def quadrature_check(scene_list: list[dict]) -> list[dict]:
     return out
 
 
-def _baseline(root: Path):
-    path = root / "benchmarks" / "baseline_3r_fsolve.py"
-    if not path.is_file():
-        return None
-    spec = importlib.util.spec_from_file_location("rdea_lab_baseline_3r_fsolve", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def fsolve_check(root: Path, scene_list: list[dict], n: int = 16) -> list[dict]:
+def fsolve_check(scene_list: list[dict], n: int = 16) -> list[dict]:
     """3R against the fsolve baseline on ``n`` samples of each scene with ``Ri > 0``."""
-    module = _baseline(root)
+    from . import baseline_3r_fsolve as module
+
     out = []
     for sc in scene_list:
         g, mat = sc["geom"], sc["material"]
         if g.Ri <= 0.0:
-            continue
-        if module is None:
-            out.append({"scene": sc["scene"], "note": "benchmarks/baseline_3r_fsolve.py not found: not checked"})
             continue
         pick = np.linspace(0, sc["stretch"].size - 1, n).astype(int)
         lam, v = sc["stretch"][pick], sc["voltage"][pick]
@@ -320,7 +308,8 @@ def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_
     out : path
         Output folder (created).
     root : path, optional
-        Folder holding ``specimens/``, ``params/``, ``protocols/`` (default: the project root).
+        Folder holding ``specimens/``, ``params/``, ``protocols/`` (default: the packaged ones,
+        `rdea_lab.paths.data_dir`).
     repeats : int
         Timing repeats; the best is kept.
     tolerance : float
@@ -336,11 +325,7 @@ def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_
         quadrature), ``figure8``, ``files``.
     """
     check_writable(Path(out) / "speed.md", "--out")  # before the timing, not after it
-    from ..paths import project_root
-
-    root = Path(root) if root is not None else project_root()
-    if root is None or not (root / "specimens").is_dir():
-        raise ValueError("speed study: specimens/, params/ and protocols/ not found; run from the rdea-lab checkout")
+    root = Path(root) if root is not None else data_dir()
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats}")
     out = Path(out)
@@ -349,7 +334,7 @@ def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_
     rows = [r for sc in scene_list for r in study_scene(sc, repeats, tolerance)]
     auto = [{"scene": r["scene"], "model_used": r["model_used"], "auto_reason": r["auto_reason"]}
             for r in rows if r["model"] == "auto"]
-    check = fsolve_check(root, scene_list)
+    check = fsolve_check(scene_list)
     quad = quadrature_check(scene_list)
     sweep = figure8(load_params(root / "params" / "rizzello2020.yaml"), out / "figure8_sweep.png")
     files = {"markdown": out / "speed.md", "csv": out / "speed.csv", "pareto": out / "pareto.png",

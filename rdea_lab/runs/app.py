@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..backends.base import Backend
 from ..backends.twin import TwinBackend
-from ..paths import project_root
+from ..paths import resolve
 from ..physics.geometry import geometry_from_card
 from ..physics.models import three_ring
 from ..protocols import as_plan, first_violation
@@ -42,13 +42,13 @@ class OutputInUse(OutputError):
 
 
 def project_default(given, default: str, field_name: str):
-    """``given``, or the project's shipped ``default`` file (e.g. the paper's Table 3 parameters)."""
+    """``given``, or the packaged ``default`` file (e.g. the paper's Table 3 parameters)."""
     if given is not None:
         return given
-    root = project_root()
-    if root is None or not (root / default).is_file():
+    path = resolve(default, default.partition("/")[0])
+    if not path.is_file():
         raise SpecError(ARGS, field_name, f"required here (no {default} to default to)")
-    return root / default
+    return path
 
 
 def default_out(card_id: str, plan_name: str, folder="datasets") -> Path:

@@ -25,8 +25,11 @@ class Experiment:
 
 
 def experiments(spec, root: Path, out_dir: Path | None = None) -> list[Experiment]:
-    """The runs of a campaign, in order (specimen by specimen), every plan checked against its limits."""
-    out_dir = Path(out_dir) if out_dir is not None else root / spec.out
+    """The runs of a campaign, in order (specimen by specimen), every plan checked against its limits.
+
+    Their datasets go under ``out_dir``, by default the campaign's ``out``, relative to the working
+    directory (not to the campaign file: a packaged campaign must not write into the package)."""
+    out_dir = Path(out_dir if out_dir is not None else spec.out)  # a user's folder, never the campaign's
     plans = [load_plan(root / p) for p in spec.protocols]
     runs = []
     for i, rel in enumerate(spec.specimens):
@@ -64,7 +67,7 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
         return result.status != "interrupted"  # Ctrl-C ends the campaign, not only the run
 
     if spec.backend == "twin":
-        params = load_params(root / (spec.params or DEFAULT_PARAMS))
+        params = load_params(root / spec.params if spec.params else DEFAULT_PARAMS)
         for run in runs:
             setup = prepare_run(run.plan, run.card, "twin", params=params, model=spec.model, out=run.out,
                                 seed=seeds[id(run)], realtime=realtime)
@@ -73,7 +76,7 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
         return results
     from ..specs.truth import load_truth
 
-    truth = load_truth(root / (spec.truth or DEFAULT_TRUTH))
+    truth = load_truth(root / spec.truth if spec.truth else DEFAULT_TRUTH)
     for card_id in dict.fromkeys(r.card.id for r in runs):
         mine = [r for r in runs if r.card.id == card_id]
         with emulated_rig(mine[0].card, truth, realtime=realtime) as address:  # one rig per specimen

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..backends.base import BackendFailure, RunInterrupted
 from ..physics.geometry import geometry_from_card
 from ..protocols import first_violation

@@ -19,6 +19,8 @@ from typing import Annotated, Any
 import yaml
 from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, model_validator
 
+from ..paths import resolve
+
 #: Field name used for problems with the document as a whole (file missing,
 #: not YAML, top level not a mapping).
 DOCUMENT = "<document>"
@@ -164,8 +166,11 @@ def parse_yaml_mapping(text: str, source: str = "<string>") -> dict:
     return data
 
 
-def read_yaml_mapping(path: str | os.PathLike) -> tuple[dict, str]:
+def read_yaml_mapping(path: str | os.PathLike, kind: str | None = None) -> tuple[dict, str]:
     """Read a YAML file whose top level is a mapping.
+
+    With ``kind`` (``"specimens"``, ``"params"``, ...; see `rdea_lab.paths.KINDS`), a path
+    that does not exist may name a packaged reference file (`rdea_lab.paths.resolve`).
 
     Returns
     -------
@@ -173,6 +178,8 @@ def read_yaml_mapping(path: str | os.PathLike) -> tuple[dict, str]:
     source : str
         `path` as a string, for error messages.
     """
+    if kind is not None:
+        path = resolve(path, kind)
     source = os.fspath(path)
     try:
         with open(source, encoding="utf-8") as fh:

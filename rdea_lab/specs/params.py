@@ -354,7 +354,7 @@ def load_params(path: str | os.PathLike) -> ParameterSet:
         The file is missing, not YAML, not a mapping, or a value is invalid
         or non-physical; the message names the file and the field.
     """
-    mapping, source = read_yaml_mapping(path)
+    mapping, source = read_yaml_mapping(path, "params")
     return params_from_mapping(mapping, source)
 
 

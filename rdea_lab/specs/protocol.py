@@ -245,7 +245,7 @@ def load_protocol(path: str | os.PathLike) -> ProtocolSpec:
         The file is missing, not YAML, not a mapping, or the protocol is
         invalid; the message names the file and the field.
     """
-    mapping, source = read_yaml_mapping(path)
+    mapping, source = read_yaml_mapping(path, "protocols")
     return protocol_from_mapping(mapping, source)
 
 

@@ -306,7 +306,7 @@ def load_specimen(path: str | os.PathLike) -> SpecimenCard:
         The file is missing, not YAML, not a mapping, or the card is invalid;
         the message names the file and the field.
     """
-    mapping, source = read_yaml_mapping(path)
+    mapping, source = read_yaml_mapping(path, "specimens")
     return specimen_from_mapping(mapping, source)
 
 

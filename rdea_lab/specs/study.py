@@ -498,9 +498,9 @@ def load_study(path: str | os.PathLike) -> Study:
         Naming the file, the field and what is allowed (unknown variable, empty range, inverted bounds,
         a metric that needs what the study does not give, ...).
     """
-    mapping, source = read_yaml_mapping(path)
-    study = study_from_mapping(mapping, source, Path(path).parent)
-    return study.__class__(**{**study.__dict__, "text": Path(path).read_text(encoding="utf-8")})
+    mapping, source = read_yaml_mapping(path, "studies")
+    study = study_from_mapping(mapping, source, Path(source).parent)
+    return study.__class__(**{**study.__dict__, "text": Path(source).read_text(encoding="utf-8")})
 
 
 __all__ = ["BIAS_KINDS", "METRICS", "SAMPLINGS", "VARIABLES", "Bound", "CurveBias", "Goal", "Study", "Variable",

@@ -36,6 +36,8 @@ import numpy as np
 import yaml
 from pydantic import field_validator, model_validator
 
+from ..paths import resolve
+
 from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, show
 from .protocol_segments import Duration, Limits, MAX_TABLE_VALUES, SampleRate, Stretch
 from .units import format_quantity, parse_quantity, quantity
@@ -368,7 +370,7 @@ def load_target(path: str | os.PathLike, **settings) -> Target:
     SpecError
         Naming the file, the field (a CSV's line) and what is allowed.
     """
-    source = os.fspath(path)
+    source = os.fspath(resolve(path, "targets"))
     settings = {k: v for k, v in settings.items() if v is not None}
     if source.lower().endswith(".csv"):
         time, values, quantity, rows = read_csv_samples(source)

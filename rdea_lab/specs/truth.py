@@ -321,7 +321,7 @@ def load_truth(path: str | os.PathLike) -> TruthSpec:
         The file is missing, not YAML, not a mapping, or a value is invalid;
         the message names the file and the field.
     """
-    mapping, source = read_yaml_mapping(path)
+    mapping, source = read_yaml_mapping(path, "truth")
     return truth_from_mapping(mapping, source)
 
 

@@ -28,7 +28,7 @@ import numpy as np
 import xarray as xr
 import yaml
 
-from .. import __version__
+from .._version import __version__
 from ..physics.geometry import geometry_from_card
 from ..specs import SpecError, dump_specimen, ureg
 from .csvtable import read_csv

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path, PurePath
 
-from ..paths import project_root
+from ..paths import portable
 from ..twin.cf import (FLAGS, MODEL_VARIABLES, NO_INSTITUTION, OPTIONAL_RUN_VARIABLES, REFERENCES, RUN_VARIABLES,
                        TIME_ENCODING, TIME_LONG_NAME, global_attrs, time_attrs, variable_attrs)
 
@@ -48,19 +48,21 @@ def is_emulated(attrs) -> bool:
 
 
 def portable_path(path) -> str:
-    """A path as a shipped file may hold it: relative to the project root when it lies inside it, else
-    the bare file name (no machine's absolute path); text that is not a path (``<string>``) as it is."""
+    """A path as a shipped file may hold it: a packaged input by its name under ``rdea_lab/data``
+    (``protocols/blocking_force.yaml``, which `rdea_lab.paths.resolve` finds again), a path below the
+    working directory relative to it, else the bare file name (no machine's absolute path); text that
+    is not a path (``<string>``) as it is."""
     text = str(path)
     if not text or text.startswith("<") or not PurePath(text).is_absolute():
         return text
     p = Path(text)
-    root = project_root()
-    if root is not None:
-        try:
-            return p.resolve().relative_to(Path(root).resolve()).as_posix()
-        except ValueError:
-            pass
-    return p.name
+    name = portable(p)
+    if name is not None:
+        return name
+    try:
+        return p.resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except (ValueError, OSError):
+        return p.name
 
 
 def portable_command(command: str) -> str:

@@ -146,9 +146,10 @@ def read_tdms(path: Path) -> ArrayTable:
     """The channels of a TDMS file: names ``group/channel`` (a channel's own
     name finds it too when no other group has one so named), units from the
     ``unit_string`` property, timestamps as seconds since the first one."""
-    from nptdms import TdmsFile
+    from ..extras import require
 
     source = str(path)
+    TdmsFile = require("nptdms", f"{source}: reading a TDMS file").TdmsFile
     try:
         tdms = TdmsFile.read(path)
     except Exception as exc:  # npTDMS raises ValueError, KeyError, struct.error... on foreign bytes

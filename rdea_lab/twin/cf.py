@@ -13,7 +13,7 @@ import re
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..physics.result import STATUS_NAMES
 
 #: Variables of every run, in journal column order after ``time``:

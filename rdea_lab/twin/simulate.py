@@ -9,7 +9,7 @@ from datetime import datetime, timezone
 import numpy as np
 import xarray as xr
 
-from .. import __version__
+from .._version import __version__
 from ..physics import viscoelastic
 from ..physics.geometry import RollGeometry, StripGeometry, geometry_from_card
 from ..physics.models import solve

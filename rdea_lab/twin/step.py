@@ -42,6 +42,9 @@ class TwinStep:
     """
 
     def __init__(self, specimen, params, model="su"):
+        from ..extras import require
+
+        require("numba", "TwinStep (the compiled per-sample step)")
         from ..physics import step_kernel  # numba: loaded here, not at the first step
 
         if model not in MODELS:

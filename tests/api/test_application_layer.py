@@ -16,8 +16,8 @@ from rdea_lab.specs import SpecError, load_params, load_protocol, load_specimen
 from rdea_lab.store import open_run
 
 ROOT = Path(__file__).resolve().parents[2]
-CARD = ROOT / "specimens" / "specimen2.yaml"
-PARAMS = ROOT / "params" / "paper2021_table3.yaml"
+CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
+PARAMS = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
 MEASURED = ROOT / "datasets" / "paper2021" / "specimen-2" / "tensile_ramp_sine_0V.nc"
 
 #: 3 s at 100 Hz: 301 samples, blocks of one second (100, 100, 100, 1) on the twin

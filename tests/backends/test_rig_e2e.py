@@ -26,12 +26,12 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="module")
 def card():
-    return load_specimen(ROOT / "specimens" / "specimen2.yaml")
+    return load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
 
 
 @pytest.fixture(scope="module")
 def truth():
-    return load_truth(ROOT / "truth" / "paper2021.yaml")
+    return load_truth(ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml")
 
 
 @pytest.fixture
@@ -46,12 +46,12 @@ def server(card, truth, request):
 
 @pytest.mark.slow  # 12 s; one preset per specimen: tests/cli/test_run.py
 def test_every_preset_on_every_specimen_is_complete(tmp_path):
-    spec, root = load_campaign(ROOT / "campaigns" / "paper2021.yaml")
+    spec, root = load_campaign(ROOT / "rdea_lab" / "data" / "campaigns" / "paper2021.yaml")
     results = run_campaign(spec, root, out_dir=tmp_path)
     assert len(results) == 12 and all(r.status == "complete" for r in results)
     for r in results:
         ds = open_run(r.path)
-        plan = load_plan(ROOT / "protocols" / f"{ds.attrs['protocol_name']}.yaml")
+        plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / f"{ds.attrs['protocol_name']}.yaml")
         # data complete: every sample of the plan, in order, setpoints as commanded
         assert ds.sizes["time"] == plan.time.size == r.samples
         np.testing.assert_allclose(ds["time"].values, plan.time, rtol=0, atol=1e-12)
@@ -76,7 +76,7 @@ def run_with(server, card, plan, out, **kw):
 
 @pytest.mark.parametrize("server", [{"faults": [("breakdown", 10.0)]}], indirect=True)
 def test_breakdown_mid_run(server, card, tmp_path):
-    plan = load_plan(ROOT / "protocols" / "tensile_ramp_sine_2.6kV.yaml")
+    plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_2.6kV.yaml")
     r, ds = run_with(server, card, plan, tmp_path / "b.nc")
     assert r.status == "aborted" and "dielectric breakdown" in r.reason
     assert ds.sizes["time"] == server.controller.acquired  # counted on both sides: none lost
@@ -85,7 +85,7 @@ def test_breakdown_mid_run(server, card, tmp_path):
 
 @pytest.mark.parametrize("server", [{"faults": [("stall", 3.0)]}], indirect=True)
 def test_stall_mid_run(server, card, tmp_path):
-    plan = load_plan(ROOT / "protocols" / "tensile_ramp_sine_0V.yaml")
+    plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml")
     r, ds = run_with(server, card, plan, tmp_path / "s.nc", stall_timeout=0.5)
     assert r.status == "aborted" and "stalled" in r.reason
     assert ds.sizes["time"] == server.controller.acquired
@@ -96,7 +96,7 @@ def test_stall_mid_run(server, card, tmp_path):
 def test_disconnect_mid_run_reconnects_and_drains(server, card, tmp_path):
     """Realtime, so the rig holds samples the client has not fetched when the line drops;
     the driver reconnects and fetches them: nothing acquired is lost."""
-    plan = load_plan(ROOT / "protocols" / "tensile_ramp_sine_0V.yaml")
+    plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml")
     r, ds = run_with(server, card, plan, tmp_path / "d.nc", poll=0.2)
     assert r.status == "aborted"
     assert "lost" in r.reason and "reconnected and fetched all" in r.reason
@@ -106,7 +106,7 @@ def test_disconnect_mid_run_reconnects_and_drains(server, card, tmp_path):
 
 @pytest.mark.parametrize("server", [{"token": "s3cret-token"}], indirect=True)
 def test_a_client_without_the_token_is_refused(server, card, tmp_path):
-    plan = load_plan(ROOT / "protocols" / "tensile_ramp_sine_0V.yaml")
+    plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml")
     with pytest.raises(RigRefused, match="token"):
         execute(plan, card, RigBackend(server.url, card), tmp_path / "x.nc")
     assert not (tmp_path / "x.nc").exists() and not (tmp_path / "x.nc.part").exists()
@@ -116,7 +116,7 @@ def test_a_client_without_the_token_is_refused(server, card, tmp_path):
 
 
 def test_limits_refused_by_the_rig_before_anything_moves(server, card, tmp_path):
-    plan = load_plan(ROOT / "protocols" / "blocking_force.yaml")
+    plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml")
     tight = dataclasses.replace(plan, limits=plan.limits.model_copy(update={"max_voltage": 2000.0}))
     # the library refuses first, whoever calls the engine ...
     with pytest.raises(LimitError, match="max_voltage = 2 kV"):
@@ -135,7 +135,7 @@ def test_limits_refused_by_the_rig_before_anything_moves(server, card, tmp_path)
 def test_limits_refused_by_the_client_before_connecting(capsys, tmp_path):
     bad = ROOT / "tests" / "protocols" / "bad"
     over = next(p for p in sorted(bad.glob("*.yaml")) if "voltage_above" in p.name)
-    rc = run_cli(cli, ["run", str(over), "--specimen", str(ROOT / "specimens" / "specimen2.yaml"),
+    rc = run_cli(cli, ["run", str(over), "--specimen", str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"),
                        "--backend", "rig", "--rig", "tcp://127.0.0.1:9"])  # nothing listens on port 9
     err = capsys.readouterr().err
     assert rc == 2 and "max_voltage" in err and "connect" not in err
@@ -143,8 +143,8 @@ def test_limits_refused_by_the_client_before_connecting(capsys, tmp_path):
 
 def test_cli_emulator_backend_with_a_fault(capsys, tmp_path):
     out = tmp_path / "f.nc"
-    rc = run_cli(cli, ["run", str(ROOT / "protocols" / "blocking_force.yaml"), "--specimen",
-                       str(ROOT / "specimens" / "specimen1.yaml"), "--backend", "emulator", "--fault",
+    rc = run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml"), "--specimen",
+                       str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen1.yaml"), "--backend", "emulator", "--fault",
                        "breakdown-at=12", "--quiet", "--out", str(out)])
     stdout = capsys.readouterr().out
     assert rc == 3 and "status aborted" in stdout  # exit 3: the run was ended by the rig
@@ -157,7 +157,7 @@ def test_each_run_has_its_own_reproducible_noise(server, card, tmp_path):
     """Same trajectory, different seeds: the forces differ by noise only (load-cell sigma
     4 mN in truth/paper2021.yaml, so differences stay within ~10 sigma * sqrt(2)); the
     same seed gives the same data bit for bit."""
-    plan = load_plan(ROOT / "protocols" / "tensile_ramp_sine_0V.yaml")
+    plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml")
     f = {}
     for name, seed in (("a", 1), ("b", 2), ("c", 1)):
         r = execute(plan, card, RigBackend(server.url, card, seed=seed), tmp_path / f"{name}.nc", seed=seed)

@@ -12,8 +12,8 @@ from rdea_lab.specs import load_specimen
 from rdea_lab.twin import simulate
 
 ROOT = Path(__file__).resolve().parents[2]
-CARD = ROOT / "specimens" / "vhb4910_strip.yaml"
-PARAMS = ROOT / "params" / "paper2021_table3.yaml"
+CARD = ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"
+PARAMS = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
 DT = 0.05  # [s]
 
 

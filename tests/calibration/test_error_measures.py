@@ -38,7 +38,7 @@ def test_against_numpy_formulas_on_a_hand_made_residual():
 
 
 def test_goodness_reports_all_three_beside_the_old_fields():
-    card = load_specimen(ROOT / "specimens" / "vhb4910_strip.yaml")
+    card = load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml")
     t = np.linspace(0, 10, 201)
     force = 2.0 + np.sin(t)
     run = RunData(Path("<hand>"), "", "hand", "tensile", card.id, geometry_from_card(card), t, 1 + 0.01 * t,

@@ -16,18 +16,18 @@ from rdea_lab.specs import SpecError, ViscoBranch, load_params, load_specimen
 from rdea_lab.twin import simulate
 
 ROOT = Path(__file__).resolve().parents[2]
-TRUE = load_params(ROOT / "params" / "paper2021_table3.yaml")  # C10 242, C20 -69, C30 47 kPa; 8271 kPa / 86 kPa s
+TRUE = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")  # C10 242, C20 -69, C30 47 kPa; 8271 kPa / 86 kPa s
 FREE = ["C10", "C20", "C30", "k_v1", "eta_v1"]
 
 
 def synthetic_runs(params, noise=0.0, seed=0, rate_scale=1.0):
     """The paper's two tensile tests on specimen 2, simulated by the twin (SU)."""
-    card = load_specimen(ROOT / "specimens" / "specimen2.yaml")
+    card = load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
     geom = geometry_from_card(card)
     rng = np.random.default_rng(seed)
     runs = []
     for name in ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV"):
-        plan = load_plan(ROOT / "protocols" / f"{name}.yaml")
+        plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml")
         t = plan.time * rate_scale
         ds = simulate(geom, params, t, plan.stretch, plan.voltage, model="su")
         force = ds["force"].values + noise * rng.standard_normal(t.size)
@@ -134,11 +134,11 @@ def test_record_round_trip_and_history(clean, tmp_path):
 
 def test_cli_calibrates_twin_runs_and_refuses_bad_input(capsys, tmp_path):
     for name in ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV", "blocking_force"):
-        assert run_cli(cli, ["run", str(ROOT / "protocols" / f"{name}.yaml"), "--specimen",
-                             str(ROOT / "specimens" / "specimen2.yaml"), "--model", "su", "--quiet",
+        assert run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml"), "--specimen",
+                             str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"), "--model", "su", "--quiet",
                              "--out", str(tmp_path / "runs" / f"{name}.nc")]) == 0
     out = tmp_path / "cal.yaml"
-    rc = run_cli(cli, ["calibrate", str(tmp_path / "runs"), "--init", str(ROOT / "params" / "paper2021_table3.yaml"),
+    rc = run_cli(cli, ["calibrate", str(tmp_path / "runs"), "--init", str(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"),
                        "--free", "C10,C20,C30", "--quiet", "--out", str(out)])
     stdout = capsys.readouterr().out
     assert rc == 0, stdout

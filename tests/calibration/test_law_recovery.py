@@ -22,7 +22,7 @@ from rdea_lab.specs import ParameterSet, ViscoBranch, load_specimen
 from rdea_lab.twin import simulate
 
 ROOT = Path(__file__).resolve().parents[2]
-CARD = ROOT / "specimens" / "vhb4910_strip.yaml"
+CARD = ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"
 NOISE = 0.005  # of each run's peak force
 RATES = (1.0, 0.1)  # [1/s]
 YEOH = dict(C10=30e3, C20=-1e3, C30=0.2e3, eps_r=2.8)

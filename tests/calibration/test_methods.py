@@ -20,17 +20,17 @@ from rdea_lab.twin import simulate
 
 ROOT = Path(__file__).resolve().parents[2]
 SPECIMEN2 = ROOT / "datasets" / "paper2021" / "specimen-2"
-TABLE3 = load_params(ROOT / "params" / "paper2021_table3.yaml")
+TABLE3 = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
 
 
 def twin_runs(params, noise, seed, names=("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV")):
     """Tensile tests of the paper on specimen 2 by the twin (SU), plus white noise [N]."""
-    card = load_specimen(ROOT / "specimens" / "specimen2.yaml")
+    card = load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
     geom = geometry_from_card(card)
     rng = np.random.default_rng(seed)
     runs = []
     for name in names:
-        plan = load_plan(ROOT / "protocols" / f"{name}.yaml")
+        plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml")
         force = simulate(geom, params, plan.time, plan.stretch, plan.voltage, model="su")["force"].values
         force = force + noise * rng.standard_normal(force.size)
         runs.append(RunData(Path(f"<{name}>"), "", name, "tensile", card.id, geom, plan.time, plan.stretch.copy(),
@@ -159,7 +159,7 @@ def test_metric_max_refuses_least_squares_and_marks_what_does_not_apply(tmp_path
 
 def test_cli_least_squares_writes_its_method(tmp_path, capsys):
     out = tmp_path / "ls.yaml"
-    rc = run_cli(cli, ["calibrate", str(SPECIMEN2), "--init", str(ROOT / "params" / "paper2021_table3.yaml"),
+    rc = run_cli(cli, ["calibrate", str(SPECIMEN2), "--init", str(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"),
                        "--method", "least-squares", "--quiet", "--out", str(out)])
     stdout = capsys.readouterr().out
     assert rc == 0, stdout

@@ -10,8 +10,8 @@ from rdea_lab.cli.main import cli
 ROOT = Path(__file__).resolve().parents[2]
 BAD_PROTOCOLS = sorted((ROOT / "tests" / "protocols" / "bad").glob("*.yaml"))
 BAD_SPECIMENS = sorted((ROOT / "tests" / "specs" / "bad").glob("specimen_*.yaml"))
-GOOD_PROTOCOL = ROOT / "protocols" / "tensile_ramp_sine_2.6kV.yaml"
-GOOD_SPECIMEN = ROOT / "specimens" / "specimen2.yaml"
+GOOD_PROTOCOL = ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_2.6kV.yaml"
+GOOD_SPECIMEN = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
 
 
 def expected_field(path: Path) -> str | None:

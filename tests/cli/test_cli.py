@@ -215,7 +215,7 @@ def test_curve_csv_rows():
 
 # ---------------------------------------------------------------- bad input
 def _bad_card(tmp_path):
-    text = (ROOT / "specimens" / "specimen2.yaml").read_text()
+    text = (ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml").read_text()
     assert "L3: 48 um" in text
     path = tmp_path / "negative_thickness.yaml"
     path.write_text(text.replace("L3: 48 um", "L3: -48 um"))
@@ -223,7 +223,7 @@ def _bad_card(tmp_path):
 
 
 def _bad_params(tmp_path):
-    text = (ROOT / "params" / "rizzello2020.yaml").read_text()
+    text = (ROOT / "rdea_lab" / "data" / "params" / "rizzello2020.yaml").read_text()
     assert "C10: 241 kPa" in text
     path = tmp_path / "c10_zero.yaml"
     path.write_text(text.replace("C10: 241 kPa", "C10: 0 kPa"))

@@ -11,8 +11,8 @@ from rdea_lab.cli.errors import run as run_cli
 from rdea_lab.cli.main import cli as group
 
 ROOT = Path(__file__).resolve().parents[2]
-PARAMS = ROOT / "params" / "paper2021_table3.yaml"
-CARD = ROOT / "specimens" / "specimen2.yaml"
+PARAMS = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
+CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
 
 GOOD = f"""name: small
 model: su

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-CARD = str(ROOT / "specimens" / "specimen2.yaml")
-PARAMS = str(ROOT / "params" / "paper2021_table3.yaml")
+CARD = str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
+PARAMS = str(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
 
 SHORT = """name: short
 target: stretch

@@ -33,8 +33,8 @@ def campaign(tmp_path_factory):
     for spec in SPECIMENS:
         for proto in PROTOCOLS:
             path = out / spec / f"{proto}.nc"
-            rc = run_cli(cli, ["run", str(ROOT / "protocols" / f"{proto}.yaml"), "--specimen",
-                               str(ROOT / "specimens" / f"{spec}.yaml"), "--backend", "twin", "--quiet",
+            rc = run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / f"{proto}.yaml"), "--specimen",
+                               str(ROOT / "rdea_lab" / "data" / "specimens" / f"{spec}.yaml"), "--backend", "twin", "--quiet",
                                "--out", str(path)])
             assert rc == 0, (spec, proto)
             paths[spec, proto] = path
@@ -50,7 +50,7 @@ def test_each_preset_on_each_specimen_is_a_complete_self_describing_file(campaig
         for key in ("model", "parameters", "model_selection", "run_id"):
             assert ds.attrs[key]
         assert ds.attrs["status"] == "complete" and ds.attrs["protocol_name"] == proto
-        assert ds.attrs["specimen_id"] == load_specimen(ROOT / "specimens" / f"{spec}.yaml").id
+        assert ds.attrs["specimen_id"] == load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / f"{spec}.yaml").id
         for name in VARIABLES:
             assert ds[name].attrs["units"] and ds[name].attrs["long_name"]
         assert ds.encoding["unlimited_dims"] == {"time"}
@@ -64,8 +64,8 @@ def test_force_at_the_top_of_the_0V_tensile_run_is_the_quasi_static_su_force(cam
     the viscoelastic overstress, bounded by sum_j eta_j |dlambda/dt| (Maxwell branches
     that start relaxed never exceed eta_j times the largest rate) times area / stretch;
     at the top of the sine the rate is ~0 so it is much smaller still."""
-    card = load_specimen(ROOT / "specimens" / f"{spec}.yaml")
-    params = load_params(ROOT / "params" / "paper2021_table3.yaml")
+    card = load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / f"{spec}.yaml")
+    params = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
     with xr.open_dataset(campaign[spec, "tensile_ramp_sine_0V"], decode_times=False) as ds:  # t in seconds
         lam, t, force = ds["stretch"].values, ds["time"].values, ds["force"].values
     i = int(np.argmax(lam))
@@ -80,8 +80,8 @@ def test_force_at_the_top_of_the_0V_tensile_run_is_the_quasi_static_su_force(cam
 
 def test_dry_run_prints_the_plan_and_writes_nothing(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    rc, out, err = rdea(capsys, "run", ROOT / "protocols" / "blocking_force.yaml", "--specimen",
-                        ROOT / "specimens" / "specimen2.yaml", "--dry-run")
+    rc, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml", "--specimen",
+                        ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml", "--dry-run")
     assert rc == 0, err
     assert "25001 samples" in out and "limits: ok" in out and "twin: model" in out
     assert not (tmp_path / "datasets").exists()
@@ -89,8 +89,8 @@ def test_dry_run_prints_the_plan_and_writes_nothing(capsys, tmp_path, monkeypatc
 
 def test_default_output_path_and_no_overwrite(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    args = ["run", ROOT / "protocols" / "tensile_ramp_sine_0V.yaml", "--specimen", ROOT / "specimens" / "specimen2.yaml",
-            "--params", ROOT / "params" / "paper2021_table3.yaml", "--model", "su", "--quiet"]
+    args = ["run", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml", "--specimen", ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml",
+            "--params", ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml", "--model", "su", "--quiet"]
     rc, out, err = rdea(capsys, *args)
     assert rc == 0, err
     files = list((tmp_path / "datasets" / "specimen-2").glob("tensile_ramp_sine_0V-*Z.nc"))
@@ -107,15 +107,15 @@ def test_ls_show_and_protocol_show(capsys, campaign, tmp_path):
     assert rc == 0 and "blocking_force" in out and "complete" in out and "25001" in out
     rc, out, err = rdea(capsys, "show", campaign["specimen1", "capacitance_sweep"], "--plot", tmp_path / "c.png")
     assert rc == 0 and "capacitance" in out and (tmp_path / "c.png").stat().st_size > 10_000
-    rc, out, err = rdea(capsys, "protocol", "show", ROOT / "protocols" / "tensile_ramp_sine_2.6kV.yaml",
+    rc, out, err = rdea(capsys, "protocol", "show", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_2.6kV.yaml",
                         "--plot", tmp_path / "p.png")
     assert rc == 0 and "ramp_sine" in out and (tmp_path / "p.png").stat().st_size > 10_000
 
 
 def test_auto_records_its_choice_and_explicit_models_run(capsys, tmp_path):
     for model in ("su", "1r", "3r", "auto"):
-        rc, out, err = rdea(capsys, "run", ROOT / "protocols" / "tensile_ramp_sine_2.6kV.yaml", "--specimen",
-                            ROOT / "specimens" / "specimen3.yaml", "--model", model, "--quiet",
+        rc, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_2.6kV.yaml", "--specimen",
+                            ROOT / "rdea_lab" / "data" / "specimens" / "specimen3.yaml", "--model", model, "--quiet",
                             "--out", tmp_path / f"{model}.nc")
         assert rc == 0, err
     with xr.open_dataset(tmp_path / "auto.nc") as ds:
@@ -132,8 +132,8 @@ def test_auto_records_its_choice_and_explicit_models_run(capsys, tmp_path):
     (["--params", "nope.yaml"], ["nope.yaml"]),
 ])
 def test_bad_run_options_exit_2_with_one_line(capsys, args, words):
-    rc, out, err = rdea(capsys, "run", ROOT / "protocols" / "tensile_ramp_sine_0V.yaml", "--specimen",
-                        ROOT / "specimens" / "specimen2.yaml", "--dry-run", *args)
+    rc, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml", "--specimen",
+                        ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml", "--dry-run", *args)
     assert rc == 2 and len(err.strip().splitlines()) == 1
     for w in words:
         assert w in err

@@ -31,8 +31,8 @@ def interactive_sigint():
 def start_run(out: Path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen([sys.executable, "-m", "rdea_lab.cli.main", "run",
-                             str(ROOT / "protocols" / "tensile_ramp_sine_0V.yaml"), "--specimen",
-                             str(ROOT / "specimens" / "specimen2.yaml"), "--realtime", "--quiet", "--out", str(out)],
+                             str(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml"), "--specimen",
+                             str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"), "--realtime", "--quiet", "--out", str(out)],
                             cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=interactive_sigint)
     header = journal_path(out) / "header.json"

@@ -10,12 +10,12 @@ from .helpers import ROOT, quiet_truth
 
 @pytest.fixture(scope="session")
 def card():
-    return load_specimen(ROOT / "specimens" / "specimen2.yaml")
+    return load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
 
 
 @pytest.fixture(scope="session")
 def truth():
-    return load_truth(ROOT / "truth" / "paper2021.yaml")
+    return load_truth(ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml")
 
 
 @pytest.fixture(scope="session")

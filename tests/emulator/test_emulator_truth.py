@@ -11,7 +11,7 @@ from rdea_lab.physics.geometry import geometry_from_card
 from rdea_lab.specs import SpecError, load_params, specimen_from_mapping
 from rdea_lab.specs.truth import dump_truth, load_truth, truth_from_mapping, truth_from_yaml, truth_json
 
-SHIPPED = ROOT / "truth" / "paper2021.yaml"
+SHIPPED = ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml"
 
 
 def shipped_mapping():
@@ -43,7 +43,7 @@ def test_shipped_truth_in_si(truth):
 
 def test_material_part_is_a_parameter_set_with_the_same_checks(truth):
     # the first branch and the Yeoh part are Table 3, as in params/paper2021_table3.yaml
-    table3 = load_params(ROOT / "params" / "paper2021_table3.yaml")
+    table3 = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
     assert (truth.material.C10, truth.material.C20, truth.material.C30) == (table3.C10, table3.C20, table3.C30)
     # the first branch is Table 3's by the small-strain map k = 3 mu, eta(44) = 3 eta (same relaxation time)
     b, ref = truth.material.branches[0], table3.branches[0]

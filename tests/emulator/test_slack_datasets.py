@@ -20,7 +20,7 @@ RUNS = sorted((ROOT / "datasets" / "paper2021").glob("*/tensile_ramp_sine_2.6kV.
 
 @pytest.mark.parametrize("path", RUNS, ids=lambda p: p.parent.name)
 def test_no_compressive_force_beyond_the_load_cell_noise(path):
-    inst = load_truth(ROOT / "truth" / "paper2021.yaml").instrument
+    inst = load_truth(ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml").instrument
     with xr.open_dataset(path) as ds:
         force = ds["force"].values
         assert ds.attrs["status"] == "complete"

@@ -299,7 +299,7 @@ def test_nan_samples_are_skipped_in_blocks(law):
 
 
 # ------------------------------------------------------------------ 5. parameter sets and the twin
-TABLE3 = load_params(ROOT / "params" / "paper2021_table3.yaml")
+TABLE3 = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
 #: Table 3 converted by the small-strain map: mu = k / 3, eta = eta_44 / 3 (the same tau).
 TABLE3_FS = TABLE3.replace(law=FS, branches=tuple(ViscoBranch(mu=b.k / 3, eta=b.eta / 3) for b in TABLE3.branches))
 BASE = {"name": "x", "yeoh": {"C10": "242 kPa", "C20": "-69 kPa", "C30": "47 kPa"}, "eps_r": 2.8}
@@ -352,7 +352,7 @@ def test_simulate_records_the_law():
     t = np.linspace(0, 4, 81)
     lam = 1 + 0.25 * (1 - np.cos(2 * np.pi * 0.25 * t))
     for ps in (TABLE3, TABLE3_FS):
-        ds = simulate(ROOT / "specimens" / "specimen2.yaml", ps, t, lam, 0.0)
+        ds = simulate(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml", ps, t, lam, 0.0)
         assert ds.attrs["viscoelastic_law"] == ps.law
         p = params_from_yaml(ds.attrs["parameters"], "parameters")  # YAML, as runs write it (issue 14)
         assert p.law == ps.law
@@ -364,7 +364,7 @@ CASES = [("specimen2.yaml", m) for m in ("su", "1r", "3r", "cr")] + [("vhb4910_s
 
 def _run(card, model, ps, t, lam):
     voltage = np.where(t > 2.0, 2600.0, 0.0) if card == "specimen2.yaml" else 0.0
-    return simulate(ROOT / "specimens" / card, ps, t, lam, voltage, model=model)
+    return simulate(ROOT / "rdea_lab" / "data" / "specimens" / card, ps, t, lam, voltage, model=model)
 
 
 @pytest.mark.parametrize("card, model", CASES)
@@ -385,7 +385,7 @@ def test_every_model_runs_with_either_law_and_vanishing_branches_agree(card, mod
     relative and a few ulp of the force are all the slack."""
     t = np.linspace(0, 6, 61)
     lam = 1 + 0.25 * (1 - np.cos(2 * np.pi * t / 3.0))
-    area = as_geometry(ROOT / "specimens" / card).area
+    area = as_geometry(ROOT / "rdea_lab" / "data" / "specimens" / card).area
     for ps in (TABLE3, TABLE3_FS):
         assert np.all(np.isfinite(_run(card, model, ps, t, lam)["force"].values))
     none = _run(card, model, TABLE3.replace(branches=()), t, lam)["force"].values

@@ -27,7 +27,7 @@ def test_radii_reproduce_table2(n):
     """Table 2 within 0.5 %. We get +0.38 % to +0.44 % for every radius of every
     specimen: a systematic offset that ERRATA predicts (the paper's own numbers
     are rounded from a slightly different evaluation); it is reported, not tuned."""
-    card = load_specimen(ROOT / "specimens" / f"specimen{n}.yaml")
+    card = load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / f"specimen{n}.yaml")
     g = geometry_from_card(card)
     assert g.Ri == 0.0
     got = np.array([g.Rie, g.Roe, g.Ro]) * 1e3

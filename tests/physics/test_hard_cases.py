@@ -63,10 +63,7 @@ def test_ring_c_vanishing(v):
 def test_thin_shell():
     """Ri close to Ro (a 0.1 mm wall at 1.8 mm): a thin shell is a rolled strip, so 3R
     follows 1R closely, and agrees with the per-sample fsolve reference."""
-    import sys
-    from pathlib import Path
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-    from baseline_3r_fsolve import solve_3r_fsolve
+    from rdea_lab.reports.baseline_3r_fsolve import solve_3r_fsolve
 
     radii = (1.70e-3, 1.705e-3, 1.795e-3, 1.8e-3)
     geom = core(radii)

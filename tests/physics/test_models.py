@@ -17,8 +17,7 @@ from rdea_lab.physics.result import OK, SNAPPED
 
 from conftest import RIZZELLO, TABLE3, core
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
-from baseline_3r_fsolve import solve_3r_fsolve  # noqa: E402  (independent reference)
+from rdea_lab.reports.baseline_3r_fsolve import solve_3r_fsolve  # independent reference
 
 #: These tests check the models' equations (the paper's, Assumption 1 taken as given):
 #: the equilibrium at the given stretch, a negative stress included (slack: test_hard_cases).

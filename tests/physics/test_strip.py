@@ -124,7 +124,7 @@ def test_3r_on_a_strip_is_a_user_mistake_at_the_command_line(capsys, tmp_path):
     from rdea_lab.cli.errors import run as run_cli
     from rdea_lab.cli.main import cli
 
-    root = Path(__file__).resolve().parents[2]
+    root = Path(__file__).resolve().parents[2] / "rdea_lab" / "data"
     card = str(root / "specimens" / "vhb4910_strip.yaml")
     for args in (["curve", "--specimen", card, "--params", str(root / "params" / "rizzello2020.yaml"), "--model", "3r"],
                  ["run", str(root / "protocols" / "tensile_ramp_sine_0V.yaml"), "--specimen", card, "--model", "3r",

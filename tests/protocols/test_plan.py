@@ -11,7 +11,7 @@ from rdea_lab.specs import SpecError, dump_protocol, load_protocol, protocol_fro
 
 from .conftest import make_plan
 
-PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
+PROTOCOLS = Path(__file__).resolve().parents[2] / "rdea_lab" / "data" / "protocols"
 SHIPPED = sorted(PROTOCOLS.glob("*.yaml"))
 L3 = 48e-6  # [m] membrane thickness of the paper's specimens (Table 1)
 

@@ -71,14 +71,14 @@ def test_the_voltage_limit_holds_with_the_probe_on():
 
 
 def test_the_shipped_selfsense_protocol():
-    plan = load_plan(ROOT / "protocols" / "selfsense_2.6kV.yaml")
+    plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "selfsense_2.6kV.yaml")
     assert plan.spec.probe.frequency < plan.sample_rate / 2 and "current" in plan.measure
     assert plan.voltage.max() <= plan.limits.max_voltage and not check_plan(plan, 48e-6)
 
 
 def test_cli_refuses_a_bad_probe_with_one_line(tmp_path):
     bad = tmp_path / "bad.yaml"
-    bad.write_text((ROOT / "protocols" / "selfsense_2.6kV.yaml").read_text().replace("200 Hz}", "1.5 kHz}"))
+    bad.write_text((ROOT / "rdea_lab" / "data" / "protocols" / "selfsense_2.6kV.yaml").read_text().replace("200 Hz}", "1.5 kHz}"))
     out = subprocess.run([sys.executable, "-m", "rdea_lab.cli.main", "protocol", "show", str(bad)],
                          capture_output=True, text=True, cwd=tmp_path)
     assert out.returncode == 2 and out.stderr.count("\n") == 1

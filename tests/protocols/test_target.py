@@ -13,8 +13,8 @@ from rdea_lab.specs import SpecError
 from rdea_lab.specs.target import load_target, target_from_mapping
 
 ROOT = Path(__file__).resolve().parents[2]
-CARD = ROOT / "specimens" / "specimen2.yaml"
-PARAMS = ROOT / "params" / "paper2021_table3.yaml"
+CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
+PARAMS = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
 
 
 def short(**changes):

@@ -47,7 +47,7 @@ def read_page():
 
 
 ROOT = Path(__file__).resolve().parents[2]
-TABLE3 = ROOT / "params" / "paper2021_table3.yaml"
+TABLE3 = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
 #: (specimen card, protocol) of the twin_folder fixture's runs
 TWIN_RUNS = [("specimen1", "tensile_ramp_sine_0V"), ("specimen1", "tensile_ramp_sine_2.6kV"),
              ("specimen1", "blocking_force"), ("specimen1", "capacitance_sweep"),
@@ -63,8 +63,8 @@ def twin_folder(tmp_path_factory):
     folder = tmp_path_factory.mktemp("twin_runs")
     for card, proto in TWIN_RUNS:
         out = folder / card / f"{proto}.nc"
-        argv = ["run", str(ROOT / "protocols" / f"{proto}.yaml"),
-                "--specimen", str(ROOT / "specimens" / f"{card}.yaml"),
+        argv = ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / f"{proto}.yaml"),
+                "--specimen", str(ROOT / "rdea_lab" / "data" / "specimens" / f"{card}.yaml"),
                 "--backend", "twin", "--model", "su", "--params", str(TABLE3), "--out", str(out), "--quiet"]
         assert run(cli, argv) == 0
     return folder

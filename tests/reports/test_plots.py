@@ -41,7 +41,7 @@ def cap_run():
 
 @pytest.fixture(scope="module")
 def plan():
-    return load_plan(ROOT / "protocols" / "blocking_force.yaml")
+    return load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml")
 
 
 def prediction_of(ds, factor=1.05):

@@ -22,7 +22,7 @@ from rdea_lab.reports.html import HASH_CHARS
 from rdea_lab.reports.validation import COLUMNS, validation_report
 
 ROOT = Path(__file__).resolve().parents[2]
-TABLE3 = ROOT / "params" / "paper2021_table3.yaml"
+TABLE3 = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
 #: Longest text a table cell may hold without a break opportunity (a space or <wbr>): a 12-character hash,
 #: an ISO 8601 time (20), a 2.6kV protocol's last piece; a 64-character hash or a path would break a
 #: 1400 px page.

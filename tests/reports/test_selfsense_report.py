@@ -17,7 +17,7 @@ from rdea_lab.reports.selfsense import selfsense_run
 from rdea_lab.specs import SpecError
 
 ROOT = Path(__file__).resolve().parents[2]
-PARAMS = ROOT / "params" / "paper2021_table3.yaml"
+PARAMS = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
 
 PROTOCOL = """
 name: sense
@@ -38,7 +38,7 @@ def twin_run(folder, probe="probe: {amplitude: 20 V, frequency: 200 Hz}", name="
     protocol = folder / "sense.yaml"
     protocol.write_text(PROTOCOL.format(probe=probe))
     out = folder / name
-    rdea_lab.run_protocol(protocol, ROOT / "specimens" / "specimen2.yaml", "twin", params=PARAMS, model="su",
+    rdea_lab.run_protocol(protocol, ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml", "twin", params=PARAMS, model="su",
                           out=out)
     return out
 
@@ -78,12 +78,12 @@ def test_the_reference_tare_fits_gain_and_offset_on_a_0V_run(run, tmp_path):
     protocol.write_text(PROTOCOL.format(probe="probe: {amplitude: 20 V, frequency: 200 Hz}").replace(
         "mean: 1 kV, amplitude: 1 kV", "mean: 0 kV, amplitude: 0 kV"))
     ref = folder / "ref.nc"
-    rdea_lab.run_protocol(protocol, ROOT / "specimens" / "specimen2.yaml", "twin", params=PARAMS, model="su", out=ref)
+    rdea_lab.run_protocol(protocol, ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml", "twin", params=PARAMS, model="su", out=ref)
     result = selfsense_run(run, PARAMS, "su", reference=ref)
     # the twin's capacitance is the model's: the fitted map gain C0 lambda + offset is C0 lambda over the
     # sweep's stretches to the estimator's error at 0 V with the probe, 1e-5 of C (as the rest tare above);
     # gain and offset alone trade against each other (4e-5 and -1.1e-13 F measured), so 1e-4 each
-    C0 = rdea_lab.geometry(ROOT / "specimens" / "specimen2.yaml").C0(2.8)
+    C0 = rdea_lab.geometry(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml").C0(2.8)
     lam = np.linspace(1.0, 1.4, 9)
     np.testing.assert_allclose(result.gain * C0 * lam + result.offset, C0 * lam, rtol=1e-5, atol=0)
     assert result.gain == pytest.approx(1.0, abs=1e-4) and abs(result.offset) < 1e-4 * C0
@@ -91,7 +91,7 @@ def test_the_reference_tare_fits_gain_and_offset_on_a_0V_run(run, tmp_path):
     with pytest.raises(SpecError, match=r"reference: the reference tare needs a reference run"):
         selfsense_run(run, PARAMS, "su", tare="reference")
     other = folder / "other.nc"
-    rdea_lab.run_protocol(protocol, ROOT / "specimens" / "specimen1.yaml", "twin", params=PARAMS, model="su",
+    rdea_lab.run_protocol(protocol, ROOT / "rdea_lab" / "data" / "specimens" / "specimen1.yaml", "twin", params=PARAMS, model="su",
                           out=other)
     with pytest.raises(SpecError, match=r"other.nc: specimen: the reference run is of specimen-1, the run of "
                                         r"specimen-2"):

@@ -25,7 +25,7 @@ from rdea_lab.reports.validation import COLUMNS, ReportInputError, validation_re
 from rdea_lab.specs import dump_params, load_params
 
 ROOT = Path(__file__).resolve().parents[2]
-TABLE3 = ROOT / "params" / "paper2021_table3.yaml"
+TABLE3 = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
 
 
 @pytest.fixture(autouse=True)

@@ -16,7 +16,7 @@ from rdea_lab.reports.validation_figures import blocking_figure, tensile_figure
 from rdea_lab.specs import load_params
 
 ROOT = Path(__file__).resolve().parents[2]
-TABLE3 = ROOT / "params" / "paper2021_table3.yaml"
+TABLE3 = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
 
 
 @pytest.fixture(scope="module")

@@ -38,12 +38,12 @@ def plan(duration=10.0, rate=100.0, max_force=50.0, voltage=0.0):
 
 @pytest.fixture(scope="module")
 def card():
-    return load_specimen(ROOT / "specimens" / "specimen2.yaml")
+    return load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
 
 
 @pytest.fixture(scope="module")
 def params():
-    return load_params(ROOT / "params" / "paper2021_table3.yaml")
+    return load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
 
 
 class Scripted:

@@ -23,9 +23,9 @@ from rdea_lab.specs.truth import load_truth
 from rdea_lab.store import open_run
 
 ROOT = Path(__file__).resolve().parents[2]
-CARD = ROOT / "specimens" / "specimen2.yaml"
-PARAMS = ROOT / "params" / "paper2021_table3.yaml"
-TRUTH = ROOT / "truth" / "paper2021.yaml"
+CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
+PARAMS = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
+TRUTH = ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml"
 RigServer = rdea_lab.emulator.RigServer  # before any test records the library's own servers
 
 

@@ -29,7 +29,7 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-CARD = ROOT / "specimens" / "specimen2.yaml"
+CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
 RATE = 100.0
 PROTOCOL = """\
 name: soak

@@ -10,7 +10,7 @@ from rdea_lab.cli.main import cli
 from rdea_lab.specs import SpecError, parse_quantity, protocol_from_yaml, specimen_from_yaml
 
 ROOT = Path(__file__).resolve().parents[2]
-CARD = (ROOT / "specimens" / "specimen2.yaml").read_text()
+CARD = (ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml").read_text()
 
 #: "billion laughs": nine levels of nine aliases, 9**9 = 387 million strings once expanded
 BOMB = 'a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]\n' + "".join(

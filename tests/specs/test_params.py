@@ -20,7 +20,7 @@ from rdea_lab.specs import (
     yeoh_slope_nonpositive_at,
 )
 
-PARAMS = Path(__file__).resolve().parents[2] / "params"
+PARAMS = Path(__file__).resolve().parents[2] / "rdea_lab" / "data" / "params"
 KPA = 1e3
 TABLE3 = dict(C10=242 * KPA, C20=-69 * KPA, C30=47 * KPA, eps_r=2.8)  # Table 3 as corrected in ERRATA
 RIZZELLO = dict(C10=241 * KPA, C20=-33.2 * KPA, C30=20.1 * KPA, eps_r=2.8)  # Section 3.4, ref. [36]

@@ -17,7 +17,7 @@ from rdea_lab.specs import (
     specimen_from_yaml,
 )
 
-SPECIMENS = Path(__file__).resolve().parents[2] / "specimens"
+SPECIMENS = Path(__file__).resolve().parents[2] / "rdea_lab" / "data" / "specimens"
 MM, UM = 1e-3, 1e-6
 # Every value is a short decimal parsed with decimal prefixes, so it is the
 # float nearest to the SI value; rel=1e-15 only absorbs the rounding of the

@@ -27,8 +27,8 @@ from rdea_lab.twin import simulate
 ROOT = Path(__file__).resolve().parents[2]
 TABLES = Path(__file__).resolve().parent / "cf_tables"
 VHB = ROOT.parent / "shared" / "data" / "vhb4910"
-CARD = ROOT / "specimens" / "specimen2.yaml"
-PARAMS = ROOT / "params" / "paper2021_table3.yaml"
+CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
+PARAMS = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
 SHIPPED = sorted([*ROOT.glob("datasets/**/*.nc"), *ROOT.glob("reports/**/*.nc")])
 KINDS = ("twin", "emulator", "aborted", "recovered", "imported", "simulate")
 
@@ -121,7 +121,7 @@ def written(tmp_path_factory):
                                 protocol_kind="tensile", credit="Chongran-Zhao/VHB4910_data (GitHub)")
         from rdea_lab.specs import load_specimen
 
-        (_, target, _), = import_files(files, load_specimen(ROOT / "specimens" / "vhb4910_strip.yaml"), options,
+        (_, target, _), = import_files(files, load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"), options,
                                        out=folder / "imported", command=f"rdea-lab import {files[0]}")
         out["imported"] = target
     else:
@@ -232,7 +232,7 @@ def test_each_writer_says_how_its_data_were_made(written):
 
 
 def test_a_protocol_inside_the_project_is_named_relative_to_its_root(tmp_path):
-    ds = rdea_lab.run_protocol(ROOT / "protocols" / "blocking_force.yaml", CARD, "twin", model="su",
+    ds = rdea_lab.run_protocol(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml", CARD, "twin", model="su",
                                out=tmp_path / "b.nc", command=f"rdea-lab run {ROOT / 'protocols' / 'blocking_force.yaml'}")
     assert ds.attrs["protocol_source"] == "protocols/blocking_force.yaml"
     assert ds.attrs["history"].split("\n")[0].endswith(": rdea-lab run protocols/blocking_force.yaml")

@@ -32,7 +32,7 @@ VHB = ROOT.parent / "shared" / "data" / "vhb4910"
 VHB_FILES = sorted(VHB.glob("*.csv")) if VHB.is_dir() else []
 CREDIT = "Chongran-Zhao/VHB4910_data (GitHub), uniaxial-loading-unloading/original_data"
 STRIP = DATA / "vhb4910.yaml"  # {id: vhb4910, kind: strip, length: 80 mm, ...}
-ROLL = ROOT / "specimens" / "specimen2.yaml"  # L1 = 34 mm
+ROLL = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"  # L1 = 34 mm
 needs_vhb = pytest.mark.skipif(not VHB.is_dir(), reason=f"{VHB} is absent (CI keeps it beside the checkout)")
 
 

@@ -14,8 +14,8 @@ from rdea_lab.twin import as_geometry, simulate
 from rdea_lab.twin.inverse import voltage_for_force
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
-GEOM = as_geometry(ROOT / "specimens" / "specimen2.yaml")
-PARAMS = load_params(ROOT / "params" / "paper2021_table3.yaml")
+GEOM = as_geometry(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
+PARAMS = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
 RATE = 500.0  # Hz: fast against the 10 ms branch, so the overstress matters in the ramp
 
 
@@ -71,7 +71,7 @@ def test_out_of_reach_is_flagged_with_the_reachable_range():
 def test_the_fold_caps_the_reachable_voltage():
     """The active core (3R) snaps at about 3.0 kV at stretch 1: the branch from 0 V ends there,
     below a 5 kV limit, and the usable voltage is the fold's."""
-    geom = as_geometry(ROOT / "specimens" / "active_core.yaml")
+    geom = as_geometry(ROOT / "rdea_lab" / "data" / "specimens" / "active_core.yaml")
     t = np.arange(3) / RATE
     inv = voltage_for_force(geom, PARAMS, t, np.ones(3), np.full(3, 0.01), "3r", max_voltage=5000.0)
     assert inv.fold.all() and not inv.reachable.any()

@@ -115,8 +115,8 @@ def test_secant_needs_the_leakage_it_fits():
 
 @pytest.fixture(scope="module")
 def hollow():
-    card = load_specimen(ROOT / "specimens" / "hollow_core.yaml")
-    return geometry_from_card(card), load_params(ROOT / "params" / "rizzello2020.yaml")
+    card = load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "hollow_core.yaml")
+    return geometry_from_card(card), load_params(ROOT / "rdea_lab" / "data" / "params" / "rizzello2020.yaml")
 
 
 def test_su_inverse_is_c_over_c0(hollow):

@@ -39,12 +39,12 @@ AREA = 2 * L2 * L3
 
 @pytest.fixture(scope="module")
 def card():
-    return load_specimen(ROOT / "specimens" / "specimen2.yaml")
+    return load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
 
 
 @pytest.fixture(scope="module")
 def table3():
-    return load_params(ROOT / "params" / "paper2021_table3.yaml")
+    return load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
 
 
 def tensile(period=10.0, duration=20.0, rate_hz=100.0):
@@ -143,7 +143,7 @@ def test_without_branches_force_is_quasi_static(card, table3):
 
 
 def test_rizzello_params_have_no_viscous_part(card):
-    params = load_params(ROOT / "params" / "rizzello2020.yaml")
+    params = load_params(ROOT / "rdea_lab" / "data" / "params" / "rizzello2020.yaml")
     t, lam = tensile()
     ds = simulate(card, params, t, lam, 0.0, model="su")
     np.testing.assert_array_equal(ds["sigma1_irr"], 0.0)

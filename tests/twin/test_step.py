@@ -21,7 +21,7 @@ from rdea_lab.specs import ParameterSet, ViscoBranch, load_params, load_specimen
 from rdea_lab.twin import TwinStep, TwinStream
 from rdea_lab.twin.step import FIELDS, FORCE
 
-PROJECT = Path(__file__).resolve().parents[2]
+PROJECT = Path(__file__).resolve().parents[2] / "rdea_lab" / "data"
 
 TABLE3 = load_params(PROJECT / "params" / "paper2021_table3.yaml")
 CARD = load_specimen(PROJECT / "specimens" / "specimen2.yaml")

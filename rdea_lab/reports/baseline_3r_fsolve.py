@@ -14,7 +14,7 @@ Nothing here is imported from ``rdea_lab``: this file exists to check and to
 benchmark the fast solver in ``rdea_lab/physics`` against a plain
 ``scipy.optimize.fsolve`` loop over samples.
 
-Run ``python benchmarks/baseline_3r_fsolve.py`` for a throughput figure on the
+Run ``python -m rdea_lab.reports.baseline_3r_fsolve`` for a throughput figure on the
 passive-core geometry of Section 3.4.
 """
 
