@@ -178,7 +178,7 @@ def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
         import io
 
         with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(io.StringIO()):  # the import's lines
-            rc = run_cli(cli, ["import", *map(str, sorted(vhb.glob("*.csv"))), "--format", "csv", "--map",
+            rc = run_cli(cli, ["import", *map(str, sorted(vhb.glob("0d*.csv"))), "--format", "csv", "--map",
                                "time=0,position=1,force=2", "--protocol-kind", "tensile", "--specimen",
                                str(ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"), "--out", tmp])
             if rc == 0:

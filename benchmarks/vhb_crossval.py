@@ -30,7 +30,7 @@ def imported(folder: Path) -> Path:
     from rdea_lab.cli.errors import run as run_cli
     from rdea_lab.cli.main import cli
 
-    rc = run_cli(cli, ["import", *map(str, sorted(VHB.glob("*.csv"))), "--format", "csv", "--map",
+    rc = run_cli(cli, ["import", *map(str, sorted(VHB.glob("0d*.csv"))), "--format", "csv", "--map",
                        "time=0,position=1,force=2", "--protocol-kind", "tensile", "--specimen",
                        str(ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"), "--credit",
                        "Chongran-Zhao/VHB4910_data (GitHub)", "--out", str(folder)])

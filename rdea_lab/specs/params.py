@@ -29,7 +29,7 @@ import yaml
 from pydantic import model_validator
 
 from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, show
-from .units import format_quantity, quantity
+from .units import _dimension_of, format_quantity, parse_quantity, quantity
 
 Pressure = quantity("pressure", "kPa")
 Viscosity = quantity("viscosity", "kPa s")
@@ -358,18 +358,30 @@ def load_params(path: str | os.PathLike) -> ParameterSet:
     return params_from_mapping(mapping, source)
 
 
+def _fixed(value: float, unit: str) -> str:
+    """``value`` always in ``unit``: the shortest digits that read back exactly, else 17 significant
+    digits (then within one unit in the last place: a decimal in kPa cannot hit every float in Pa)."""
+    text = format_quantity(value, unit)
+    if not text.endswith(" " + unit):  # format_quantity fell back to the SI unit
+        factor = parse_quantity(f"1 {unit}", _dimension_of(unit), source="", field="")
+        text = f"{value / factor:.17g} {unit}"
+    return text
+
+
 def dump_params(ps: ParameterSet) -> str:
-    """Write a parameter set as YAML with units; `load_params` reads it back equal."""
+    """Write a parameter set as YAML with units, each quantity in one fixed unit (moduli in kPa,
+    viscosities in kPa s); `load_params` reads it back equal (to the last digit but one at worst)."""
     data: dict[str, Any] = {"name": ps.name}
     for key in ("description", "source"):
         if getattr(ps, key) is not None:
             data[key] = getattr(ps, key)
-    data["yeoh"] = {k: _kpa(getattr(ps, k)) for k in ("C10", "C20", "C30")}
+    data["yeoh"] = {k: _fixed(getattr(ps, k), "kPa") for k in ("C10", "C20", "C30")}
     data["eps_r"] = ps.eps_r
     data["viscoelastic"] = {
         "law": ps.law,
-        "branches": [{MODULUS[ps.law]: _kpa(b.modulus), "eta": _kpas(b.eta)} for b in ps.branches],
-        "eta_v0": _kpas(ps.eta_v0),
+        "branches": [{MODULUS[ps.law]: _fixed(b.modulus, "kPa"), "eta": _fixed(b.eta, "kPa s")}
+                     for b in ps.branches],
+        "eta_v0": _fixed(ps.eta_v0, "kPa s"),
     }
     return yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=1000)
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import rdea_lab
+from rdea_lab.paths import resolve
 from rdea_lab.reports.selfsense import selfsense_run
 from rdea_lab.specs import SpecError
 
@@ -128,7 +129,7 @@ def test_cli_prints_one_line_and_writes_the_dataset(run, tmp_path):
     (("datasets/paper2021/specimen-2/blocking_force.nc", "--params", "params/paper2021_table3.yaml"),
      "rdea-lab: datasets/paper2021/specimen-2/blocking_force.nc: current: the run has no current variable"),
     (("RUN", "--params", "protocols/blocking_force.yaml"),
-     "rdea-lab: protocols/blocking_force.yaml: "),
+     f"rdea-lab: {resolve('protocols/blocking_force.yaml', 'protocols')}: "),  # the packaged file, by its path
     (("nowhere.nc", "--params", "params/paper2021_table3.yaml"), "rdea-lab: nowhere.nc: <document>: no such file"),
 ])
 def test_cli_bad_input_exit_2_one_line(run, tmp_path, args, message):

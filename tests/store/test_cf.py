@@ -231,9 +231,11 @@ def test_each_writer_says_how_its_data_were_made(written):
         assert f"rdea-lab import {written['imported'].stem}.csv" in imp["history"]
 
 
-def test_a_protocol_inside_the_project_is_named_relative_to_its_root(tmp_path):
-    ds = rdea_lab.run_protocol(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml", CARD, "twin", model="su",
-                               out=tmp_path / "b.nc", command=f"rdea-lab run {ROOT / 'protocols' / 'blocking_force.yaml'}")
+def test_a_packaged_protocol_is_named_by_its_packaged_name(tmp_path):
+    """No machine's absolute path in a dataset: a packaged input is named as `rdea_lab.paths.resolve` finds it."""
+    packaged = ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml"
+    ds = rdea_lab.run_protocol(packaged, CARD, "twin", model="su", out=tmp_path / "b.nc",
+                               command=f"rdea-lab run {packaged}")
     assert ds.attrs["protocol_source"] == "protocols/blocking_force.yaml"
     assert ds.attrs["history"].split("\n")[0].endswith(": rdea-lab run protocols/blocking_force.yaml")
 

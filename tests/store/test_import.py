@@ -29,7 +29,10 @@ from rdea_lab.store.importers import ImportOptions, import_file, parse_map, pars
 ROOT = Path(__file__).resolve().parents[2]
 DATA = Path(__file__).resolve().parent / "import_data"
 VHB = ROOT.parent / "shared" / "data" / "vhb4910"
-VHB_FILES = sorted(VHB.glob("*.csv")) if VHB.is_dir() else []
+#: The five loading-unloading runs (the shared README: rates and stretches in the names); the step-and-hold
+#: run relax_2d0.csv beside them is tested on its own.
+VHB_FILES = sorted(VHB.glob("0d*.csv")) if VHB.is_dir() else []
+RELAX = VHB / "relax_2d0.csv"
 CREDIT = "Chongran-Zhao/VHB4910_data (GitHub), uniaxial-loading-unloading/original_data"
 STRIP = DATA / "vhb4910.yaml"  # {id: vhb4910, kind: strip, length: 80 mm, ...}
 ROLL = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"  # L1 = 34 mm
@@ -50,8 +53,10 @@ def invoke(cli, capsys, *args):
 def vhb_text(path: Path):
     """Time, displacement [mm] and force [N] of a VHB file, as the text says."""
     lines = path.read_bytes().decode("gbk").splitlines()
-    assert lines[0] == "" and lines[2] == "(s),(mm),(N)"  # blank line, GBK header, units row
-    rows = [ln for ln in lines[3:] if ln.strip()]
+    if lines[0] == "":  # the loading-unloading files start with a blank line, the step-and-hold one not
+        lines = lines[1:]
+    assert lines[0] == "时间,位移,力" and lines[1] == "(s),(mm),(N)"  # GBK header, units row
+    rows = [ln for ln in lines[2:] if ln.strip()]
     cells = [[c.strip('"') for c in ln.split(",")] for ln in rows]
     return cells
 
@@ -59,7 +64,9 @@ def vhb_text(path: Path):
 # ------------------------------------------------------------------ VHB 4910
 @needs_vhb
 def test_all_five_vhb_files_are_there():
-    """The shared folder's README lists five files: three rates to stretch 1.5, two to stretch 3.0."""
+    """The shared folder's README lists five loading-unloading files: three rates to stretch 1.5, two to
+    stretch 3.0 (and the step-and-hold run beside them)."""
+    assert RELAX.is_file()
     assert [p.name for p in VHB_FILES] == ["0d01_1d5.csv", "0d01_3d0.csv", "0d03_1d5_1.csv", "0d05_1d5_1.csv",
                                            "0d05_3d0.csv"]
 
@@ -97,6 +104,26 @@ def test_vhb_file_imports_as_the_file_says(cli, capsys, tmp_path, path):
     assert mapping["units"] == {"time": "s", "position": "mm", "force": "N"}
     assert set(mapping["units_from"].values()) == {"file"}  # from the units row (s),(mm),(N)
     assert mapping["columns"] == {"time": "时间", "position": "位移", "force": "力"}  # GBK header decoded
+
+
+@needs_vhb
+def test_the_step_and_hold_file_imports_as_its_readme_says(cli, capsys, tmp_path):
+    """relax_2d0.csv (the shared README): loaded at about 0.25 /s to stretch 2.0, then held 1800 s, 50 Hz."""
+    out = tmp_path / "relax.nc"
+    rc, _, err = invoke(cli, capsys, RELAX, "--format", "csv", "--map", "time=0,position=1,force=2",
+                        "--specimen", STRIP, "--protocol-kind", "custom", "--credit", CREDIT, "--out", out)
+    assert rc == 0, err
+    ds = open_run(out)
+    cells = vhb_text(RELAX)
+    assert ds.sizes["time"] == len(cells)  # one sample per data line
+    np.testing.assert_array_equal(ds["force"].values, [float(c[2]) for c in cells])
+    t, lam = ds["time"].values, ds["stretch"].values
+    assert np.median(np.diff(t)) == pytest.approx(0.02)  # 50 Hz
+    held = t >= t[np.argmax(lam >= 1.99)]
+    assert lam[held].min() == pytest.approx(2.0, abs=0.01) and lam.max() == pytest.approx(2.0, abs=0.01)
+    assert t[held][-1] - t[held][0] == pytest.approx(1800, abs=10)
+    ramp = t[np.argmax(lam >= 1.99)] - t[np.argmax(lam >= 1.01)]
+    assert 0.98 / ramp == pytest.approx(0.25, rel=0.2)  # "about 0.25 1/s"
 
 
 @needs_vhb
