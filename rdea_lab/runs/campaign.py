@@ -70,7 +70,7 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
             if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
                 break
         return results
-    truth = _truth(spec, root)
+    truth = campaign_truth(spec, root)
     for card_id in dict.fromkeys(r.card.id for r in runs):
         mine = [r for r in runs if r.card.id == card_id]
         with emulated_rig(mine[0].card, truth, realtime=realtime) as address:  # one rig per specimen
@@ -90,7 +90,8 @@ def _checked(spec, root, out_dir, overwrite, metadata):
     return runs, {id(r): spec.seed + i for i, r in enumerate(runs)}, metadata  # each run its own noise
 
 
-def _truth(spec, root):
+def campaign_truth(spec, root: Path):
+    """The truth of an emulated campaign (its ``truth``, or the packaged default)."""
     from ..specs.truth import load_truth
 
     return load_truth(root / spec.truth if spec.truth else DEFAULT_TRUTH)
@@ -113,7 +114,7 @@ def submit_campaign(spec, root: Path, executor, *, out_dir=None, overwrite=False
     """
     runs, seeds, metadata = _checked(spec, root, out_dir, overwrite, metadata)
     options = ({"params": load_params(root / spec.params if spec.params else DEFAULT_PARAMS), "model": spec.model}
-               if spec.backend == "twin" else {"truth": _truth(spec, root)})
+               if spec.backend == "twin" else {"truth": campaign_truth(spec, root)})
     order = sorted(runs, key=lambda r: not first(r)) if first is not None else runs
     futures = {id(r): executor.submit(run_experiment, spec.backend, r, seeds[id(r)], metadata=metadata,
                                       command=command, **options) for r in order}
