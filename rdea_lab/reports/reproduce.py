@@ -183,10 +183,14 @@ def default_workers() -> int:
     return max(1, min(WORKERS, cores))
 
 
-def start_method() -> str | None:
-    """``fork`` on Linux in a process with one thread (safe there, and the workers need no start-up of
-    their own), else None: the platform's default."""
-    return "fork" if sys.platform.startswith("linux") and threading.active_count() == 1 else None
+def start_method() -> str:
+    """How the pool starts its processes: ``fork`` on Linux in a process with one thread and no numba
+    thread pool running (safe there, and the workers need no start-up of their own); else ``forkserver``
+    (a clean process forks them) where there is one, or ``spawn``."""
+    numba_threads = getattr(sys.modules.get("numba.np.ufunc.parallel"), "_is_initialized", False)
+    if sys.platform.startswith("linux") and threading.active_count() == 1 and not numba_threads:
+        return "fork"
+    return "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
 
 
 @contextlib.contextmanager

@@ -213,8 +213,12 @@ def write_figures(evaluated: list[dict], out: Path, pdf: bool = True, executor=N
             "As Figure 16: capacitance at 0 V against displacement; measured (LCR bridge) and twin, with each run's "
             "residual in % of its peak capacitance below."))
     paths = list(jobs)
-    args = ([jobs[p][0] for p in paths], [jobs[p][1] for p in paths], paths, [pdf] * len(paths))
-    written = list(executor.map(_draw, *args) if executor is not None else map(_draw, *args))
+    if executor is None:
+        written = [_draw(jobs[p][0], jobs[p][1], p, pdf) for p in paths]
+    else:  # the blocking figure (the largest) first, so that no task is left alone at the end
+        order = sorted(paths, key=lambda p: jobs[p][0] is not blocking_figure)
+        futures = {p: executor.submit(_draw, jobs[p][0], jobs[p][1], p, pdf) for p in order}
+        written = [futures[p].result() for p in paths]
     return {path: jobs[key][2] for path, key in zip(written, paths)}
 
 
