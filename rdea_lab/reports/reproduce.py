@@ -94,6 +94,7 @@ def reproduce(out: Path, *, datasets=None, campaign=None, speed=True, overwrite=
     workers = default_workers() if workers is None else int(workers)
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    t0 = time.perf_counter()  # the campaign's stage and the total start here, the pool's start-up included
     root = data_dir()
     spec, spec_root = load_campaign(campaign or root / "campaigns" / "paper2021.yaml")
     with contextlib.ExitStack() as stack:
@@ -101,12 +102,11 @@ def reproduce(out: Path, *, datasets=None, campaign=None, speed=True, overwrite=
             preload(spec, spec_root)
         pool = stack.enter_context(process_pool(workers)) if workers > 1 else None
         return _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress_factory, pdf, pool,
-                          workers)
+                          workers, t0)
 
 
-def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress_factory, pdf, pool, workers):
+def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress_factory, pdf, pool, workers, t0):
     stages: dict[str, float] = {}
-    t0 = time.perf_counter()
 
     @contextlib.contextmanager
     def stage(name):
@@ -114,7 +114,6 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
         yield
         stages[name] = time.perf_counter() - start
 
-    start = time.perf_counter()
     runs = experiments(spec, spec_root, data)
     if CALIBRATION_SPECIMEN not in {r.card.id for r in runs}:
         raise ReproduceInputError(f"{campaign or 'the campaign'}: it has no {CALIBRATION_SPECIMEN}, "
@@ -128,7 +127,7 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
     else:
         submitted = submit_campaign(spec, spec_root, pool, out_dir=data, overwrite=True, first=_calibration_run)
         models = pool.submit(_timed, reproduce_models, root, out / "models", pdf)  # needs nothing of the campaign
-        progress = _CampaignProgress(submitted, progress_factory, total, spec.name)
+        progress = _CampaignProgress(submitted, progress_factory, total, spec.name, t0)
         with contextlib.ExitStack() as bar:
             progress.start(bar)
             progress.wait(_calibration_run)  # the calibration's runs are submitted first
@@ -139,7 +138,7 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
     if failed:
         raise RuntimeError(f"{len(failed)} campaign runs did not complete: {failed[0].path}: {failed[0].reason}")
     if pool is None:
-        stages["campaign"] = time.perf_counter() - start
+        stages["campaign"] = time.perf_counter() - t0
         fit, files = _calibrate(out, data, echo, stage)
 
     with stage("validation"):
@@ -243,9 +242,9 @@ def _campaign_here(spec, spec_root, data, progress_factory, total):
 class _CampaignProgress:
     """The submitted runs: wait for some of them, advancing the progress bar as each ends."""
 
-    def __init__(self, submitted, progress_factory, total, label):
+    def __init__(self, submitted, progress_factory, total, label, started):
         self.submitted, self.factory, self.total, self.label = submitted, progress_factory, total, label
-        self.done, self.bar, self.started = set(), None, time.perf_counter()
+        self.done, self.bar, self.started = set(), None, started
         self.seconds = 0.0
 
     def start(self, stack):
