@@ -183,7 +183,10 @@ def curve(card, params_path, model, stretch_text, voltage_text, as_json, as_csv,
 @click.option("--force", "overwrite", is_flag=True, help="Write over an output folder that holds files.")
 @click.option("--no-speed", is_flag=True, help="Skip the speed-against-error study.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet):
+@click.option("--pdf", is_flag=True, help="A PDF beside every PNG figure (vector, for a paper).")
+@click.option("--workers", type=click.IntRange(1, 64), default=None,
+              help="Processes [default: the cores, at most 4]; 1 runs every stage in this process in turn.")
+def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet, pdf, workers):
     """The paper's campaign end to end, on the built-in emulated rig.
 
     Runs the experiments of Section 4.2 on the three specimens (emulator), stores
@@ -195,7 +198,7 @@ def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet):
     \b
     Example:
       rdea-lab reproduce
-      rdea-lab reproduce --out reports/paper2021 --datasets datasets/paper2021 --force   # the reference report
+      rdea-lab reproduce --out reports/paper2021 --datasets datasets/paper2021 --pdf --force   # the reference report
     """
     from .errors import headless
 
@@ -209,7 +212,7 @@ def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet):
         return click.progressbar(length=total, label=label, file=sys.stderr)
 
     result = api.reproduce(out, datasets=datasets_dir, campaign=campaign_path, speed=not no_speed,
-                           overwrite=overwrite, echo=click.echo, progress_factory=bar)
+                           overwrite=overwrite, echo=click.echo, progress_factory=bar, pdf=pdf, workers=workers)
     v = result["validation"]
     click.echo("")
     click.echo(f"Table 4 analogue ({v['origin']})")
@@ -223,7 +226,8 @@ def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet):
     if "speed" in result:
         click.echo(f"  speed vs error  {out / 'speed'}/speed.md, pareto.png, figure8_sweep.png")
     click.echo(f"  models          {out / 'models'}/models.md, figure5-8*.png")
-    click.echo("time by stage:")
+    click.echo("time by stage:" + (f" ({result['workers']} processes: the campaign, calibration and models "
+                                   "overlap)" if result["workers"] > 1 else ""))
     for name, seconds in result["stages"]:
         click.echo(f"  {name:<15} {seconds:6.1f} s")
     click.echo(f"  {'total':<15} {result['seconds']:6.1f} s")
@@ -242,7 +246,10 @@ def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet):
               help="Timed calls of the per-sample step (step_latency_us).")
 @click.option("--no-compile-probe", is_flag=True,
               help="Leave out numba's cold start (compile_s: two fresh processes, about 30 s).")
-def bench(samples, baseline_samples, repeat, as_json, no_vhb, steps, no_compile_probe):
+@click.option("--reproduce", "reproduce_", is_flag=True,
+              help="Instead: rdea-lab reproduce's wall and stage times, warm (--repeat runs after a warm-up) and "
+              "cold (one run, empty numba cache and byte code), each in a fresh process (benchmarks/bench_reproduce.py).")
+def bench(samples, baseline_samples, repeat, as_json, no_vhb, steps, no_compile_probe, reproduce_):
     """Speed of the SU, 1R, 3R and CR solvers, of 3R against an fsolve baseline, of calibration, of the
     compiled kernels against the numpy reference and of the per-sample step.
 
@@ -254,6 +261,12 @@ def bench(samples, baseline_samples, repeat, as_json, no_vhb, steps, no_compile_
     if folder is None:
         die("bench: benchmarks/bench_models.py not found; run from a source checkout (pip install -e .)")
     sys.path.insert(0, str(folder))
+    if reproduce_:
+        import bench_reproduce  # noqa: E402  (lives in benchmarks/, outside the package)
+
+        result = bench_reproduce.run(repeat=repeat, cold=0 if no_compile_probe else 1)
+        click.echo(json.dumps(result, indent=2) if as_json else bench_reproduce.format_text(result))
+        return
     import bench_models  # noqa: E402  (lives in benchmarks/, outside the package)
 
     result = bench_models.run(samples=samples, baseline_samples=baseline_samples, repeat=repeat, vhb=not no_vhb,

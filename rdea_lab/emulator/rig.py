@@ -40,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..physics.result import LIMIT_POINT, OUTSIDE_RANGE, STATUS_NAMES, VALID
+from ..physics.result import LIMIT_POINT, OUTSIDE_RANGE, STATUS_NAMES, is_valid
 from .roll import TrueRoll
 from .instruments import CurrentMonitor, FirstOrderLag, lcr_bridge, load_cell, tau_of_bandwidth
 from .truth import true_geometry
@@ -359,7 +359,7 @@ class EmulatedRig:
             if hit.any():
                 i = int(np.argmax(hit))
                 events.append(_Event(i, i + 1, fmt(i) + "; injected fault)"))
-        lost = ~np.isin(status, VALID)
+        lost = ~is_valid(status)
         if lost.any():
             i = int(np.argmax(lost))
             if status[i] == LIMIT_POINT:

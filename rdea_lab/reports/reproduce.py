@@ -19,13 +19,17 @@ installed wheel runs it from any folder; it writes nowhere but ``out`` (and
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
+import os
+import sys
+import threading
 import time
 from pathlib import Path
 
 from ..calibration import calibrate, find_runs, initial_guess, load_run
 from ..calibration.record import write_record
 from ..paths import data_dir
-from ..runs import check_writable, experiments, run_campaign
+from ..runs import check_writable, experiments, run_campaign, submit_campaign
 from ..store.outputs import OutputError
 from ..specs.campaign import load_campaign
 from ..specs.errors import UserError
@@ -42,7 +46,7 @@ class ReproduceInputError(UserError):
 
 
 def reproduce(out: Path, *, datasets=None, campaign=None, speed=True, overwrite=False, echo=print,
-              progress_factory=None) -> dict:
+              progress_factory=None, pdf=False, workers=None) -> dict:
     """Run the whole campaign and write every result under ``out``.
 
     Parameters
@@ -51,59 +55,217 @@ def reproduce(out: Path, *, datasets=None, campaign=None, speed=True, overwrite=
         Output folder. An existing folder with files in it is refused unless ``overwrite``.
     datasets : Path, optional
         Folder for the campaign's datasets (default ``out/datasets``). The committed reference
-        report of a source checkout is regenerated with ``out=reports/paper2021`` and
-        ``datasets=datasets/paper2021`` (CONTRIBUTING.md).
+        report of a source checkout is regenerated with ``out=reports/paper2021``,
+        ``datasets=datasets/paper2021`` and ``pdf=True`` (CONTRIBUTING.md).
     campaign : Path, optional
         Campaign file (default: the packaged ``campaigns/paper2021.yaml``); must include specimen 2's
         tensile tests.
     speed : bool
         Run the speed-against-error study.
     overwrite : bool
-        Write into an ``out`` that already holds files (its datasets are replaced).
+        Write over an ``out`` that already holds files (its datasets are replaced).
     echo : callable
         Where progress lines go.
     progress_factory : callable, optional
-        ``progress_factory(total, label)`` -> context manager with ``update(n)`` (a progress bar).
+        ``progress_factory(total, label)`` -> context manager with ``update(n)`` (a progress bar; with
+        ``workers`` > 1 it advances by a run's samples as each run ends).
+    pdf : bool
+        A PDF beside every PNG figure (vector, for a paper); PNG only by default.
+    workers : int, optional
+        Processes (default: the cores this process may use, at most `WORKERS`). With more than one,
+        a process pool runs the campaign's runs (each on an emulated rig of its own, with its own seed
+        as in one process: the same datasets), the models section beside them, the calibration as
+        soon as specimen 2's tensile runs are in, and the validation's runs and figures; the speed
+        study runs last and alone, so that nothing else runs while it times the models. 1: every
+        stage in this process, one after the other.
 
     Returns
     -------
     dict
         ``campaign``, ``campaign_name``, ``calibration`` (files), ``calibration_result``,
-        ``validation``, ``speed`` (unless skipped), ``models``, ``stages`` (stage name, seconds),
-        ``seconds``, ``index``.
+        ``validation``, ``speed`` (unless skipped), ``models``, ``stages`` (stage name, seconds: each
+        stage from its start to its end; with ``workers`` > 1 the campaign, the calibration and the
+        models overlap, so they add up to more than ``seconds``), ``seconds``, ``index``, ``workers``.
     """
     out = Path(out)
     data = Path(datasets) if datasets is not None else out / "datasets"
     check_fresh(out, overwrite)
     check_writable(data / "x.nc", "--datasets" if datasets is not None else "--out")  # before twelve runs
-    stages: list[tuple[str, float]] = []
-    t0 = time.perf_counter()
+    workers = default_workers() if workers is None else int(workers)
+    if workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers}")
+    t0 = time.perf_counter()  # the campaign's stage and the total start here, the pool's start-up included
+    root = data_dir()
+    spec, spec_root = load_campaign(campaign or root / "campaigns" / "paper2021.yaml")
+    with contextlib.ExitStack() as stack:
+        if workers > 1 and start_method() == "fork":
+            preload(spec, spec_root)
+        pool = stack.enter_context(process_pool(workers)) if workers > 1 else None
+        return _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress_factory, pdf, pool,
+                          workers, t0)
+
+
+def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress_factory, pdf, pool, workers, t0):
+    stages: dict[str, float] = {}
 
     @contextlib.contextmanager
     def stage(name):
         start = time.perf_counter()
         yield
-        stages.append((name, time.perf_counter() - start))
+        stages[name] = time.perf_counter() - start
 
-    root = data_dir()
-    with stage("campaign"):
-        spec, spec_root = load_campaign(campaign or root / "campaigns" / "paper2021.yaml")
-        runs = experiments(spec, spec_root, data)
-        if CALIBRATION_SPECIMEN not in {r.card.id for r in runs}:
-            raise ReproduceInputError(f"{campaign or 'the campaign'}: it has no {CALIBRATION_SPECIMEN}, "
-                                      "the specimen the paper calibrates on")
-        total = sum(r.plan.time.size for r in runs)
-        echo(f"[1/5] campaign {spec.name} on the {spec.backend}: {len(runs)} runs, {total} samples -> {data}/")
-        if progress_factory is not None:
-            with progress_factory(total, spec.name) as bar:
-                results = run_campaign(spec, spec_root, out_dir=data, overwrite=True,
-                                       callbacks=lambda b: bar.update(len(b)))
-        else:
-            results = run_campaign(spec, spec_root, out_dir=data, overwrite=True)
-        failed = [r for r in results if r.status != "complete"]
-        if failed:
-            raise RuntimeError(f"{len(failed)} campaign runs did not complete: {failed[0].path}: {failed[0].reason}")
+    runs = experiments(spec, spec_root, data)
+    if CALIBRATION_SPECIMEN not in {r.card.id for r in runs}:
+        raise ReproduceInputError(f"{campaign or 'the campaign'}: it has no {CALIBRATION_SPECIMEN}, "
+                                  "the specimen the paper calibrates on")
+    total = sum(r.plan.time.size for r in runs)
+    echo(f"[1/5] campaign {spec.name} on the {spec.backend}: {len(runs)} runs, {total} samples -> {data}/"
+         + (f" ({workers} processes)" if pool is not None else ""))
+    models = None
+    if pool is None:
+        results = _campaign_here(spec, spec_root, data, progress_factory, total)
+    else:
+        submitted = submit_campaign(spec, spec_root, pool, out_dir=data, overwrite=True, first=_calibration_run)
+        models = pool.submit(_timed, reproduce_models, root, out / "models", pdf)  # needs nothing of the campaign
+        progress = _CampaignProgress(submitted, progress_factory, total, spec.name, t0)
+        with contextlib.ExitStack() as bar:
+            progress.start(bar)
+            progress.wait(_calibration_run)  # the calibration's runs are submitted first
+            fit, files = _calibrate(out, data, echo, stage)  # while the pool runs the others
+            results = progress.wait(lambda r: True)
+        stages["campaign"] = progress.seconds
+    failed = [r for r in results if r.status != "complete"]
+    if failed:
+        raise RuntimeError(f"{len(failed)} campaign runs did not complete: {failed[0].path}: {failed[0].reason}")
+    if pool is None:
+        stages["campaign"] = time.perf_counter() - t0
+        fit, files = _calibrate(out, data, echo, stage)
 
+    with stage("validation"):
+        echo("[3/5] validation report: the twin on every run's own stretch and voltage")
+        report = validation_report(files["params"], data, out / "validation", model="su", pdf=pdf, executor=pool)
+    result = {"campaign": [str(r.path) for r in results], "campaign_name": spec.name, "calibration": files,
+              "calibration_result": fit, "validation": report, "datasets": str(data), "workers": workers}
+    if models is None:
+        with stage("models"):
+            result["models"] = reproduce_models(root, out / "models", pdf)
+    else:
+        result["models"], stages["models"] = models.result()
+    if speed:
+        with stage("speed study"):  # last, and alone: it times the models
+            echo("[4/5] speed against error: SU, 1R, 3R, CR and auto on the paper's scenes and the Section 3.4 cores")
+            result["speed"] = speed_study(out / "speed", root, pdf=pdf,
+                                          sweep=(result["models"]["figure8"], out / "models" / "figure8_sweep.png"))
+    else:
+        echo("[4/5] speed study skipped")
+    echo("[5/5] Table 2 and Section 3.4 (Figures 5-8)" + (" (made beside the campaign)" if pool is not None else ""))
+    with stage("index"):
+        result["seconds"] = time.perf_counter() - t0
+        result["index"] = write_reproduce_index(out, result, COLUMNS)
+    result["stages"] = [(name, stages[name]) for name in STAGES if name in stages]
+    result["seconds"] = time.perf_counter() - t0
+    return result
+
+
+#: The stages, in the order of the time table.
+STAGES = ("campaign", "calibration", "validation", "speed study", "models", "index")
+#: Most processes `reproduce` starts by default (the campaign has twelve runs; the figures a few more).
+WORKERS = 4
+
+
+def default_workers() -> int:
+    """The cores this process may use, at most `WORKERS`."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(WORKERS, cores))
+
+
+def start_method() -> str:
+    """How the pool starts its processes: ``fork`` on Linux in a process with one thread and no numba
+    thread pool running (safe there, and the workers need no start-up of their own); else ``forkserver``
+    (a clean process forks them) where there is one, or ``spawn``."""
+    numba_threads = getattr(sys.modules.get("numba.np.ufunc.parallel"), "_is_initialized", False)
+    if sys.platform.startswith("linux") and threading.active_count() == 1 and not numba_threads:
+        return "fork"
+    return "forkserver" if "forkserver" in multiprocessing.get_all_start_methods() else "spawn"
+
+
+@contextlib.contextmanager
+def process_pool(workers: int):
+    """A process pool of ``workers``: forked where that is safe (Linux, this process with one thread: the
+    workers start with its imports, no second start-up), else the platform's own start method."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context(start_method()))
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def preload(spec, spec_root) -> None:
+    """Import what the pool's tasks use (the emulator, the rig client, matplotlib's Agg; for an emulated
+    campaign the truth's compiled viscoelastic kernel) here, once: forked workers start with it, instead
+    of each importing it again."""
+    import importlib
+
+    for name in ("rdea_lab.emulator", "rdea_lab.backends.rig", "pyvisa", "pyvisa_py", "matplotlib.backends.backend_agg",
+                 "PIL.Image", "netCDF4"):
+        with contextlib.suppress(ImportError):
+            importlib.import_module(name)
+    if spec.backend != "twin":
+        from ..physics import viscoelastic
+        from ..runs.campaign import campaign_truth
+
+        viscoelastic.prepare(campaign_truth(spec, spec_root).material.law)
+
+
+def _timed(fn, *args):
+    start = time.perf_counter()
+    return fn(*args), time.perf_counter() - start
+
+
+def _calibration_run(run) -> bool:
+    """Whether the calibration uses this experiment (specimen 2's tensile runs)."""
+    return run.card.id == CALIBRATION_SPECIMEN and run.plan.kind == "tensile"
+
+
+def _campaign_here(spec, spec_root, data, progress_factory, total):
+    if progress_factory is None:
+        return run_campaign(spec, spec_root, out_dir=data, overwrite=True)
+    with progress_factory(total, spec.name) as bar:
+        return run_campaign(spec, spec_root, out_dir=data, overwrite=True, callbacks=lambda b: bar.update(len(b)))
+
+
+class _CampaignProgress:
+    """The submitted runs: wait for some of them, advancing the progress bar as each ends."""
+
+    def __init__(self, submitted, progress_factory, total, label, started):
+        self.submitted, self.factory, self.total, self.label = submitted, progress_factory, total, label
+        self.done, self.bar, self.started = set(), None, started
+        self.seconds = 0.0
+
+    def start(self, stack):
+        if self.factory is not None:
+            self.bar = stack.enter_context(self.factory(self.total, self.label))
+
+    def wait(self, which):
+        from concurrent.futures import FIRST_COMPLETED, wait
+
+        pending = {f for r, f in self.submitted if which(r) and id(f) not in self.done}
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for f in finished:
+                self.done.add(id(f))
+                if self.bar is not None:
+                    self.bar.update(next(r.plan.time.size for r, g in self.submitted if g is f))
+        self.seconds = time.perf_counter() - self.started
+        return [f.result() for r, f in self.submitted if which(r)]
+
+
+def _calibrate(out, data, echo, stage):
     with stage("calibration"):
         echo(f"[2/5] calibration on {CALIBRATION_SPECIMEN}'s tensile runs (SU, Nelder-Mead, viscoelastic law "
              "linear: eq. (44), as the paper)")
@@ -114,27 +276,7 @@ def reproduce(out: Path, *, datasets=None, campaign=None, speed=True, overwrite=
         files = write_record(fit, cal_runs, out / "params" / "calibrated.yaml", name="calibrated-specimen-2")
         echo(f"      {fit.message}; {fit.nfev} evaluations; C10 {fit.values['C10'] / 1e3:.1f}, "
              f"C20 {fit.values['C20'] / 1e3:.1f}, C30 {fit.values['C30'] / 1e3:.1f} kPa -> {files['params']}")
-
-    with stage("validation"):
-        echo("[3/5] validation report: the twin on every run's own stretch and voltage")
-        report = validation_report(files["params"], data, out / "validation", model="su")
-    result = {"campaign": [str(r.path) for r in results], "campaign_name": spec.name, "calibration": files,
-              "calibration_result": fit, "validation": report, "datasets": str(data)}
-    if speed:
-        with stage("speed study"):
-            echo("[4/5] speed against error: SU, 1R, 3R, CR and auto on the paper's scenes and the Section 3.4 cores")
-            result["speed"] = speed_study(out / "speed", root)
-    else:
-        echo("[4/5] speed study skipped")
-    with stage("models"):
-        echo("[5/5] Table 2 and Section 3.4 (Figures 5-8)")
-        result["models"] = reproduce_models(root, out / "models")
-    with stage("index"):
-        result["seconds"] = time.perf_counter() - t0
-        result["index"] = write_reproduce_index(out, result, COLUMNS)
-    result["stages"] = stages
-    result["seconds"] = time.perf_counter() - t0
-    return result
+    return fit, files
 
 
 def check_fresh(out: Path, overwrite: bool) -> None:

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import platform
+import shutil
 import time
 from pathlib import Path
 
@@ -101,15 +102,20 @@ def scenes(root: Path, core_samples: int = 2001) -> list[dict]:
     return out
 
 
-def best_time(fn, repeats: int) -> float:
-    """Best wall time of ``repeats`` calls of ``fn`` after one warm-up [s]."""
-    fn()
+def timed(fn, repeats: int):
+    """Best wall time of ``repeats`` calls of ``fn`` after one warm-up [s], and the warm-up's result."""
+    result = fn()
     best = math.inf
     for _ in range(repeats):
         t0 = time.perf_counter()
         fn()
         best = min(best, time.perf_counter() - t0)
-    return best
+    return best, result
+
+
+def best_time(fn, repeats: int) -> float:
+    """Best wall time of ``repeats`` calls of ``fn`` after one warm-up [s]."""
+    return timed(fn, repeats)[0]
 
 
 def deviation(sigma, ref_sigma) -> tuple[float, int]:
@@ -122,11 +128,8 @@ def deviation(sigma, ref_sigma) -> tuple[float, int]:
 def study_scene(sc: dict, repeats: int, tolerance: float) -> list[dict]:
     """One row per model for one scene; errors are of the tension, against CR (and 3R)."""
     geom, mat, lam, v = sc["geom"], sc["material"], sc["stretch"], sc["voltage"]
-    ref = solve("cr", geom, mat, lam, v)
-    three = solve("3r", geom, mat, lam, v)
-    peak = float(np.nanmax(np.abs(ref.tension))) if np.any(ref.converged) else math.nan
-    rows = []
-    for model in MODELS:
+    timings = {}
+    for model in MODELS:  # each model's warm-up gives its result (CR's and 3R's are the references)
         if model == "auto":
             def run():
                 choice = select_model(geom, mat, lam, v, tolerance)
@@ -134,8 +137,11 @@ def study_scene(sc: dict, repeats: int, tolerance: float) -> list[dict]:
         else:
             def run(model=model):
                 return None, solve(model, geom, mat, lam, v)
-        seconds = best_time(run, repeats)
-        choice, res = run()
+        timings[model] = timed(run, repeats)
+    ref, three = timings["cr"][1][1], timings["3r"][1][1]
+    peak = float(np.nanmax(np.abs(ref.tension))) if np.any(ref.converged) else math.nan
+    rows = []
+    for model, (seconds, (choice, res)) in timings.items():
         err, lost = deviation(res.tension, ref.tension)
         err3, _ = deviation(res.tension, three.tension)
         rows.append({"scene": sc["scene"], "roll": sc["roll"], "protocol": sc["protocol"], "material": mat.name,
@@ -199,9 +205,9 @@ def _bands(errors: np.ndarray) -> tuple[float, float, float, float]:
     return bottom, max(hi * 1.8, bottom * 10), bottom / 3.0, bottom / 9.0
 
 
-def pareto_plot(rows: list[dict], path: Path) -> Path:
-    """`pareto_figure` as PNG at 200 dpi and a PDF beside."""
-    save_figure(pareto_figure(rows), path, vector=True)
+def pareto_plot(rows: list[dict], path: Path, pdf: bool = True) -> Path:
+    """`pareto_figure` as PNG at 200 dpi and, with ``pdf``, a PDF beside."""
+    save_figure(pareto_figure(rows), path, vector=pdf)
     return Path(path)
 
 
@@ -300,7 +306,8 @@ def _markdown(rows, auto, check, quad, sweep, repeats, tolerance) -> str:
     return "\n".join(lines)
 
 
-def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_samples: int = 2001) -> dict:
+def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_samples: int = 2001,
+                pdf: bool = True, sweep=None) -> dict:
     """Write ``speed.md``, ``speed.csv``, ``pareto.png``, ``figure8_sweep.png`` and ``figure8.csv`` into ``out``.
 
     Parameters
@@ -316,6 +323,12 @@ def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_
         For auto: allowed deviation from CR relative to the peak CR stress [-].
     core_samples : int
         Stretch samples of the core scenes.
+    pdf : bool
+        A PDF beside each PNG.
+    sweep : tuple, optional
+        The Figure 8 sweep made already (``(rows, png)``: what :func:`~rdea_lab.reports.paper_models.figure8`
+        returned and the PNG it wrote, a PDF beside it if ``pdf``), copied here instead of computed again
+        (`reproduce` makes it for the models section).
 
     Returns
     -------
@@ -336,12 +349,17 @@ def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_
             for r in rows if r["model"] == "auto"]
     check = fsolve_check(scene_list)
     quad = quadrature_check(scene_list)
-    sweep = figure8(load_params(root / "params" / "rizzello2020.yaml"), out / "figure8_sweep.png")
+    if sweep is None:
+        sweep = figure8(load_params(root / "params" / "rizzello2020.yaml"), out / "figure8_sweep.png", pdf=pdf)
+    else:
+        sweep, png = sweep
+        for suffix in (".png", ".pdf") if pdf else (".png",):
+            shutil.copyfile(Path(png).with_suffix(suffix), out / f"figure8_sweep{suffix}")
     files = {"markdown": out / "speed.md", "csv": out / "speed.csv", "pareto": out / "pareto.png",
              "figure8": out / "figure8_sweep.png", "figure8_csv": out / "figure8.csv"}
     files["markdown"].write_text(_markdown(rows, auto, check, quad, sweep, repeats, tolerance))
     tables.write_csv(files["csv"], CSV_KEYS, rows)
     tables.write_csv(files["figure8_csv"], list(sweep[0]), sweep)
-    pareto_plot(rows, files["pareto"])
+    pareto_plot(rows, files["pareto"], pdf)
     return {"rows": rows, "auto": auto, "reference_check": check, "quadrature_check": quad, "figure8": sweep,
             "files": {k: str(v) for k, v in files.items()}}

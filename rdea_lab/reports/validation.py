@@ -172,6 +172,14 @@ def _voltage_window(voltage: np.ndarray) -> np.ndarray:
     return mask
 
 
+def _evaluated(path, params, model, tolerance):
+    """`evaluate_run`'s second part, or why the run cannot be evaluated (one line)."""
+    try:
+        return evaluate_run(path, params, model, tolerance)[1]
+    except (KeyError, OSError, ValueError) as exc:
+        return " ".join(str(exc).split())
+
+
 def evaluate_run(path: Path, params, model: str, tolerance: float) -> tuple[dict, dict]:
     """One run against the twin: its Table 4 row, its provenance and the series for the figures."""
     run = load_run(path)
@@ -230,7 +238,7 @@ def _sort_key(row):
 
 
 def validation_report(params_path, datasets_folder, out, model: str = "su", tolerance: float = 0.01,
-                      figures: bool = True) -> dict:
+                      figures: bool = True, pdf: bool = True, executor=None) -> dict:
     """Write the Table 4 analogue, the figures and ``index.html`` for a parameter set and a folder of runs.
 
     Parameters
@@ -248,6 +256,11 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
         For ``auto``: allowed deviation from 3R relative to the peak stress [-].
     figures : bool
         Write the PNG figures (the tables and ``index.html`` are always written).
+    pdf : bool
+        With the figures, a PDF beside each PNG (vector, for a paper; linked from ``index.html``).
+    executor : concurrent.futures.Executor, optional
+        Evaluate the runs and draw the figures as its tasks (a process pool: on every core), with the
+        numbers and files of the serial report.
 
     Returns
     -------
@@ -272,11 +285,13 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
     params = as_params(params_path)
     paths, skipped = scan_runs(folder)
     evaluated = []
-    for path in paths:
-        try:
-            evaluated.append(evaluate_run(path, params, model, tolerance)[1])
-        except (KeyError, OSError, ValueError) as exc:
-            skipped.append({"file": str(path), "reason": f"cannot evaluate: {' '.join(str(exc).split())}"})
+    n = len(paths)
+    for path, got in zip(paths, (executor.map if executor is not None else map)(
+            _evaluated, paths, [params] * n, [model] * n, [tolerance] * n)):
+        if isinstance(got, str):
+            skipped.append({"file": str(path), "reason": f"cannot evaluate: {got}"})
+        else:
+            evaluated.append(got)
     if not evaluated:
         raise ReportInputError(f"{folder}: no complete runs found" + (
             f" ({len(skipped)} skipped: {skipped[0]['file']}: {skipped[0]['reason']})" if skipped else ""))
@@ -309,7 +324,7 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
     tables.write_csv(files["csv"], CSV_KEYS, rows)
     files["latex"].write_text(f"% {tables.latex_escape(caption)}\n% {tables.latex_escape(LEGEND)}\n"
                               + tables.latex_tabular(COLUMNS, rows))
-    figs = write_figures(evaluated, out) if figures else {}
+    figs = write_figures(evaluated, out, pdf, executor) if figures else {}
     result = {"rows": rows, "markdown": md, "caption": caption, "legend": LEGEND, "model": model, "params": cal,
               "params_name": params.name, "runs": [e["provenance"] for e in evaluated], "skipped": skipped,
               "origin": origin, "envelope": env.mapping() if env is not None else None,

@@ -3,8 +3,8 @@
 Measured in the specimen's colour (red, blue, green for specimens 1-3, as in
 the paper), the twin's prediction dashed black, and under every time history
 and loop the residual, twin − measured, in N (or pF) and in % of the run's
-peak (:func:`~rdea_lab.reports.plots.residual_panel`). PNG at `DPI` and a
-PDF beside each (vector, for a paper). A run at 0 V throughout gets no
+peak (:func:`~rdea_lab.reports.plots.residual_panel`). PNG at `DPI` and, if
+asked for, a PDF beside each (vector, for a paper). A run at 0 V throughout gets no
 voltage axis. A series longer than three times `BINS` is drawn through the
 samples :func:`~rdea_lab.reports.plots.minmax_index` keeps (each bin's first,
 last, smallest and largest value: the same picture with fewer vertices; the
@@ -42,8 +42,8 @@ def _color(specimen: str, order: list[str]) -> str:
     return OTHER_COLORS[order.index(specimen) % len(OTHER_COLORS)]
 
 
-def _save(fig, path: Path) -> Path:
-    save_figure(fig, path, dpi=DPI, vector=True)
+def _save(fig, path: Path, pdf: bool = True) -> Path:
+    save_figure(fig, path, dpi=DPI, vector=pdf)
     return Path(path)
 
 
@@ -183,33 +183,50 @@ def capacitance_figure(items: list[dict], colors: dict) -> Figure:
     return fig
 
 
-def write_figures(evaluated: list[dict], out: Path) -> dict[Path, str]:
-    """Every figure of the report into ``out`` (PNG, and a PDF beside each); returns the PNGs written,
-    each with a caption."""
+def write_figures(evaluated: list[dict], out: Path, pdf: bool = True, executor=None) -> dict[Path, str]:
+    """Every figure of the report into ``out`` (PNG, and with ``pdf`` a PDF beside each); returns the PNGs
+    written, each with a caption. With ``executor`` (a process pool) each figure is drawn by a task."""
     specimens = sorted({e["row"]["specimen"] for e in evaluated})
     colors = {sp: _color(sp, specimens) for sp in specimens}
-    files = {}
+    jobs = {}  # path -> (figure function, its data, caption)
     for e in evaluated:
         row = e["row"]
         if row["quantity"] == "force" and row["kind"] != "blocking":
             prefix = "tensile" if row["kind"] in ("tensile", "capacitance") else "run"
             stem = f"{prefix}_{row['specimen']}_{row['name']}"
             name, n = f"{stem}.png", 1
-            while out / name in files:  # the same run name twice on one specimen
+            while out / name in jobs:  # the same run name twice on one specimen
                 n += 1
                 name = f"{stem}_{n}.png"
-            files[_save(tensile_figure(e, colors[row["specimen"]]), out / name)] = (
+            jobs[out / name] = (tensile_figure, (_drawn_part(e), colors[row["specimen"]]), (
                 f"As Figures 11-13: {row['specimen']}, {row['name']} ({row['protocol']}, {row['voltage']}, "
                 f"{row['role']}): displacement, force over time, force against displacement; measured and twin, "
-                "with the residual (twin − measured, in N and in % of the run's peak force) under each.")
-    blocking = [e for e in evaluated if e["row"]["kind"] == "blocking"]
+                "with the residual (twin − measured, in N and in % of the run's peak force) under each."))
+    blocking = [_drawn_part(e) for e in evaluated if e["row"]["kind"] == "blocking"]
     if blocking:
-        files[_save(blocking_figure(blocking, colors), out / "blocking_force.png")] = (
+        jobs[out / "blocking_force.png"] = (blocking_figure, (blocking, colors), (
             "As Figure 15: blocking force over time and, during the voltage cycles, over voltage; measured and twin, "
-            "with the residual (N and % of the peak force during the voltage cycles) under each.")
-    cap = [e for e in evaluated if e["row"]["quantity"] == "capacitance"]
+            "with the residual (N and % of the peak force during the voltage cycles) under each."))
+    cap = [_drawn_part(e) for e in evaluated if e["row"]["quantity"] == "capacitance"]
     if cap:
-        files[_save(capacitance_figure(cap, colors), out / "capacitance.png")] = (
+        jobs[out / "capacitance.png"] = (capacitance_figure, (cap, colors), (
             "As Figure 16: capacitance at 0 V against displacement; measured (LCR bridge) and twin, with each run's "
-            "residual in % of its peak capacitance below.")
-    return files
+            "residual in % of its peak capacitance below."))
+    paths = list(jobs)
+    if executor is None:
+        written = [_draw(jobs[p][0], jobs[p][1], p, pdf) for p in paths]
+    else:  # the blocking figure (the largest) first, so that no task is left alone at the end
+        order = sorted(paths, key=lambda p: jobs[p][0] is not blocking_figure)
+        futures = {p: executor.submit(_draw, jobs[p][0], jobs[p][1], p, pdf) for p in order}
+        written = [futures[p].result() for p in paths]
+    return {path: jobs[key][2] for path, key in zip(written, paths)}
+
+
+def _drawn_part(e: dict) -> dict:
+    """What the figures use of an evaluated run (its row and series: what a drawing task is sent)."""
+    return {"row": e["row"], "series": e["series"]}
+
+
+def _draw(figure, args, path, pdf) -> Path:
+    """``figure(*args)`` saved to ``path`` (one figure: a task of `write_figures`)."""
+    return _save(figure(*args), path, pdf)

@@ -53,11 +53,7 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
     its own noise seed, ``spec.seed + i``. A run ended by Ctrl-C (status
     ``interrupted``) ends the campaign: the results so far are returned.
     """
-    runs = experiments(spec, root, out_dir)
-    metadata = check_metadata(metadata)
-    check_seed(spec.seed + max(len(runs) - 1, 0))
-    check_outputs([r.out for r in runs], overwrite, names=[r.name for r in runs])
-    seeds = {id(r): spec.seed + i for i, r in enumerate(runs)}  # each run its own noise, reproducibly
+    runs, seeds, metadata = _checked(spec, root, out_dir, overwrite, metadata)
     results = []
 
     def record(result):
@@ -74,9 +70,7 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
             if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
                 break
         return results
-    from ..specs.truth import load_truth
-
-    truth = load_truth(root / spec.truth if spec.truth else DEFAULT_TRUTH)
+    truth = campaign_truth(spec, root)
     for card_id in dict.fromkeys(r.card.id for r in runs):
         mine = [r for r in runs if r.card.id == card_id]
         with emulated_rig(mine[0].card, truth, realtime=realtime) as address:  # one rig per specimen
@@ -85,3 +79,56 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
                 if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
                     return results
     return results
+
+
+def _checked(spec, root, out_dir, overwrite, metadata):
+    """The experiments, each one's seed (``spec.seed + i``) and the metadata, every check done before any run."""
+    runs = experiments(spec, root, out_dir)
+    metadata = check_metadata(metadata)
+    check_seed(spec.seed + max(len(runs) - 1, 0))
+    check_outputs([r.out for r in runs], overwrite, names=[r.name for r in runs])
+    return runs, {id(r): spec.seed + i for i, r in enumerate(runs)}, metadata  # each run its own noise
+
+
+def campaign_truth(spec, root: Path):
+    """The truth of an emulated campaign (its ``truth``, or the packaged default)."""
+    from ..specs.truth import load_truth
+
+    return load_truth(root / spec.truth if spec.truth else DEFAULT_TRUTH)
+
+
+def submit_campaign(spec, root: Path, executor, *, out_dir=None, overwrite=False, metadata=None,
+                    command="rdea-lab campaign run", first=None) -> list[tuple[Experiment, object]]:
+    """Submit every experiment of ``spec`` to ``executor`` (a `concurrent.futures` process pool), one task each.
+
+    The checks are `run_campaign`'s, all done here before the first task starts. Each task runs
+    `run_experiment`: on the twin, or on an emulated rig of its own (on loopback in the worker), with the
+    run's own seed ``spec.seed + i`` as in `run_campaign`, so the datasets hold the same numbers as a
+    campaign run in one process. The experiments for which ``first(experiment)`` is true are submitted
+    first (a pool starts tasks in order).
+
+    Returns
+    -------
+    list of (Experiment, Future)
+        In the campaign's order; each future gives the run's `RunResult`.
+    """
+    runs, seeds, metadata = _checked(spec, root, out_dir, overwrite, metadata)
+    options = ({"params": load_params(root / spec.params if spec.params else DEFAULT_PARAMS), "model": spec.model}
+               if spec.backend == "twin" else {"truth": campaign_truth(spec, root)})
+    order = sorted(runs, key=lambda r: not first(r)) if first is not None else runs
+    futures = {id(r): executor.submit(run_experiment, spec.backend, r, seeds[id(r)], metadata=metadata,
+                                      command=command, **options) for r in order}
+    return [(r, futures[id(r)]) for r in runs]
+
+
+def run_experiment(backend: str, run: Experiment, seed: int, *, truth=None, params=None, model="auto",
+                   metadata=None, command="rdea-lab campaign run", callbacks=()) -> RunResult:
+    """One experiment of a campaign by itself: on the twin (``params``, ``model``), or on a built-in emulated
+    rig of its own (``truth``), started for this run and stopped after it. What a task of
+    `submit_campaign` runs; returns the engine's `RunResult`."""
+    if backend == "twin":
+        setup = prepare_run(run.plan, run.card, "twin", params=params, model=model, out=run.out, seed=seed)
+        return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)
+    with emulated_rig(run.card, truth) as address:
+        setup = prepare_run(run.plan, run.card, "rig", address=address, out=run.out, seed=seed)
+        return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)

@@ -13,7 +13,7 @@ from .._version import __version__
 from ..physics import viscoelastic
 from ..physics.geometry import RollGeometry, StripGeometry, geometry_from_card
 from ..physics.models import solve
-from ..physics.result import OK, SLACK, VALID
+from ..physics.result import OK, SLACK, VALID, is_valid
 from .cf import global_attrs, time_attrs, variable_attrs
 from ..specs import ParameterSet, ViscoBranch, as_params, as_protocol, as_specimen, check_limits, dump_params
 from ..specs.errors import SpecError
@@ -95,7 +95,7 @@ def slack_status(status, pushes, force):
     """Model status with slack where the total (quasi-static + viscous) stress would be compressive
     (`pushes`): a quasi-static slack state the overstress pulls taut (``force > 0``) carries force
     (its stretches stay the free state's) and is OK."""
-    valid = np.isin(status, VALID)
+    valid = is_valid(status)
     out = np.where(valid & pushes & (status == OK), SLACK, status)
     return np.where(valid & (force > 0.0) & (status == SLACK), OK, out).astype(np.int8)
 

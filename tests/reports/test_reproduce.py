@@ -42,6 +42,7 @@ protocols: [protocols/tensile_ramp_sine_0V.yaml, protocols/tensile_ramp_sine_2.6
     assert len(rows) == 6 and sum("capacitance" in r["experiment"] for r in rows) == 2
     assert (out / "validation" / "index.html").stat().st_size > 1000
     assert (out / "models" / "models.md").exists() and not (out / "speed").exists()
+    assert not list(out.rglob("*.pdf"))  # PNG only, unless --pdf
     assert "Table 4 analogue" in stdout and "EMULATOR" in stdout and "index.html" in stdout
     # the top-level index links the calibration, the validation report, the models and the datasets,
     # every link to something that exists, and its tables fit the page

@@ -9,7 +9,7 @@ import numpy as np
 from ..branch import follow_branch, follow_path
 from ..constants import EPS0
 from .._backend import compiled
-from ..result import NOT_CONVERGED, OK, SLACK, SNAPPED, VALID, PathEnd, finish, prepare_inputs
+from ..result import NOT_CONVERGED, OK, SLACK, SNAPPED, VALID, PathEnd, finish, is_valid, prepare_inputs
 
 #: Upper end of the admissible range of the active ring's circumferential
 #: stretch, as a multiple of the uniaxial value ``lambda1**-0.5``. States
@@ -159,7 +159,7 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
     status = ev.status.copy()
     free = l1.copy()
     with np.errstate(invalid="ignore"):
-        slack = np.flatnonzero(np.isin(status, VALID) & (fields["sigma1"] < 0.0) & ~bad) if slack else []
+        slack = np.flatnonzero(is_valid(status) & (fields["sigma1"] < 0.0) & ~bad) if slack else []
     if len(slack):
         # a path's free state continues the branch the clamped state is on
         origin = ev.y[slack] if (path and ev.y is not None) else None
