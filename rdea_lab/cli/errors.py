@@ -14,8 +14,6 @@ import traceback
 
 import click
 
-from ..specs import UserError
-
 EXIT_HELP = ("Exit status: 0 done, 1 internal error, 2 bad input (one line naming the file, the field and what is "
              "allowed), 3 a run ended by the rig or a limit (aborted), 130 interrupted.")
 
@@ -70,15 +68,18 @@ def run(group: click.Group, argv=None) -> int:
     except click.ClickException as exc:
         click.echo(f"rdea-lab: {_one_line(exc.format_message())}", err=True)
         return exc.exit_code
-    except UserError as exc:  # SpecError, LimitError, a rig refusing, a model that does not apply, ...
-        click.echo(f"rdea-lab: {_one_line(user_message(exc))}", err=True)
-        return 2
     except KeyboardInterrupt:
         click.echo("rdea-lab: interrupted", err=True)
         return 130
     except BrokenPipeError:
         return 0
-    except Exception as exc:  # an internal error: say so, traceback on request
+    except Exception as exc:
+        from ..specs import UserError  # here, not at the top: `rdea-lab --help` needs no specs
+
+        if isinstance(exc, UserError):  # SpecError, LimitError, a rig refusing, a model that does not apply, ...
+            click.echo(f"rdea-lab: {_one_line(user_message(exc))}", err=True)
+            return 2
+        # an internal error: say so, traceback on request
         if os.environ.get("RDEA_LAB_DEBUG"):
             traceback.print_exc()
         click.echo(f"rdea-lab: internal error: {type(exc).__name__}: {_one_line(exc)} "
