@@ -28,6 +28,19 @@ OPTIONS = {"address": "--rig", "token": "--token-file", "address/token": "--rig/
            "reference": "--reference"}
 
 
+#: Options a user reaches for by another name (other tools', or rdea-lab's before): the name -> ours.
+SYNONYMS = {"--overwrite": "--force"}
+
+
+def _suggest_synonym(exc: click.NoSuchOption) -> None:
+    """Point an unknown option at the command's option of that meaning, if the command has one
+    (click's own guess goes by spelling: ``--overwrite`` is not close to ``--force``)."""
+    ours = SYNONYMS.get(exc.option_name)
+    command = exc.ctx.command if exc.ctx is not None else None
+    if ours and command is not None and any(ours in p.opts for p in command.params if isinstance(p, click.Option)):
+        exc.possibilities = [ours]
+
+
 def user_message(exc) -> str:
     """One line for a user's mistake; the library's argument names become the CLI's options."""
     source, field = getattr(exc, "source", None), getattr(exc, "field", None)
@@ -62,6 +75,8 @@ def run(group: click.Group, argv=None) -> int:
         click.echo(exc.ctx.get_help() if exc.ctx is not None else "rdea-lab --help")
         return 0
     except click.UsageError as exc:
+        if isinstance(exc, click.NoSuchOption):
+            _suggest_synonym(exc)
         where = exc.ctx.command_path if exc.ctx is not None else "rdea-lab"
         click.echo(f"{where}: {_one_line(exc.format_message())} (see --help)", err=True)
         return 2
