@@ -103,6 +103,21 @@ def test_fixed_parameters_stay_and_budgets_stop_cleanly(clean):
     assert res.message == "no free parameters" and res.nfev == 0
 
 
+
+def test_a_fit_its_time_budget_stopped_records_not_converged(clean, tmp_path):
+    """A budget of 1 ns is spent before the first counted evaluation (the start's own score comes first):
+    the fit ends at its start, not converged, and the record says so and why."""
+    import yaml
+
+    res = calibrate(clean, factor3_start(), model="su", free=FREE, max_time=1e-9)
+    assert not res.converged and res.message == "time budget 1e-09 s reached" and res.nfev == 0
+    assert res.stages[0]["budget_reached"] == "time" and not res.stages[0]["converged"]
+    record = yaml.safe_load(write_record(res, clean, tmp_path / "cal.yaml")["params"].read_text())["calibration"]
+    assert record["converged"] is False and record["message"] == "time budget 1e-09 s reached"
+    assert record["stages"][0]["budget_reached"] == "time"
+    full = calibrate(clean, factor3_start(), model="su", free=FREE, method="least-squares")
+    assert full.converged and full.stages[0]["budget_reached"] == ""  # the same fit, unhurried
+
 def test_non_physical_regions_score_infinity_and_a_hopeless_start_says_so(clean):
     with pytest.raises(SpecError, match="C10"):
         TRUE.replace(C10=-1.0)  # a non-physical start cannot even be built
@@ -181,3 +196,31 @@ def test_growing_branch_by_branch_recovers_two_time_scales():
         ev = res.history[stage_of == st["stage"], 0]
         before = sum(s["nfev"] for s in res.stages[:st["stage"]])
         assert before <= ev.min() and ev.max() <= before + st["nfev"]
+
+
+@pytest.fixture(scope="module")
+def two_time_scales():
+    truth = TRUE.replace(branches=(ViscoBranch(k=300e3, eta=300e3 * 0.3), ViscoBranch(k=100e3, eta=100e3 * 15.0)))
+    runs = synthetic_runs(truth)
+    return runs, initial_guess(runs, 1, 2.8).replace(eta_v0=0.0)
+
+
+def test_a_budget_that_stops_the_last_stage_of_a_growth_leaves_it_not_converged(two_time_scales):
+    """Growing M = 2 (least squares: fast). Given the evaluations the first two stages took plus three, the
+    third (the faster second branch) stops on the budget: the growth did not finish, even though the fit kept
+    (the slower branch) converged; before the fix that growth recorded converged: true."""
+    from rdea_lab.calibration.fit import calibrate_growing
+
+    runs, start = two_time_scales
+    free = ["C10", "C20", "C30", "k_v1", "eta_v1", "k_v2", "eta_v2"]
+    kw = dict(model="su", free=free, method="least-squares")
+    full = calibrate_growing(runs, start, 2, max_evals=8000, **kw)
+    assert full.converged and [st["budget_reached"] for st in full.stages] == ["", "", ""]
+    budget = full.stages[0]["nfev"] + full.stages[1]["nfev"] + 3
+    res = calibrate_growing(runs, start, 2, max_evals=budget, **kw)
+    assert res.nfev == budget and [st["budget_reached"] for st in res.stages] == ["", "", "evaluations"]
+    assert res.stages[1]["converged"] and res.stages[1]["kept"]  # the kept fit converged; the growth did not
+    assert not res.converged
+    assert res.message.startswith(f"evaluation budget {budget} reached in stage 2 'M = 2, new branch faster")
+    tiny = calibrate_growing(runs, start, 2, max_time=1e-9, **kw)  # the time budget, spent at once
+    assert not tiny.converged and tiny.message.startswith("time budget 1e-09 s reached in stage 0 'M = 1'")
