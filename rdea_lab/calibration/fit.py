@@ -366,7 +366,7 @@ def initial_guess(runs, M: int, eps_r: float, name="start-from-data", law="linea
                         description="start values estimated from the data by rdea-lab calibrate")
 
 
-def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=None, max_evals=20000,
+def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=None, stage=None, max_evals=20000,
                       max_time=300.0, **kwargs) -> CalibrationResult:
     """Fit M Maxwell branches one at a time, each from the previous optimum.
 
@@ -377,6 +377,10 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
     the first branch (finite strain: it and one a tenth as stiff, the better kept). ``free`` names parameters of the final set (default: all).
     ``max_evals`` and ``max_time`` are budgets for all the fits together: each
     gets what the ones before it left (a fit left nothing stops at its start).
+    ``progress(evaluations, best, elapsed)`` counts over every fit so far (``best``
+    the lowest objective of any of them, ``elapsed`` [s] since the growth began);
+    ``stage(index, count, label)`` is called before each fit (``index`` from 1 to
+    ``count``, the number of fits the growth makes).
     Other keywords go to `calibrate` (``model``, ``metric``, ``method``, ...).
 
     Returns
@@ -391,19 +395,26 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
 
     t0 = _time.monotonic()
     stages, done = [], []
+    first = start.replace(branches=start.branches[:1])
+    two_starts = first.law == "finite_strain" and bool(first.branches)
+    count = (2 if two_starts else 1) + 2 * max(M - 1, 0)
 
     def fit(params, label):
         spent = sum(r.nfev for r in done)
+        best_before = min((r.objective for r in done), default=np.inf)
+        if stage is not None:
+            stage(len(done) + 1, count, label)
+        report = None if progress is None else (
+            lambda n, best, elapsed: progress(spent + n, min(best, best_before), _time.monotonic() - t0))
         names = [n for n in values_of(params)]
-        res = calibrate(runs, params, free=[n for n in names if free is None or n in free], progress=progress,
+        res = calibrate(runs, params, free=[n for n in names if free is None or n in free], progress=report,
                         max_evals=max(0, max_evals - spent), max_time=max(0.0, max_time - (_time.monotonic() - t0)),
                         **kwargs)
         stages.append({**res.stages[0], "stage": len(done), "label": label, "kept": False})
         done.append(res)
         return len(done) - 1
 
-    first = start.replace(branches=start.branches[:1])
-    if first.law == "finite_strain" and first.branches:
+    if two_starts:
         # a neo-Hookean branch's stress grows like lambda_e**2: started at the small-strain estimate, a
         # local fit on large stretches can switch it off (tau to its bound) instead of softening it; a
         # second start a tenth as stiff (same tau), the better fit of the runs kept
