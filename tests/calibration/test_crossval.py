@@ -24,9 +24,13 @@ pytestmark = pytest.mark.skipif(not VHB.is_dir(), reason=f"{VHB} (the shared rea
 FAST = {"model": "1r", "max_evals": 200}
 
 
+#: The five loading-unloading files (``0dRR_SdS[_k]``); the folder also holds a step-and-hold test, relax_2d0.
+NAMED = re.compile(r"0d\d\d_\dd\d(_\d+)?")
+
+
 @pytest.fixture(scope="module")
 def runs(imported):
-    return [load_run(p) for p in sorted(imported.glob("*.nc"))]
+    return [load_run(p) for p in sorted(imported.glob("*.nc")) if NAMED.fullmatch(p.stem)]
 
 
 def from_name(path):
