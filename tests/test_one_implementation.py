@@ -220,4 +220,4 @@ def test_one_list_of_model_names():
             if isinstance(node, ast.Assign) and isinstance(node.value, ast.Tuple) and any(
                     isinstance(t, ast.Name) and t.id in ("MODELS", "MODEL_CHOICES", "ORDER") for t in node.targets):
                 offenders.append(rel(path))
-    assert set(offenders) == {Path("specs") / "truth.py"}
+    assert set(offenders) == {Path("specs") / "names.py"}

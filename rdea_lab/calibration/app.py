@@ -89,7 +89,7 @@ def choose_model(runs, start, model: str, tolerance: float = 0.01) -> tuple[str,
 
 def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, eps_r=None, kinds=("tensile",),
                    metric="rms", max_evals=20000, max_time=300.0, tolerance=0.01, out=None, name=None,
-                   progress=None, announce=None, method="nelder-mead", law=None) -> CalibrationResult:
+                   progress=None, announce=None, method="nelder-mead", law=None, stage=None) -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters (eps_r fixed) to measured runs (Nelder-Mead or least squares).
 
     Parameters
@@ -120,7 +120,11 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     name : str, optional
         Name of the calibrated set in the record (default: ``out``'s stem).
     progress : callable, optional
-        ``progress(evaluations, best, elapsed)``.
+        ``progress(evaluations, best, elapsed)``, at most twice a second: evaluations so far, the best
+        objective so far, seconds since the fit began (over every stage when branches are grown).
+    stage : callable, optional
+        ``stage(index, count, label)`` before each fit when branches are grown from the data
+        (:func:`~rdea_lab.calibration.fit.calibrate_growing`).
     announce : callable, optional
         ``announce(runs, model, reason, free, skipped)`` once everything is checked, before the fit starts.
     method : {"nelder-mead", "least-squares"}
@@ -179,7 +183,8 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         if init is None and (M > 1 or (M == 1 and law == "finite_strain")):
             # from the data: grow the branches one by one (they merge otherwise); finite strain: two starts
             result = calibrate_growing(runs, initial_guess(runs, 1, eps, law=law), M, model=model, free=free, metric=metric,
-                                       method=method, max_evals=max_evals, max_time=max_time, progress=progress)
+                                       method=method, max_evals=max_evals, max_time=max_time, progress=progress,
+                                       stage=stage)
         else:
             result = calibrate(runs, start, model=model, free=free, metric=metric, method=method,
                                max_evals=max_evals, max_time=max_time, progress=progress)

@@ -206,7 +206,7 @@ def _holdout_index(items, holdout) -> list[int]:
     return out
 
 
-def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, announce_fold=None,
+def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, announce_fold=None, fold_done=None,
                    **calibrate_kwargs) -> CrossValidation:
     """Fit on some runs, predict the others: k-fold (``cv``) or one split (``holdout``).
 
@@ -224,6 +224,9 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         beside it to ``<stem>.holdout.csv`` and into its ``calibration`` section as ``validation``.
     announce_fold : callable, optional
         ``announce_fold(index, count, label, fitted_names, predicted_names)`` before each fold's fit.
+    fold_done : callable, optional
+        ``fold_done(index, count, fold, rows)`` after it: the `Fold` (its fit and envelope) and its rows of
+        the result's table (its fitted and predicted runs).
     **calibrate_kwargs
         Passed to `calibrate_runs` for every fold (``model``, ``free``, ``branches``, ``max_evals``, ...;
         ``kinds`` also selects the runs of folders here).
@@ -272,8 +275,11 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         env = envelope(fit_runs)
         fold = Fold(k, label, tuple(fitted), tuple(predicted), result, env)
         folds.append(fold)
-        rows += [_row(fold, "fitted", r, env) for r in fit_runs]
-        rows += [_row(fold, "predicted", runs[i], env) for i in pred_idx]
+        mine = [_row(fold, "fitted", r, env) for r in fit_runs] + [_row(fold, "predicted", runs[i], env)
+                                                                   for i in pred_idx]
+        rows += mine
+        if fold_done is not None:
+            fold_done(k, len(plan), fold, tuple(mine))
     cv_name = cv or HOLDOUT
     result = CrossValidation(cv_name, folds[0].result.model, grouping, tuple(rows), tuple(folds), tuple(skipped))
     if out is not None:

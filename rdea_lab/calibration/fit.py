@@ -57,7 +57,8 @@ class CalibrationResult:
         Of the whole calibration (every stage and candidate).
     converged : bool
         Nelder-Mead: the last restart did not improve; least squares: a
-        tolerance was met; in both cases within the budgets.
+        tolerance was met; in both cases within the budgets. False when a
+        budget stopped any stage (``message`` says which budget and where).
     message : str
     runs : tuple of dict
         Per-run goodness of fit (rms error [N], R^2, relative errors).
@@ -66,7 +67,8 @@ class CalibrationResult:
         improvement; evaluations are counted over all stages.
     stages : tuple of dict
         One per fit (``stage``, ``label``, ``branches``, ``nfev``, ``wall_time_s``,
-        ``objective``, ``restarts``, ``converged``, ``kept``, ``message``).
+        ``objective``, ``restarts``, ``converged``, ``kept``, ``message``, and
+        ``budget_reached``: ``"time"`` or ``"evaluations"`` if a budget stopped it, else ``""``).
     budgets : dict
         ``max_evals``, ``max_time_s`` (over all stages), ``max_restarts``, ``step`` and ``tolerances``.
     versions : dict
@@ -216,7 +218,7 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     z0 = np.array([p.to_internal(p.start) for p in obj.free])
     obj.best_f, obj.best_values, obj.best_x = f0, obj.values(z0), z0
     obj.history = [(0, f0)]
-    restarts, nit, converged, message = 0, 0, False, ""
+    restarts, nit, converged, message, budget_reached = 0, 0, False, "", ""
     if obj.free:
         try:
             if method == "nelder-mead":
@@ -225,7 +227,8 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
             else:
                 restarts, nit, converged, message = bounded_least_squares(obj, xtol=xatol, ftol=ftol, gtol=ftol)
         except OutOfBudget:
-            message = (f"evaluation budget {max_evals} reached" if obj.nfev >= max_evals
+            budget_reached = "evaluations" if obj.nfev >= max_evals else "time"
+            message = (f"evaluation budget {max_evals} reached" if budget_reached == "evaluations"
                        else f"time budget {max_time:g} s reached")
     else:
         converged, message = True, "no free parameters"
@@ -240,10 +243,11 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     values = obj.best_values
     best = with_values(start, values, start.M)
     return _finish(obj, parameters, best, values, model, metric, method, restarts, nit, converged, message,
-                   budgets)
+                   budgets, budget_reached)
 
 
-def _finish(obj, parameters, best, values, model, metric, method, restarts, nit, converged, message, budgets):
+def _finish(obj, parameters, best, values, model, metric, method, restarts, nit, converged, message, budgets,
+            budget_reached):
     free = [p for p in parameters if p.free]
     r = residuals(obj.runs, best, model)
     n, k = r.size, len(free)
@@ -258,7 +262,7 @@ def _finish(obj, parameters, best, values, model, metric, method, restarts, nit,
         bic = float(n * np.log(chisqr / n) + k * np.log(n)) if chisqr > 0 else -np.inf
     stage = {"stage": 0, "label": f"M = {start_branches(obj.start)}", "branches": start_branches(obj.start),
              "nfev": obj.nfev, "wall_time_s": float(wall), "objective": float(obj.best_f), "restarts": restarts,
-             "converged": bool(converged), "kept": True, "message": message}
+             "converged": bool(converged), "kept": True, "message": message, "budget_reached": budget_reached}
     history = np.array([(e, f, 0) for e, f in obj.history], float).reshape(-1, 3)
     return CalibrationResult(
         params=best, start=obj.start, parameters=tuple(parameters), values=values, stderr=stderr,
@@ -362,7 +366,7 @@ def initial_guess(runs, M: int, eps_r: float, name="start-from-data", law="linea
                         description="start values estimated from the data by rdea-lab calibrate")
 
 
-def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=None, max_evals=20000,
+def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=None, stage=None, max_evals=20000,
                       max_time=300.0, **kwargs) -> CalibrationResult:
     """Fit M Maxwell branches one at a time, each from the previous optimum.
 
@@ -373,6 +377,10 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
     the first branch (finite strain: it and one a tenth as stiff, the better kept). ``free`` names parameters of the final set (default: all).
     ``max_evals`` and ``max_time`` are budgets for all the fits together: each
     gets what the ones before it left (a fit left nothing stops at its start).
+    ``progress(evaluations, best, elapsed)`` counts over every fit so far (``best``
+    the lowest objective of any of them, ``elapsed`` [s] since the growth began);
+    ``stage(index, count, label)`` is called before each fit (``index`` from 1 to
+    ``count``, the number of fits the growth makes).
     Other keywords go to `calibrate` (``model``, ``metric``, ``method``, ...).
 
     Returns
@@ -387,19 +395,26 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
 
     t0 = _time.monotonic()
     stages, done = [], []
+    first = start.replace(branches=start.branches[:1])
+    two_starts = first.law == "finite_strain" and bool(first.branches)
+    count = (2 if two_starts else 1) + 2 * max(M - 1, 0)
 
     def fit(params, label):
         spent = sum(r.nfev for r in done)
+        best_before = min((r.objective for r in done), default=np.inf)
+        if stage is not None:
+            stage(len(done) + 1, count, label)
+        report = None if progress is None else (
+            lambda n, best, elapsed: progress(spent + n, min(best, best_before), _time.monotonic() - t0))
         names = [n for n in values_of(params)]
-        res = calibrate(runs, params, free=[n for n in names if free is None or n in free], progress=progress,
+        res = calibrate(runs, params, free=[n for n in names if free is None or n in free], progress=report,
                         max_evals=max(0, max_evals - spent), max_time=max(0.0, max_time - (_time.monotonic() - t0)),
                         **kwargs)
         stages.append({**res.stages[0], "stage": len(done), "label": label, "kept": False})
         done.append(res)
         return len(done) - 1
 
-    first = start.replace(branches=start.branches[:1])
-    if first.law == "finite_strain" and first.branches:
+    if two_starts:
         # a neo-Hookean branch's stress grows like lambda_e**2: started at the small-strain estimate, a
         # local fit on large stretches can switch it off (tau to its bound) instead of softening it; a
         # second start a tenth as stiff (same tau), the better fit of the runs kept
@@ -436,7 +451,17 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
     path = "; ".join(f"M = {m}: {done[i].objective:.4g}" for m, i in enumerate(kept, start=1))
     budgets = {**best.budgets, "max_evals": int(max_evals), "max_time_s": float(max_time),
                "scope": "max_evals and max_time cover every stage and candidate together"}
+    grown = f"grown branch by branch: {path}; {len(done)} fits"
+    # a stage a budget stopped leaves the growth unfinished, even where the fit kept had converged
+    stopped = next((st for st in stages if st["budget_reached"]), None)
+    if stopped is None:
+        converged, message = best.converged, f"{best.message} ({grown})"
+    else:
+        spent = (f"evaluation budget {max_evals}" if stopped["budget_reached"] == "evaluations"
+                 else f"time budget {max_time:g} s")
+        converged, message = False, (f"{spent} reached in stage {stopped['stage']} '{stopped['label']}'; "
+                                     f"the best fit so far kept ({grown})")
     return dataclasses.replace(
         best, nfev=sum(r.nfev for r in done), nit=sum(r.nit for r in done), restarts=sum(r.restarts for r in done),
         wall_time=float(_time.monotonic() - t0), history=np.vstack(history), stages=tuple(stages), budgets=budgets,
-        message=f"{best.message} (grown branch by branch: {path}; {len(done)} fits)")
+        converged=converged, message=message)

@@ -92,6 +92,10 @@ def _fast_builder(start: ParameterSet, M: int):
     return build
 
 
+#: Seconds between two calls of an objective's ``progress`` (twice a second: a live line, not a log).
+REPORT_EVERY = 0.5
+
+
 class Objective:
     """Objective over runs; counts evaluations, keeps the best point and its history.
 
@@ -107,7 +111,7 @@ class Objective:
     max_time : float
         Seconds of wall time before `OutOfBudget`.
     progress : callable, optional
-        ``progress(evaluations, best, elapsed)``, at most twice a second.
+        ``progress(evaluations, best, elapsed)``, at most once every `REPORT_EVERY` seconds.
     """
 
     def __init__(self, runs, start, parameters, model, metric, max_evals, max_time, progress=None,
@@ -206,7 +210,7 @@ class Objective:
             self.best_f, self.best_values, self.best_x = f, values, np.array(x, float) if x is not None else None
             self.history.append((self.nfev, f))
         now = self._clock()
-        if self.progress is not None and now - self._last_report > 0.5:
+        if self.progress is not None and now - self._last_report >= REPORT_EVERY:
             self._last_report = now
             self.progress(self.nfev, self.best_f, now - self.t0)
         return f, r

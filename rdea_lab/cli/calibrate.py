@@ -4,12 +4,75 @@ from __future__ import annotations
 
 import functools
 import sys
+import time
 
 import click
 
 from .. import api
 from ..specs import MODEL_CHOICES
 from .errors import headless
+
+
+class FitProgress:
+    """A fit's progress on stderr, fed by the library's callbacks: on a terminal one line redrawn in place
+    (as often as the library reports, twice a second), otherwise a line every `every` seconds (a log
+    stays short); a line per growth stage and per fold, and a final line per fit."""
+
+    def __init__(self, enabled: bool = True, every: float = 10.0, clock=time.monotonic):
+        self.enabled, self.every, self.clock = enabled, every, clock
+        self.tty = sys.stderr.isatty()
+        self.width = 0  # of the line drawn in place, 0 when none is showing
+        self.last = -float("inf")
+
+    @staticmethod
+    def status(evaluations, best, elapsed) -> str:
+        return f"  evaluations {evaluations:6d}  best {best:.6e}  elapsed {elapsed:6.1f} s"
+
+    def __call__(self, evaluations, best, elapsed):
+        """The library's ``progress(evaluations, best, elapsed)``."""
+        if not self.enabled:
+            return
+        text = self.status(evaluations, best, elapsed)
+        if self.tty:
+            click.echo("\r" + text.ljust(self.width), nl=False, err=True)
+            self.width = len(text)
+        elif self.clock() - self.last >= self.every:
+            self.last = self.clock()
+            click.echo(text, err=True)
+
+    def end_line(self):
+        """End a line drawn in place (before something is printed on stdout, the same terminal)."""
+        if self.width:
+            click.echo("", err=True)
+            self.width = 0
+
+    def line(self, text: str):
+        """A line of its own (a stage, a fold), below a line drawn in place."""
+        if not self.enabled:
+            return
+        if self.width:
+            click.echo("\r" + text.ljust(self.width), err=True)
+            self.width = 0
+        else:
+            click.echo(text, err=True)
+
+    def stage(self, index, count, label):
+        """The library's ``stage(index, count, label)`` (branches grown one at a time)."""
+        self.line(f"stage {index}/{count}: {label}")
+
+    def done(self, result, prefix: str = "done"):
+        """The final line of a fit, from its result."""
+        state = "converged" if result.converged else f"not converged ({result.message})"
+        self.line(f"{prefix}: {result.nfev} evaluations, best {result.objective:.6e}, {result.wall_time:.1f} s, "
+                  f"{state}")
+
+    def fold_done(self, index, count, fold, rows):
+        """The library's ``fold_done(index, count, fold, rows)``: the fit's final line and the held-out errors."""
+        held = "; ".join(f"{r['file']} rms/peak {100 * r['rms_rel_error']:.2f} %" for r in rows
+                         if r["role"] == "predicted")
+        self.done(fold.result, prefix=f"fold {index}/{count} done")
+        if held:
+            self.line(f"  held out: {held}")
 
 
 @click.command()
@@ -40,7 +103,7 @@ from .errors import headless
 @click.option("--name", help="Name of the calibrated parameter set [default: from --out].")
 @click.option("--out", "out_path", required=True, type=click.Path(),
               help="Record to write (a parameter file with a calibration section); with --cv a folder.")
-@click.option("--quiet", is_flag=True, help="No progress line.")
+@click.option("--quiet", is_flag=True, help="No progress on stderr (evaluations, best objective, stages, folds).")
 @click.option("--holdout", multiple=True, type=click.Path(), metavar="FILE",
               help="A run among INPUTS to predict instead of fit (repeatable); its errors and envelope flags "
                    "are printed, written to <out stem>.holdout.csv and under calibration.validation in --out.")
@@ -62,13 +125,10 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
       rdea-lab calibrate datasets/vhb4910 --model 1r --cv by-rate --out reports/vhb4910-cv
     """
     headless()
-    show = not quiet and sys.stderr.isatty()
-
-    def progress(n, best, elapsed):
-        if show:
-            click.echo(f"\r  evaluations {n:6d}  best {best:.6e}  elapsed {elapsed:6.1f} s", nl=False, err=True)
+    progress = FitProgress(enabled=not quiet)
 
     def announce(runs, chosen, reason, free, skipped):
+        progress.end_line()
         for s in skipped:
             click.echo(f"skipped {s['file']}: {s['reason']}")
         if reason:
@@ -77,6 +137,7 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
                    + ", ".join(f"{r.specimen}/{r.protocol}" for r in runs))
 
     def announce_fold(k, count, label, fitted, predicted):
+        progress.end_line()
         click.echo(f"fold {k}/{count} (held out: {label}): fitting {', '.join(fitted)}")
 
     cross = cv is not None or bool(holdout)
@@ -84,15 +145,15 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
         ctx = click.get_current_context()
         param = next(p for p in ctx.command.params if p.name == "out_path")
         click.Path(dir_okay=False).convert(out_path, param, ctx)
-    fit = (functools.partial(api.cross_validate, cv=cv, holdout=list(holdout) or None, announce_fold=announce_fold)
-           if cross else api.calibrate_runs)
+    fit = (functools.partial(api.cross_validate, cv=cv, holdout=list(holdout) or None, announce_fold=announce_fold,
+                             fold_done=progress.fold_done) if cross else api.calibrate_runs)
     kinds = [k.strip() for k in kinds_text.split(",") if k.strip()]
     result = fit(list(inputs), model=model.lower(), init=init_path, free=free_text, branches=M,
                  eps_r=eps_r, kinds=kinds, metric=metric, max_evals=max_evals, max_time=max_time,
-                 out=out_path, name=name, progress=progress, announce=announce, method=method.lower(),
-                 law=law.lower() if law else None)
-    if show:
-        click.echo("", err=True)
+                 out=out_path, name=name, progress=progress, stage=progress.stage, announce=announce,
+                 method=method.lower(), law=law.lower() if law else None)
+    if not cross:
+        progress.done(result)
     if cross:
         for s in result.skipped:
             click.echo(f"skipped {s['file']}: {s['reason']}")

@@ -14,8 +14,6 @@ import traceback
 
 import click
 
-from ..specs import UserError
-
 EXIT_HELP = ("Exit status: 0 done, 1 internal error, 2 bad input (one line naming the file, the field and what is "
              "allowed), 3 a run ended by the rig or a limit (aborted), 130 interrupted.")
 
@@ -28,6 +26,19 @@ OPTIONS = {"address": "--rig", "token": "--token-file", "address/token": "--rig/
            "metric": "--metric", "init": "--init", "cv": "--cv", "holdout": "--holdout",
            "method": "--method", "tare": "--tare", "estimator": "--estimator", "tau": "--tau",
            "reference": "--reference"}
+
+
+#: Options a user reaches for by another name (other tools', or rdea-lab's before): the name -> ours.
+SYNONYMS = {"--overwrite": "--force"}
+
+
+def _suggest_synonym(exc: click.NoSuchOption) -> None:
+    """Point an unknown option at the command's option of that meaning, if the command has one
+    (click's own guess goes by spelling: ``--overwrite`` is not close to ``--force``)."""
+    ours = SYNONYMS.get(exc.option_name)
+    command = exc.ctx.command if exc.ctx is not None else None
+    if ours and command is not None and any(ours in p.opts for p in command.params if isinstance(p, click.Option)):
+        exc.possibilities = [ours]
 
 
 def user_message(exc) -> str:
@@ -64,21 +75,26 @@ def run(group: click.Group, argv=None) -> int:
         click.echo(exc.ctx.get_help() if exc.ctx is not None else "rdea-lab --help")
         return 0
     except click.UsageError as exc:
+        if isinstance(exc, click.NoSuchOption):
+            _suggest_synonym(exc)
         where = exc.ctx.command_path if exc.ctx is not None else "rdea-lab"
         click.echo(f"{where}: {_one_line(exc.format_message())} (see --help)", err=True)
         return 2
     except click.ClickException as exc:
         click.echo(f"rdea-lab: {_one_line(exc.format_message())}", err=True)
         return exc.exit_code
-    except UserError as exc:  # SpecError, LimitError, a rig refusing, a model that does not apply, ...
-        click.echo(f"rdea-lab: {_one_line(user_message(exc))}", err=True)
-        return 2
     except KeyboardInterrupt:
         click.echo("rdea-lab: interrupted", err=True)
         return 130
     except BrokenPipeError:
         return 0
-    except Exception as exc:  # an internal error: say so, traceback on request
+    except Exception as exc:
+        from ..specs import UserError  # here, not at the top: `rdea-lab --help` needs no specs
+
+        if isinstance(exc, UserError):  # SpecError, LimitError, a rig refusing, a model that does not apply, ...
+            click.echo(f"rdea-lab: {_one_line(user_message(exc))}", err=True)
+            return 2
+        # an internal error: say so, traceback on request
         if os.environ.get("RDEA_LAB_DEBUG"):
             traceback.print_exc()
         click.echo(f"rdea-lab: internal error: {type(exc).__name__}: {_one_line(exc)} "

@@ -8,7 +8,6 @@ import sys
 import click
 
 from .. import api
-from ..specs import load_specimen
 from ..specs.importing import FORMATS, KINDS, MIN_STRETCH
 
 
@@ -58,6 +57,8 @@ def import_(files, fmt, map_text, units_text, card_path, kind, protocol_name, en
           --map "time=t,position=data[:, 0],force=data[:, 1]" --units time=s,position=mm,force=N \\
           --specimen specimens/specimen2.yaml --protocol-kind custom
     """
+    from ..specs import load_specimen  # here: the module loads for --help too
+
     fmt = fmt.lower()  # choices in any case, as everywhere on the command line
     api.check_format(fmt, files[0])
     mapping = api.parse_map(map_text)

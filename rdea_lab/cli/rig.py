@@ -8,7 +8,6 @@ import threading
 import click
 
 from .. import api
-from ..specs import Limits, load_specimen, read_token
 from .errors import die, flush_stdout
 
 
@@ -54,6 +53,8 @@ def serve(card_path, truth_path, host, port, realtime, token_file, faults, max_v
       rdea-lab run protocols/blocking_force.yaml --specimen specimens/specimen2.yaml \\
           --backend rig --rig tcp://127.0.0.1:5025
     """
+    from ..specs import Limits, load_specimen, read_token  # here: the module loads for --help too
+
     parsed = api.parse_faults(faults)
     limits = Limits.from_options({"max_voltage": max_voltage, "max_field": max_field, "max_stretch": max_stretch,
                                   "max_force": max_force})

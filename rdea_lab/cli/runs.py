@@ -10,7 +10,7 @@ from pathlib import Path
 import click
 
 from .. import api
-from ..specs import MODEL_CHOICES, read_token
+from ..specs import MODEL_CHOICES
 from .errors import EXIT_HELP, die, headless
 
 LIVE_HELP = ("Live view of the samples: 'table' (a line a second), 'plot' (a matplotlib window) "
@@ -114,6 +114,8 @@ def run(protocol, card_path, backend, rig_address, token_file, truth_path, fault
       rdea-lab run protocols/blocking_force.yaml --specimen specimens/specimen1.yaml \\
           --backend emulator --fault breakdown-at=12
     """
+    from ..specs import read_token  # here: the module loads for --help too
+
     metadata = parse_metadata(md)
     setup = api.prepare_run(protocol, card_path, backend, params=params_path, model=model.lower(),
                             tolerance=tolerance, out=out_path, seed=seed, realtime=realtime, address=rig_address,

@@ -20,53 +20,41 @@ Quick start (the whole library: see `rdea_lab`)::
     twin = rdea_lab.predict(ds, params, "su")
 """
 
-from .coerce import as_params, as_protocol, as_specimen
-from .errors import SpecError, UserError
-from .limits import LimitError, check_limits, field_estimate, limit_violations
-from .params import (
-    LAWS,
-    MODULUS,
-    ParameterSet,
-    ViscoBranch,
-    dump_params,
-    load_params,
-    material_problems,
-    params_from_mapping,
-    params_from_yaml,
-    yeoh_slope_nonpositive_at,
-)
-from .protocol import (
-    Limits,
-    ProtocolSpec,
-    dump_protocol,
-    load_protocol,
-    protocol_from_mapping,
-    protocol_from_yaml,
-)
-from .specimen import (
-    Membrane,
-    Radii,
-    SpecimenCard,
-    dump_specimen,
-    load_specimen,
-    specimen_from_mapping,
-    specimen_from_yaml,
-)
-from .truth import (
-    MODEL_CHOICES,
-    MODELS,
-    Instrument,
-    RadiiFactors,
-    TruthSpec,
-    dump_truth,
-    load_truth,
-    truth_as_mapping,
-    truth_from_mapping,
-    truth_from_yaml,
-    truth_json,
-)
-from .tokens import read_token
-from .units import format_quantity, parse_quantity, ureg
+import importlib as _importlib
+
+#: Where each public name lives. Loaded on first use (PEP 562), so that ``from rdea_lab.specs import
+#: MODELS`` (a command line's choices) costs no pydantic, numpy or YAML; ``dir()`` lists them all.
+_EXPORTS = {
+    "coerce": ("as_params", "as_protocol", "as_specimen"),
+    "errors": ("SpecError", "UserError"),
+    "limits": ("LimitError", "check_limits", "field_estimate", "limit_violations"),
+    "names": ("MODEL_CHOICES", "MODELS"),
+    "params": ("LAWS", "MODULUS", "ParameterSet", "ViscoBranch", "dump_params", "load_params", "material_problems",
+               "params_from_mapping", "params_from_yaml", "yeoh_slope_nonpositive_at"),
+    "protocol": ("Limits", "ProtocolSpec", "dump_protocol", "load_protocol", "protocol_from_mapping",
+                 "protocol_from_yaml"),
+    "specimen": ("Membrane", "Radii", "SpecimenCard", "dump_specimen", "load_specimen", "specimen_from_mapping",
+                 "specimen_from_yaml"),
+    "truth": ("Instrument", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth", "truth_as_mapping",
+              "truth_from_mapping", "truth_from_yaml", "truth_json"),
+    "tokens": ("read_token",),
+    "units": ("format_quantity", "parse_quantity", "ureg"),
+}
+_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
+
+
+def __getattr__(name):
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(_importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value  # the next look-up is an ordinary one
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_MODULE_OF))
+
 
 __all__ = [
     "as_params", "as_protocol", "as_specimen", "LimitError", "check_limits", "field_estimate", "limit_violations", "read_token",

@@ -1,6 +1,6 @@
 """What ``rdea-lab import`` accepts: file formats, protocol kinds, and the stretch taken as noise below 1."""
 
-from .protocol_segments import KINDS
+from .names import KINDS
 
 #: File formats ``import`` reads.
 FORMATS = ("csv", "tdms", "mat")

@@ -13,10 +13,10 @@ from pydantic import AfterValidator, BaseModel, BeforeValidator, Field, model_va
 
 from .errors import DOCUMENT, SpecError, SpecModel, show
 from .errors import units_required
+from .names import KINDS  # noqa: F401  (re-exported: a protocol's kinds)
 from .units import _NUMBER, format_quantity, parse_quantity, quantity, ureg
 
 
-KINDS = ("tensile", "blocking", "capacitance", "custom")
 MEASURABLE = ("force", "capacitance", "current")
 SEGMENT_KINDS = ("hold", "step", "ramp", "sine", "ramp_sine", "chirp", "table")
 #: most values a ``table`` segment may hold (a sampled setpoint history, e.g. a planned voltage)

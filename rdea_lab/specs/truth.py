@@ -57,13 +57,9 @@ from pydantic import AfterValidator, BeforeValidator
 
 from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, show
 from .params import ParameterSet, _Viscoelastic, _Yeoh, dump_params, params_from_mapping
+from .names import MODEL_CHOICES, MODELS  # noqa: F401  (MODEL_CHOICES re-exported)
 from .units import format_quantity, quantity
 
-#: The quasi-static models, cheapest first (``rdea_lab.physics.models.MODELS`` implements them);
-#: the true physics may be any of them.
-MODELS = ("su", "1r", "3r", "cr")
-#: What a twin, a calibration or a report accepts: a model, or ``auto`` (the cheapest within a tolerance).
-MODEL_CHOICES = (*MODELS, "auto")
 #: Open interval a radius factor must lie in: a tolerance, not another roll.
 FACTOR_RANGE = (0.5, 1.5)
 _MATERIAL_KEYS = ("name", "description", "source", "yeoh", "eps_r", "viscoelastic")

@@ -10,16 +10,53 @@ from __future__ import annotations
 import math
 import numbers
 import re
+import threading
 from decimal import Decimal
 from typing import Annotated, Any
 
-import pint
 from pydantic import AfterValidator, BeforeValidator
 
 from .errors import SpecError, show, units_required
 
-#: The one unit registry of rdea-lab.
-ureg = pint.UnitRegistry()
+
+class _LazyRegistry:
+    """Stands for pint's `UnitRegistry`, built on the first attribute asked of it.
+
+    Importing pint and building its registry take 0.3-0.5 s (pint also imports dask
+    and scipy when they are installed), which every ``rdea-lab --help`` paid at import.
+    ``ureg.parse_units(...)``, ``ureg.Quantity(...)`` work as on the registry itself;
+    `unit_registry` returns the registry.
+    """
+
+    __slots__ = ("_registry", "_lock")
+
+    def __init__(self):
+        self._registry = None
+        self._lock = threading.Lock()  # one registry even if two threads ask first at once
+
+    def get(self):
+        if self._registry is None:
+            with self._lock:
+                if self._registry is None:
+                    import pint
+
+                    self._registry = pint.UnitRegistry()
+        return self._registry
+
+    def __getattr__(self, name: str):
+        return getattr(self.get(), name)
+
+    def __repr__(self) -> str:
+        return "<rdea-lab's unit registry (" + ("built" if self._registry is not None else "not built yet") + ")>"
+
+
+#: The one unit registry of rdea-lab (pint's, built on first use).
+ureg = _LazyRegistry()
+
+
+def unit_registry():
+    """The one `pint.UnitRegistry` of rdea-lab (built on the first call)."""
+    return ureg.get()
 
 # dimension -> (SI unit the float is expressed in, name, example)
 _DIMENSIONS: dict[str, tuple[str, str, str]] = {
@@ -288,4 +325,4 @@ def quantity(dimension: str, unit: str, *, gt: float | None = None, ge: float | 
     ]
 
 
-__all__ = ["DIMENSIONS", "format_quantity", "parse_quantity", "quantity", "ureg"]
+__all__ = ["DIMENSIONS", "format_quantity", "parse_quantity", "quantity", "unit_registry", "ureg"]

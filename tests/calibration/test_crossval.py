@@ -24,9 +24,13 @@ pytestmark = pytest.mark.skipif(not VHB.is_dir(), reason=f"{VHB} (the shared rea
 FAST = {"model": "1r", "max_evals": 200}
 
 
+#: The five loading-unloading files (``0dRR_SdS[_k]``); the folder also holds a step-and-hold test, relax_2d0.
+NAMED = re.compile(r"0d\d\d_\dd\d(_\d+)?")
+
+
 @pytest.fixture(scope="module")
 def runs(imported):
-    return [load_run(p) for p in sorted(imported.glob("*.nc"))]
+    return [load_run(p) for p in sorted(imported.glob("*.nc")) if NAMED.fullmatch(p.stem)]
 
 
 def from_name(path):
@@ -171,3 +175,21 @@ def test_out_folder_without_cv_is_refused(imported, tmp_path, capsys):
     rc = run_cli(cli, ["calibrate", str(imported / "0d05_1d5_1.nc"), "--max-evals", "20", "--quiet",
                        "--out", str(tmp_path)])
     assert rc == 2 and "is a directory" in capsys.readouterr().err
+
+
+def test_fold_done_is_called_after_each_fold_with_its_fit_and_rows(imported):
+    seen = []
+    cv = cross_validate(imported, cv="by-stretch", **FAST, fold_done=lambda *a: seen.append(a))
+    assert [s[:2] for s in seen] == [(k, len(cv.folds)) for k in range(1, len(cv.folds) + 1)]
+    for (k, _, fold, rows), expected in zip(seen, cv.folds):
+        assert fold is expected
+        assert list(rows) == [r for r in cv.rows if r["fold"] == k]
+
+
+def test_cli_cv_prints_each_fold_done_on_stderr(imported, tmp_path, capsys):
+    assert run_cli(cli, ["calibrate", str(imported), "--model", "1r", "--max-evals", "200", "--cv", "by-stretch",
+                         "--out", str(tmp_path / "cv")]) == 0
+    err = capsys.readouterr().err
+    done = [line for line in err.splitlines() if " done: " in line]
+    assert [line.split(" done:")[0] for line in done] == [f"fold {k}/{len(done)}" for k in range(1, len(done) + 1)]
+    assert len(done) >= 2 and all("200 evaluations" in line for line in done)  # FAST's budget ends each fit

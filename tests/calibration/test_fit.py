@@ -103,6 +103,21 @@ def test_fixed_parameters_stay_and_budgets_stop_cleanly(clean):
     assert res.message == "no free parameters" and res.nfev == 0
 
 
+
+def test_a_fit_its_time_budget_stopped_records_not_converged(clean, tmp_path):
+    """A budget of 1 ns is spent before the first counted evaluation (the start's own score comes first):
+    the fit ends at its start, not converged, and the record says so and why."""
+    import yaml
+
+    res = calibrate(clean, factor3_start(), model="su", free=FREE, max_time=1e-9)
+    assert not res.converged and res.message == "time budget 1e-09 s reached" and res.nfev == 0
+    assert res.stages[0]["budget_reached"] == "time" and not res.stages[0]["converged"]
+    record = yaml.safe_load(write_record(res, clean, tmp_path / "cal.yaml")["params"].read_text())["calibration"]
+    assert record["converged"] is False and record["message"] == "time budget 1e-09 s reached"
+    assert record["stages"][0]["budget_reached"] == "time"
+    full = calibrate(clean, factor3_start(), model="su", free=FREE, method="least-squares")
+    assert full.converged and full.stages[0]["budget_reached"] == ""  # the same fit, unhurried
+
 def test_non_physical_regions_score_infinity_and_a_hopeless_start_says_so(clean):
     with pytest.raises(SpecError, match="C10"):
         TRUE.replace(C10=-1.0)  # a non-physical start cannot even be built
@@ -181,3 +196,88 @@ def test_growing_branch_by_branch_recovers_two_time_scales():
         ev = res.history[stage_of == st["stage"], 0]
         before = sum(s["nfev"] for s in res.stages[:st["stage"]])
         assert before <= ev.min() and ev.max() <= before + st["nfev"]
+
+
+@pytest.fixture(scope="module")
+def two_time_scales():
+    truth = TRUE.replace(branches=(ViscoBranch(k=300e3, eta=300e3 * 0.3), ViscoBranch(k=100e3, eta=100e3 * 15.0)))
+    runs = synthetic_runs(truth)
+    return runs, initial_guess(runs, 1, 2.8).replace(eta_v0=0.0)
+
+
+def test_a_budget_that_stops_the_last_stage_of_a_growth_leaves_it_not_converged(two_time_scales):
+    """Growing M = 2 (least squares: fast). Given the evaluations the first two stages took plus three, the
+    third (the faster second branch) stops on the budget: the growth did not finish, even though the fit kept
+    (the slower branch) converged; before the fix that growth recorded converged: true."""
+    from rdea_lab.calibration.fit import calibrate_growing
+
+    runs, start = two_time_scales
+    free = ["C10", "C20", "C30", "k_v1", "eta_v1", "k_v2", "eta_v2"]
+    kw = dict(model="su", free=free, method="least-squares")
+    full = calibrate_growing(runs, start, 2, max_evals=8000, **kw)
+    assert full.converged and [st["budget_reached"] for st in full.stages] == ["", "", ""]
+    budget = full.stages[0]["nfev"] + full.stages[1]["nfev"] + 3
+    res = calibrate_growing(runs, start, 2, max_evals=budget, **kw)
+    assert res.nfev == budget and [st["budget_reached"] for st in res.stages] == ["", "", "evaluations"]
+    assert res.stages[1]["converged"] and res.stages[1]["kept"]  # the kept fit converged; the growth did not
+    assert not res.converged
+    assert res.message.startswith(f"evaluation budget {budget} reached in stage 2 'M = 2, new branch faster")
+    tiny = calibrate_growing(runs, start, 2, max_time=1e-9, **kw)  # the time budget, spent at once
+    assert not tiny.converged and tiny.message.startswith("time budget 1e-09 s reached in stage 0 'M = 1'")
+
+
+@pytest.fixture
+def every_evaluation(monkeypatch):
+    """Report progress after every evaluation (not twice a second): what a test can count on any machine."""
+    from rdea_lab.calibration import methods
+
+    monkeypatch.setattr(methods, "REPORT_EVERY", 0.0)
+
+
+def test_progress_reports_every_evaluation_and_the_best_so_far(clean, every_evaluation):
+    calls = []
+    res = calibrate(clean, factor3_start(), model="su", free=FREE, method="least-squares",
+                    progress=lambda *a: calls.append(a))
+    evaluations, best, elapsed = (np.array(c) for c in zip(*calls))
+    assert list(evaluations) == list(range(1, res.nfev + 1))
+    assert np.all(np.diff(best) <= 0) and best[-1] == res.objective
+    # the best so far is the history's last improvement at each evaluation (an independent record)
+    improvements = {int(e): f for e, f, _ in res.history}
+    running = [min(f for e, f in improvements.items() if e <= n) for n in evaluations]
+    assert list(best) == running
+    assert np.all(np.diff(elapsed) >= 0) and elapsed[-1] <= res.wall_time
+
+
+def test_growth_reports_each_stage_and_counts_over_all_of_them(two_time_scales, every_evaluation):
+    from rdea_lab.calibration.fit import calibrate_growing
+
+    runs, start = two_time_scales
+    calls, stages = [], []
+    free = ["C10", "C20", "C30", "k_v1", "eta_v1", "k_v2", "eta_v2"]
+    res = calibrate_growing(runs, start, 2, model="su", free=free, method="least-squares", max_evals=300,
+                            progress=lambda *a: calls.append(a), stage=lambda *a: stages.append(a))
+    assert stages == [(k, 3, st["label"]) for k, st in enumerate(res.stages, start=1)]
+    evaluations = [c[0] for c in calls]
+    assert evaluations == list(range(1, res.nfev + 1))  # numbered across the stages, as the history is
+    best = [c[1] for c in calls]
+    assert all(b2 <= b1 for b1, b2 in zip(best, best[1:]))
+    assert best[-1] == min(st["objective"] for st in res.stages)
+
+
+def test_cli_prints_progress_and_a_final_line_on_stderr_unless_quiet(capsys, tmp_path, every_evaluation):
+    """Not a terminal here (captured): a line every 10 s, the first at once, and the final line from the fit."""
+    run = tmp_path / "runs" / "t.nc"
+    assert run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml"),
+                         "--specimen", str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"),
+                         "--model", "su", "--quiet", "--out", str(run)]) == 0
+    capsys.readouterr()
+    args = ["calibrate", str(run), "--init", str(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"),
+            "--free", "C10,C20", "--method", "least-squares", "--out", str(tmp_path / "cal.yaml")]
+    assert run_cli(cli, args) == 0
+    captured = capsys.readouterr()
+    lines = captured.err.splitlines()
+    assert lines[0].startswith("  evaluations      1  best ")  # the first report
+    nfev = int(captured.out.split(" after ")[1].split()[0])  # from the fit report on stdout
+    assert lines[-1].startswith(f"done: {nfev} evaluations, best ") and lines[-1].endswith(", converged")
+    assert run_cli(cli, [*args, "--quiet"]) == 0
+    assert capsys.readouterr().err == ""

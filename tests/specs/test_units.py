@@ -155,3 +155,18 @@ def test_parse_is_exact_for_short_decimals(x):
     text = f"{x:.6g}"
     nearest = float(str(Decimal(text).scaleb(-3)))  # exact shift, then one correctly rounded conversion
     assert parse(f"{text} mm", "length") == nearest
+
+
+def test_the_unit_registry_is_built_on_first_use_only():
+    """Importing the specs (every ``rdea-lab`` command does) builds no pint registry; the first quantity does,
+    and it is the one registry: pint refuses to mix quantities of two registries."""
+    import subprocess
+    import sys
+
+    code = ("import sys; import rdea_lab.specs as s; assert 'pint' not in sys.modules, 'pint at import'; "
+            "from rdea_lab.specs.units import ureg, unit_registry; "
+            "assert s.parse_quantity('2.6 kV', 'voltage', source='', field='') == 2600.0; "
+            "import pint; r = unit_registry(); assert isinstance(r, pint.UnitRegistry) and r is ureg.get(); "
+            "q = ureg.Quantity(1.0, 'mm') + r.Quantity(1.0, 'm'); assert q.to('mm').magnitude == 1001.0")  # exact in floats
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
