@@ -358,6 +358,8 @@ class SelfSenseStream:
     blend_voltage, leakage_tau, leakage
         As for `capacitance_secant`.
 
+    Notes
+    -----
     ``step(t, v, i)`` takes the next samples (at least one; times continuing at ``1 / rate``) and
     returns ``(small_signal, charge)`` for them: `CapacitanceEstimate` and `ChargeEstimate`. In any
     blocks it gives what `capacitance_rls` (with the same `scale`) and `capacitance_secant` give on
