@@ -466,8 +466,10 @@ def format_text(r: dict) -> str:
         lines.append(row(f"{w} worker{'s' if w != '1' else ''}", x, x["busy_share"]))
     for w, x in r["cluster"].items():
         lines.append(f"  {w} worker(s): cluster start-up {x['startup_s']:.1f} s, warm-up {x['warmup_s']:.1f} s "
-                     f"(not in the figures); {x['tasks']} tasks, median task compute {x['task_compute_s_median']:.2f} s; "
-                     f"workers' CPU {x['cpu_share']:.0%} of workers x wall ({x['sys_share_of_cpu']:.0%} of it system); "
+                     f"(not in the figures); {x['tasks']} tasks, "
+                     f"median task compute {x['task_compute_s_median']:.2f} s; "
+                     f"workers' CPU {x['cpu_share']:.0%} of workers x wall "
+                     f"({x['sys_share_of_cpu']:.0%} of it system); "
                      f"other processes {x['others_cpu_share']:.0%} of the machine; "
                      f"MALLOC_TRIM_THRESHOLD_ {', '.join(x['worker_MALLOC_TRIM_THRESHOLD_'])}")
     if "speedup" in r:
@@ -483,8 +485,8 @@ def format_text(r: dict) -> str:
     lp = r["loop"]
     lines.append(row(f"loop simulate(), {lp['designs']}", lp))
     e = lp["extrapolated_1e4_s"]
-    lines.append(f"  loop: 1e4 designs would take {e[0]:.0f} s ({e[2]:.0f}-{e[1]:.0f}); the {lp['study_workers']}-worker "
-                 f"study is {lp['study_over_loop']:.1f}x the loop's rate")
+    lines.append(f"  loop: 1e4 designs would take {e[0]:.0f} s ({e[2]:.0f}-{e[1]:.0f}); "
+                 f"the {lp['study_workers']}-worker study is {lp['study_over_loop']:.1f}x the loop's rate")
     lines.append(f"  loop max force vs study peak_force, {lp['compared']} designs: max rel. diff "
                  f"{lp['max_rel_diff']:.1e}; results identical across worker counts: {r['same_across_workers']}; "
                  f"design status: {r['design_status']}")

@@ -150,7 +150,8 @@ def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
         paths = []
         for name in ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV"):
             out = Path(tmp) / f"{name}.nc"
-            execute(load_plan(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml"), card, RigBackend(address, card), out)
+            execute(load_plan(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml"), card,
+                    RigBackend(address, card), out)
             paths.append(out)
         runs = [load_run(p) for p in paths]
     start = initial_guess(runs, 1, 2.8)
@@ -206,8 +207,10 @@ def format_text(r: dict) -> str:
                  f"{c['evaluations']} evaluations, {c['evaluations_per_s']:.0f} evaluations/s "
                  f"({c['samples_per_evaluation']} samples each)")
     for key, label in (("specimen2_su_M1_least_squares", "specimen 2, least squares"),
-                       ("vhb5_finite_strain_M2_nelder_mead", "VHB 4910, 5 files, 2 finite-strain branches, Nelder-Mead"),
-                       ("vhb5_finite_strain_M2_least_squares", "VHB 4910, 5 files, 2 finite-strain branches, least squares")):
+                       ("vhb5_finite_strain_M2_nelder_mead",
+                        "VHB 4910, 5 files, 2 finite-strain branches, Nelder-Mead"),
+                       ("vhb5_finite_strain_M2_least_squares",
+                        "VHB 4910, 5 files, 2 finite-strain branches, least squares")):
         if key in c:
             x = c[key]
             lines.append(f"  {label}: {x['seconds']:.2f} s ({x['seconds_spread'][0]:.2f}-{x['seconds_spread'][1]:.2f}, "

@@ -61,8 +61,8 @@ def main(folder: Path):
         for name in ("selfsense_2.6kV", "selfsense_0V"):
             out = folder / f"specimen{s}-{name}.nc"
             t0 = time.perf_counter()
-            rdea_lab.run_protocol(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml", card, "emulator", truth=TRUTH, out=out,
-                                  overwrite=True)
+            rdea_lab.run_protocol(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml", card, "emulator",
+                                  truth=TRUTH, out=out, overwrite=True)
             runs[name] = (out, time.perf_counter() - t0)
         run, run_time = runs["selfsense_2.6kV"]
         for label, kwargs in (("secant, rest tare", {}),

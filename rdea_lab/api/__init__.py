@@ -55,8 +55,8 @@ _EXPORTS = {
     "ModelNotApplicable": "rdea_lab.physics.result",
     # store
     "open_run": "rdea_lab.store", "catalog": "rdea_lab.store", "describe_run": "rdea_lab.store",
-    "recover": "rdea_lab.store", "journal_path": "rdea_lab.store", "RunInProgress": "rdea_lab.store", "EmptyJournal": "rdea_lab.store",
-    "journal_writer": "rdea_lab.store",
+    "recover": "rdea_lab.store", "journal_path": "rdea_lab.store", "RunInProgress": "rdea_lab.store",
+    "EmptyJournal": "rdea_lab.store", "journal_writer": "rdea_lab.store",
     "import_files": "rdea_lab.store.importers", "ImportOptions": "rdea_lab.store.importers",
     "check_format": "rdea_lab.store.importers", "parse_map": "rdea_lab.store.importers",
     "parse_units": "rdea_lab.store.importers", # calibration

@@ -120,7 +120,8 @@ class RigBackend:
                                            is_big_endian=False)
             reply = self._inst.read().strip()
         except Exception as exc:
-            raise ConnectionLost(f"connection to the rig {self.address} lost during upload ({type(exc).__name__})") from None
+            raise ConnectionLost(f"connection to the rig {self.address} lost during upload "
+                                 f"({type(exc).__name__})") from None
         if reply != "OK":
             raise RigRefused(f"rig {self.address} refused {command}: {_error_text(reply)}")
 

@@ -182,9 +182,9 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     try:
         if init is None and (M > 1 or (M == 1 and law == "finite_strain")):
             # from the data: grow the branches one by one (they merge otherwise); finite strain: two starts
-            result = calibrate_growing(runs, initial_guess(runs, 1, eps, law=law), M, model=model, free=free, metric=metric,
-                                       method=method, max_evals=max_evals, max_time=max_time, progress=progress,
-                                       stage=stage)
+            result = calibrate_growing(runs, initial_guess(runs, 1, eps, law=law), M, model=model, free=free,
+                                       metric=metric, method=method, max_evals=max_evals, max_time=max_time,
+                                       progress=progress, stage=stage)
         else:
             result = calibrate(runs, start, model=model, free=free, metric=metric, method=method,
                                max_evals=max_evals, max_time=max_time, progress=progress)

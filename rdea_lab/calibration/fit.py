@@ -374,7 +374,8 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
     scale. Here the fit with m - 1 branches is extended by a branch 10 times slower
     than the slowest and, separately, 10 times faster than the fastest (its
     stiffness a tenth of the stiffest spring so far), both fitted, and the better kept; ``start`` supplies
-    the first branch (finite strain: it and one a tenth as stiff, the better kept). ``free`` names parameters of the final set (default: all).
+    the first branch (finite strain: it and one a tenth as stiff, the better kept). ``free`` names
+    parameters of the final set (default: all).
     ``max_evals`` and ``max_time`` are budgets for all the fits together: each
     gets what the ones before it left (a fit left nothing stops at its start).
     ``progress(evaluations, best, elapsed)`` counts over every fit so far (``best``

@@ -113,6 +113,7 @@ def fit_parameters(start: ParameterSet, free: set[str]) -> list[FitParameter]:
         else:
             p = FitParameter(name, x, 1e-3, 1e11, "log", 1.0, name in free, UNITS["eta"])
         if not p.lo <= x <= p.hi:
-            raise SpecError("--init", name, f"start value {x:g} {p.unit} is outside the fit bounds [{p.lo:g}, {p.hi:g}]")
+            raise SpecError("--init", name,
+                            f"start value {x:g} {p.unit} is outside the fit bounds [{p.lo:g}, {p.hi:g}]")
         out.append(p)
     return out

@@ -112,12 +112,14 @@ def _plot_history(result, path: Path) -> None:
     h = result.history
     for st in result.stages:
         mine = h[h[:, 2] == st["stage"]]
-        ax.semilogy(mine[:, 0], mine[:, 1], drawstyle="steps-post", label=st["label"] + ("" if st["kept"] else " (dropped)"))
+        ax.semilogy(mine[:, 0], mine[:, 1], drawstyle="steps-post",
+                    label=st["label"] + ("" if st["kept"] else " (dropped)"))
     if len(result.stages) > 1:
         ax.legend(fontsize="small")
     ax.set_xlabel("objective evaluations (all stages)")
     ax.set_ylabel(f"best {result.metric} normalized force error [-]")
-    ax.set_title(f"calibration ({result.model}, {result.method}, {result.nfev} evaluations, {result.restarts} restarts)")
+    ax.set_title(f"calibration ({result.model}, {result.method}, {result.nfev} evaluations, "
+                 f"{result.restarts} restarts)")
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
     fig.savefig(path, dpi=120)

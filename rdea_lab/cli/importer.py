@@ -24,7 +24,8 @@ from ..specs.importing import FORMATS, KINDS, MIN_STRETCH
                    "header '(unit)' or TDMS unit_string.")
 @click.option("--specimen", "card_path", required=True, type=click.Path(dir_okay=False),
               help="Specimen card (YAML); its unstretched length L1 gives stretch = 1 + position / L1.")
-@click.option("--protocol-kind", "kind", required=True, type=click.Choice(KINDS, case_sensitive=False), help="What the test was.")
+@click.option("--protocol-kind", "kind", required=True, type=click.Choice(KINDS, case_sensitive=False),
+              help="What the test was.")
 @click.option("--name", "protocol_name", help="Protocol name [default: the file's stem].")
 @click.option("--encoding", help="CSV text encoding [default: the first of utf-8, utf-8-sig, gbk, cp1252, "
                                  "latin-1 that decodes the file].")

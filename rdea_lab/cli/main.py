@@ -129,14 +129,16 @@ def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet, 
 @click.option("--repeat", default=5, show_default=True, type=click.IntRange(1, 100),
               help="Timing repeats (the median and the spread are reported).")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON.")
-@click.option("--no-vhb", is_flag=True, help="Leave out the calibrations on the shared VHB 4910 files (about a minute).")
+@click.option("--no-vhb", is_flag=True,
+              help="Leave out the calibrations on the shared VHB 4910 files (about a minute).")
 @click.option("--steps", default=20_000, show_default=True, type=click.IntRange(100, 10_000_000),
               help="Timed calls of the per-sample step (step_latency_us).")
 @click.option("--no-compile-probe", is_flag=True,
               help="Leave out numba's cold start (compile_s: two fresh processes, about 30 s).")
 @click.option("--reproduce", "reproduce_", is_flag=True,
               help="Instead: rdea-lab reproduce's wall and stage times, warm (--repeat runs after a warm-up) and "
-              "cold (one run, empty numba cache and byte code), each in a fresh process (benchmarks/bench_reproduce.py).")
+              "cold (one run, empty numba cache and byte code), each in a fresh process "
+              "(benchmarks/bench_reproduce.py).")
 def bench(samples, baseline_samples, repeat, as_json, no_vhb, steps, no_compile_probe, reproduce_):
     """Speed of the SU, 1R, 3R and CR solvers, of 3R against an fsolve baseline, of calibration, of the
     compiled kernels against the numpy reference and of the per-sample step.

@@ -6,7 +6,7 @@ import click
 
 from .. import api
 from ..specs import MODEL_CHOICES
-from .errors import die, headless
+from .errors import headless
 
 MODELS = MODEL_CHOICES
 

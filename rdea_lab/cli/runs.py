@@ -74,7 +74,8 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
 @click.command(epilog=EXIT_HELP)
 @click.argument("protocol", type=click.Path(dir_okay=False))
 @click.option("--specimen", "card_path", required=True, type=click.Path(dir_okay=False), help="Specimen card (YAML).")
-@click.option("--backend", type=click.Choice(["twin", "rig", "emulator"], case_sensitive=False), default="twin", show_default=True,
+@click.option("--backend", type=click.Choice(["twin", "rig", "emulator"], case_sensitive=False), default="twin",
+              show_default=True,
               help="twin: the physics model; rig: a rig server (--rig); emulator: a built-in emulated rig.")
 @click.option("--rig", "rig_address", metavar="tcp://HOST:PORT", help="Rig server, for --backend rig.")
 @click.option("--token-file", type=click.Path(dir_okay=False), help="Token presented to the rig server.")
@@ -87,7 +88,8 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
 @click.option("--params", "params_path", type=click.Path(dir_okay=False),
               help="Parameter set for the twin [default: params/paper2021_table3.yaml].")
 @click.option("--model", type=click.Choice(MODEL_CHOICES, case_sensitive=False), default="auto",
-              show_default=True, help="Twin model; auto = cheapest within --tolerance of CR (the continuum model) on this run.")
+              show_default=True,
+              help="Twin model; auto = cheapest within --tolerance of CR (the continuum model) on this run.")
 @click.option("--tolerance", type=click.FloatRange(0.0, 1.0, min_open=True, max_open=True), default=0.01,
               show_default=True,
               help="For --model auto: allowed deviation from CR, relative to the peak stress.")
@@ -267,7 +269,8 @@ def campaign():
 @campaign.command(name="run", epilog=EXIT_HELP)
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--out", "out_dir", type=click.Path(file_okay=False),
-              help="Folder for the datasets [default: the campaign's 'out' in the working folder, e.g. datasets/paper2021].")
+              help="Folder for the datasets [default: the campaign's 'out' in the working folder, "
+              "e.g. datasets/paper2021].")
 @click.option("--force", "overwrite", is_flag=True, help="Overwrite existing datasets.")
 @click.option("--realtime", is_flag=True, help="Pace the runs at wall-clock speed.")
 @click.option("--live", metavar="table|plot|FILE.png", help=LIVE_HELP)

@@ -74,9 +74,10 @@ def connect(address: str | None = None, *, workers: int | None = None, quiet: bo
 
     spawn = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
     spawn.pop("MALLOC_TRIM_THRESHOLD_", None)
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": spawn}), LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                      dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR) as cluster, \
-            Client(cluster, set_as_default=False) as client:
+    with (dask.config.set({"distributed.nanny.pre-spawn-environ": spawn}),
+          LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                       dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR) as cluster,
+          Client(cluster, set_as_default=False) as client):
         if not quiet:
             _say(f"dask: local cluster, {n} worker{'s' if n > 1 else ''}, dashboard {client.dashboard_link}")
         yield client

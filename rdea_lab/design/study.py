@@ -88,7 +88,8 @@ def evaluate_table(study: Study, table: dict, *, client=None, progress: bool = F
     if client is None:
         parts = []
         for a, b in bounds:
-            task = dask.delayed(evaluate_chunk, pure=True)(fixed, np.arange(a, b), {k: v[a:b] for k, v in table.items()})
+            task = dask.delayed(evaluate_chunk, pure=True)(fixed, np.arange(a, b),
+                                                           {k: v[a:b] for k, v in table.items()})
             parts.append(dask.compute(task, scheduler="synchronous")[0])
             bar.update()
     else:
@@ -426,7 +427,8 @@ def dataset(study, unit, table, metrics, ok, front, sens, opt, card) -> xr.Datas
                                     np.stack([sens["indices"][g.metric][key] for g in study.objectives]),
                                     {"units": "1", "long_name": f"Sobol index {key} (SALib, Saltelli sampling, "
                                      f"{sens['designs']} designs)"})
-        data["sobol_missing"] = ("objective", np.array([sens["indices"][g.metric]["missing"] for g in study.objectives]),
+        data["sobol_missing"] = ("objective",
+                                 np.array([sens["indices"][g.metric]["missing"] for g in study.objectives]),
                                  {"long_name": "Saltelli designs without a value (no roll, no equilibrium, past the "
                                   "protocol's limits): the indices are undefined (NaN) where this is not 0"})
     ds = xr.Dataset(data, coords=coords)

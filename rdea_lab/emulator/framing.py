@@ -42,7 +42,8 @@ def encode_block(values) -> bytes:
 def decode_block(payload: bytes) -> np.ndarray:
     """The float64 values of a block's payload; FramingError if not whole values."""
     if len(payload) % 8:
-        raise FramingError(-161, f"block of {len(payload)} bytes is not a whole number of float64 values (8 bytes each)")
+        raise FramingError(-161, f"block of {len(payload)} bytes is not a whole number of float64 values "
+                                 "(8 bytes each)")
     return np.frombuffer(payload, dtype="<f8").astype(float)
 
 

@@ -151,8 +151,10 @@ def limit_violation(config: RunConfig) -> str | None:
     with np.errstate(invalid="ignore"):
         field = av * np.sqrt(np.maximum(x, 0.0)) / config.L3
     checks = [
-        (~np.isfinite(x), lambda k: f"stretch setpoint {float(x[k])!r} at t = {seconds(t[k])} s is not a finite number"),
-        (~np.isfinite(v), lambda k: f"voltage setpoint {float(v[k])!r} at t = {seconds(t[k])} s is not a finite number"),
+        (~np.isfinite(x), lambda k: f"stretch setpoint {float(x[k])!r} at t = {seconds(t[k])} s "
+                                    "is not a finite number"),
+        (~np.isfinite(v), lambda k: f"voltage setpoint {float(v[k])!r} at t = {seconds(t[k])} s "
+                                    "is not a finite number"),
         (x < 1.0 - SLACK, lambda k: f"stretch {_g(x[k], 1.0)} at t = {seconds(t[k])} s is below 1 "
                                     "(the roll must stay in tension)"),
         (x > config.max_stretch * (1.0 + SLACK),

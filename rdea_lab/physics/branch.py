@@ -411,7 +411,7 @@ def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, 
     has_ext = np.flatnonzero(np.any(np.isfinite(ext_y), axis=1))
     snapped = np.zeros(n, dtype=bool)
     if has_ext.size:
-        e_y, e_h, e_max = ext_y[has_ext], ext_h[has_ext], ext_max[has_ext]
+        e_y, e_h = ext_y[has_ext], ext_h[has_ext]
         rising = (y[has_ext] >= y_prev[has_ext])[:, None]
         inside = (e_y > lo_y[has_ext, None]) & (e_y < hi_y[has_ext, None])
         valid = ~lost[has_ext]

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..physics.models import solve
 from ..specs.errors import DOCUMENT, SpecError
-from ..specs.protocol import ProtocolSpec, dump_protocol
+from ..specs.protocol import ProtocolSpec
 from ..specs.protocol_segments import (StretchHold, StretchRamp, StretchTable, VoltageHold, VoltageRamp,
                                        VoltageTable)
 from ..specs.target import Target, load_target

@@ -212,14 +212,19 @@ def solve_3r_fsolve(
             l2a = l2c = np.nan
             p1 = p2 = 0.0
             if has_a:
-                l2a = x[i]; i += 1
-            l2b = x[i]; i += 1
+                l2a = x[i]
+                i += 1
+            l2b = x[i]
+            i += 1
             if has_c:
-                l2c = x[i]; i += 1
+                l2c = x[i]
+                i += 1
             if has_a:
-                p1 = x[i] * p_scale; i += 1
+                p1 = x[i] * p_scale
+                i += 1
             if has_c:
-                p2 = x[i] * p_scale; i += 1
+                p2 = x[i] * p_scale
+                i += 1
             return l2a, l2b, l2c, p1, p2
 
         def maxwell(l2b):

@@ -213,9 +213,9 @@ def write_reproduce_index(out: Path, result: dict, validation_columns) -> Path:
                        flagged=("beyond_calibration",)))
     if "speed" in result:
         sp = result["speed"]["files"]
+        listed = [sp["markdown"], sp["csv"], sp["pareto"], Path(sp["pareto"]).with_suffix(".pdf")]
         parts.append("<h2 id=\"speed\">Speed against error: SU, 1R, 3R, CR and auto</h2>\n"
-                     f"<p>{_files(out, [sp['markdown'], sp['csv'], sp['pareto'], Path(sp['pareto']).with_suffix('.pdf')])}"
-                     "</p>\n")
+                     f"<p>{_files(out, listed)}</p>\n")
         parts.append(table([("scene", "scene", _text), ("model_used", "auto picks", _text),
                             ("auto_reason", "why", _text)], result["speed"]["auto"]))
         parts.append(figures([sp["pareto"]], {"pareto.png": "Time per sample against the largest stress error "

@@ -17,14 +17,14 @@ Quick start::
 """
 
 from .app import (
-    BACKENDS, OutputError, OutputInUse, RunSetup, check_writable, check_outputs, default_out, emulated_rig, execute_setup, prepare_run,
-    run_protocol,
+    BACKENDS, OutputError, OutputInUse, RunSetup, check_writable, check_outputs, default_out, emulated_rig,
+    execute_setup, prepare_run, run_protocol,
 )
 from .callbacks import LiveTable, RunBlock
 from .campaign import Experiment, experiments, run_campaign, run_experiment, submit_campaign
 from .engine import EXIT_CODES, RunResult, check_metadata, execute, run_attrs
 
-__all__ = ["BACKENDS", "EXIT_CODES", "Experiment", "LiveTable", "OutputError", "OutputInUse", "check_writable", "RunBlock", "RunResult", "RunSetup",
-           "check_metadata", "check_outputs", "default_out", "emulated_rig", "execute", "execute_setup",
-           "experiments", "prepare_run", "run_attrs", "run_campaign", "run_experiment", "run_protocol",
-           "submit_campaign"]
+__all__ = ["BACKENDS", "EXIT_CODES", "Experiment", "LiveTable", "OutputError", "OutputInUse", "check_writable",
+           "RunBlock", "RunResult", "RunSetup", "check_metadata", "check_outputs", "default_out", "emulated_rig",
+           "execute", "execute_setup", "experiments", "prepare_run", "run_attrs", "run_campaign", "run_experiment",
+           "run_protocol", "submit_campaign"]

@@ -37,7 +37,8 @@ def experiments(spec, root: Path, out_dir: Path | None = None) -> list[Experimen
         L3 = geometry_from_card(card).L3
         for j, plan in enumerate(plans):
             first_violation(plan, L3=L3)
-            entry = f"specimens[{i}] ({Path(rel).name}, id {card.id}) with protocols[{j}] ({Path(spec.protocols[j]).name})"
+            entry = (f"specimens[{i}] ({Path(rel).name}, id {card.id}) "
+                     f"with protocols[{j}] ({Path(spec.protocols[j]).name})")
             runs.append(Experiment(card, plan, out_dir / card.id / f"{plan.name}.nc", entry))
     return runs
 

@@ -211,7 +211,8 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
                 raise
             except Exception as exc:
                 failed_cb[0] = cb
-                raise _SubscriberFailed(f"subscriber {subscriber_name(cb)} failed: {type(exc).__name__}: {exc}") from exc
+                raise _SubscriberFailed(f"subscriber {subscriber_name(cb)} failed: "
+                                        f"{type(exc).__name__}: {exc}") from exc
 
     try:
         max_force = plan.limits.max_force

@@ -57,12 +57,13 @@ def __dir__():
 
 
 __all__ = [
-    "as_params", "as_protocol", "as_specimen", "LimitError", "check_limits", "field_estimate", "limit_violations", "read_token",
-    "UserError", "Limits", "ProtocolSpec", "dump_protocol", "load_protocol", "protocol_from_mapping", "protocol_from_yaml",
+    "as_params", "as_protocol", "as_specimen", "LimitError", "check_limits", "field_estimate", "limit_violations",
+    "read_token", "UserError", "Limits", "ProtocolSpec", "dump_protocol", "load_protocol", "protocol_from_mapping",
+    "protocol_from_yaml",
     "Membrane", "ParameterSet", "Radii", "SpecError", "SpecimenCard", "ViscoBranch",
     "dump_params", "dump_specimen", "format_quantity", "load_params", "load_specimen",
     "material_problems", "params_from_mapping", "params_from_yaml", "parse_quantity",
     "specimen_from_mapping", "specimen_from_yaml", "ureg", "yeoh_slope_nonpositive_at",
-    "Instrument", "MODEL_CHOICES", "MODELS", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth", "truth_as_mapping",
-    "truth_from_mapping", "truth_from_yaml", "truth_json",
+    "Instrument", "MODEL_CHOICES", "MODELS", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth",
+    "truth_as_mapping", "truth_from_mapping", "truth_from_yaml", "truth_json",
 ]

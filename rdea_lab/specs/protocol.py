@@ -42,7 +42,8 @@ from .protocol_segments import (  # noqa: F401  (re-exported: part of the protoc
     SEGMENTS, SEGMENT_KINDS, STRETCH_SEGMENTS, SampleRate, Stretch, StretchAmplitude, StretchChirp, StretchHold,
     StretchRamp, StretchRampSine, StretchSegment, StretchSine, StretchStep, StretchTable, VOLTAGE_SEGMENTS, Voltage,
     VoltageAmplitude, VoltageChirp, VoltageHold, VoltageRamp, VoltageRampSine, VoltageSegment, VoltageSine,
-    VoltageStep, VoltageTable, MAX_TABLE_VALUES, channel_duration, check_sample_count, format_angle, rate_text, _ROUNDING, _join, _segments,
+    VoltageStep, VoltageTable, MAX_TABLE_VALUES, channel_duration, check_sample_count, format_angle, rate_text,
+    _ROUNDING, _join, _segments,
 )
 from .units import format_quantity
 

@@ -319,7 +319,8 @@ def _segments(channel: str, items: Any) -> tuple:
             raise SpecError("", f"{where}.kind", f"missing required key 'kind'; one of {', '.join(SEGMENT_KINDS)}")
         kind = item["kind"]
         if not isinstance(kind, str) or kind not in classes:
-            raise SpecError("", f"{where}.kind", f"unknown segment kind {show(kind)}; allowed: {', '.join(SEGMENT_KINDS)}")
+            raise SpecError("", f"{where}.kind",
+                            f"unknown segment kind {show(kind)}; allowed: {', '.join(SEGMENT_KINDS)}")
         try:
             out.append(classes[kind](**{str(k): v for k, v in item.items()}))
         except SpecError as err:

@@ -239,7 +239,8 @@ class SpecimenCard(SpecModel):
         e = self.electrode
         if e is not None:
             if e.length > self.length * (1 + _ROUNDING):
-                raise SpecError("", "electrode.length", f"{_mm(e.length)} is longer than the strip ({_mm(self.length)})")
+                raise SpecError("", "electrode.length",
+                                f"{_mm(e.length)} is longer than the strip ({_mm(self.length)})")
             if e.width > self.width * (1 + _ROUNDING):
                 raise SpecError("", "electrode.width", f"{_mm(e.width)} is wider than the strip ({_mm(self.width)})")
         return self

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass

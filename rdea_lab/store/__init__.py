@@ -14,9 +14,10 @@ Quick start (the whole library: see `rdea_lab`)::
 """
 
 from .catalog import catalog, describe_run, open_run
-from .journal import (DiskFull, EmptyJournal, JournalInUse, JournalWriter, RunInProgress, journal_path, journal_writer, read_journal,
-                      recover, write_dataset)
+from .journal import (DiskFull, EmptyJournal, JournalInUse, JournalWriter, RunInProgress, journal_path,
+                      journal_writer, read_journal, recover, write_dataset)
 from .schema import REQUIRED_ATTRS, VARIABLES
 
-__all__ = ["DiskFull", "EmptyJournal", "JournalInUse", "RunInProgress", "journal_writer", "JournalWriter", "REQUIRED_ATTRS", "VARIABLES", "catalog", "describe_run", "journal_path",
-           "open_run", "read_journal", "recover", "write_dataset"]
+__all__ = ["DiskFull", "EmptyJournal", "JournalInUse", "RunInProgress", "journal_writer", "JournalWriter",
+           "REQUIRED_ATTRS", "VARIABLES", "catalog", "describe_run", "journal_path", "open_run", "read_journal",
+           "recover", "write_dataset"]

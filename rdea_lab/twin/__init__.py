@@ -23,5 +23,5 @@ from .predict import MIN_STRETCH, predict
 from .simulate import TwinStream, as_geometry, compose, simulate, viscous
 from .step import TwinStep
 
-__all__ = ["MIN_STRETCH", "TwinStep", "TwinStream", "as_geometry", "compose", "predict", "quasi_static_curves", "simulate",
-           "viscous"]
+__all__ = ["MIN_STRETCH", "TwinStep", "TwinStream", "as_geometry", "compose", "predict", "quasi_static_curves",
+           "simulate", "viscous"]

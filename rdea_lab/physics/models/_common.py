@@ -151,7 +151,8 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
         start = (start.y, start.label)
     if path and bad.any():  # a NaN sample has no state: the path runs on across it
         good = np.flatnonzero(~bad)
-        ev = _expand(evaluate(geom, _take(material, good), l1[good], v[good], path=True, start=start, kernel=kernel), good, l1.size, start)
+        ev = _expand(evaluate(geom, _take(material, good), l1[good], v[good], path=True, start=start, kernel=kernel),
+                     good, l1.size, start)
     else:
         ev = evaluate(geom, material, l1, v, path=path, start=start, kernel=kernel)
     fields = dict(ev.fields)
@@ -163,8 +164,8 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
     if len(slack):
         # a path's free state continues the branch the clamped state is on
         origin = ev.y[slack] if (path and ev.y is not None) else None
-        lam_f, st_f, f_free = free_state(evaluate, geom, _take(material, slack), l1[slack], v[slack], fields["sigma1"][slack],
-                                         origin=origin, kernel=kernel)
+        lam_f, st_f, f_free = free_state(evaluate, geom, _take(material, slack), l1[slack], v[slack],
+                                         fields["sigma1"][slack], origin=origin, kernel=kernel)
         # slack either way (force 0: the clamped state pushes); a snap-through stays the event it is.
         # Where the free state lies beyond what the model solves (outside its range, past a fold, or
         # past FREE_STRETCH_MAX) the stretches and capacitance stay the clamped state's, free_stretch NaN.

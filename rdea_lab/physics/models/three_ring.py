@@ -212,7 +212,8 @@ def problem(geom, material, l1, v) -> Problem:
     y0, y_max, load = bounds(l1, kappa(geom, material), rings.bound_constants)
     pitchfork = rings.rho_i == 0.0 and rings.has_a
     C = yeoh_coefficients(material)
-    return Problem(_terms(rings, C), y0, y_max, load * v * v, load, pitchfork=pitchfork, scale=rings.rho_ie if pitchfork else None,
+    return Problem(_terms(rings, C), y0, y_max, load * v * v, load, pitchfork=pitchfork,
+                   scale=rings.rho_ie if pitchfork else None,
                    kernel=(3, {"l1": np.ascontiguousarray(l1, float), "R": rings.constants, "C": C}))
 
 
