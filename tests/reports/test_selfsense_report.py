@@ -127,8 +127,8 @@ def test_cli_prints_one_line_and_writes_the_dataset(run, tmp_path):
 @pytest.mark.parametrize("args, message", [
     (("datasets/paper2021/specimen-2/blocking_force.nc", "--params", "params/paper2021_table3.yaml"),
      "rdea-lab: datasets/paper2021/specimen-2/blocking_force.nc: current: the run has no current variable"),
-    (("RUN", "--params", "protocols/blocking_force.yaml"),
-     "rdea-lab: protocols/blocking_force.yaml: "),
+    (("RUN", "--params", "rdea_lab/data/protocols/blocking_force.yaml"),
+     "rdea-lab: rdea_lab/data/protocols/blocking_force.yaml: "),
     (("nowhere.nc", "--params", "params/paper2021_table3.yaml"), "rdea-lab: nowhere.nc: <document>: no such file"),
 ])
 def test_cli_bad_input_exit_2_one_line(run, tmp_path, args, message):
