@@ -7,10 +7,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from vhb_data import LOADING_UNLOADING, MISSING
 
 ROOT = Path(__file__).resolve().parents[1]
-#: The shared VHB 4910 files (../shared/data): real data, absent on a bare checkout.
-VHB = ROOT.parent / "shared" / "data" / "vhb4910"
 
 
 @pytest.fixture(autouse=True)
@@ -23,15 +22,14 @@ def _close_figures():
 
 @pytest.fixture(scope="session")
 def imported(tmp_path_factory):
-    """A folder of the five VHB loading-unloading files as datasets, imported as the README shows (calibration
-    and report tests; the step-and-hold run relax_2d0.csv is not among them)."""
-    if not VHB.is_dir():
-        pytest.skip(f"{VHB} (the shared real-data folder) is absent")
+    """A folder of the five VHB files as datasets, imported as the README shows (calibration and report tests)."""
+    if not LOADING_UNLOADING:
+        pytest.skip(MISSING)
     from rdea_lab.cli.errors import run as run_cli
     from rdea_lab.cli.main import cli
 
     out = tmp_path_factory.mktemp("vhb")
-    rc = run_cli(cli, ["import", *map(str, sorted(VHB.glob("0d*.csv"))), "--format", "csv", "--map",
+    rc = run_cli(cli, ["import", *map(str, LOADING_UNLOADING), "--format", "csv", "--map",
                        "time=0,position=1,force=2", "--protocol-kind", "tensile", "--specimen",
                        str(ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"), "--credit",
                        "Chongran-Zhao/VHB4910_data (GitHub)", "--out", str(out)])

@@ -92,7 +92,7 @@ def test_stall_mid_run(server, card, tmp_path):
     assert server.controller.state == "ABORTED"  # the client's ABOR reached the rig: voltage off
 
 
-@pytest.mark.parametrize("server", [{"faults": [("disconnect", 5.0)], "realtime": True}], indirect=True)
+@pytest.mark.parametrize("server", [{"faults": [("disconnect", 2.0)], "realtime": True}], indirect=True)
 def test_disconnect_mid_run_reconnects_and_drains(server, card, tmp_path):
     """Realtime, so the rig holds samples the client has not fetched when the line drops;
     the driver reconnects and fetches them: nothing acquired is lost."""

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 import yaml
+from vhb_data import needs_vhb
 
 from rdea_lab.calibration import cross_validate, goodness, load_run, predict_force
 from rdea_lab.calibration.crossval import make_folds
@@ -19,8 +20,7 @@ from rdea_lab.cli.main import cli
 from rdea_lab.specs import SpecError, load_params
 
 ROOT = Path(__file__).resolve().parents[2]
-VHB = ROOT.parent / "shared" / "data" / "vhb4910"
-pytestmark = pytest.mark.skipif(not VHB.is_dir(), reason=f"{VHB} (the shared real-data folder) is absent")
+pytestmark = needs_vhb
 FAST = {"model": "1r", "max_evals": 200}
 
 

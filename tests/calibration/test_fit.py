@@ -91,7 +91,9 @@ def test_a_parameter_the_data_cannot_see_is_flagged(clean):
     """eta_v0 acts only through the stretch rate; two branches that do the same thing
     cannot be told apart: the record says so instead of reporting a number."""
     start = TRUE.replace(branches=TRUE.branches + (ViscoBranch(k=TRUE.branches[0].k, eta=TRUE.branches[0].eta),))
-    res = calibrate(clean, start, model="su", free=["C10", "k_v1", "eta_v1", "k_v2", "eta_v2"], max_evals=3000)
+    # the fit of two identical branches does not converge within 3000 evaluations either (it uses them all,
+    # and flags the same four); 300 show the flag as well
+    res = calibrate(clean, start, model="su", free=["C10", "k_v1", "eta_v1", "k_v2", "eta_v2"], max_evals=300)
     assert set(res.unidentifiable) & {"k_v1", "eta_v1", "k_v2", "eta_v2"}
 
 

@@ -3,7 +3,7 @@
 from pathlib import Path
 
 import numpy as np
-import pytest
+from vhb_data import needs_vhb
 
 from rdea_lab.calibration import load_run
 from rdea_lab.cli.errors import run as run_cli
@@ -12,8 +12,7 @@ from rdea_lab.specs import load_params
 from rdea_lab.store import open_run
 
 ROOT = Path(__file__).resolve().parents[2]
-VHB = ROOT.parent / "shared" / "data" / "vhb4910"
-pytestmark = pytest.mark.skipif(not VHB.is_dir(), reason=f"{VHB} (the shared real-data folder) is absent")
+pytestmark = needs_vhb
 
 
 def test_noise_below_stretch_1_is_left_out_and_counted(imported):

@@ -11,8 +11,7 @@ from rdea_lab.cli.main import cli
 from rdea_lab.specs import protocol_from_yaml
 
 ROOT = Path(__file__).resolve().parents[2]
-DATA = ROOT / "rdea_lab" / "data"
-CARD = DATA / "specimens" / "specimen2.yaml"
+CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
 
 
 def rdea(capsys, *args):
@@ -23,8 +22,8 @@ def rdea(capsys, *args):
 
 def test_a_campaign_listing_one_card_twice_is_refused_naming_both_runs(tmp_path, capsys):
     (tmp_path / "c.yaml").write_text(
-        f"name: c\nbackend: twin\nseed: 1\nout: {tmp_path / 'out'}\nparams: {DATA / 'params' / 'paper2021_table3.yaml'}\n"
-        f"specimens: [{CARD}, {CARD}]\nprotocols: [{DATA / 'protocols' / 'blocking_force.yaml'}]\n")
+        f"name: c\nbackend: twin\nseed: 1\nout: {tmp_path / 'out'}\nparams: {ROOT / 'rdea_lab' / 'data' / 'params' / 'paper2021_table3.yaml'}\n"
+        f"specimens: [{CARD}, {CARD}]\nprotocols: [{ROOT / 'rdea_lab' / 'data' / 'protocols' / 'blocking_force.yaml'}]\n")
     code, out, err = rdea(capsys, "campaign", "run", tmp_path / "c.yaml")
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert "specimens[0] (specimen2.yaml, id specimen-2)" in err and "specimens[1] (specimen2.yaml" in err

@@ -46,17 +46,23 @@ def test_plan_run_on_the_emulator_within_the_stated_error(tmp_path):
     assert t["stretch_error_max"] < 0.008
 
 
-def test_plan_then_run_then_check(tmp_path):
-    """The README's path: plan, `rdea-lab run` the protocol file (twin backend here), check the run."""
+def test_plan_then_run_then_check(tmp_path, capsys):
+    """The README's path: plan, `rdea-lab run` the protocol file (twin backend here), check the run. The two
+    plans run in process (the CLI's own `run`, as the console script calls it), the run as a real process."""
+    from rdea_lab.cli.errors import run
+    from rdea_lab.cli.main import cli as group
+
     (tmp_path / "short.yaml").write_text(SHORT)
-    common = ("--target", str(tmp_path / "short.yaml"), "--specimen", CARD, "--params", PARAMS)
-    assert cli("plan", *common, "--out", str(tmp_path / "p.yaml")).returncode == 0
+    common = ["--target", str(tmp_path / "short.yaml"), "--specimen", CARD, "--params", PARAMS]
+    assert run(group, ["plan", *common, "--out", str(tmp_path / "p.yaml")]) == 0, capsys.readouterr().err
     r = cli("run", str(tmp_path / "p.yaml"), "--specimen", CARD, "--backend", "twin", "--model", "su",
             "--params", PARAMS, "--out", str(tmp_path / "r.nc"), "--quiet")
     assert r.returncode == 0, r.stderr
-    r = cli("plan", *common, "--out", str(tmp_path / "p2.yaml"), "--check", str(tmp_path / "r.nc"), "--json")
-    assert r.returncode == 0, r.stderr
-    assert json.loads(r.stdout)["tracking"]["relative_max"] < 1e-6
+    capsys.readouterr()
+    rc = run(group, ["plan", *common, "--out", str(tmp_path / "p2.yaml"), "--check", str(tmp_path / "r.nc"), "--json"])
+    out, err = capsys.readouterr()
+    assert rc == 0, err
+    assert json.loads(out)["tracking"]["relative_max"] < 1e-6
 
 
 @pytest.mark.parametrize("target, extra, match", [

@@ -74,8 +74,11 @@ class Client:
         return np.frombuffer(data, "<f8").reshape(-1, 8)
 
     def closed(self) -> bool:
-        """True if the server closed the connection (EOF)."""
-        return self.file.read(1) == b""
+        """True if the server closed the connection (EOF); our end is then closed too."""
+        if self.file.read(1) != b"":
+            return False
+        self.close()
+        return True
 
     def close(self) -> None:
         self.file.close()

@@ -109,6 +109,15 @@ def serve(*args):
     return proc, ("127.0.0.1", port)
 
 
+def stop(proc):
+    """Kill the server if a test left it running, and close its pipes."""
+    if proc.poll() is None:
+        proc.kill()
+        proc.wait()
+    proc.stdout.close()
+    proc.stderr.close()
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_serve_until_a_signal_then_exit_0(sig):
     proc, address = serve()
@@ -122,9 +131,7 @@ def test_serve_until_a_signal_then_exit_0(sig):
         client.close()
         assert proc.stderr.read() == ""
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        stop(proc)
 
 
 def test_serve_with_a_token_file(tmp_path):
@@ -141,6 +148,4 @@ def test_serve_with_a_token_file(tmp_path):
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=20) == 0
     finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+        stop(proc)

@@ -29,7 +29,7 @@ def short(**changes):
 @pytest.mark.parametrize("path, options", [("targets/spring_stroke.yaml", {}),
                                            ("targets/blocking_ramp.csv", {"stretch": "1.5"})])
 def test_examples_plan_within_1e6_on_the_twin(path, options):
-    tp = plan_target(load_target(path, **options), CARD, PARAMS)  # packaged names
+    tp = plan_target(load_target(ROOT / "rdea_lab" / "data" / path, **options), CARD, PARAMS)
     assert tp.twin_error < 1e-6  # SU: closed form, so rounding only (about 1e-15)
     s = tp.summary()
     assert 0.0 < s["voltage_min_V"] <= s["voltage_max_V"] <= 3000.0

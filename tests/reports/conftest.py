@@ -43,7 +43,7 @@ class Page(HTMLParser):
 
 @pytest.fixture
 def read_page():
-    return lambda path: Page(open(path, encoding="utf-8").read())
+    return lambda path: Page(Path(path).read_text(encoding="utf-8"))
 
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 import rdea_lab
-from rdea_lab.paths import resolve
 from rdea_lab.reports.selfsense import selfsense_run
 from rdea_lab.specs import SpecError
 
@@ -112,15 +111,29 @@ def test_bad_input_is_refused_naming_the_file_and_field(run, tmp_path):
 
 
 def cli(*args, cwd):
+    """``rdea-lab *args`` as a real process in ``cwd``."""
     return subprocess.run([sys.executable, "-m", "rdea_lab.cli.main", *map(str, args)], capture_output=True,
                           text=True, cwd=cwd)
 
 
-def test_cli_prints_one_line_and_writes_the_dataset(run, tmp_path):
+def cli_here(capsys, monkeypatch, *args, cwd):
+    """``rdea-lab *args`` in this process, through the `run` the entry point exits with: what `cli` returns."""
+    from rdea_lab.cli.errors import run as run_cli
+    from rdea_lab.cli.main import cli as group
+
+    monkeypatch.chdir(cwd)
+    capsys.readouterr()
+    code = run_cli(group, [str(a) for a in args])
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(args, code, out, err)
+
+
+def test_cli_prints_one_line_and_writes_the_dataset(run, tmp_path, capsys, monkeypatch):
     out = cli("selfsense", run, "--params", PARAMS, "--tare", "none", "--out", tmp_path / "o.nc", cwd=tmp_path)
     assert out.returncode == 0 and out.stdout.count("\n") == 1 and "% (max)" in out.stdout
     assert (tmp_path / "o.nc").is_file()
-    again = cli("selfsense", run, "--params", PARAMS, "--out", tmp_path / "o.nc", cwd=tmp_path)
+    again = cli_here(capsys, monkeypatch, "selfsense", run, "--params", PARAMS, "--out", tmp_path / "o.nc",
+                     cwd=tmp_path)
     assert again.returncode == 2 and again.stderr == f"rdea-lab: {tmp_path / 'o.nc'}: out: exists; give another " \
                                                      "output or overwrite it (--force)\n"
 
@@ -128,13 +141,13 @@ def test_cli_prints_one_line_and_writes_the_dataset(run, tmp_path):
 @pytest.mark.parametrize("args, message", [
     (("datasets/paper2021/specimen-2/blocking_force.nc", "--params", "params/paper2021_table3.yaml"),
      "rdea-lab: datasets/paper2021/specimen-2/blocking_force.nc: current: the run has no current variable"),
-    (("RUN", "--params", "protocols/blocking_force.yaml"),
-     f"rdea-lab: {resolve('protocols/blocking_force.yaml', 'protocols')}: "),  # the packaged file, by its path
+    (("RUN", "--params", "rdea_lab/data/protocols/blocking_force.yaml"),
+     "rdea-lab: rdea_lab/data/protocols/blocking_force.yaml: "),
     (("nowhere.nc", "--params", "params/paper2021_table3.yaml"), "rdea-lab: nowhere.nc: <document>: no such file"),
 ])
-def test_cli_bad_input_exit_2_one_line(run, tmp_path, args, message):
+def test_cli_bad_input_exit_2_one_line(run, tmp_path, capsys, monkeypatch, args, message):
     args = [str(run) if a == "RUN" else a for a in args]
-    out = cli("selfsense", *args, "--out", tmp_path / "x.nc", cwd=ROOT)
+    out = cli_here(capsys, monkeypatch, "selfsense", *args, "--out", tmp_path / "x.nc", cwd=ROOT)
     assert out.returncode == 2 and out.stderr.count("\n") == 1 and out.stderr.startswith(message), out.stderr
 
 

@@ -25,7 +25,7 @@ def _close_figures():
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    return speed_study(tmp_path_factory.mktemp("speed"), repeats=1)  # the packaged inputs
+    return speed_study(tmp_path_factory.mktemp("speed"), ROOT / "rdea_lab" / "data", repeats=1)
 
 
 def _row(study, scene, model):

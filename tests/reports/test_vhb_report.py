@@ -13,13 +13,13 @@ from pathlib import Path
 
 import pytest
 import yaml
+from vhb_data import needs_vhb
 
 from rdea_lab.cli.errors import run as run_cli
 from rdea_lab.cli.main import cli
 
 ROOT = Path(__file__).resolve().parents[2]
-VHB = ROOT.parent / "shared" / "data" / "vhb4910"
-pytestmark = pytest.mark.skipif(not VHB.is_dir(), reason=f"{VHB} (the shared real-data folder) is absent")
+pytestmark = needs_vhb
 FITTED = ("0d01_1d5", "0d05_1d5_1")
 HELD_OUT = ("0d03_1d5_1", "0d01_3d0", "0d05_3d0")
 CREDIT = "Chongran-Zhao/VHB4910_data (GitHub)"  # as the imported fixture gives it to rdea-lab import

@@ -136,7 +136,14 @@ def _set(base, path, value):
     return data
 
 
-_DELETE = object()
+class _Delete:
+    """The marker of a key to delete; its repr names it so test ids are the same in every process (xdist)."""
+
+    def __repr__(self):
+        return "<deleted>"
+
+
+_DELETE = _Delete()
 
 ERRORS = [
     # (base, path, value, field, match)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import xarray as xr
+from vhb_data import LOADING_UNLOADING, MISSING, VHB
 
 import rdea_lab
 from rdea_lab.physics.result import STATUS_NAMES
@@ -26,7 +27,6 @@ from rdea_lab.twin import simulate
 
 ROOT = Path(__file__).resolve().parents[2]
 TABLES = Path(__file__).resolve().parent / "cf_tables"
-VHB = ROOT.parent / "shared" / "data" / "vhb4910"
 CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
 PARAMS = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
 SHIPPED = sorted([*ROOT.glob("datasets/**/*.nc"), *ROOT.glob("reports/**/*.nc")])
@@ -115,7 +115,7 @@ def written(tmp_path_factory):
     writer.append({k: ds[k].values[:50] for k in ("time", *ds.data_vars)})
     writer.close()
     out["recovered"] = recover(folder / "recovered.nc")
-    files = sorted(VHB.glob("*.csv"))[:1] if VHB.is_dir() else []
+    files = LOADING_UNLOADING[:1]
     if files:
         options = ImportOptions(fmt="csv", mapping={"time": "0", "position": "1", "force": "2"},
                                 protocol_kind="tensile", credit="Chongran-Zhao/VHB4910_data (GitHub)")
@@ -134,7 +134,7 @@ def written(tmp_path_factory):
 
 def _path(written, kind):
     if written[kind] is None:
-        pytest.skip(f"no {kind} dataset here ({VHB} is absent)")
+        pytest.skip(f"no {kind} dataset here: {MISSING}")
     return written[kind]
 
 

@@ -1,16 +1,16 @@
 """``rdea-lab import``: foreign files (CSV, TDMS, .mat) into the run schema (issue 7).
 
-The real fixtures are three raw tensile-machine exports of a VHB 4910 strip
-from the public repository Chongran-Zhao/VHB4910_data (GitHub), kept beside
-the checkout in ../shared/data/vhb4910. Every expected value below is read
+The real fixtures are the five raw loading-unloading exports of a VHB 4910
+strip from the public repository Chongran-Zhao/VHB4910_data (GitHub), kept
+beside the checkout in ../shared/data/vhb4910 (see tests/vhb_data.py). Every expected value below is read
 from the files' text here, independently of the importer.
 """
 
 from __future__ import annotations
 
 import hashlib
-import re
 import json
+import re
 import time
 from pathlib import Path
 
@@ -19,6 +19,7 @@ import pytest
 import scipy.io
 import yaml
 from nptdms import ChannelObject, TdmsWriter
+from vhb_data import LOADING_UNLOADING, VHB, needs_vhb
 
 from rdea_lab.cli.errors import run as run_cli
 from rdea_lab.cli.main import cli as main_cli
@@ -28,15 +29,12 @@ from rdea_lab.store.importers import ImportOptions, import_file, parse_map, pars
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = Path(__file__).resolve().parent / "import_data"
-VHB = ROOT.parent / "shared" / "data" / "vhb4910"
-#: The five loading-unloading runs (the shared README: rates and stretches in the names); the step-and-hold
-#: run relax_2d0.csv beside them is tested on its own.
-VHB_FILES = sorted(VHB.glob("0d*.csv")) if VHB.is_dir() else []
+VHB_FILES = LOADING_UNLOADING
+#: The step-and-hold run beside them (the shared README), tested on its own.
 RELAX = VHB / "relax_2d0.csv"
 CREDIT = "Chongran-Zhao/VHB4910_data (GitHub), uniaxial-loading-unloading/original_data"
 STRIP = DATA / "vhb4910.yaml"  # {id: vhb4910, kind: strip, length: 80 mm, ...}
 ROLL = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"  # L1 = 34 mm
-needs_vhb = pytest.mark.skipif(not VHB.is_dir(), reason=f"{VHB} is absent (CI keeps it beside the checkout)")
 
 
 @pytest.fixture(scope="module")
@@ -64,9 +62,7 @@ def vhb_text(path: Path):
 # ------------------------------------------------------------------ VHB 4910
 @needs_vhb
 def test_all_five_vhb_files_are_there():
-    """The shared folder's README lists five loading-unloading files: three rates to stretch 1.5, two to
-    stretch 3.0 (and the step-and-hold run beside them)."""
-    assert RELAX.is_file()
+    """The shared folder's README lists five loading-unloading files: three rates to stretch 1.5, two to 3.0."""
     assert [p.name for p in VHB_FILES] == ["0d01_1d5.csv", "0d01_3d0.csv", "0d03_1d5_1.csv", "0d05_1d5_1.csv",
                                            "0d05_3d0.csv"]
 
@@ -106,7 +102,7 @@ def test_vhb_file_imports_as_the_file_says(cli, capsys, tmp_path, path):
     assert mapping["columns"] == {"time": "时间", "position": "位移", "force": "力"}  # GBK header decoded
 
 
-@needs_vhb
+@pytest.mark.skipif(not RELAX.is_file(), reason=f"{RELAX} is absent (see tests/vhb_data.py)")
 def test_the_step_and_hold_file_imports_as_its_readme_says(cli, capsys, tmp_path):
     """relax_2d0.csv (the shared README): loaded at about 0.25 /s to stretch 2.0, then held 1800 s, 50 Hz."""
     out = tmp_path / "relax.nc"

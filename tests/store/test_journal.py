@@ -145,6 +145,7 @@ def test_a_live_run_in_another_process_is_left_alone(tmp_path):
     finally:
         proc.kill()
         proc.wait()
+        proc.stdout.close()
     time.sleep(0.05)
     path = recover(journal_path(out))  # killed: the OS dropped its lock, recover may take it now
     assert open_run(path).sizes["time"] == 10

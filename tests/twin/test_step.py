@@ -98,18 +98,23 @@ def test_time_must_increase():
 
 def test_no_allocation_per_step_and_one_output_array():
     """No Python object outlives a step (the interpreter's count of allocated blocks stays put over 2800
-    steps; a leak of one object per step would add 2800) and the output is one array, overwritten."""
+    steps; a leak of one object per step would add 2800) and the output is one array, overwritten.
+    The count is the whole process's: the least growth of three rounds, so that what another thread
+    allocates meanwhile (xdist's messaging in a worker) is not counted as the step's."""
     twin = TwinStep(CARD, TABLE3, "3r")
     t, lam, v = (a.tolist() for a in tensile(3000))
     first = twin.step(t[0], lam[0], v[0])
-    for i in range(1, 200):  # warm
-        twin.step(t[i], lam[i], v[i])
-    before = sys.getallocatedblocks()
-    for i in range(200, 3000):
-        out = twin.step(t[i], lam[i], v[i])
-    grown = sys.getallocatedblocks() - before
-    assert out is first
-    assert grown < 100, f"{grown} blocks more after 2800 steps"
+    grown = []
+    for _ in range(3):
+        twin.reset()
+        for i in range(200):  # warm
+            twin.step(t[i], lam[i], v[i])
+        before = sys.getallocatedblocks()
+        for i in range(200, 3000):
+            out = twin.step(t[i], lam[i], v[i])
+        grown.append(sys.getallocatedblocks() - before)
+        assert out is first
+    assert min(grown) < 100, f"{grown} blocks more after 2800 steps"
 
 
 def test_reset_starts_over():
