@@ -8,7 +8,8 @@ PKG = Path(__file__).resolve().parents[1] / "rdea_lab"
 #: drive it) and the run engine (above backends and store: it couples the two).
 LAYERS = ["specs", "physics", "twin", "protocols", "emulator", "backends", "store", "runs", "calibration",
           "design", "reports", "api", "cli"]
-ANYWHERE = {"", "__version__", "_version", "paths", "extras"}  # the package root, the version, the path and extras helpers
+# the package root, the version, the path and extras helpers
+ANYWHERE = {"", "__version__", "_version", "paths", "extras"}
 
 
 def imported_layers(path: Path):

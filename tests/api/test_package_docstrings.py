@@ -66,4 +66,5 @@ def test_a_find_spec_probe_of_xarray_does_not_lose_ds_rdea():
 
     code = ("import importlib.util, rdea_lab; assert importlib.util.find_spec('xarray') is not None; "
             "import xarray as xr; print(xr.Dataset(attrs={'metadata': '{\"a\": \"b\"}'}).rdea.metadata['a'])")
-    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip() == "b"
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True).stdout.strip() == "b"

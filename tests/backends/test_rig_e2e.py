@@ -125,7 +125,8 @@ def test_limits_refused_by_the_rig_before_anything_moves(server, card, tmp_path)
     # ... and a client that skips the library's check is refused by the rig itself, at ARM
     backend = RigBackend(server.url, card)
     try:
-        with pytest.raises(RigRefused, match=r"refused ARM: voltage 20[0-9.]+ V at t = [0-9.]+ s is above LIM:VOLT 2000 V"):
+        with pytest.raises(RigRefused,
+                           match=r"refused ARM: voltage 20[0-9.]+ V at t = [0-9.]+ s is above LIM:VOLT 2000 V"):
             backend.start(tight)
     finally:
         backend.close()
@@ -144,8 +145,8 @@ def test_limits_refused_by_the_client_before_connecting(capsys, tmp_path):
 def test_cli_emulator_backend_with_a_fault(capsys, tmp_path):
     out = tmp_path / "f.nc"
     rc = run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml"), "--specimen",
-                       str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen1.yaml"), "--backend", "emulator", "--fault",
-                       "breakdown-at=12", "--quiet", "--out", str(out)])
+                       str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen1.yaml"), "--backend", "emulator",
+                       "--fault", "breakdown-at=12", "--quiet", "--out", str(out)])
     stdout = capsys.readouterr().out
     assert rc == 3 and "status aborted" in stdout  # exit 3: the run was ended by the rig
     ds = open_run(out)

@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rdea_lab.calibration import calibrate, initial_guess, load_run
+from rdea_lab.calibration import calibrate, initial_guess
 from rdea_lab.calibration.objective import RunData
 from rdea_lab.calibration.record import write_record
 from rdea_lab.cli.errors import run as run_cli
@@ -16,7 +16,8 @@ from rdea_lab.specs import SpecError, ViscoBranch, load_params, load_specimen
 from rdea_lab.twin import simulate
 
 ROOT = Path(__file__).resolve().parents[2]
-TRUE = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")  # C10 242, C20 -69, C30 47 kPa; 8271 kPa / 86 kPa s
+# C10 242, C20 -69, C30 47 kPa; 8271 kPa / 86 kPa s
+TRUE = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
 FREE = ["C10", "C20", "C30", "k_v1", "eta_v1"]
 
 
@@ -152,10 +153,11 @@ def test_record_round_trip_and_history(clean, tmp_path):
 def test_cli_calibrates_twin_runs_and_refuses_bad_input(capsys, tmp_path):
     for name in ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV", "blocking_force"):
         assert run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml"), "--specimen",
-                             str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"), "--model", "su", "--quiet",
-                             "--out", str(tmp_path / "runs" / f"{name}.nc")]) == 0
+                             str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"), "--model", "su",
+                             "--quiet", "--out", str(tmp_path / "runs" / f"{name}.nc")]) == 0
     out = tmp_path / "cal.yaml"
-    rc = run_cli(cli, ["calibrate", str(tmp_path / "runs"), "--init", str(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"),
+    rc = run_cli(cli, ["calibrate", str(tmp_path / "runs"),
+                       "--init", str(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"),
                        "--free", "C10,C20,C30", "--quiet", "--out", str(out)])
     stdout = capsys.readouterr().out
     assert rc == 0, stdout

@@ -159,7 +159,8 @@ def test_metric_max_refuses_least_squares_and_marks_what_does_not_apply(tmp_path
 
 def test_cli_least_squares_writes_its_method(tmp_path, capsys):
     out = tmp_path / "ls.yaml"
-    rc = run_cli(cli, ["calibrate", str(SPECIMEN2), "--init", str(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"),
+    rc = run_cli(cli, ["calibrate", str(SPECIMEN2),
+                       "--init", str(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"),
                        "--method", "least-squares", "--quiet", "--out", str(out)])
     stdout = capsys.readouterr().out
     assert rc == 0, stdout

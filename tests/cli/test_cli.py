@@ -295,7 +295,8 @@ def test_no_command_is_help_or_one_short_line():
         assert len(lines) == 1 and "Commands:" not in lines[0]
 
 
-@pytest.mark.parametrize("command", [[], ["geometry"], ["curve"], ["bench"]], ids=["rdea-lab", "geometry", "curve", "bench"])
+@pytest.mark.parametrize("command", [[], ["geometry"], ["curve"], ["bench"]],
+                         ids=["rdea-lab", "geometry", "curve", "bench"])
 def test_help_has_example(command):
     proc = (rdea if not command else rdea_here)(*command, "--help")  # the top-level help in a real process
     assert proc.returncode == 0, proc.stderr

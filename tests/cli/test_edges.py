@@ -22,8 +22,10 @@ def rdea(capsys, *args):
 
 def test_a_campaign_listing_one_card_twice_is_refused_naming_both_runs(tmp_path, capsys):
     (tmp_path / "c.yaml").write_text(
-        f"name: c\nbackend: twin\nseed: 1\nout: {tmp_path / 'out'}\nparams: {ROOT / 'rdea_lab' / 'data' / 'params' / 'paper2021_table3.yaml'}\n"
-        f"specimens: [{CARD}, {CARD}]\nprotocols: [{ROOT / 'rdea_lab' / 'data' / 'protocols' / 'blocking_force.yaml'}]\n")
+        f"name: c\nbackend: twin\nseed: 1\nout: {tmp_path / 'out'}\n"
+        f"params: {ROOT / 'rdea_lab' / 'data' / 'params' / 'paper2021_table3.yaml'}\n"
+        f"specimens: [{CARD}, {CARD}]\n"
+        f"protocols: [{ROOT / 'rdea_lab' / 'data' / 'protocols' / 'blocking_force.yaml'}]\n")
     code, out, err = rdea(capsys, "campaign", "run", tmp_path / "c.yaml")
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert "specimens[0] (specimen2.yaml, id specimen-2)" in err and "specimens[1] (specimen2.yaml" in err
@@ -32,8 +34,8 @@ def test_a_campaign_listing_one_card_twice_is_refused_naming_both_runs(tmp_path,
 
 @pytest.mark.parametrize("args", [["--backend", "Twin"], ["--model", "SU"], ["--backend", "TWIN", "--model", "Auto"]])
 def test_choices_are_accepted_in_any_case(capsys, args):
-    code, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml", "--specimen", CARD,
-                          "--dry-run", *args)
+    code, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml",
+                          "--specimen", CARD, "--dry-run", *args)
     assert code == 0, err
 
 
@@ -56,8 +58,9 @@ voltage:
 
 
 def test_an_unreachable_rig_address_is_exit_2(capsys, tmp_path):
-    code, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml", "--specimen", CARD,
-                          "--backend", "rig", "--rig", "tcp://127.0.0.1:1", "--out", tmp_path / "x.nc")
+    code, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml",
+                          "--specimen", CARD, "--backend", "rig", "--rig", "tcp://127.0.0.1:1",
+                          "--out", tmp_path / "x.nc")
     assert code == 2 and "no answer" in err and len(err.strip().splitlines()) == 1
 
 
@@ -74,14 +77,16 @@ def test_calibrate_names_every_file_it_leaves_out(tmp_path, capsys):
 
 
 def test_curve_refuses_a_field_no_membrane_survives_unless_told(capsys):
-    args = ["curve", "--specimen", CARD, "--params", ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml", "--voltage", "3500 kV"]
+    args = ["curve", "--specimen", CARD, "--params", ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml",
+            "--voltage", "3500 kV"]
     code, out, err = rdea(capsys, *args)
     assert code == 2 and "--voltage" in err and "--no-field-check" in err and out == ""
     code, out, err = rdea(capsys, *args, "--no-field-check")
     assert code == 0
     # the paper's own Section 3.4 scene (96 V/um) is well within the default
-    code, out, err = rdea(capsys, "curve", "--specimen", ROOT / "rdea_lab" / "data" / "specimens" / "passive_core.yaml", "--params",
-                          ROOT / "rdea_lab" / "data" / "params" / "rizzello2020.yaml", "--stretch", "1:1.75:5", "--voltage", "3.5kV")
+    code, out, err = rdea(capsys, "curve", "--specimen", ROOT / "rdea_lab" / "data" / "specimens" / "passive_core.yaml",
+                          "--params", ROOT / "rdea_lab" / "data" / "params" / "rizzello2020.yaml",
+                          "--stretch", "1:1.75:5", "--voltage", "3.5kV")
     assert code == 0, err
 
 
@@ -93,8 +98,8 @@ def test_a_plot_into_a_new_folder_is_written(tmp_path, capsys):
 
 
 def test_a_seed_past_2_63_is_exit_2_before_anything_runs(tmp_path, capsys):
-    code, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml", "--specimen", CARD,
-                          "--seed", str(2**64), "--out", tmp_path / "x.nc")
+    code, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml",
+                          "--specimen", CARD, "--seed", str(2**64), "--out", tmp_path / "x.nc")
     assert code == 2 and err.startswith("rdea-lab: --seed:") and not list(tmp_path.iterdir())
 
 
@@ -108,6 +113,6 @@ def test_the_import_format_is_accepted_in_any_case(tmp_path, capsys):
     csv.write_text("time,position,force\ns,mm,N\n" + "".join(f"{i * 0.1:.1f},{i * 0.5:.1f},{i * 0.01:.2f}\n"
                                                           for i in range(20)))
     code, out, err = rdea(capsys, "import", csv, "--format", "CSV", "--map", "time=0,position=1,force=2",
-                          "--specimen", ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml", "--protocol-kind", "Tensile",
-                          "--out", tmp_path / "t.nc")
+                          "--specimen", ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml",
+                          "--protocol-kind", "Tensile", "--out", tmp_path / "t.nc")
     assert code == 0, err

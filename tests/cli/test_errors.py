@@ -37,7 +37,8 @@ def test_overwrite_points_at_force(path, spelling, capsys):
     assert run_cli(cli, [*path, spelling]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1
-    assert err.startswith(f"rdea-lab {' '.join(path)}: ") and "'--overwrite'" in err and "Did you mean '--force'?" in err
+    assert (err.startswith(f"rdea-lab {' '.join(path)}: ") and "'--overwrite'" in err
+            and "Did you mean '--force'?" in err)
 
 
 @pytest.mark.parametrize("path", WITHOUT_FORCE, ids=" ".join)

@@ -34,8 +34,8 @@ def campaign(tmp_path_factory):
         for proto in PROTOCOLS:
             path = out / spec / f"{proto}.nc"
             rc = run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / f"{proto}.yaml"), "--specimen",
-                               str(ROOT / "rdea_lab" / "data" / "specimens" / f"{spec}.yaml"), "--backend", "twin", "--quiet",
-                               "--out", str(path)])
+                               str(ROOT / "rdea_lab" / "data" / "specimens" / f"{spec}.yaml"), "--backend", "twin",
+                               "--quiet", "--out", str(path)])
             assert rc == 0, (spec, proto)
             paths[spec, proto] = path
     return paths
@@ -89,7 +89,8 @@ def test_dry_run_prints_the_plan_and_writes_nothing(capsys, tmp_path, monkeypatc
 
 def test_default_output_path_and_no_overwrite(capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    args = ["run", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml", "--specimen", ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml",
+    args = ["run", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml",
+            "--specimen", ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml",
             "--params", ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml", "--model", "su", "--quiet"]
     rc, out, err = rdea(capsys, *args)
     assert rc == 0, err
@@ -107,16 +108,17 @@ def test_ls_show_and_protocol_show(capsys, campaign, tmp_path):
     assert rc == 0 and "blocking_force" in out and "complete" in out and "25001" in out
     rc, out, err = rdea(capsys, "show", campaign["specimen1", "capacitance_sweep"], "--plot", tmp_path / "c.png")
     assert rc == 0 and "capacitance" in out and (tmp_path / "c.png").stat().st_size > 10_000
-    rc, out, err = rdea(capsys, "protocol", "show", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_2.6kV.yaml",
+    rc, out, err = rdea(capsys, "protocol", "show",
+                        ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_2.6kV.yaml",
                         "--plot", tmp_path / "p.png")
     assert rc == 0 and "ramp_sine" in out and (tmp_path / "p.png").stat().st_size > 10_000
 
 
 def test_auto_records_its_choice_and_explicit_models_run(capsys, tmp_path):
     for model in ("su", "1r", "3r", "auto"):
-        rc, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_2.6kV.yaml", "--specimen",
-                            ROOT / "rdea_lab" / "data" / "specimens" / "specimen3.yaml", "--model", model, "--quiet",
-                            "--out", tmp_path / f"{model}.nc")
+        rc, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_2.6kV.yaml",
+                            "--specimen", ROOT / "rdea_lab" / "data" / "specimens" / "specimen3.yaml", "--model", model,
+                            "--quiet", "--out", tmp_path / f"{model}.nc")
         assert rc == 0, err
     with xr.open_dataset(tmp_path / "auto.nc") as ds:
         sel = json.loads(ds.attrs["model_selection"])
@@ -132,8 +134,8 @@ def test_auto_records_its_choice_and_explicit_models_run(capsys, tmp_path):
     (["--params", "nope.yaml"], ["nope.yaml"]),
 ])
 def test_bad_run_options_exit_2_with_one_line(capsys, args, words):
-    rc, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml", "--specimen",
-                        ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml", "--dry-run", *args)
+    rc, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml",
+                        "--specimen", ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml", "--dry-run", *args)
     assert rc == 2 and len(err.strip().splitlines()) == 1
     for w in words:
         assert w in err

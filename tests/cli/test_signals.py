@@ -13,7 +13,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from rdea_lab.store import journal_path, open_run
 
@@ -32,7 +31,8 @@ def start_run(out: Path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen([sys.executable, "-m", "rdea_lab.cli.main", "run",
                              str(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml"), "--specimen",
-                             str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"), "--realtime", "--quiet", "--out", str(out)],
+                             str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"), "--realtime", "--quiet",
+                             "--out", str(out)],
                             cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=interactive_sigint)
     header = journal_path(out) / "header.json"

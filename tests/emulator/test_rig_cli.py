@@ -89,7 +89,8 @@ def test_empty_token_file(capsys, tmp_path):
 
 def test_bad_truth_file_names_file_and_field(capsys, tmp_path):
     bad = tmp_path / "truth.yaml"
-    text = (ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml").read_text().replace("force_noise: 4 mN", "force_noise: -4 mN")
+    text = ((ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml").read_text()
+            .replace("force_noise: 4 mN", "force_noise: -4 mN"))
     bad.write_text(text)
     code, _, err = rig_cli(capsys, "serve", "--specimen", CARD, "--truth", bad, "--port", "0")
     assert code == 2 and f"{bad}: instrument.force_noise: must be >= 0" in err and err.count("\n") == 1

@@ -1,8 +1,5 @@
 """The three quasi-static models against the free energy, each other, and Section 3.4."""
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 from hypothesis import given, settings

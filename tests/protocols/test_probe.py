@@ -78,7 +78,8 @@ def test_the_shipped_selfsense_protocol():
 
 def test_cli_refuses_a_bad_probe_with_one_line(tmp_path):
     bad = tmp_path / "bad.yaml"
-    bad.write_text((ROOT / "rdea_lab" / "data" / "protocols" / "selfsense_2.6kV.yaml").read_text().replace("200 Hz}", "1.5 kHz}"))
+    bad.write_text((ROOT / "rdea_lab" / "data" / "protocols" / "selfsense_2.6kV.yaml").read_text()
+                   .replace("200 Hz}", "1.5 kHz}"))
     out = subprocess.run([sys.executable, "-m", "rdea_lab.cli.main", "protocol", "show", str(bad)],
                          capture_output=True, text=True, cwd=tmp_path)
     assert out.returncode == 2 and out.stderr.count("\n") == 1

@@ -51,7 +51,8 @@ def test_its_table4_is_what_the_code_gives_on_the_shipped_datasets(tmp_path):
         for key in MEASURES:
             # the same code on the same files: only the order of floating-point sums may differ between
             # machines (~1e-15 relative); 1e-9 leaves room for that and catches any change of a model
-            assert float(row[key]) == pytest.approx(r[key], rel=1e-9, abs=1e-15), (row["specimen"], row["protocol"], key)
+            assert float(row[key]) == pytest.approx(r[key], rel=1e-9, abs=1e-15), (
+                row["specimen"], row["protocol"], key)
         assert int(row["samples"]) == r["samples"]
         # the same files: the fitted runs are found by their hashes, so roles and flags are the report's
         assert (row["sha256"], row["role"], row["beyond_calibration"]) == (r["sha256"], r["role"],

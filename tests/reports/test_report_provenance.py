@@ -172,7 +172,8 @@ def test_every_rendering_has_the_rows_name_protocol_rate_stretch_role_and_flags(
         assert f"| {h} |" in md and f"<th>{h}</th>" in page
     for r in result["rows"]:
         fields = [r["name"], r["protocol"], f"{r['rate_per_s']:.3g}", r["role"], r["origin"]]
-        line = next(ln for ln in md.splitlines() if ln.startswith(f"| {r['experiment']} |") and f"| {r['name']} |" in ln)
+        line = next(ln for ln in md.splitlines()
+                    if ln.startswith(f"| {r['experiment']} |") and f"| {r['name']} |" in ln)
         row = next(tr for tr in re.findall(r"<tr>(.*?)</tr>", page) if f"<td>{r['name']}</td>" in tr)
         texline = next(ln for ln in tex.splitlines() if r["name"] in ln and ln.endswith(r"\\"))
         for f in fields:

@@ -22,7 +22,8 @@ truth: truth/paper2021.yaml
 seed: 7
 out: datasets/short
 specimens: [specimens/specimen2.yaml, specimens/specimen1.yaml]
-protocols: [protocols/tensile_ramp_sine_0V.yaml, protocols/tensile_ramp_sine_2.6kV.yaml, protocols/capacitance_sweep.yaml]
+protocols: [protocols/tensile_ramp_sine_0V.yaml, protocols/tensile_ramp_sine_2.6kV.yaml, \
+protocols/capacitance_sweep.yaml]
 """)
     out = tmp_path / "rep"
     rc = run_cli(cli, ["reproduce", "--campaign", str(campaign), "--out", str(out), "--no-speed", "--quiet"])

@@ -13,7 +13,8 @@ BLOCKING = {"name": "blk", "target": "force", "stretch": 1.5, "sample_rate": "10
 
 
 def test_blocking_plan_on_the_emulator_within_the_stated_error(tmp_path):
-    r = track_target(target_from_mapping(BLOCKING, "blk.yaml"), ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml",
+    r = track_target(target_from_mapping(BLOCKING, "blk.yaml"),
+                     ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml",
                      ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml", out=tmp_path / "r.nc")
     assert r["plan"].twin_error < 1e-6
     t = r["tracking"]

@@ -243,8 +243,8 @@ def _one_line_exit_2(capsys, code, pattern):
 
 
 def test_cli_report_writes_and_prints_the_table(report_cli, twin_folder, tmp_path, capsys):
-    code = run(report_cli, ["report", "validation", "--params", str(TABLE3), "--datasets", str(twin_folder / "specimen2"),
-                            "--out", str(tmp_path), "--no-figures"])
+    code = run(report_cli, ["report", "validation", "--params", str(TABLE3),
+                            "--datasets", str(twin_folder / "specimen2"), "--out", str(tmp_path), "--no-figures"])
     out = capsys.readouterr().out
     assert code == 0
     assert "| tensile (force) | 0 V | specimen-2 |" in out and (tmp_path / "index.html").is_file()
@@ -266,7 +266,8 @@ def test_cli_bad_input_exits_2_with_one_line(report_cli, twin_folder, tmp_path, 
 def test_cli_invalid_params_file_exits_2(report_cli, twin_folder, tmp_path, capsys):
     bad = tmp_path / "bad.yaml"
     bad.write_text(TABLE3.read_text().replace("C10: 242 kPa", "C10: -5 kPa"))
-    code = run(report_cli, ["report", "validation", "--params", str(bad), "--datasets", str(twin_folder), "--out", str(tmp_path)])
+    code = run(report_cli, ["report", "validation", "--params", str(bad), "--datasets", str(twin_folder),
+                            "--out", str(tmp_path)])
     _one_line_exit_2(capsys, code, r"bad.yaml: yeoh.C10")
 
 

@@ -90,8 +90,8 @@ def test_a_second_run_on_the_same_output_is_refused_before_it_starts(tmp_path):
 
 def test_an_unwritable_output_is_refused_before_anything_moves(tmp_path, capsys):
     (tmp_path / "file").write_text("not a folder")
-    rc = run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml"), "--specimen", str(CARD),
-                       "--backend", "emulator", "--out", str(tmp_path / "file" / "x.nc")])
+    rc = run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml"),
+                       "--specimen", str(CARD), "--backend", "emulator", "--out", str(tmp_path / "file" / "x.nc")])
     err = capsys.readouterr().err
     assert rc == 2 and "is not a folder" in err and len(err.strip().splitlines()) == 1
 
@@ -121,7 +121,8 @@ def test_ctrl_c_in_run_protocol_writes_the_file_then_raises(tmp_path):
 def test_ctrl_c_ends_the_campaign_not_only_the_run(tmp_path):
     (tmp_path / "p.yaml").write_text(SHORT % "50 N")
     (tmp_path / "c.yaml").write_text(f"name: c\nbackend: twin\nseed: 1\nout: {tmp_path / 'out'}\nparams: {PARAMS}\n"
-                                     f"specimens: [{CARD}, {ROOT / 'rdea_lab' / 'data' / 'specimens' / 'specimen1.yaml'}]\n"
+                                     f"specimens: [{CARD}, "
+                                     f"{ROOT / 'rdea_lab' / 'data' / 'specimens' / 'specimen1.yaml'}]\n"
                                      f"protocols: [{tmp_path / 'p.yaml'}]\n")
     spec, root = load_campaign(tmp_path / "c.yaml")
     blocks = []
@@ -161,8 +162,8 @@ def test_a_live_table_prints_the_first_block_of_every_run_of_a_campaign(tmp_path
     (["--fault", "stall-at=1"], "--fault/--truth"),
 ])
 def test_library_argument_errors_name_the_cli_option(capsys, args, option):
-    rc = run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml"), "--specimen", str(CARD),
-                       "--dry-run", *args])
+    rc = run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml"),
+                       "--specimen", str(CARD), "--dry-run", *args])
     err = capsys.readouterr().err
     assert rc == 2 and err.startswith(f"rdea-lab: {option}:"), err
 
@@ -173,7 +174,8 @@ def test_report_with_the_old_options_says_where_they_went(capsys):
 
 
 def test_a_rig_that_does_not_answer_is_exit_2(capsys, tmp_path):
-    rc = run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml"), "--specimen", str(CARD),
-                       "--backend", "rig", "--rig", "tcp://127.0.0.1:1", "--out", str(tmp_path / "x.nc")])
+    rc = run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml"),
+                       "--specimen", str(CARD), "--backend", "rig", "--rig", "tcp://127.0.0.1:1",
+                       "--out", str(tmp_path / "x.nc")])
     err = capsys.readouterr().err
     assert rc == 2 and "no answer" in err and not (tmp_path / "x.nc").exists()

@@ -243,9 +243,11 @@ def _with(path, value):
         (_with("viscoelastic.branches", "8271 kPa"), "viscoelastic.branches", r"expected a list"),
         (_with("viscoelastic.branches.0.eta", "86 kPa"), "viscoelastic.branches[0].eta", r"is not a viscosity"),
         (_with("viscoelastic.branches.0.eta", "-86 kPa s"), "viscoelastic.branches[0].eta", r"> 0 kPa s"),
-        (_with("viscoelastic.branches.0.tau", "10 ms"), "viscoelastic.branches[0].tau", r"unknown key 'tau'; allowed keys: k, mu, eta"),
+        (_with("viscoelastic.branches.0.tau", "10 ms"), "viscoelastic.branches[0].tau",
+         r"unknown key 'tau'; allowed keys: k, mu, eta"),
         (_with("viscoelastic.eta_v0", "-1 kPa s"), "viscoelastic.eta_v0", r">= 0 kPa s"),
-        (_with("mooney", {}), "mooney", r"unknown key 'mooney'; allowed keys: name, description, source, yeoh, eps_r, viscoelastic"),
+        (_with("mooney", {}), "mooney",
+         r"unknown key 'mooney'; allowed keys: name, description, source, yeoh, eps_r, viscoelastic"),
         (_with("name", None), "name", r"no value given"),
     ],
 )

@@ -93,7 +93,8 @@ def test_python_construction_takes_si_numbers_or_quantities():
 
 def test_from_mapping_and_from_yaml():
     mapping = {"id": "s", "kind": "roll",
-               "membrane": {"L1": "34 mm", "L2": "58 mm", "L3": "48 um", "L1e": "29 mm", "Lp1": "10 mm", "L2e": "38 mm"}}
+               "membrane": {"L1": "34 mm", "L2": "58 mm", "L3": "48 um", "L1e": "29 mm", "Lp1": "10 mm",
+                            "L2e": "38 mm"}}
     card = specimen_from_mapping(mapping)
     assert card.L3 == 48e-6
     assert specimen_from_yaml(dump_specimen(card)) == card
@@ -149,7 +150,8 @@ ERRORS = [
     # (base, path, value, field, match)
     (MEMBRANE, "membrane.L1", 34, "membrane.L1", r"'34' has no unit; give a length, e.g. '34 mm'"),
     (MEMBRANE, "membrane.L1", "34 mmm", "membrane.L1", r"unknown unit 'mmm'"),
-    (MEMBRANE, "membrane.L3", "48 kg", "membrane.L3", r"'48 kg' is not a length; give it with a length unit, e.g. '48 um'"),
+    (MEMBRANE, "membrane.L3", "48 kg", "membrane.L3",
+     r"'48 kg' is not a length; give it with a length unit, e.g. '48 um'"),
     (MEMBRANE, "membrane.L3", "-48 um", "membrane.L3", r"must be > 0 um, got -48 um"),
     (MEMBRANE, "membrane.L2", "0 mm", "membrane.L2", r"must be > 0 mm, got 0 mm"),
     (MEMBRANE, "membrane.Ri", "-1 mm", "membrane.Ri", r"must be >= 0 mm"),
@@ -164,7 +166,8 @@ ERRORS = [
     (MEMBRANE, "L1", "34 mm", "L1", r"top-level L1 belongs to the 'radii' form"),
     (MEMBRANE, "radii", RADII["radii"], "radii", r"either as 'membrane' or as 'radii', not both"),
     (MEMBRANE, "membrane", _DELETE, "membrane", r"missing geometry"),
-    (MEMBRANE, "colour", "red", "colour", r"unknown key 'colour'; allowed keys: id, kind, description, source, membrane, radii, L1, L1e, L3"),
+    (MEMBRANE, "colour", "red", "colour",
+     r"unknown key 'colour'; allowed keys: id, kind, description, source, membrane, radii, L1, L1e, L3"),
     (MEMBRANE, "kind", "sheet", "kind", r"kind 'sheet' is not supported; allowed: roll"),
     (MEMBRANE, "id", "specimen 2", "id", r"not a valid name; use letters, digits"),
     (MEMBRANE, "id", "", "id", r"not a valid name"),
@@ -172,7 +175,8 @@ ERRORS = [
     (MEMBRANE, "id", _DELETE, "id", r"missing required key 'id'"),
     (MEMBRANE, "description", None, "description", r"no value given"),
     (RADII, "radii.Ri", "0.9 mm", "radii.Rie", r"Rie = 0.81 mm is smaller than Ri = 0.9 mm; need Ri <= Rie"),
-    (RADII, "radii.Roe", "0.81 mm", "radii.Roe", r"need Rie < Roe \(the active ring b must have a positive thickness\)"),
+    (RADII, "radii.Roe", "0.81 mm", "radii.Roe",
+     r"need Rie < Roe \(the active ring b must have a positive thickness\)"),
     (RADII, "radii.Ro", "1.7 mm", "radii.Ro", r"Ro = 1.7 mm is smaller than Roe = 1.76 mm; need Roe <= Ro"),
     (RADII, "radii.Ri", "-0.1 mm", "radii.Ri", r"must be >= 0 mm, got -0.1 mm"),
     (RADII, "radii.Ri", _DELETE, "radii.Ri", r"missing required key 'Ri'"),

@@ -167,6 +167,7 @@ def test_the_unit_registry_is_built_on_first_use_only():
             "from rdea_lab.specs.units import ureg, unit_registry; "
             "assert s.parse_quantity('2.6 kV', 'voltage', source='', field='') == 2600.0; "
             "import pint; r = unit_registry(); assert isinstance(r, pint.UnitRegistry) and r is ureg.get(); "
-            "q = ureg.Quantity(1.0, 'mm') + r.Quantity(1.0, 'm'); assert q.to('mm').magnitude == 1001.0")  # exact in floats
+            "q = ureg.Quantity(1.0, 'mm') + r.Quantity(1.0, 'm'); "
+            "assert q.to('mm').magnitude == 1001.0")  # exact in floats
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr

@@ -121,8 +121,9 @@ def written(tmp_path_factory):
                                 protocol_kind="tensile", credit="Chongran-Zhao/VHB4910_data (GitHub)")
         from rdea_lab.specs import load_specimen
 
-        (_, target, _), = import_files(files, load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"), options,
-                                       out=folder / "imported", command=f"rdea-lab import {files[0]}")
+        (_, target, _), = import_files(files,
+                                       load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"),
+                                       options, out=folder / "imported", command=f"rdea-lab import {files[0]}")
         out["imported"] = target
     else:
         out["imported"] = None
@@ -163,7 +164,8 @@ def test_the_shipped_datasets_are_there():
 
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: str(p.relative_to(ROOT)))
 def test_every_shipped_dataset_passes_both_checkers(path):
-    assert not _old_schema(path), f"{path.relative_to(ROOT)} predates the CF-1.8 schema (time in plain s): regenerate it"
+    assert not _old_schema(path), (f"{path.relative_to(ROOT)} predates the CF-1.8 schema (time in plain s): "
+                                   "regenerate it")
     found = ioos(path)
     assert found["high"] == found["medium"] == found["exceptions"] == [], found
     found = cfchecks(path)
@@ -219,7 +221,8 @@ def test_global_attributes_and_no_machine_paths(written, kind, tmp_path_factory)
 
 def test_each_writer_says_how_its_data_were_made(written):
     runs = {kind: open_run(p) for kind, p in written.items() if p is not None}
-    assert runs["twin"].attrs["source"] == f"rdea-lab {rdea_lab.__version__} twin, model su, parameters paper2021-table3"
+    assert runs["twin"].attrs["source"] == (f"rdea-lab {rdea_lab.__version__} twin, model su, "
+                                            "parameters paper2021-table3")
     emu = runs["emulator"].attrs
     assert emu["source"] == "rdea-lab rig emulator (truth paper2021-emulator)"
     assert emu["emulated"] == 1 and emu["comment"] == "data from the rdea-lab rig emulator, not a physical rig"

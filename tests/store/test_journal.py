@@ -198,8 +198,8 @@ def test_a_full_disk_while_running_keeps_every_sample_and_says_where(tmp_path, m
 
     card = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
     with pytest.raises(J.DiskFull, match=r"samples are safe in .*run\.nc\.part; free space and run rdea-lab recover"):
-        rdea_lab.run_protocol(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml", card, "twin", out=out,
-                              callbacks=[Tracker()])
+        rdea_lab.run_protocol(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml", card, "twin",
+                              out=out, callbacks=[Tracker()])
     assert not out.exists() and not list(tmp_path.glob("*.tmp"))
     kept = sum(seen)
     monkeypatch.undo()
