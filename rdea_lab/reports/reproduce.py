@@ -130,8 +130,8 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
         progress = _CampaignProgress(submitted, progress_factory, total, spec.name, t0)
         with contextlib.ExitStack() as bar:
             progress.start(bar)
-            progress.wait(_calibration_run)  # the calibration's runs are submitted first
-            fit, files = _calibrate(out, data, echo, stage)  # while the pool runs the others
+            fitted = progress.wait(_calibration_run)  # the calibration's runs are submitted first
+            fit, files = _calibrate(out, [r.path for r in fitted], echo, stage)  # while the pool runs the others
             results = progress.wait(lambda r: True)
         stages["campaign"] = progress.seconds
     failed = [r for r in results if r.status != "complete"]
@@ -139,7 +139,8 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
         raise RuntimeError(f"{len(failed)} campaign runs did not complete: {failed[0].path}: {failed[0].reason}")
     if pool is None:
         stages["campaign"] = time.perf_counter() - t0
-        fit, files = _calibrate(out, data, echo, stage)
+        fit, files = _calibrate(out, [res.path for run, res in zip(runs, results) if _calibration_run(run)], echo,
+                                stage)
 
     with stage("validation"):
         echo("[3/5] validation report: the twin on every run's own stretch and voltage")
@@ -265,11 +266,13 @@ class _CampaignProgress:
         return [f.result() for r, f in self.submitted if which(r)]
 
 
-def _calibrate(out, data, echo, stage):
+def _calibrate(out, paths, echo, stage):
+    """Calibrate on the datasets ``paths`` of specimen 2's tensile runs: the runs themselves, not a scan of
+    their folder (which on a pool also holds the files other processes are still writing)."""
     with stage("calibration"):
         echo(f"[2/5] calibration on {CALIBRATION_SPECIMEN}'s tensile runs (SU, Nelder-Mead, viscoelastic law "
              "linear: eq. (44), as the paper)")
-        cal_runs = [load_run(p) for p in find_runs([data / CALIBRATION_SPECIMEN], ("tensile",))]
+        cal_runs = [load_run(p) for p in find_runs(sorted(paths), ("tensile",))]
         if not cal_runs:
             raise ValueError(f"no tensile runs of {CALIBRATION_SPECIMEN} in the campaign")
         fit = calibrate(cal_runs, initial_guess(cal_runs, 1, 2.8), model="su")
