@@ -86,7 +86,7 @@ def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet, 
     \b
     Example:
       rdea-lab reproduce
-      rdea-lab reproduce --out reports/paper2021 --datasets datasets/paper2021 --pdf --force   # the reference report
+      rdea-lab reproduce --out reports/paper2021 --datasets datasets/paper2021 --force   # the reference report
     """
     from .errors import headless
 

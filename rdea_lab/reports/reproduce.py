@@ -55,8 +55,8 @@ def reproduce(out: Path, *, datasets=None, campaign=None, speed=True, overwrite=
         Output folder. An existing folder with files in it is refused unless ``overwrite``.
     datasets : Path, optional
         Folder for the campaign's datasets (default ``out/datasets``). The committed reference
-        report of a source checkout is regenerated with ``out=reports/paper2021``,
-        ``datasets=datasets/paper2021`` and ``pdf=True`` (CONTRIBUTING.md).
+        report of a source checkout is regenerated with ``out=reports/paper2021`` and
+        ``datasets=datasets/paper2021`` (CONTRIBUTING.md; PNG figures only, as committed).
     campaign : Path, optional
         Campaign file (default: the packaged ``campaigns/paper2021.yaml``); must include specimen 2's
         tensile tests.
