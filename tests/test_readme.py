@@ -22,10 +22,10 @@ from glob import glob
 from pathlib import Path
 
 import pytest
+from vhb_data import MISSING, VHB
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-VHB = ROOT.parent / "shared" / "data" / "vhb4910"
 SETUP = ['python3 -m pip install -e ".[test]" && rdea-lab reproduce       # install, then the main job',
          'python3 -m pip install -e ".[test]" && python3 -m pytest -q     # install, then the tests']
 #: Examples that run alone, each in a folder of its own (first words after ``rdea-lab``) ...
@@ -135,8 +135,7 @@ def _wait_listening(port, process, timeout=60.0):
 def test_readme_import(tmp_path, monkeypatch):
     """The import example reads ../shared/data/vhb4910 beside the working folder (the checkout's own, linked)."""
     if not VHB.is_dir():
-        pytest.skip(f"{VHB} is absent: the VHB 4910 files come from github.com/Chongran-Zhao/VHB4910_data "
-                    "(see docs/vhb4910.md)")
+        pytest.skip(MISSING)
     (tmp_path / "shared" / "data").mkdir(parents=True)
     (tmp_path / "shared" / "data" / "vhb4910").symlink_to(VHB, target_is_directory=True)
     work = tmp_path / "work"
