@@ -13,7 +13,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import lfilter
+
+from ..physics.viscoelastic import affine_recurrence
 
 
 class FirstOrderLag:
@@ -43,7 +44,12 @@ class FirstOrderLag:
         if self.a == 0.0:
             y = u.copy()
         else:
-            y, _ = lfilter([1.0 - self.a], [1.0, -self.a], u, zi=[self.a * self.y])
+            # in the lag e_k = y_k - u_k = a (e_{k-1} + u_{k-1} - u_k), by the scan, all samples at once: a
+            # setpoint held is followed exactly (e stays 0), the rounding is of the lag, not of the level
+            d = np.empty_like(u)
+            d[0] = self.y - u[0]
+            d[1:] = u[:-1] - u[1:]
+            y = u + affine_recurrence(self.a, self.a * d, 0.0)
         self.y = float(y[-1])
         return y
 

@@ -90,8 +90,9 @@ def _affine_prefix(a, b):
     Returns ``(A, B)`` with ``q_{n+1} = A_n q_0 + B_n`` (Hillis-Steele scan: ``log2(n)``
     vectorized passes, no Python loop over samples).
     """
-    A = a.copy()
-    B = b.copy()
+    A, B = np.broadcast_arrays(np.asarray(a, float), np.asarray(b, float))
+    A = A.copy()
+    B = B.copy()
     n = A.shape[-1]
     shift = 1
     while shift < n:
@@ -117,8 +118,19 @@ def _linear_coefficients(dt, slope, tau):
 
     ``a_n = exp(-dt_n / tau)``, ``b_n = s_n tau (1 - a_n)`` (``s_n`` the interval's slope).
     """
-    r = dt / tau[:, None]
-    return np.exp(-r), slope * tau[:, None] * -np.expm1(-r)
+    decay = -np.expm1(-dt / tau[:, None])  # 1 - a_n, without cancellation; a_n from it (one exponential)
+    return 1.0 - decay, slope * tau[:, None] * decay
+
+
+def affine_recurrence(a, b, q0):
+    """``q_1 .. q_n`` of ``q_{k+1} = a_k q_k + b_k`` from ``q_0 = q0`` (``a``, ``b`` broadcast along the last
+    axis; ``q0`` one per leading index): every sample at once, by the prefix scan `_affine_prefix`.
+
+    The first-order updates of eq. (44) (`overstress_step`) and of the emulated rig's first-order
+    instruments (`rdea_lab.emulator.instruments.FirstOrderLag`) are this recurrence.
+    """
+    A, B = _affine_prefix(a, b)
+    return A * np.asarray(q0, float)[..., None] + B
 
 
 def _linear_recurrence(a, b, q0, q, kernel="auto"):
@@ -129,8 +141,7 @@ def _linear_recurrence(a, b, q0, q, kernel="auto"):
         fast.linear_recurrence(a, b, q0, q)
         return
     q[:, 0] = q0
-    A, B = _affine_prefix(a, b)
-    q[:, 1:] = A * q[:, :1] + B
+    q[:, 1:] = affine_recurrence(a, b, q[:, 0])
 
 
 def _linear_strains(t, lam, tau, q0, q):

@@ -25,7 +25,14 @@ def test_state_is_carried_across_chunks():
     whole = FirstOrderLag(2e-3, 1e-3, 1.2)(u)
     lag = FirstOrderLag(2e-3, 1e-3, 1.2)
     parts = np.concatenate([lag(u[a:b]) for a, b in [(0, 1), (1, 8), (8, 8), (8, 500), (500, 1000)]])
-    np.testing.assert_array_equal(parts, whole)
+    # the prefix scan groups the products by chunk: equal to the last few ulps, not bit for bit
+    np.testing.assert_allclose(parts, whole, rtol=4 * np.finfo(float).eps, atol=0)
+    # and both are the recurrence y_k = a y_{k-1} + (1 - a) u_k run sample by sample
+    a, y, seq = math.exp(-1e-3 / 2e-3), 1.2, []
+    for uk in u:
+        y = a * y + (1 - a) * uk
+        seq.append(y)
+    np.testing.assert_allclose(whole, seq, rtol=4 * np.finfo(float).eps, atol=0)
 
 
 def test_zero_lag_is_an_ideal_follower_and_any_lag_is_stable():
@@ -57,3 +64,13 @@ def test_bridge_measures_at_zero_volts_only():
     out = lcr_bridge(c, v, 25e-12, 0.0, np.random.default_rng(0))
     np.testing.assert_array_equal(out, [2.025e-9, 2.025e-9, np.nan, np.nan])
     assert np.isnan(lcr_bridge(c, v, 0.0, 0.0, np.random.default_rng(0), enabled=False)).all()
+
+
+def test_a_held_setpoint_is_followed_exactly():
+    # at rest on its setpoint the lag has nothing to follow: the output is the setpoint to the bit (a
+    # stretch of exactly 1 at the start stays 1, not 1 - 1 ulp, which the calibration would drop as < 1)
+    for tau in (1e-4, 2e-3, 1.0):
+        lag = FirstOrderLag(tau, 1e-3, 1.0)
+        np.testing.assert_array_equal(lag(np.ones(5000)), np.ones(5000))
+        y = lag(np.r_[np.ones(10), np.full(3000, 1.25)])
+        assert y[-1] == 1.25 or tau == 1.0  # settled to the bit after 3000 steps of 1 ms unless tau = 1 s
