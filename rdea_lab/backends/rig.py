@@ -66,13 +66,16 @@ class RigBackend:
     extra_variables = ()
 
     def __init__(self, address, card, *, token=None, timeout=5.0, stall_timeout=5.0, poll=0.02, seed=0,
-                 clock=_time.monotonic, sleep=_time.sleep):
+                 trust_card=False, clock=_time.monotonic, sleep=_time.sleep):
         self.address = address
         self.host, self.port = parse_address(address)
         from ..specs import as_specimen
 
         self.card = as_specimen(card)
         self.token = token
+        self.trust_card = bool(trust_card)
+        #: what the identity check found (recorded as the dataset's ``rig_identity``)
+        self.identity = ""
         self.timeout = timeout
         self.stall_timeout = stall_timeout
         self.poll = poll
@@ -125,12 +128,57 @@ class RigBackend:
         if reply != "OK":
             raise RigRefused(f"rig {self.address} refused {command}: {_error_text(reply)}")
 
+    def _authenticate(self) -> None:
+        """With a token: the challenge-response of docs/rig-protocol.md (``SYST:AUTH?`` gives a nonce, the
+        reply is its HMAC-SHA256 keyed with the token): the token never travels, and an answer overheard
+        does not open another connection."""
+        if self.token is None:
+            return
+        from ..emulator.server import auth_response
+
+        nonce = self._query("SYST:AUTH?")
+        if nonce.startswith("ERR") or not (len(nonce) == 32 and all(c in "0123456789abcdef" for c in nonce)):
+            raise RigRefused(f"rig {self.address}: no nonce for SYST:AUTH (it replied {nonce[:80]!r}); "
+                             "a server of an older protocol, or not a rig")
+        self._command(f"SYST:AUTH {auth_response(self.token, nonce)}")
+
+    def _check_identity(self) -> None:
+        """The rig's ``*IDN?`` serial names the specimen it holds (``-`` or empty: it does not know); one
+        that names another than the card is refused before anything moves, unless `trust_card`."""
+        parts = [p.strip() for p in self.idn.split(",")]
+        serial = parts[2] if len(parts) >= 3 else ""
+        if serial in ("", "-"):
+            self.identity = "not checked: the rig does not name its specimen"
+        elif serial == self.card.id:
+            self.identity = f"checked: the rig holds {serial}"
+        elif self.trust_card:
+            self.identity = (f"overridden: the rig says it holds {serial[:80]!r}, the card {self.card.id!r} was "
+                             "taken as right (--trust-card)")
+        else:
+            raise RigRefused(f"rig {self.address} holds specimen {serial[:80]!r} (*IDN?), the card is "
+                             f"{self.card.id[:80]!r}: nothing sent to the rig; mount the card's specimen, give its "
+                             "card, or --trust-card if the card is right")
+
+    def _check_free(self) -> None:
+        """Refuse a rig that another connection controls or runs, before the reset that would end its run:
+        ``SYST:CTRL?`` says who controls it (an older server answers ERR: then ``STAT?`` alone)."""
+        ctrl = self._query("SYST:CTRL?").upper()
+        stat = self._query("STAT?")
+        state = stat.split(",", 1)[0].strip().upper()
+        if ctrl == "OTHER" or state in ("ARMED", "RUNNING"):
+            found = f"{state} ({stat.split(',')[1] if stat.count(',') else '?'} samples acquired)" \
+                if state in ("ARMED", "RUNNING") else f"{state}, controlled by another connection"
+            raise RigRefused(f"rig {self.address} is busy: {found}; nothing sent to it, the other experiment "
+                             "goes on. Wait for it to end (STAT?) or stop it with ABOR.")
+
     # -- Backend interface -------------------------------------------------
     def attrs(self) -> dict:
         """``rig_idn``, ``emulated`` (1 for the rdea-lab emulator, else 0; the sentence in ``comment``),
         CF's ``source`` and, for a remote rig only, ``rig_address``: a loopback address is the port
         of a rig started for one run (the built-in emulator), meaningless once it has gone."""
         out = {"rig_idn": self.idn}
+        if self.identity:
+            out["rig_identity"] = self.identity
         if not _loopback(self.host):
             out["rig_address"] = self.address
         if self.truth or self.idn.split(",")[1:2] == ["rig-emulator"]:
@@ -157,11 +205,12 @@ class RigBackend:
 
         geom = geometry_from_card(self.card)
         self._open()
-        if self.token is not None:
-            self._command(f"SYST:AUTH {self.token}")
+        self._authenticate()
         self.idn = self._query("*IDN?")
         if self.idn.startswith("ERR"):
             raise RigRefused(f"rig {self.address}: {_error_text(self.idn)}")
+        self._check_identity()
+        self._check_free()
         if self.idn.split(",")[1:2] == ["rig-emulator"]:
             truth = self._query("SYST:TRUTH?")
             self.truth = "" if truth.startswith("ERR") else truth
@@ -247,8 +296,7 @@ class RigBackend:
         for _ in range(attempts):
             try:
                 self._open()
-                if self.token is not None:
-                    self._command(f"SYST:AUTH {self.token}")
+                self._authenticate()
                 self._query("*IDN?")
                 return True
             except (RigRefused, BackendFailure):

@@ -19,7 +19,8 @@ EXIT_HELP = ("Exit status: 0 done, 1 internal error, 2 bad input (one line namin
 
 
 #: The library's argument names (in its messages: "arguments: seed: ...") as the CLI spells them.
-OPTIONS = {"address": "--rig", "token": "--token-file", "address/token": "--rig/--token-file", "faults": "--fault",
+OPTIONS = {"address": "--rig", "token": "--token-file", "address/token": "--rig/--token-file",
+           "address/token/trust_card": "--rig/--token-file/--trust-card", "faults": "--fault",
            "faults/truth": "--fault/--truth", "truth": "--truth", "seed": "--seed", "params": "--params",
            "model": "--model", "tolerance": "--tolerance", "backend": "--backend", "stall_timeout": "--stall-timeout",
            "protocol_kind": "--protocol-kind", "free": "--free", "eps_r": "--eps-r", "branches": "--viscous-branches",

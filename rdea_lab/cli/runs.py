@@ -103,8 +103,10 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
               help="User metadata stored with the run (operator, batch, notes; repeatable).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed (recorded), 0 to 2**63 - 1.")
+@click.option("--trust-card", is_flag=True,
+              help="With --backend rig: run although the rig names another specimen than --specimen (recorded).")
 def run(protocol, card_path, backend, rig_address, token_file, truth_path, faults, stall_timeout, params_path,
-        model, tolerance, out_path, overwrite, realtime, dry_run, live, md, quiet, seed):
+        model, tolerance, out_path, overwrite, realtime, dry_run, live, md, quiet, seed, trust_card):
     """Run a protocol on a specimen and store the run as one netCDF file.
 
     \b
@@ -122,7 +124,7 @@ def run(protocol, card_path, backend, rig_address, token_file, truth_path, fault
     setup = api.prepare_run(protocol, card_path, backend, params=params_path, model=model.lower(),
                             tolerance=tolerance, out=out_path, seed=seed, realtime=realtime, address=rig_address,
                             token=read_token(token_file, "--token-file") if token_file else None,
-                            truth=truth_path, faults=faults, stall_timeout=stall_timeout)
+                            truth=truth_path, faults=faults, stall_timeout=stall_timeout, trust_card=trust_card)
     if dry_run:
         click.echo(setup.describe())
         return

@@ -18,6 +18,7 @@ from __future__ import annotations
 import collections
 import math
 import re
+import secrets
 import threading
 import zlib
 import time
@@ -28,7 +29,7 @@ from .._version import __version__
 from ..physics import viscoelastic
 from ..specs.truth import truth_json
 from .framing import FramingError, decode_block, encode_block
-from .rig import EmulatedRig, RunConfig, limit_violation
+from .rig import BLOCK, EmulatedRig, RunConfig, limit_violation
 
 #: Faults that can be injected, each at a run time [s].
 FAULTS = ("disconnect", "breakdown", "stall")
@@ -36,6 +37,12 @@ STATES = ("IDLE", "ARMED", "RUNNING", "DONE", "ABORTED")
 MIN_RATE, MAX_RATE = 1.0, 100e3
 #: Most rows one ``FETC?`` returns.
 MAX_FETCH = 1_000_000
+#: Longest the rig computes samples while holding its lock [s]: a ``FETC?`` returns the rows made by then
+#: (fewer than asked; the client asks again), the realtime producer goes on at its next turn. So no
+#: command, heartbeat or status waits longer than this (and a block) for the lock; ``ABOR`` waits for none.
+PRODUCE_SLICE = 0.1
+#: Longest ``STAT?`` waits for the lock before it answers from what it can read without it [s].
+STAT_WAIT = 0.02
 MAX_POINTS = 10_000_000
 _ERRORS_KEPT = 20
 _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
@@ -149,6 +156,8 @@ class RigController:
         self._doomed = None  # the session an injected realtime disconnect closes at its next command
         self._clock = clock
         self._lock = threading.RLock()
+        self._tripped: str | None = None  # an emergency stop not yet booked under the lock (see emergency_stop)
+        self._trip_lock = threading.Lock()  # held for a few statements only, never while computing
         self._errors: dict[object, collections.deque] = {}
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -165,7 +174,7 @@ class RigController:
             "TRAJ:VOLT": (self._traj("volt"), True), "TRAJ:POIN?": (self._traj_poin, False),
             "ARM": (self._arm, True), "INIT": (self._init, True), "STAT?": (self._stat, False),
             "FETC?": (self._fetch, True), "ABOR": (self._abor, False), "SYST:REL": (self._release, True),
-            "SYST:BEAT": (self._beat, False),
+            "SYST:BEAT": (self._beat, False), "SYST:CTRL?": (self._ctrl, False), "SYST:AUTH?": (self._nonce, False),
         }
         #: commands any connection may send, whoever controls the rig: queries and the emergency stops
         self._anyone = {h for h, (_, controls) in self._commands.items() if not controls} | {"*RST"}
@@ -197,8 +206,41 @@ class RigController:
 
     @property
     def voltage_on(self) -> bool:
-        """True while a run drives the specimen (the amplifier may be on)."""
-        return self.run is not None and self.run.running
+        """True while a run drives the specimen (the amplifier may be on); False from the instant of an
+        emergency stop, before its bookkeeping."""
+        run = self.run
+        return run is not None and run.running and not run.interlocked and self._tripped is None
+
+    # -------------------------------------------------- emergency stop
+    def emergency_stop(self, reason: str = "aborted by ABOR") -> None:
+        """Voltage off now, whatever else the rig is doing: never waits for the lock.
+
+        The amplifier's interlock opens first (`EmulatedRig.interlock`: no sample is made with the voltage
+        on after it; a computation under way stops at its next block); the bookkeeping (state ``ABORTED``,
+        the reason, the actuator back to its start) follows under the lock, by a thread of its own, and
+        every command that takes the lock books it first.
+        """
+        with self._trip_lock:
+            first = self._tripped is None
+            if first:
+                self._tripped = reason
+            run = self.run
+        if run is not None:
+            run.interlock()
+        self._stop.set()
+        if first:  # one booking thread per stop, however many ABOR arrive before it is booked
+            threading.Thread(target=self._book_trip, daemon=True, name="rig-emulator-estop").start()
+
+    def _book_trip(self) -> None:
+        with self._lock:
+            self._take_trip()
+
+    def _take_trip(self) -> None:
+        """Book an emergency stop (under the lock): the run aborts, state ABORTED."""
+        with self._trip_lock:
+            reason, self._tripped = self._tripped, None
+        if reason is not None:
+            self._abort(reason)
 
     def _abort(self, reason: str) -> None:
         """Voltage to 0, actuator back to start; state ABORTED with `reason`."""
@@ -224,10 +266,17 @@ class RigController:
         return cap
 
     def _produce_to(self, target: int) -> None:
-        rows = self.run.produce(max(0, min(target, self._caps()) - self.run.acquired))
-        if rows.shape[0]:
-            self._rows.append(rows)
-            self._buffered += rows.shape[0]
+        """Samples up to `target` (within the faults' caps), for at most `PRODUCE_SLICE` s of computing."""
+        target = min(target, self._caps())
+        end = time.monotonic() + PRODUCE_SLICE
+        while self.run.running and self.run.acquired < target and self._tripped is None:
+            rows = self.run.produce(min(target - self.run.acquired, BLOCK))
+            if rows.shape[0]:
+                self._rows.append(rows)
+                self._buffered += rows.shape[0]
+            if time.monotonic() >= end:
+                break
+        self._take_trip()
         self._sync_state()
 
     def _disconnect_due(self, wanted: int) -> bool:
@@ -235,7 +284,7 @@ class RigController:
         if "disconnect" not in self.faults or self._disconnect_fired or self.state != "RUNNING":
             return False
         cap = self.run.samples_before(self.faults["disconnect"])
-        return cap < self.run.n and wanted > cap
+        return cap < self.run.n and wanted > cap and self.run.acquired >= cap  # every sample before it made
 
     def _fire_disconnect(self) -> object:
         self._disconnect_fired = True
@@ -294,7 +343,21 @@ class RigController:
                 raise RigError(-113, f"undefined header {header[:40]!r}; see docs/rig-protocol.md") from None
             if block is not None and header not in ("TRAJ:STR", "TRAJ:VOLT"):
                 raise RigError(-108, f"parameter not allowed: {header} takes no binary block")
+            if header == "ABOR":  # the emergency stop: no lock, no wait (see emergency_stop)
+                self._no_arg("ABOR", arg.strip())
+                self.emergency_stop("aborted by ABOR")
+                if session == self.owner:
+                    self._last_heard = self._clock()
+                return "OK"
+            if header == "*RST":
+                self.emergency_stop("*RST")  # the voltage off first; the reset under the lock below
+            if header == "STAT?":  # a status that never waits long: from what can be read without the lock
+                if not self._lock.acquire(timeout=STAT_WAIT):
+                    self._no_arg("STAT?", arg.strip())
+                    return self._status()
+                self._lock.release()
             with self._lock:
+                self._take_trip()
                 if session is not None and session == self._doomed:  # the injected disconnect (realtime)
                     self._doomed = None
                     raise CloseConnection()
@@ -555,17 +618,16 @@ class RigController:
         if self._watchdog is not None and self._watchdog.is_alive():
             return
 
-        def watch():
+        def watch():  # without the lock: it trips the emergency stop, which waits for nothing
             while True:
                 time.sleep(min(0.2, self.heartbeat / 4))
-                with self._lock:
-                    if self.state != "RUNNING":
-                        return
-                    silent = self._clock() - self._last_heard
-                    if silent > self.heartbeat:
-                        self._abort(f"no command from the controlling connection for {silent:.3g} s "
-                                    f"(heartbeat {self.heartbeat:g} s)")
-                        return
+                if self.state != "RUNNING" or self._tripped is not None:
+                    return
+                silent = self._clock() - self._last_heard
+                if silent > self.heartbeat:
+                    self.emergency_stop(f"no command from the controlling connection for {silent:.3g} s "
+                                        f"(heartbeat {self.heartbeat:g} s)")
+                    return
 
         self._watchdog = threading.Thread(target=watch, daemon=True, name="rig-emulator-heartbeat")
         self._watchdog.start()
@@ -574,7 +636,22 @@ class RigController:
         self._no_arg("STAT?", arg)
         if self.realtime:
             self._advance_realtime()
-        return f'{self.state},{self.acquired},{self.fetched},"{_clean(self.reason)}"'
+        return self._status()
+
+    def _status(self) -> str:
+        """The ``STAT?`` reply; also without the lock (an emergency stop not yet booked reads ABORTED)."""
+        state, reason, tripped = self.state, self.reason, self._tripped
+        if tripped is not None and state in ("ARMED", "RUNNING"):
+            state, reason = "ABORTED", tripped
+        return f'{state},{self.acquired},{self.fetched},"{_clean(reason)}"'
+
+    def _ctrl(self, session, arg, block):
+        self._no_arg("SYST:CTRL?", arg)
+        return "NONE" if self.owner is None else ("THIS" if self.owner == session else "OTHER")
+
+    def _nonce(self, session, arg, block):
+        self._no_arg("SYST:AUTH?", arg)  # the server answers it where a token is set; without one, any will do
+        return secrets.token_hex(16)
 
     def _fetch(self, session, arg, block):
         text = arg.strip()
@@ -614,9 +691,9 @@ class RigController:
         self._buffered -= got
         return np.concatenate(out) if out else np.empty((0, len(self.run.config.columns)))
 
-    def _abor(self, session, arg, block):
+    def _abor(self, session, arg, block):  # (execute serves ABOR itself, before the lock)
         self._no_arg("ABOR", arg)
-        self._abort("aborted by ABOR")
+        self.emergency_stop("aborted by ABOR")
         return "OK"
 
 

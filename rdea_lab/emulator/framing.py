@@ -94,48 +94,78 @@ class CommandReader:
     """
 
     def __init__(self, sock: socket.socket, *, max_line: int = 4096, max_block: int = 8 * 10_000_000,
-                 block_timeout: float = 2.0, idle=None, budget: ByteBudget | None = None):
+                 block_timeout: float = 2.0, idle=None, budget: ByteBudget | None = None,
+                 line_timeout: float = 5.0, min_block_rate: float = 1e6):
         self.sock = sock
         self.max_line = max_line
         self.max_block = max_block
         self.block_timeout = block_timeout
+        self.line_timeout = line_timeout
+        self.min_block_rate = min_block_rate
         self.idle = idle
         self.budget = budget
+        self._deadline: float | None = None  # when the command being read must be whole (or None: wait)
+        self._block_deadline: float | None = None  # when the block being read must be whole
+        self._begun = False  # whether a byte of the command being read has arrived
         self._held = 0  # bytes of the budget this reader holds (until the next command is read)
         self._buf = bytearray()
         self._skip_line = False  # discard input up to the next newline
 
     # -------------------------------------------------------------- bytes
     def _fill(self, deadline: float | None = None) -> bool:
-        """Receive more bytes; False on timeout (only with a `deadline`). Without one, waiting longer
-        than ``idle()`` for a command raises `ConnectionIdle`."""
-        idle = None
+        """Receive more bytes; False on timeout (only with a `deadline`). Without one, the command's own
+        deadline holds (`read_command`: a line whole within `line_timeout` of its first byte, a command
+        within ``idle()`` of the last one): past it, `ConnectionIdle`. Deadlines, not timeouts per
+        ``recv``: a byte now and then does not keep a connection open."""
+        timeout = None
         if deadline is not None:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return False
             self.sock.settimeout(remaining)
-        elif self.idle is not None:
-            idle = self.idle()
-            self.sock.settimeout(idle)
+        else:
+            if self._deadline is not None:
+                timeout = self._deadline - time.monotonic()
+                if timeout <= 0:
+                    raise ConnectionIdle(self._late())
+                self.sock.settimeout(timeout)
         try:
             chunk = self.sock.recv(65536)
         except socket.timeout:
             if deadline is None:
-                raise ConnectionIdle(f"no command for {idle:g} s") from None
+                raise ConnectionIdle(self._late()) from None
             return False
         finally:
-            if deadline is not None or idle is not None:
+            if deadline is not None or timeout is not None:
                 self.sock.settimeout(None)
         if not chunk:
             raise ConnectionClosed()
+        if deadline is None and not self._begun:  # a command has begun: it has line_timeout to be whole
+            self._begun = True
+            self._deadline = time.monotonic() + self.line_timeout
         self._buf += chunk
         return True
 
+    def _late(self) -> str:
+        if self._begun:
+            return f"a command not whole {self.line_timeout:g} s after its first byte"
+        return "no command in time"
+
     def _need(self, n: int, what: str) -> None:
-        """Wait for ``n`` bytes, as long as they keep coming: at most `block_timeout` between two."""
+        """Wait for ``n`` bytes, as long as they keep coming: at most `block_timeout` between two, and
+        all of them before the block's deadline (its header's line deadline, then `min_block_rate`)."""
         while len(self._buf) < n:
-            if not self._fill(time.monotonic() + self.block_timeout):
+            end = self._block_deadline if self._block_deadline is not None else self._deadline
+            gap = time.monotonic() + self.block_timeout
+            if end is not None and end <= gap:
+                if not self._fill(end):
+                    got = len(self._buf)
+                    self._buf.clear()
+                    raise FramingError(-161, f"{what}: not whole in time ({got} bytes; at least "
+                                             f"{self.min_block_rate:g} bytes/s); closing the connection",
+                                       fatal=True)
+                continue
+            if not self._fill(gap):
                 got = len(self._buf)
                 self._buf.clear()
                 raise FramingError(-161, f"{what}: nothing arrived for {self.block_timeout:g} s after {got} bytes; "
@@ -165,6 +195,13 @@ class CommandReader:
         if self._held and self.budget is not None:  # the previous block has been handled: give its bytes back
             self.budget.give(self._held)
             self._held = 0
+        self._block_deadline = None
+        self._begun = bool(self._buf)
+        if self._begun:  # the next command's first bytes came with the last one
+            self._deadline = time.monotonic() + self.line_timeout
+        else:
+            idle = self.idle() if self.idle is not None else None
+            self._deadline = time.monotonic() + idle if idle is not None else None
         while True:
             if self._skip_line:
                 nl = self._buf.find(b"\n")
@@ -179,7 +216,11 @@ class CommandReader:
             if hash_ >= 0:
                 if hash_ > self.max_line:
                     return self._too_long()
-                text = self._text(bytes(self._buf[:hash_]))
+                try:
+                    text = self._text(bytes(self._buf[:hash_]))
+                except FramingError:  # consume what is refused: the line, block and all (one ERR per line)
+                    self._drop_line(hash_)
+                    raise
                 return text, self._block(hash_)
             if nl >= 0:
                 line = bytes(self._buf[:nl])
@@ -224,6 +265,8 @@ class CommandReader:
         size = int(size_text)
         if size > self.max_block:
             self._buf.clear()
+            if self.max_block == 0:
+                raise FramingError(-300, "blocks only after authentication (SYST:AUTH)", fatal=True)
             raise FramingError(-161, f"block of {size} bytes is larger than the largest accepted "
                                      f"({self.max_block} bytes)", fatal=True)
         if self.budget is not None:
@@ -233,6 +276,9 @@ class CommandReader:
                                          f"{self.budget.used} of {self.budget.total} bytes; try again", fatal=True)
             self._held = size
         begin = start + 2 + digits
+        # the whole block has a deadline too: at least min_block_rate bytes/s on average (besides at most
+        # block_timeout between two bytes), so that no connection holds budget by dribbling
+        self._block_deadline = time.monotonic() + self.line_timeout + size / self.min_block_rate
         self._need(begin + size, f"block data (header says {size} bytes)")
         self._need(begin + size + 1, "newline after the block")
         end = begin + size

@@ -236,6 +236,7 @@ class EmulatedRig:
         self._pending = None  # (rows computed but not yet produced, first abort event of their block)
         self.state = "running"
         self.reason = ""
+        self.interlocked = False  # the amplifier's interlock: open, no sample is made with the voltage on
 
     # ------------------------------------------------------------ state
     @property
@@ -246,6 +247,11 @@ class EmulatedRig:
     @property
     def running(self) -> bool:
         return self.state == "running"
+
+    def interlock(self) -> None:
+        """Open the amplifier's interlock (an emergency stop, from any thread, without a lock): `produce`
+        makes no further sample; `abort` follows with the bookkeeping."""
+        self.interlocked = True
 
     def abort(self, reason: str) -> None:
         """Stop the run: voltage to 0, actuator back to its start; no further samples."""
@@ -282,7 +288,7 @@ class EmulatedRig:
         """
         out = []
         n = int(n)
-        while n > 0 and self.state == "running":
+        while n > 0 and self.state == "running" and not self.interlocked:
             if self._pending is None or self._pending[0].shape[0] == 0:
                 self._pending = self._compute_block()
             rows, event = self._pending

@@ -8,18 +8,32 @@ run it drives: voltage off.
 
 from __future__ import annotations
 
+import hashlib
 import hmac
 import ipaddress
 import itertools
+import secrets
 import socket
 import socketserver
 import threading
+import time
 
 from .controller import CloseConnection, RigController, check_faults
 from .framing import ByteBudget, CommandReader, ConnectionClosed, FramingError
+from ..specs.tokens import check_token
 from .truth import true_geometry
 
 LOOPBACK_NAMES = ("localhost",)
+#: Largest block payload an authenticated connection may send [bytes] (10 million float64).
+MAX_BLOCK = 8 * 10_000_000
+#: Longest line before authentication [bytes] (``SYST:AUTH`` and a 64-digit HMAC fit; no blocks).
+PREAUTH_LINE = 128
+#: Seconds a connection beyond the cap has to send its first line (served only if it is ``ABOR``).
+OVERFLOW_TIMEOUT = 1.0
+#: Connections beyond the cap read at once; more are refused without a read.
+MAX_OVERFLOW = 64
+#: Bytes sent at a time; each must leave within ``send_timeout``.
+SEND_CHUNK = 1 << 18
 
 
 def is_loopback(host: str) -> bool:
@@ -104,9 +118,10 @@ class RigServer:
 
     def __init__(self, card, truth, host="127.0.0.1", port=5025, token=None, realtime=False, faults=(), *,
                  truth_source=None, limits=None, heartbeat=10.0, max_connections=16, auth_timeout=5.0,
-                 idle_timeout=300.0, block_timeout=2.0, max_upload_bytes=256 * 2**20):
-        if token is not None and (not isinstance(token, str) or not token.strip() or any(c.isspace() for c in token)):
-            raise ValueError("the token must be a non-empty string without whitespace")
+                 idle_timeout=300.0, block_timeout=2.0, max_upload_bytes=256 * 2**20, line_timeout=5.0,
+                 send_timeout=2.0):
+        if token is not None:
+            check_token(token)
         if not is_loopback(host) and token is None:
             raise ValueError(f"refusing to listen on {host}, which is not a loopback address, without a token: "
                              "anyone who can reach it could drive the rig; give a token (rdea-lab rig serve "
@@ -121,13 +136,15 @@ class RigServer:
         self.controller = RigController(card, truth, realtime=realtime, faults=faults, truth_source=truth_source,
                                         close_session=self._drop_line, limits=limits, heartbeat=heartbeat)
         self.max_connections, self.auth_timeout, self.idle_timeout = int(max_connections), auth_timeout, idle_timeout
-        self.block_timeout = block_timeout
+        self.block_timeout, self.line_timeout, self.send_timeout = block_timeout, line_timeout, send_timeout
         self._budget = ByteBudget(max_upload_bytes)
         self._server: _TCPServer | None = None
         self._thread: threading.Thread | None = None
         self._sessions: dict[int, socket.socket] = {}
         self._busy: set[int] = set()  # sessions executing or answering a command (see _drop_line)
         self._sessions_lock = threading.Lock()
+        self._pending = 0  # connections waiting to authenticate (a token is set)
+        self._overflowing = 0  # connections beyond the cap being read for an ABOR
         self._ids = itertools.count(1)
         #: connections accepted so far (a run refused before anything moves never connects)
         self.connections = 0
@@ -212,46 +229,65 @@ class RigServer:
         session = next(self._ids)
         with self._sessions_lock:
             self.connections += 1
-            full = len(self._sessions) >= self.max_connections
-            if not full:
-                self._sessions[session] = sock
-        if full:  # a cap on connections (and so on threads): say so and close
-            try:
-                _send(sock, f'ERR -310,"too many connections: {self.max_connections} already served"')
-                sock.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
+            if self._token is None:  # no token: every connection takes a slot at once
+                admitted = len(self._sessions) < self.max_connections
+                if admitted:
+                    self._sessions[session] = sock
+            else:  # a token: slots and budgets are for authenticated connections; strangers wait apart
+                admitted = self._pending < self.max_connections
+                if admitted:
+                    self._pending += 1
+        if not admitted:
+            self._overflow(sock)
             return
         if self._closing:
-            self._close_session(session)
-        authenticated = self._token is None
+            sock.close()
+            return
+        state = {"authenticated": self._token is None, "nonce": None, "slot": self._token is None,
+                 "until": time.monotonic() + self.auth_timeout}
 
         def idle():  # the controlling connection may be silent between runs; the heartbeat guards a run
-            if not authenticated:
-                return self.auth_timeout
+            if not state["authenticated"]:
+                return max(0.0, state["until"] - time.monotonic())  # the auth window: a deadline from connecting
             return None if self.controller.owner == session else self.idle_timeout
 
-        reader = CommandReader(sock, idle=idle, budget=self._budget, block_timeout=self.block_timeout)
+        reader = CommandReader(sock, idle=idle, budget=None if self._token is not None else self._budget,
+                               block_timeout=self.block_timeout, line_timeout=self.line_timeout,
+                               max_block=0 if self._token is not None else MAX_BLOCK,
+                               max_line=PREAUTH_LINE if self._token is not None else 4096)
         try:
             while True:
                 try:
                     text, block = reader.read_command()
                 except FramingError as err:
-                    if not authenticated:
-                        _send(sock, 'ERR -300,"token required"')
+                    if not state["authenticated"]:
+                        self._send(sock, 'ERR -300,"token required: SYST:AUTH? then SYST:AUTH <HMAC>"')
                         break
-                    _send(sock, f'ERR {err.code},"{err.message}"')
+                    self._send(sock, f'ERR {err.code},"{err.message}"')
                     if err.fatal:
                         break
                     continue
                 if not text.strip() and block is None:
                     continue  # an empty line is no command
-                if not authenticated:
-                    if not self._authenticates(text):
-                        _send(sock, 'ERR -300,"token required"')
+                if not state["authenticated"]:
+                    reply, done = self._preauth(session, text, state)
+                    if reply is not None:
+                        self._send(sock, reply)
+                    if done:
                         break
-                    authenticated = True  # (the closure `idle` sees it)
-                    _send(sock, "OK")
+                    if state["authenticated"]:  # now a slot, the budget and full-size lines and blocks
+                        with self._sessions_lock:
+                            self._pending -= 1
+                            full = len(self._sessions) >= self.max_connections
+                            if not full:
+                                self._sessions[session] = sock
+                                state["slot"] = True
+                        if full:
+                            self._send(sock, f'ERR -310,"too many connections: {self.max_connections} already '
+                                             'served (ABOR is served on any connection)"')
+                            break
+                        self._send(sock, "OK")
+                        reader.budget, reader.max_block, reader.max_line = self._budget, MAX_BLOCK, 4096
                     continue
                 with self._sessions_lock:
                     self._busy.add(session)
@@ -260,7 +296,7 @@ class RigServer:
                         reply = self.controller.execute(session, text, block)
                     except CloseConnection:
                         break
-                    _send(sock, reply)
+                    self._send(sock, reply)
                 finally:
                     with self._sessions_lock:
                         self._busy.discard(session)
@@ -270,20 +306,83 @@ class RigServer:
             reader.release()
             self.controller.session_closed(session)
             with self._sessions_lock:
-                self._sessions.pop(session, None)
+                if state["slot"]:
+                    self._sessions.pop(session, None)
+                elif self._token is not None and not state["authenticated"]:
+                    self._pending -= 1
             try:
                 sock.shutdown(socket.SHUT_RDWR)
             except OSError:
                 pass
 
-    def _authenticates(self, text: str) -> bool:
+    def _preauth(self, session, text: str, state: dict) -> tuple[str | None, bool]:
+        """A command before authentication: ``(reply, close)``. Served: ``ABOR`` (an emergency stop needs
+        no credential), ``SYST:AUTH?`` (a fresh nonce), ``SYST:AUTH <mac>`` (the HMAC of that nonce)."""
         header, _, arg = text.strip().partition(" ")
-        return header.upper() == "SYST:AUTH" and hmac.compare_digest(arg.strip().encode(), self._token.encode())
+        header = header.upper()
+        if header == "ABOR":
+            return self.controller.execute(session, text), False
+        if header == "SYST:AUTH?":
+            state["nonce"] = secrets.token_hex(16)
+            return state["nonce"], False
+        if header == "SYST:AUTH" and state["nonce"] is not None:
+            nonce, state["nonce"] = state["nonce"], None  # one answer per nonce: a captured one does not replay
+            if hmac.compare_digest(arg.strip().lower().encode("ascii", "replace"),
+                                   auth_response(self._token, nonce).encode("ascii")):
+                state["authenticated"] = True
+                return None, False
+        return 'ERR -300,"token required: SYST:AUTH? then SYST:AUTH <HMAC-SHA256 of the nonce>"', True
+
+    def _overflow(self, sock: socket.socket) -> None:
+        """A connection beyond the cap: its first line is read (for at most `OVERFLOW_TIMEOUT` s) and served
+        if it is ``ABOR``, the emergency stop no cap may refuse; anything else is told the cap and closed.
+        Threads doing this are bounded too (`MAX_OVERFLOW`); past them a connection is refused at once."""
+        with self._sessions_lock:
+            served = self._overflowing < MAX_OVERFLOW
+            if served:
+                self._overflowing += 1
+        refusal = f'ERR -310,"too many connections: {self.max_connections} already served (ABOR is served on any)"'
+        try:
+            if served:
+                until = time.monotonic() + OVERFLOW_TIMEOUT
+                reader = CommandReader(sock, idle=lambda: max(0.0, until - time.monotonic()), max_block=0,
+                                       max_line=PREAUTH_LINE, line_timeout=OVERFLOW_TIMEOUT)
+                try:
+                    text, _ = reader.read_command()
+                except (FramingError, ConnectionClosed, OSError):
+                    text = ""
+                if text.strip().upper() == "ABOR":
+                    self._send(sock, self.controller.execute(None, "ABOR"))
+                    return
+            self._send(sock, refusal)
+        except OSError:
+            pass
+        finally:
+            if served:
+                with self._sessions_lock:
+                    self._overflowing -= 1
+            try:
+                sock.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+
+    def _send(self, sock: socket.socket, reply: str | bytes) -> None:
+        """Send one reply; a peer that takes none of it for `send_timeout` s is cut off (OSError): a client
+        that does not read cannot stall its connection's thread (the connection ends; a run it drives
+        aborts, voltage off)."""
+        data = memoryview((reply if isinstance(reply, bytes) else reply.encode("ascii", "replace")) + b"\n")
+        sock.settimeout(self.send_timeout)
+        try:
+            for i in range(0, len(data), SEND_CHUNK):  # the timeout per chunk: a slow reader is not cut off
+                sock.sendall(data[i:i + SEND_CHUNK])
+        finally:
+            sock.settimeout(None)
 
 
-def _send(sock: socket.socket, reply: str | bytes) -> None:
-    data = reply if isinstance(reply, bytes) else reply.encode("ascii", "replace")
-    sock.sendall(data + b"\n")
+def auth_response(token: str, nonce: str) -> str:
+    """The answer to the nonce of ``SYST:AUTH?``: HMAC-SHA256 of the nonce (ASCII) keyed with the token
+    (ASCII), in lowercase hex. The token itself never travels."""
+    return hmac.new(token.encode("ascii"), nonce.encode("ascii"), hashlib.sha256).hexdigest()
 
 
-__all__ = ["RigServer", "is_loopback"]
+__all__ = ["RigServer", "auth_response", "is_loopback"]

@@ -158,7 +158,7 @@ class RunSetup:
         from ..backends.rig import RigBackend
 
         return RigBackend(address or o["address"], self.card, token=o.get("token"),
-                          stall_timeout=o["stall_timeout"], seed=o["seed"])
+                          stall_timeout=o["stall_timeout"], seed=o["seed"], trust_card=o.get("trust_card", False))
 
     def describe(self) -> str:
         """The dry run: the expanded plan, its limits checked, and what would run it."""
@@ -183,7 +183,8 @@ class RunSetup:
 
 
 def prepare_run(protocol, specimen, backend="twin", *, params=None, model="auto", tolerance=0.01, out=None,
-                seed=0, realtime=False, address=None, token=None, truth=None, faults=(), stall_timeout=5.0) -> RunSetup:
+                seed=0, realtime=False, address=None, token=None, truth=None, faults=(), stall_timeout=5.0,
+                trust_card=False) -> RunSetup:
     """Check a run completely, before anything moves; see `run_protocol` for the arguments."""
     plan = as_plan(protocol)
     card = as_specimen(specimen)
@@ -203,8 +204,8 @@ def prepare_run(protocol, specimen, backend="twin", *, params=None, model="auto"
                             "or a Backend object")
         if backend != "emulator" and (faults or truth is not None):
             raise SpecError(ARGS, "faults/truth", "only with the emulator backend")
-        if backend != "rig" and (address or token):
-            raise SpecError(ARGS, "address/token", "only with the rig backend")
+        if backend != "rig" and (address or token or trust_card):
+            raise SpecError(ARGS, "address/token/trust_card", "only with the rig backend")
         if backend != "twin" and params is not None:
             raise SpecError(ARGS, "params", "the twin's parameters; a rig measures, it takes none")
         if not (isinstance(stall_timeout, (int, float)) and 0.1 <= stall_timeout <= 3600):
@@ -228,7 +229,7 @@ def prepare_run(protocol, specimen, backend="twin", *, params=None, model="auto"
             parse_address(address)
         except ValueError as exc:
             raise SpecError(ARGS, "address", str(exc)) from None
-        options.update(address=address, token=token)
+        options.update(address=address, token=token, trust_card=bool(trust_card))
     elif backend == "emulator":
         from ..emulator.controller import parse_faults
         from ..specs.truth import load_truth
@@ -243,7 +244,7 @@ def prepare_run(protocol, specimen, backend="twin", *, params=None, model="auto"
 
 def run_protocol(protocol, specimen, backend="twin", *, params=None, model="auto", tolerance=0.01, out=None,
                  overwrite=False, seed=0, metadata=None, callbacks=(), realtime=False, address=None, token=None,
-                 truth=None, faults=(), stall_timeout=5.0, command=""):
+                 truth=None, faults=(), stall_timeout=5.0, trust_card=False, command=""):
     """Run a protocol on a specimen and return the run's dataset.
 
     Parameters
@@ -281,6 +282,9 @@ def run_protocol(protocol, specimen, backend="twin", *, params=None, model="auto
         For ``emulator``: ``"stall-at=3"`` or ``("stall", 3.0)``, ...
     stall_timeout : float
         Seconds without a new sample before a rig run is aborted [s].
+    trust_card : bool
+        For ``rig``: run although the rig's ``*IDN?`` names another specimen than the card (recorded in
+        the dataset's ``rig_identity``); by default such a run is refused before anything moves.
     command : str
         Recorded in the dataset's history.
 
@@ -302,7 +306,7 @@ def run_protocol(protocol, specimen, backend="twin", *, params=None, model="auto
     """
     setup = prepare_run(protocol, specimen, backend, params=params, model=model, tolerance=tolerance, out=out,
                         seed=seed, realtime=realtime, address=address, token=token, truth=truth, faults=faults,
-                        stall_timeout=stall_timeout)
+                        stall_timeout=stall_timeout, trust_card=trust_card)
     metadata = check_metadata(metadata)
     check_outputs([setup.out], overwrite)
     result = execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)

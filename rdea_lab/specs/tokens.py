@@ -13,6 +13,18 @@ from .errors import SpecError
 MIN_TOKEN = 16
 
 
+#: The characters a token may hold: printable ASCII without the space (and not '#', which starts a block).
+TOKEN_FIRST, TOKEN_LAST = "!", "~"
+
+
+def check_token(token) -> str:
+    """``token`` if a server can use it (a string of printable ASCII without space or '#'), else ValueError."""
+    if not isinstance(token, str) or not token or any(not (TOKEN_FIRST <= c <= TOKEN_LAST) or c == "#" for c in token):
+        raise ValueError("the token must be a non-empty string of printable ASCII letters, digits and punctuation, "
+                         "without spaces or '#'")
+    return token
+
+
 def read_token(path: str | os.PathLike, field: str = "token", warn=None) -> str:
     """The one word in the file ``path``: a shared secret of at least 16 characters.
 
@@ -34,6 +46,10 @@ def read_token(path: str | os.PathLike, field: str = "token", warn=None) -> str:
         raise SpecError(str(path), field, "the token file is writable by others; chmod 600 it")
     if not token or any(c.isspace() for c in token):
         raise SpecError(str(path), field, "the token file must hold one token: a single word, no spaces")
+    bad = next((c for c in token if not (TOKEN_FIRST <= c <= TOKEN_LAST) or c == "#"), None)
+    if bad is not None:
+        raise SpecError(str(path), field, f"the token holds {bad!r}; allowed: printable ASCII letters, digits and "
+                        "punctuation except '#' (e.g. python3 -c 'import secrets; print(secrets.token_hex(16))')")
     if len(token) < MIN_TOKEN:
         raise SpecError(str(path), field, f"the token has {len(token)} characters; give at least {MIN_TOKEN} "
                         "(e.g. python3 -c 'import secrets; print(secrets.token_hex(16))')")

@@ -73,6 +73,16 @@ class Client:
         assert self.file.read(1) == b"\n"
         return np.frombuffer(data, "<f8").reshape(-1, 8)
 
+    def auth(self, token: str) -> str:
+        """The challenge-response of docs/rig-protocol.md, written out here from the spec (not the
+        server's own function): ``SYST:AUTH?`` gives a nonce; ``SYST:AUTH <hex HMAC-SHA256(token, nonce)>``."""
+        import hashlib
+        import hmac
+
+        nonce = self.q("SYST:AUTH?")
+        assert len(nonce) == 32 and int(nonce, 16) >= 0, nonce
+        return self.q("SYST:AUTH " + hmac.new(token.encode(), nonce.encode(), hashlib.sha256).hexdigest())
+
     def closed(self) -> bool:
         """True if the server closed the connection (EOF); our end is then closed too."""
         if self.file.read(1) != b"":

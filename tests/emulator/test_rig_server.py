@@ -364,11 +364,13 @@ def test_a_failing_handler_is_an_error_reply(server, client, monkeypatch):
 @pytest.mark.parametrize("server", [{"token": "s3cret-Token"}], indirect=True)
 def test_token_required_first(server):
     c = Client(server.address)
-    assert c.q("*IDN?") == 'ERR -300,"token required"' and c.closed()
+    assert c.q("*IDN?").startswith('ERR -300,"token required') and c.closed()
     c = Client(server.address)
-    assert c.q("SYST:AUTH wrong") == 'ERR -300,"token required"' and c.closed()
+    assert c.q("SYST:AUTH wrong").startswith('ERR -300,"token required') and c.closed()
+    c = Client(server.address)  # the token in clear is no answer: it never travels
+    assert c.q("SYST:AUTH s3cret-Token").startswith('ERR -300,"token required') and c.closed()
     c = Client(server.address)
-    assert c.q("SYST:AUTH s3cret-Token") == "OK"
+    assert c.auth("s3cret-Token") == "OK"
     assert c.q("*IDN?").startswith("rdea-lab,rig-emulator,")
     c.close()
 
@@ -429,8 +431,8 @@ def test_connections_are_capped(truth, card):
         try:
             for c in clients:
                 assert c.q("*IDN?").startswith("rdea-lab,")
-            extra = Client(srv.address)
-            assert extra.line() == 'ERR -310,"too many connections: 3 already served"' and extra.closed()
+            extra = Client(srv.address)  # (it is read for an ABOR for a second first)
+            assert extra.line().startswith('ERR -310,"too many connections: 3 already served') and extra.closed()
             clients[0].close()
             time.sleep(0.2)
             again = Client(srv.address)  # a place is free again
