@@ -142,7 +142,8 @@ class CommandReader:
             raise ConnectionClosed()
         if deadline is None and not self._begun:  # a command has begun: it has line_timeout to be whole
             self._begun = True
-            self._deadline = time.monotonic() + self.line_timeout
+            whole_by = time.monotonic() + self.line_timeout
+            self._deadline = whole_by if self._deadline is None else min(self._deadline, whole_by)
         self._buf += chunk
         return True
 

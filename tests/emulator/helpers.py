@@ -99,7 +99,8 @@ class Client:
         for command in (f"CONF:RATE {rate!r}", f"CONF:MEAS {meas}", f"CONF:LENG {L1!r}", f"CONF:THIC {L3!r}",
                         f"LIM:VOLT {volt!r}", f"LIM:STR {stretch!r}", f"LIM:FORC {force!r}",
                         f"LIM:FIEL {field!r}"):
-            assert self.q(command) == "OK", command
+            reply = self.q(command)
+            assert reply == "OK", f"{command}: {reply}"
         self.sent = (rate, volt, stretch, force, field, L3)
 
     def start(self, x, v) -> None:
