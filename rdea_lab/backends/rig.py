@@ -90,6 +90,9 @@ class RigBackend:
         self._done = False
         self._lost = None
         self.aborted = None
+        #: whether a command that changes the rig (``*RST`` onward) has been sent: until then a failure
+        #: sends nothing, not even ``ABOR`` (which any connection may send: it would stop another's run)
+        self._touched = False
 
     # -- plumbing ---------------------------------------------------------
     def _open(self):
@@ -195,7 +198,10 @@ class RigBackend:
         try:
             self._start(plan)
         except BaseException as exc:
-            self.abort(f"start failed: {type(exc).__name__}")  # ABOR, in case INIT reached the rig
+            if self._touched:
+                self.abort(f"start failed: {type(exc).__name__}")  # ABOR, in case INIT reached the rig
+            else:
+                self.aborted = f"start failed: {type(exc).__name__}"  # nothing sent: the rig is as it was
             if isinstance(exc, ConnectionLost):  # a rig that does not answer is refused (exit 2)
                 raise RigRefused(f"rig {self.address}: no answer before the run started ({exc})") from None
             raise
@@ -215,6 +221,7 @@ class RigBackend:
             truth = self._query("SYST:TRUTH?")
             self.truth = "" if truth.startswith("ERR") else truth
         lim = plan.limits
+        self._touched = True  # from here on the rig is ours: a failure sends ABOR
         meas = ",".join({"force": "FORC", "capacitance": "CAP", "current": "CUR"}[m] for m in plan.measure)
         # rows gain a ninth column, the amplifier current, when it is measured (docs/rig-protocol.md)
         self._columns = COLUMNS + (("current",) if "current" in plan.measure else ())
@@ -314,12 +321,13 @@ class RigBackend:
             pass  # the connection is gone; the server aborts a run whose client is lost
 
     def close(self) -> None:
-        for obj in (self._inst, self._rm):
-            try:
-                if obj is not None:
-                    obj.close()
-            except Exception:
-                pass
+        """Close this driver's connection. Not the resource manager: pyvisa keeps one per process, shared by
+        every driver in it, and closing it closes all their sessions (another run's connection included)."""
+        try:
+            if self._inst is not None:
+                self._inst.close()
+        except Exception:
+            pass
         self._inst = self._rm = None
 
 

@@ -169,3 +169,81 @@ def test_each_run_has_its_own_reproducible_noise(server, card, tmp_path):
     assert np.any(diff != 0) and np.max(np.abs(diff)) < 10 * 4e-3 * np.sqrt(2)
     assert np.std(diff) == pytest.approx(4e-3 * np.sqrt(2), rel=0.1)  # 5401 samples: std known to ~2 %
     np.testing.assert_array_equal(f["a"], f["c"])
+
+
+@pytest.mark.parametrize("server", [{"realtime": True}], indirect=True)
+def test_a_second_driver_is_refused_and_the_running_experiment_completes(server, card, tmp_path, capsys):
+    """The audit: a second `rdea-lab run` against a rig already running sent *RST and ended the first run.
+    Now it asks first (SYST:CTRL?, STAT?), is refused with exit 2 and sends nothing that changes the rig,
+    not even the ABOR of its own failed start."""
+    import threading
+    import time
+
+    text = (ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml").read_text()
+    short = tmp_path / "short.yaml"  # one 2 s cycle after a 1 s settle: 4 s in realtime
+    short.write_text(text.replace("frequency: 0.1 Hz, cycles: 5", "frequency: 0.5 Hz, cycles: 1")
+                     .replace("settle: 2 s", "settle: 1 s"))
+    plan = load_plan(short)
+    first = {}
+    t = threading.Thread(target=lambda: first.update(r=execute(plan, card, RigBackend(server.url, card, poll=0.05),
+                                                               tmp_path / "first.nc")))
+    t.start()
+    try:
+        t0 = time.monotonic()
+        while server.controller.state != "RUNNING" and time.monotonic() - t0 < 10:
+            time.sleep(0.02)
+        assert server.controller.state == "RUNNING"
+        with pytest.raises(RigRefused, match="is busy: RUNNING"):
+            execute(plan, card, RigBackend(server.url, card), tmp_path / "second.nc")
+        card_file = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
+        rc = run_cli(cli, ["run", str(short),
+                           "--specimen", str(card_file), "--backend", "rig", "--rig", server.url,
+                           "--out", str(tmp_path / "third.nc")])
+        cap = capsys.readouterr()
+        err = cap.err.strip().splitlines()
+        assert rc == 2 and len(err) == 1 and "is busy" in err[0] and "nothing sent" in err[0]
+        assert server.controller.state == "RUNNING"  # untouched
+        assert not (tmp_path / "second.nc").exists() and not (tmp_path / "third.nc").exists()
+    finally:
+        t.join(60)
+    r = first["r"]
+    ds = open_run(r.path)
+    assert r.status == "complete" and ds.attrs["status"] == "complete"
+    assert ds.sizes["time"] == plan.time.size  # every sample of the plan
+
+
+@pytest.fixture
+def other_server(truth):
+    """An emulated rig that holds specimen 1 (its *IDN? serial says so)."""
+    srv = RigServer(load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen1.yaml"), truth, port=0)
+    host, port = srv.start()
+    srv.url = f"tcp://{host}:{port}"
+    yield srv
+    srv.shutdown()
+
+
+def test_a_card_the_rig_does_not_hold_is_refused_unless_trusted(other_server, card, tmp_path, capsys):
+    plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml")
+    idn_serial = other_server.controller.idn.split(",")[2]
+    assert idn_serial != card.id  # the rig holds specimen 1, the card is specimen 2
+    with pytest.raises(RigRefused) as info:
+        execute(plan, card, RigBackend(other_server.url, card), tmp_path / "x.nc")
+    assert idn_serial in str(info.value) and card.id in str(info.value) and "--trust-card" in str(info.value)
+    assert other_server.controller.state == "IDLE" and other_server.controller.acquired == 0  # before ARM
+    assert not (tmp_path / "x.nc").exists()
+    card_file = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
+    args = ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml"), "--specimen",
+            str(card_file), "--backend", "rig", "--rig", other_server.url, "--quiet", "--out"]
+    assert run_cli(cli, args + [str(tmp_path / "y.nc")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and idn_serial in err[0] and card.id in err[0]
+    assert run_cli(cli, args + [str(tmp_path / "z.nc"), "--trust-card"]) == 0
+    ds = open_run(tmp_path / "z.nc")
+    assert ds.attrs["status"] == "complete" and ds.attrs["specimen_id"] == card.id
+    assert ds.attrs["rig_identity"].startswith("overridden") and idn_serial in ds.attrs["rig_identity"]
+
+
+def test_the_identity_check_is_recorded(server, card, tmp_path):
+    plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml")
+    r, ds = run_with(server, card, plan, tmp_path / "ok.nc")
+    assert ds.attrs["rig_identity"] == f"checked: the rig holds {card.id}"
