@@ -9,8 +9,9 @@ class BackendFailure(Exception):
     """The backend reports the run cannot go on (lost connection, breakdown, server abort)."""
 
 
-class RunInterrupted(Exception):
-    """Ctrl-C or SIGTERM during a run."""
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C or SIGTERM during a run. A KeyboardInterrupt, not an Exception: no ``except Exception`` on
+    the way (a driver's, pyvisa's) can take it for a lost connection."""
 
 
 @runtime_checkable

@@ -60,16 +60,88 @@ def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 
 
-def run(group: click.Group, argv=None) -> int:
-    """Run ``group`` and map every outcome to an exit status and at most one line on stderr."""
+class _Signals:
+    """SIGINT and SIGTERM at the CLI's edge: either raises KeyboardInterrupt wherever the command is (start-up,
+    a run's set-up, the final write of a command that is not a run: the run engine has its own while it runs),
+    so both end in exit 130 and one line; once the command has ended, a signal is recorded, not raised (it
+    becomes exit 130, never a traceback or death by the signal). A signal the caller ignores stays ignored."""
+
+    def __init__(self):
+        self.closing = False
+        self.late = ""
+        self._previous = {}
+
+    def install(self) -> None:
+        import signal
+        import threading
+
+        if threading.current_thread() is not threading.main_thread():
+            return
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous = signal.getsignal(sig)
+            if previous is not signal.SIG_IGN:
+                self._previous[sig] = previous
+                signal.signal(sig, self._handle)
+
+    def restore(self) -> None:
+        import signal
+
+        for sig, previous in self._previous.items():
+            signal.signal(sig, previous)
+
+    def _handle(self, signum, frame):
+        import signal
+
+        name = "Ctrl-C" if signum == signal.SIGINT else f"signal {signal.Signals(signum).name}"
+        if self.closing:
+            self.late = self.late or name
+            return
+        raise KeyboardInterrupt(name)
+
+
+def _interrupted(exc: BaseException) -> int:
+    detail = _one_line(exc)
+    click.echo(f"rdea-lab: interrupted ({detail})" if detail else "rdea-lab: interrupted", err=True)
+    return 130
+
+
+def run(group: click.Group, argv=None, *, process=False) -> int:
+    """Run ``group`` and map every outcome to an exit status and at most one line on stderr.
+
+    ``process``: this is the whole process (the console entry point): a signal after the command has ended is
+    still exit 130, and the handlers stay in place until the interpreter exits (no KeyboardInterrupt while it
+    shuts down). Otherwise (tests, a caller's own loop) the caller's handlers are put back.
+    """
+    signals = _Signals()
+    signals.install()
     try:
-        group.main(args=argv, prog_name="rdea-lab", standalone_mode=False)
+        code = _run(group, argv)
+    except KeyboardInterrupt as exc:  # between the command's end and the return
+        code = _interrupted(exc)
+    finally:
+        signals.closing = True
+        if not process:
+            signals.restore()
+    if signals.late and code != 130:
+        click.echo(f"rdea-lab: interrupted ({signals.late} as the command ended)", err=True)
+        code = 130
+    return code
+
+
+def _run(group: click.Group, argv) -> int:
+    try:
+        # the command, without click's own main(): it would turn Ctrl-C into Abort after an empty line
+        args = list(sys.argv[1:] if argv is None else argv)
+        with group.make_context("rdea-lab", args) as ctx:
+            group.invoke(ctx)
         return 0
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except SystemExit as exc:  # a command's own sys.exit(status)
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-    except click.exceptions.Abort:
+    except KeyboardInterrupt as exc:
+        return _interrupted(exc)
+    except click.exceptions.Abort:  # a prompt answered with end of input
         click.echo("rdea-lab: aborted", err=True)
         return 130
     except click.exceptions.NoArgsIsHelpError as exc:  # bare `rdea-lab`: show the help
@@ -84,9 +156,6 @@ def run(group: click.Group, argv=None) -> int:
     except click.ClickException as exc:
         click.echo(f"rdea-lab: {_one_line(exc.format_message())}", err=True)
         return exc.exit_code
-    except KeyboardInterrupt:
-        click.echo("rdea-lab: interrupted", err=True)
-        return 130
     except BrokenPipeError:
         return 0
     except Exception as exc:

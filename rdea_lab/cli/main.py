@@ -173,7 +173,7 @@ for command in (reproduce, bench):  # this module's own; the others load from CO
 
 def main(argv=None):
     """Console entry point."""
-    sys.exit(run(cli, argv))
+    sys.exit(run(cli, argv, process=True))
 
 
 if __name__ == "__main__":

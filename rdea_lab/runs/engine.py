@@ -120,8 +120,50 @@ def _differing(magnitude: float, limit: float, value: float) -> str:
     return f"{value:.{digits}g}"
 
 
-def _raise_interrupted(signum, frame):
-    raise RunInterrupted(f"signal {signal.Signals(signum).name}")
+class _Signals:
+    """SIGINT and SIGTERM while `execute` runs (main thread only; elsewhere the caller's handlers stay).
+
+    While the run starts and acquires, the first signal raises `RunInterrupted` ("Ctrl-C" or "signal
+    SIGTERM"). From then on, and from the moment the loop is left however it ends, the run is closing
+    (the rig stopped, the connection closed, the dataset written): a signal then is recorded, not raised,
+    so that nothing can leave the dataset half-written; `raise_pending` raises it once the dataset is
+    closed. A signal the caller ignores (SIG_IGN) stays ignored.
+    """
+
+    def __init__(self):
+        self.closing = False
+        self.pending = ""
+        self._previous = {}
+
+    def __enter__(self):
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                previous = signal.getsignal(sig)
+                if previous is not signal.SIG_IGN:
+                    self._previous[sig] = previous
+                    signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc):
+        for sig, previous in self._previous.items():
+            signal.signal(sig, previous)
+        return False
+
+    def _handle(self, signum, frame):
+        name = "Ctrl-C" if signum == signal.SIGINT else f"signal {signal.Signals(signum).name}"
+        if self.closing:
+            self.pending = self.pending or name
+            return
+        self.closing = True
+        raise RunInterrupted(name)
+
+    def raise_pending(self, result) -> None:
+        """A signal that came while a run that was not interrupted closed: raised now, the dataset whole."""
+        if self.pending and result.status != "interrupted":
+            raise RunInterrupted(f"{self.pending} as the run ended; its dataset {result.path} is closed "
+                                 f"({result.status}, {result.samples} samples)")
 
 
 def _subscribers(callbacks):
@@ -168,6 +210,13 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
         stopped the run) or ``interrupted`` (Ctrl-C, SIGTERM).
     """
     subscribers = _subscribers(callbacks)
+    with _Signals() as signals:
+        result = _execute(plan, card, backend, out, seed, command, subscribers, metadata, signals)
+        signals.raise_pending(result)
+    return result
+
+
+def _execute(plan, card, backend, out, seed, command, subscribers, metadata, signals) -> RunResult:
     started, writer = False, None
     try:
         metadata = check_metadata(metadata)
@@ -185,6 +234,7 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
         attrs.update(backend.attrs())  # what the backend knows once started (model choice, rig identity)
         writer.begin(attrs)
     except BaseException:
+        signals.closing = True
         if started:  # the journal could not be written (a full disk, no permission): stop the rig
             backend.abort("the run's journal could not be written")
         if writer is not None:
@@ -192,11 +242,6 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
         backend.close()
         raise
     status, reason = "complete", ""
-    previous = signal.getsignal(signal.SIGTERM)
-    try:
-        signal.signal(signal.SIGTERM, _raise_interrupted)
-    except ValueError:  # not the main thread
-        previous = None
     failure = None
     failed_cb = [None]
 
@@ -207,7 +252,7 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
                 continue
             try:
                 fn(*args)
-            except (KeyboardInterrupt, RunInterrupted):
+            except KeyboardInterrupt:
                 raise
             except Exception as exc:
                 failed_cb[0] = cb
@@ -215,25 +260,28 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
                                         f"{type(exc).__name__}: {exc}") from exc
 
     try:
-        max_force = plan.limits.max_force
-        planned = plan.samples
-        while True:
-            block = backend.read_block()
-            if block is None:
-                break
-            first = writer.samples
-            writer.append(block)
-            over = np.flatnonzero(np.abs(block["force"]) > max_force)
-            if over.size:
-                i = int(over[0])
-                status = "aborted"
-                reason = (f"force {_differing(abs(block['force'][i]), max_force, block['force'][i])} N at "
-                          f"t = {block['time'][i]:.6g} s is above the limit max_force = {max_force:g} N")
-                backend.abort(reason)
-            notify(None, RunBlock(block, first, writer.samples, planned, "running"))
-            if status != "complete":
-                break
-    except (KeyboardInterrupt, RunInterrupted) as exc:
+        try:
+            max_force = plan.limits.max_force
+            planned = plan.samples
+            while True:
+                block = backend.read_block()
+                if block is None:
+                    break
+                first = writer.samples
+                writer.append(block)
+                over = np.flatnonzero(np.abs(block["force"]) > max_force)
+                if over.size:
+                    i = int(over[0])
+                    status = "aborted"
+                    reason = (f"force {_differing(abs(block['force'][i]), max_force, block['force'][i])} N at "
+                              f"t = {block['time'][i]:.6g} s is above the limit max_force = {max_force:g} N")
+                    backend.abort(reason)
+                notify(None, RunBlock(block, first, writer.samples, planned, "running"))
+                if status != "complete":
+                    break
+        finally:  # however the loop is left, the run is closing: a signal from here waits for the dataset
+            signals.closing = True
+    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM (RunInterrupted)
         if status == "complete":  # a limit that already ended the run keeps its reason
             status, reason = "interrupted", f"interrupted by the user ({str(exc) or 'Ctrl-C'})"
         backend.abort(reason)
@@ -257,8 +305,6 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
         writer.finish(status, reason)
         raise
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
         backend.close()
     path = writer.finish(status, reason)
     result = RunResult(path, status, reason, writer.samples)

@@ -66,11 +66,12 @@ def _disk_full(exc: OSError, what, journal: Path, samples: int) -> DiskFull:
 
 
 def _is_full(exc: BaseException, out: Path, nbytes: int) -> bool:
-    """Whether writing failed for want of space: ENOSPC/EDQUOT, or netCDF's bare "HDF error" (what the
-    library reports then) on a file system with less free space than the dataset needs."""
+    """Whether writing failed for want of space: ENOSPC/EDQUOT, or whatever netCDF reports then (a bare
+    "HDF error", or "Permission denied" on the temporary file) on a file system with less free space than
+    the dataset needs (a folder that cannot be written at all was refused before the run)."""
     if isinstance(exc, OSError) and exc.errno in _FULL:
         return True
-    if "HDF error" in str(exc):
+    if isinstance(exc, (OSError, RuntimeError)):
         try:
             return shutil.disk_usage(Path(out).parent).free < 2 * nbytes + 2**20
         except OSError:
@@ -78,10 +79,27 @@ def _is_full(exc: BaseException, out: Path, nbytes: int) -> bool:
     return False
 
 
-def _note_status(folder: Path, status: str, reason: str) -> None:
-    """Best effort: how the run ended, for `recover` (a few hundred bytes; may itself not fit)."""
+#: Bytes kept for ``status.json`` from the run's start, so that a full disk can still say how the run ended.
+STATUS_BYTES = 4096
+
+
+def _reserve_status(folder: Path) -> None:
+    """Claim the space of ``status.json`` while the disk has room (blanks: no status noted yet)."""
     try:
-        (folder / "status.json").write_text(json.dumps({"status": status, "status_reason": reason}))
+        (folder / "status.json").write_bytes(b" " * STATUS_BYTES)
+    except OSError:
+        pass
+
+
+def _note_status(folder: Path, status: str, reason: str) -> None:
+    """Best effort: how the run ended, for `recover`, written over the space `_reserve_status` claimed (in
+    place, padded with blanks: no new block needed on a full disk)."""
+    text = json.dumps({"status": status, "status_reason": reason[:STATUS_BYTES // 2]}).encode()
+    try:
+        with open(folder / "status.json", "r+b" if (folder / "status.json").exists() else "wb") as fh:
+            fh.write(text.ljust(STATUS_BYTES))
+            fh.flush()
+            os.fsync(fh.fileno())
     except OSError:
         pass
 
@@ -167,6 +185,7 @@ class JournalWriter:
         tmp = self.dir / "header.json.tmp"
         tmp.write_text(json.dumps(header, indent=1))
         os.replace(tmp, self.dir / "header.json")
+        _reserve_status(self.dir)
         self._fd = os.open(self.dir / "samples.f8", os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
         _fsync_dir(self.dir)
 
@@ -190,6 +209,7 @@ class JournalWriter:
                 view = view[written:]
             os.fsync(self._fd)
         except OSError as exc:  # a torn last row is dropped when the journal is read
+            self.samples += (len(data) - len(view)) // rows.shape[1] // 8  # the whole rows that did get out
             if exc.errno in _FULL:
                 raise _disk_full(exc, self.dir, self.dir, self.samples) from None
             raise

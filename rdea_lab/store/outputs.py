@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import tempfile
 from pathlib import Path
 
@@ -12,15 +13,44 @@ class OutputError(SpecError):
     """A dataset cannot be written where asked (a folder that is not writable, not a folder, ...)."""
 
 
+#: The longest suffix a writer adds to an output's name (the journal folder ``<out>.part``; ``.tmp`` is shorter).
+LONGEST_SUFFIX = ".part"
+
+
+def shown(path) -> str:
+    """A path as a message can print it, whatever bytes it holds (undecodable ones as ``\\xNN``)."""
+    return str(path).encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+
+
 def check_writable(path, what="out") -> None:
-    """Raise `OutputError` unless the file ``path`` can be created: its nearest existing folder is a
-    writable folder (the missing ones below it are made when the run writes)."""
+    """Raise `OutputError` unless the file ``path`` can be created: a name in UTF-8 (netCDF and the
+    dataset's attributes store it as text), each part of it (and the journal's ``<name>.part``) no longer
+    than the file system takes, and its nearest existing folder a writable folder (the missing ones below
+    it are made when the run writes)."""
     path = Path(path)
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError:
+        raise OutputError(shown(path), what, "is not valid UTF-8; allowed: a name of UTF-8 characters (netCDF "
+                          "stores it as text)") from None
     folder = path.parent
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
     if not folder.is_dir():
         raise OutputError(str(path), what, f"{folder} is not a folder")
+    try:
+        name_max = os.pathconf(folder, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    below = path.relative_to(folder).parts if path.is_absolute() == folder.is_absolute() else path.parts
+    for i, part in enumerate(below):
+        size = len((part + (LONGEST_SUFFIX if i == len(below) - 1 else "")).encode("utf-8"))
+        if size > name_max:
+            raise OutputError(str(path)[:120] + ("..." if len(str(path)) > 120 else ""), what,
+                              f"the name {part[:40]!r}... is {len(part.encode('utf-8'))} bytes; allowed: at most "
+                              f"{name_max - (len(LONGEST_SUFFIX) if i == len(below) - 1 else 0)} bytes here "
+                              f"(the file system takes {name_max}"
+                              + (f", and the run's journal adds {LONGEST_SUFFIX!r})" if i == len(below) - 1 else ")"))
     try:  # a probe file: permissions, read-only mounts and pseudo file systems alike (root passes os.access)
         with tempfile.TemporaryFile(dir=folder, prefix=".rdea-lab-probe-"):
             pass
