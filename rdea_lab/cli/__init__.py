@@ -20,3 +20,22 @@ import os as _os
 # (samples x a few parameters), where a threaded BLAS only contends for the cores;
 # least squares on a busy 2-core machine ran 7x slower with it. Set before numpy loads.
 _os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+def main(argv=None):
+    """Console entry point. Ctrl-C and SIGTERM are caught from here on, before click and the commands load
+    (what comes before is the interpreter's own start-up, a few tens of milliseconds)."""
+    import sys
+
+    from ..signals import Signals
+
+    signals = Signals().install()
+    try:
+        from .errors import run
+        from .main import cli
+    except KeyboardInterrupt as exc:
+        signals.hold()
+        print(f"rdea-lab: interrupted ({exc})", file=sys.stderr)
+        sys.exit(130)
+    signals.restore()  # run() installs its own
+    sys.exit(run(cli, argv, process=True))

@@ -60,45 +60,6 @@ def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 
 
-class _Signals:
-    """SIGINT and SIGTERM at the CLI's edge: either raises KeyboardInterrupt wherever the command is (start-up,
-    a run's set-up, the final write of a command that is not a run: the run engine has its own while it runs),
-    so both end in exit 130 and one line; once the command has ended, a signal is recorded, not raised (it
-    becomes exit 130, never a traceback or death by the signal). A signal the caller ignores stays ignored."""
-
-    def __init__(self):
-        self.closing = False
-        self.late = ""
-        self._previous = {}
-
-    def install(self) -> None:
-        import signal
-        import threading
-
-        if threading.current_thread() is not threading.main_thread():
-            return
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            previous = signal.getsignal(sig)
-            if previous is not signal.SIG_IGN:
-                self._previous[sig] = previous
-                signal.signal(sig, self._handle)
-
-    def restore(self) -> None:
-        import signal
-
-        for sig, previous in self._previous.items():
-            signal.signal(sig, previous)
-
-    def _handle(self, signum, frame):
-        import signal
-
-        name = "Ctrl-C" if signum == signal.SIGINT else f"signal {signal.Signals(signum).name}"
-        if self.closing:
-            self.late = self.late or name
-            return
-        raise KeyboardInterrupt(name)
-
-
 def _interrupted(exc: BaseException) -> int:
     detail = _one_line(exc)
     click.echo(f"rdea-lab: interrupted ({detail})" if detail else "rdea-lab: interrupted", err=True)
@@ -112,18 +73,21 @@ def run(group: click.Group, argv=None, *, process=False) -> int:
     still exit 130, and the handlers stay in place until the interpreter exits (no KeyboardInterrupt while it
     shuts down). Otherwise (tests, a caller's own loop) the caller's handlers are put back.
     """
-    signals = _Signals()
-    signals.install()
+    from ..signals import Signals  # the command's start-up and end (a run's own are the engine's)
+
+    signals = Signals().install()
     try:
         code = _run(group, argv)
     except KeyboardInterrupt as exc:  # between the command's end and the return
         code = _interrupted(exc)
     finally:
         signals.closing = True
-        if not process:
+        if process:
+            signals.hold()
+        else:
             signals.restore()
-    if signals.late and code != 130:
-        click.echo(f"rdea-lab: interrupted ({signals.late} as the command ended)", err=True)
+    if signals.pending and code != 130:
+        click.echo(f"rdea-lab: interrupted ({signals.pending} as the command ended)", err=True)
         code = 130
     return code
 

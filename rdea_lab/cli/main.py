@@ -172,7 +172,8 @@ for command in (reproduce, bench):  # this module's own; the others load from CO
 
 
 def main(argv=None):
-    """Console entry point."""
+    """The command, for a caller that has loaded the CLI already (``python -m rdea_lab.cli.main``); the console
+    entry point is `rdea_lab.cli.main` (the package's), which catches signals from before click loads."""
     sys.exit(run(cli, argv, process=True))
 
 

@@ -145,7 +145,11 @@ def run(protocol, card_path, backend, rig_address, token_file, truth_path, fault
         sys.exit(result.exit_code)
 
 
-@click.command()
+#: `recover`'s exit status when it left a live run's journal alone (BSD's EX_TEMPFAIL: try again later).
+LIVE_LEFT_ALONE = 75
+
+
+@click.command(epilog=EXIT_HELP + f" recover: {LIVE_LEFT_ALONE} a journal left alone because its run is still going.")
 @click.argument("paths", nargs=-1, required=True, type=click.Path())
 @click.option("--out", "out_path", type=click.Path(dir_okay=False),
               help="Write the dataset here instead (one journal only), e.g. on another disk.")
@@ -170,16 +174,25 @@ def recover(paths, out_path):
         return
     if out_path and len(targets) > 1:
         die(f"--out: {len(targets)} journals found; --out takes one (name the journal)")
+    live = 0
     for t in targets:
         try:
             out = api.recover(t, out_path)
-        except (api.RunInProgress, api.EmptyJournal) as exc:  # a live run's journal, or a run that never began
+        except api.RunInProgress as exc:  # a live run's journal: left alone
+            click.echo(str(exc))
+            live += 1
+            continue
+        except api.EmptyJournal as exc:  # a run that never began
             click.echo(str(exc))
             continue
         except (FileNotFoundError, FileExistsError, ValueError) as exc:
             die(str(exc))
         ds = api.open_run(out)
         click.echo(f"{out}: {ds.sizes['time']} samples recovered, status {ds.attrs['status']}")
+    if live:  # a script can tell "nothing to do yet" from "done"
+        click.echo(f"rdea-lab: {live} of {len(targets)} journals belong to runs still going and were left alone; "
+                   f"run recover again once they end (exit {LIVE_LEFT_ALONE})", err=True)
+        sys.exit(LIVE_LEFT_ALONE)
 
 
 @click.command(name="ls")

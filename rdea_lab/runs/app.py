@@ -178,7 +178,8 @@ class RunSetup:
             lines.append(f"emulator: truth {o['truth'].name}" + (f", faults {faults}" if faults else ""))
         else:
             lines.append(f"backend {getattr(self.backend, 'name', type(self.backend).__name__)} (given)")
-        lines.append(f"dataset: {self.out}")
+        exists = " (it exists: the run would need --force)" if Path(self.out).exists() else ""
+        lines.append(f"dataset: none written (dry run); the run would write {self.out}{exists}")
         return "\n".join(lines)
 
 

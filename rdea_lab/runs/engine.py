@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import re
-import signal
 import uuid
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +27,7 @@ from ..specs import SpecError, dump_specimen
 from ..store.journal import DiskFull, JournalWriter, utc_now
 from ..store.schema import OPTIONAL_RUN_VARIABLES, global_attrs, portable_command, portable_path
 from .callbacks import RunBlock, subscriber_name
+from ..signals import Signals
 
 #: Exit status of a run by its dataset status (the CLI's, and `RunResult.exit_code`).
 EXIT_CODES = {"complete": 0, "aborted": 3, "interrupted": 130}
@@ -120,50 +120,11 @@ def _differing(magnitude: float, limit: float, value: float) -> str:
     return f"{value:.{digits}g}"
 
 
-class _Signals:
-    """SIGINT and SIGTERM while `execute` runs (main thread only; elsewhere the caller's handlers stay).
-
-    While the run starts and acquires, the first signal raises `RunInterrupted` ("Ctrl-C" or "signal
-    SIGTERM"). From then on, and from the moment the loop is left however it ends, the run is closing
-    (the rig stopped, the connection closed, the dataset written): a signal then is recorded, not raised,
-    so that nothing can leave the dataset half-written; `raise_pending` raises it once the dataset is
-    closed. A signal the caller ignores (SIG_IGN) stays ignored.
-    """
-
-    def __init__(self):
-        self.closing = False
-        self.pending = ""
-        self._previous = {}
-
-    def __enter__(self):
-        import threading
-
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                previous = signal.getsignal(sig)
-                if previous is not signal.SIG_IGN:
-                    self._previous[sig] = previous
-                    signal.signal(sig, self._handle)
-        return self
-
-    def __exit__(self, *exc):
-        for sig, previous in self._previous.items():
-            signal.signal(sig, previous)
-        return False
-
-    def _handle(self, signum, frame):
-        name = "Ctrl-C" if signum == signal.SIGINT else f"signal {signal.Signals(signum).name}"
-        if self.closing:
-            self.pending = self.pending or name
-            return
-        self.closing = True
-        raise RunInterrupted(name)
-
-    def raise_pending(self, result) -> None:
-        """A signal that came while a run that was not interrupted closed: raised now, the dataset whole."""
-        if self.pending and result.status != "interrupted":
-            raise RunInterrupted(f"{self.pending} as the run ended; its dataset {result.path} is closed "
-                                 f"({result.status}, {result.samples} samples)")
+def _raise_pending(signals: Signals, result) -> None:
+    """A signal that came while a run that was not interrupted closed: raised now, the dataset whole."""
+    if signals.pending and result.status != "interrupted":
+        raise RunInterrupted(f"{signals.pending} as the run ended; its dataset {result.path} is closed "
+                             f"({result.status}, {result.samples} samples)")
 
 
 def _subscribers(callbacks):
@@ -210,9 +171,11 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
         stopped the run) or ``interrupted`` (Ctrl-C, SIGTERM).
     """
     subscribers = _subscribers(callbacks)
-    with _Signals() as signals:
+    # while the run starts and acquires, the first signal raises RunInterrupted; from then on, and from the
+    # moment the loop is left however it ends, the run is closing: a signal waits until the dataset is closed
+    with Signals(RunInterrupted, once=True) as signals:
         result = _execute(plan, card, backend, out, seed, command, subscribers, metadata, signals)
-        signals.raise_pending(result)
+        _raise_pending(signals, result)
     return result
 
 
@@ -224,7 +187,8 @@ def _execute(plan, card, backend, out, seed, command, subscribers, metadata, sig
         attrs = run_attrs(plan, card, backend, seed, command, metadata)
         # the output is claimed (journal folder and lock) before anything moves: a second run on it is refused
         measured = tuple(m for m in plan.measure if m in OPTIONAL_RUN_VARIABLES)  # e.g. current
-        writer = JournalWriter(out, None, extra=(*backend.extra_variables, *measured))
+        with signals.deferred():  # the claim is whole or not made
+            writer = JournalWriter(out, None, extra=(*backend.extra_variables, *measured))
         for cb in subscribers:  # a subscriber that cannot start stops the run before anything moves
             start = getattr(cb, "start", None)
             if start is not None:
@@ -232,7 +196,8 @@ def _execute(plan, card, backend, out, seed, command, subscribers, metadata, sig
         backend.start(plan)  # may refuse (its own limits, configuration) before anything moves
         started = True
         attrs.update(backend.attrs())  # what the backend knows once started (model choice, rig identity)
-        writer.begin(attrs)
+        with signals.deferred():
+            writer.begin(attrs)
     except BaseException:
         signals.closing = True
         if started:  # the journal could not be written (a full disk, no permission): stop the rig

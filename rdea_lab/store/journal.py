@@ -190,8 +190,12 @@ class JournalWriter:
         _fsync_dir(self.dir)
 
     def abandon(self) -> None:
-        """Give up a claim that never began (nothing was measured): the folder goes, the lock with it."""
-        if self._fd is None and not (self.dir / "header.json").exists():
+        """Give up a run that never acquired (nothing was measured; `begin` may have been under way or
+        done): the folder goes, the lock with it."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+        if self.samples == 0:
             shutil.rmtree(self.dir, ignore_errors=True)
         self._release()
 
@@ -361,12 +365,23 @@ def recover(path: Path, out: Path | None = None) -> Path:
         w = journal_writer(folder) or {}
         raise RunInProgress(f"{folder}: a run is still writing it (pid {w.get('pid', '?')} on "
                             f"{w.get('host', '?')} since {w.get('started', '?')}); left alone")
-    if out is not None:
-        from .outputs import check_writable
+    from .outputs import OutputError, check_writable, shown
 
-        check_writable(out)
     try:
-        out = Path(out) if out is not None else folder.with_name(folder.name[: -len(".part")])
+        if out is not None:
+            check_writable(out)
+        else:  # the dataset the run was writing: a name the run could not write is said, with the way out
+            out = folder.with_name(folder.name[: -len(".part")])
+            try:
+                check_writable(out)
+            except OutputError as exc:
+                raise OutputError(shown(folder), "dataset", f"{exc.message}; give --out NAME.nc to write its "
+                                  "samples there instead") from None
+    except BaseException:
+        os.close(lock)
+        raise
+    try:
+        out = Path(out)
         if out.exists():
             raise FileExistsError(f"{out} exists already; move it away to recover {folder}")
         ds = read_journal(folder)

@@ -105,7 +105,7 @@ def test_catalog_lists_unreadable_files_without_failing(tmp_path):
     assert rows["status"][0].startswith("unreadable")
 
 
-def test_recover_leaves_a_live_run_alone_and_the_catalogue_says_running(tmp_path):
+def test_recover_leaves_a_live_run_alone_and_the_catalogue_says_running(tmp_path, capsys):
     """The writer holds an OS lock on its journal: recover (here in the same process, which flock keeps
     apart just as it does two processes) must not take the journal of a run still going."""
     out = tmp_path / "run.nc"
@@ -120,7 +120,10 @@ def test_recover_leaves_a_live_run_alone_and_the_catalogue_says_running(tmp_path
     assert catalog(tmp_path)["status"][0].startswith("running")
     from rdea_lab.cli.errors import run as run_cli
     from rdea_lab.cli.main import cli
-    assert run_cli(cli, ["recover", str(tmp_path)]) == 0  # says so, and leaves it
+    # says so, in a status a script can tell from "done" (75, EX_TEMPFAIL: try again later), and leaves it
+    assert run_cli(cli, ["recover", str(tmp_path)]) == 75
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "1 of 1 journals belong to runs still going" in err[0], err
     assert (journal_path(out) / "header.json").is_file()
     w.append(block(1.0, 100))  # the run goes on, undisturbed
     w.finish("complete", "")

@@ -1,0 +1,5 @@
+"""``python -m rdea_lab.cli``: the ``rdea-lab`` command."""
+
+from . import main
+
+main()
