@@ -93,11 +93,54 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                 )
         return super().construct_mapping(node, deep=deep)
 
+    def construct_yaml_int(self, node):
+        try:
+            return super().construct_yaml_int(node)
+        except ValueError:  # more digits than Python converts (sys.get_int_max_str_digits): no spec's number
+            return HugeInteger(self.construct_scalar(node))
+
+
+class HugeInteger(str):
+    """A YAML integer too long for Python to convert: kept as its text, so the field's own check refuses it
+    (naming the field and its allowed range) instead of the loader failing without a field."""
+
+    def __repr__(self) -> str:
+        return f"{str.__str__(self)[:12]}... (an integer of {len(self)} digits)"
+
+
+_UniqueKeyLoader.add_constructor("tag:yaml.org,2002:int", _UniqueKeyLoader.construct_yaml_int)
+
 
 #: The most values a spec may expand to (aliases counted as often as they are used) and the deepest
 #: nesting: far above any real card, protocol or parameter file, far below a "billion laughs" bomb.
 MAX_NODES = 100_000
 MAX_DEPTH = 64
+#: The largest spec file [bytes] read: a spec holds at most `MAX_NODES` values (a table of 100000 numbers
+#: is about 2 MB), so 10 MB is far above any real file; checked before reading (a 100 MB file would take
+#: minutes and gigabytes to parse, only to be refused).
+MAX_SPEC_BYTES = 10_000_000
+
+
+def megabytes(n: int) -> str:
+    """A byte count in MB for messages (``"10 MB"``, ``"12.5 MB"``)."""
+    return f"{n / 1e6:.3g} MB"
+
+
+def check_file_size(source: str, limit: int, allowed: str = "") -> None:
+    """Refuse a file larger than `limit` bytes before reading it (a missing one is left to the reader).
+
+    Raises
+    ------
+    SpecError
+        Naming `source`, its size and the limit; `allowed` adds why the limit is what it is.
+    """
+    try:
+        size = os.stat(source).st_size
+    except OSError:
+        return
+    if size > limit:
+        why = f" ({allowed})" if allowed else ""
+        raise SpecError(source, DOCUMENT, f"the file is {megabytes(size)}; allowed: at most {megabytes(limit)}{why}")
 
 
 def _check_size(data, source: str) -> None:
@@ -181,6 +224,8 @@ def read_yaml_mapping(path: str | os.PathLike, kind: str | None = None) -> tuple
     if kind is not None:
         path = resolve(path, kind)
     source = os.fspath(path)
+    if os.path.isfile(source):
+        check_file_size(source, MAX_SPEC_BYTES, f"a spec holds at most {MAX_NODES} values")
     try:
         with open(source, encoding="utf-8") as fh:
             text = fh.read()
@@ -398,6 +443,6 @@ Identifier = Annotated[str, AfterValidator(_check_identifier)]
 
 
 __all__ = [
-    "DOCUMENT", "Identifier", "SpecError", "SpecModel", "format_loc", "parse_yaml_mapping",
+    "DOCUMENT", "Identifier", "MAX_SPEC_BYTES", "check_file_size", "SpecError", "SpecModel", "format_loc", "parse_yaml_mapping",
     "read_yaml_mapping", "show", "spec_error_from_validation", "units_required",
 ]

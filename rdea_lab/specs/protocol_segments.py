@@ -87,9 +87,15 @@ def format_angle(value: float) -> str:
     return f"{value!r} rad"
 
 
+#: The most cycles a preset runs: a million cycles is a fatigue test of days at 10 Hz, and even at 1 kHz
+#: the sample count (`MAX_SAMPLES`) refuses more.
+MAX_CYCLES = 1_000_000
+
+
 def _whole_positive(value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-        raise SpecError("", "", f"must be a whole number >= 1, got {show(value)}")
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 1 <= value <= MAX_CYCLES:
+        raise SpecError("", "", f"must be a whole number of cycles, got {show(value)}; allowed: 1 to "
+                        f"{MAX_CYCLES} cycles")
     return int(value)
 
 

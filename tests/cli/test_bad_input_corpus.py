@@ -53,3 +53,38 @@ def test_missing_files(capsys, tmp_path):
     line = _check(capsys, ["run", tmp_path / "none.yaml", "--specimen", GOOD_SPECIMEN, "--dry-run"],
                   tmp_path / "none.yaml")
     assert "not found" in line
+
+
+# ------------------------------------------------ bounds (issue 25): generated files, one case per item
+HEADER = "name: bad\nkind: custom\nsample_rate: 100 Hz\n"
+
+
+def _write(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _run_protocol(capsys, path, field):
+    line = _check(capsys, ["run", path, "--specimen", GOOD_SPECIMEN, "--dry-run"], path)
+    assert field in line, line
+    assert "allowed" in line, line
+    return line
+
+
+def test_protocol_file_too_large_is_refused_before_parsing(capsys, tmp_path):
+    from rdea_lab.specs.errors import MAX_SPEC_BYTES
+
+    path = _write(tmp_path, "huge_table.yaml", HEADER + "stretch: [{kind: table, duration: 2 s, values: [1.0, 1.1")
+    with open(path, "a", encoding="utf-8") as fh:  # a table just above the bound, written in one go
+        fh.write(", 1.1" * ((MAX_SPEC_BYTES - path.stat().st_size) // 5 + 1) + "]}]\n")
+    assert path.stat().st_size > MAX_SPEC_BYTES
+    line = _check(capsys, ["run", path, "--specimen", GOOD_SPECIMEN, "--dry-run"], path)
+    assert "MB" in line and "allowed" in line, line
+
+
+def test_cycles_of_5000_digits(capsys, tmp_path):
+    path = _write(tmp_path, "cycles_5000_digits.yaml", "name: bad\nsample_rate: 100 Hz\npreset: tensile_ramp_sine\n"
+                  f"settings: {{cycles: {'7' * 5000}}}\n")
+    line = _run_protocol(capsys, path, "settings.cycles")
+    assert len(line) < 400, line  # the value is not printed whole

@@ -233,7 +233,7 @@ def test_durations_equal_up_to_rounding():
     ("name: x\nsample_rate: 100 Hz\npreset: tensile_ramp_sine\nsettings: {cycles: true}\n",
      "settings.cycles", "whole number"),
     ("name: x\nsample_rate: 100 Hz\npreset: tensile_ramp_sine\nsettings: {cycles: 0}\n",
-     "settings.cycles", "whole number >= 1"),
+     "settings.cycles", "whole number of cycles"),
     (TOP.replace("kind: custom", "kind: [tensile]") + CHANNELS, "kind", "not allowed"),
     (TOP + "measure: [force, force]\n" + CHANNELS, "measure", "listed twice"),
     (TOP + "measure: force\n" + CHANNELS, "measure", "expected a list"),
