@@ -304,6 +304,9 @@ def read_csv_samples(path, quantity=None):
              not line.lstrip().startswith("#")]
     if not lines:
         raise SpecError(source, DOCUMENT, "no header; the first line must be e.g. 'time [s],force [N]'")
+    longest = max(len(line) for _, line in lines)
+    if longest >= csv.field_size_limit():  # a field may be as long as its line: refused for what it holds
+        csv.field_size_limit(longest + 1)
     header = next(csv.reader(io.StringIO(lines[0][1])))
     names, units = [], []
     for cell in header:

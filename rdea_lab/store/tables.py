@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..specs import SpecError
+from ..specs.errors import show
 
 #: How many column names an error message lists before "..."
 _LISTED = 24
@@ -75,10 +76,10 @@ class Table:
         return f"sample {i}"
 
     def label(self, j: int) -> str:
-        return f"{self.kind} {self.names[j]!r}" if self.names[j] else f"{self.kind} {j}"
+        return f"{self.kind} {show(self.names[j])}" if self.names[j] else f"{self.kind} {j}"
 
     def listing(self) -> str:
-        shown = [f"{j} {n!r}" if n else f"{j} (no name)" for j, n in enumerate(self.names[:_LISTED])]
+        shown = [f"{j} {show(n)}" if n else f"{j} (no name)" for j, n in enumerate(self.names[:_LISTED])]
         more = f", ... ({len(self.names)} in all)" if len(self.names) > _LISTED else ""
         return ", ".join(shown) + more if shown else "none"
 
@@ -94,7 +95,7 @@ class Table:
         col = col.strip()
         hits = [j for j, n in enumerate(self.names) if n.strip() == col]
         if len(hits) > 1:
-            raise SpecError(self.source, field, f"{len(hits)} {self.kind}s are named {col!r} "
+            raise SpecError(self.source, field, f"{len(hits)} {self.kind}s are named {show(col)} "
                                                 f"(indices {', '.join(map(str, hits))}); give the index instead")
         if hits:
             return hits[0]
@@ -103,14 +104,14 @@ class Table:
             return self.aliases[key]
         if key in self.ambiguous:
             shared = ", ".join(self.names[j] for j in self.ambiguous[key])
-            raise SpecError(self.source, field, f"{col!r} names several {self.kind}s ({shared}); give the full name")
+            raise SpecError(self.source, field, f"{show(col)} names several {self.kind}s ({shared}); give the full name")
         if re.fullmatch(r"\d+", col):
             j = int(col)
             if j < len(self.names):
                 return j
             raise SpecError(self.source, field, f"{self.kind} index {j} is out of range; the file has "
                                                 f"{len(self.names)} {self.kind}s: {self.listing()}")
-        raise SpecError(self.source, field, f"no {self.kind} {col!r}; available: {self.listing()}")
+        raise SpecError(self.source, field, f"no {self.kind} {show(col)}; available: {self.listing()}")
 
     @staticmethod
     def normalize(col: str) -> str:

@@ -88,3 +88,28 @@ def test_cycles_of_5000_digits(capsys, tmp_path):
                   f"settings: {{cycles: {'7' * 5000}}}\n")
     line = _run_protocol(capsys, path, "settings.cycles")
     assert len(line) < 400, line  # the value is not printed whole
+
+
+IMPORT_CSV = ROOT / "tests" / "store" / "import_data" / "good_trailing_empty_columns.csv"
+ROLL = GOOD_SPECIMEN
+
+
+def _import(csv_path, tmp_path, *extra):
+    return ["import", csv_path, "--format", "csv", "--map", "time=0,position=1,force=2", "--specimen", ROLL,
+            "--protocol-kind", "tensile", "--out", tmp_path / "out.nc", *extra]
+
+
+def test_csv_line_longer_than_the_csv_modules_field_limit_is_read(capsys, tmp_path):
+    path = _write(tmp_path, "long_preamble.csv", "Comment: " + "x" * 200_000 + "\n" + IMPORT_CSV.read_text())
+    rc = run_cli(cli, [str(a) for a in _import(path, tmp_path)])
+    out, err = capsys.readouterr()
+    assert rc == 0, err
+    assert (tmp_path / "out.nc").exists()
+
+
+def test_csv_field_of_200000_characters_is_refused_for_what_it_holds(capsys, tmp_path):
+    path = _write(tmp_path, "long_field.csv", IMPORT_CSV.read_text() + "0.4," + "7x" * 100_000 + ",0.06,,\n")
+    line = _check(capsys, _import(path, tmp_path), path)
+    assert "line 6" in line and "position" in line, line
+    assert len(line) < 400, line
+    assert not (tmp_path / "out.nc").exists()
