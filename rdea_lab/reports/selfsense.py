@@ -103,6 +103,8 @@ def _read(run, source: str) -> xr.Dataset:
         raise SpecError(source, DOCUMENT, "no such file; give a run dataset (.nc) that recorded the current")
     try:
         return open_run(path)
+    except SpecError:  # an attribute or variable not of rdea-lab's types
+        raise
     except (OSError, ValueError) as exc:
         raise SpecError(source, DOCUMENT, f"not a readable netCDF run dataset ({type(exc).__name__})") from None
 

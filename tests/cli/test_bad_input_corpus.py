@@ -113,3 +113,49 @@ def test_csv_field_of_200000_characters_is_refused_for_what_it_holds(capsys, tmp
     assert "line 6" in line and "position" in line, line
     assert len(line) < 400, line
     assert not (tmp_path / "out.nc").exists()
+
+
+# datasets from elsewhere: an attribute or variable not of the type rdea-lab writes
+GOOD_RUN = ROOT / "datasets" / "paper2021" / "specimen-2" / "tensile_ramp_sine_0V.nc"
+PARAMS = ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml"
+
+
+def _foreign_run(tmp_path, name, change):
+    import xarray as xr
+
+    with xr.open_dataset(GOOD_RUN, decode_times=False) as ds:
+        ds = ds.load()
+    change(ds)
+    folder = tmp_path / "runs"
+    folder.mkdir(exist_ok=True)
+    path = folder / name
+    ds.to_netcdf(path)
+    return path
+
+
+def _text_force(ds):
+    ds["force"] = ds["force"].astype(str)
+
+
+def _integer_attr(key):
+    def change(ds):
+        ds.attrs[key] = 42
+    return change
+
+
+FOREIGN = [("show", "text_force.nc", _text_force, "variable 'force'"),
+           ("calibrate", "integer_specimen.nc", _integer_attr("specimen"), "attribute 'specimen'"),
+           ("calibrate", "integer_specimen_id.nc", _integer_attr("specimen_id"), "attribute 'specimen_id'"),
+           ("report", "integer_specimen.nc", _integer_attr("specimen"), "attribute 'specimen'"),
+           ("report", "integer_specimen_id.nc", _integer_attr("specimen_id"), "attribute 'specimen_id'")]
+
+
+@pytest.mark.parametrize("command,name,change,field", FOREIGN, ids=lambda v: v if isinstance(v, str) else "")
+def test_dataset_from_elsewhere(capsys, tmp_path, command, name, change, field):
+    path = _foreign_run(tmp_path, name, change)
+    args = {"show": ["show", path],
+            "calibrate": ["calibrate", path, "--out", tmp_path / "cal.yaml"],
+            "report": ["report", "validation", "--params", PARAMS, "--datasets", path.parent, "--out",
+                       tmp_path / "report", "--no-figures"]}[command]
+    line = _check(capsys, args, path)
+    assert field in line and "allowed" in line, line
