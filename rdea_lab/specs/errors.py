@@ -424,9 +424,15 @@ class SpecModel(BaseModel):
 
 
 _IDENTIFIER = re.compile(r"[A-Za-z0-9._-]+")
+#: The longest name or id: ids name folders and files (``datasets/<id>/<protocol>.nc``, and the journal's
+#: ``.part``), which a file system takes up to 255 bytes; 200 leaves room, and is far above any real name.
+MAX_IDENTIFIER = 200
 
 
 def _check_identifier(value: str) -> str:
+    if len(value) > MAX_IDENTIFIER:
+        raise SpecError("", "", f"{show(value)} is {len(value)} characters long; allowed: at most "
+                        f"{MAX_IDENTIFIER} letters, digits, '-', '_' and '.' (ids name files and folders)")
     if value in (".", "..") or value.startswith("."):
         raise SpecError("", "", f"{show(value)} is not a valid name: it may not start with '.' (ids name files "
                         "and folders, e.g. datasets/<id>/); use letters, digits, '-', '_' and '.'")
@@ -443,6 +449,6 @@ Identifier = Annotated[str, AfterValidator(_check_identifier)]
 
 
 __all__ = [
-    "DOCUMENT", "Identifier", "MAX_SPEC_BYTES", "check_file_size", "SpecError", "SpecModel", "format_loc", "parse_yaml_mapping",
+    "DOCUMENT", "Identifier", "MAX_IDENTIFIER", "MAX_SPEC_BYTES", "check_file_size", "SpecError", "SpecModel", "format_loc", "parse_yaml_mapping",
     "read_yaml_mapping", "show", "spec_error_from_validation", "units_required",
 ]

@@ -159,3 +159,13 @@ def test_dataset_from_elsewhere(capsys, tmp_path, command, name, change, field):
                        tmp_path / "report", "--no-figures"]}[command]
     line = _check(capsys, args, path)
     assert field in line and "allowed" in line, line
+
+
+def test_specimen_id_of_10000_characters(capsys, tmp_path):
+    import re
+
+    text = re.sub(r"(?m)^id: .*$", "id: " + "a" * 10_000, GOOD_SPECIMEN.read_text())
+    path = _write(tmp_path, "specimen_long_id.yaml", text)
+    line = _check(capsys, ["run", GOOD_PROTOCOL, "--specimen", path, "--dry-run"], path)
+    assert "id" in line and "allowed" in line and "..." in line, line
+    assert len(line) < 400, line  # the id is not printed whole
