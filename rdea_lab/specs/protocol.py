@@ -201,6 +201,23 @@ class ProtocolSpec(SpecModel):
         return self
 
     @model_validator(mode="after")
+    def _below_nyquist(self) -> "ProtocolSpec":
+        # a sine above half the sample rate is sampled as another (aliased) one: never what was asked for
+        nyquist = 0.5 * self.sample_rate
+        if self.preset is not None:
+            items = [("settings", self.settings)]
+        else:
+            items = [(f"{c}[{i}]", seg) for c in CHANNELS for i, seg in enumerate(getattr(self, c))]
+        for where, model in items:
+            for key in ("frequency", "f_start", "f_end"):
+                value = getattr(model, key, None)
+                if value is not None and not value < nyquist:
+                    raise SpecError("", f"{where}.{key}", f"{rate_text(value, 6)} is not below the Nyquist frequency "
+                                    f"{rate_text(nyquist, 6)} of the sample rate {rate_text(self.sample_rate, 6)}; "
+                                    f"allowed: 0 < {key} < sample_rate / 2")
+        return self
+
+    @model_validator(mode="after")
     def _same_duration(self) -> "ProtocolSpec":
         if self.preset is not None:
             return self

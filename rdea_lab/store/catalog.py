@@ -16,7 +16,8 @@ from .schema import REQUIRED_ATTRS, is_emulated
 
 #: Attributes rdea-lab writes as numbers: name -> (what, numpy kinds allowed); every other attribute of
 #: `REQUIRED_ATTRS` is a text string (and those of `TEXT_ATTRS` when present).
-NUMBER_ATTRS = {"sample_rate": ("a number [Hz]", "fiu"), "seed": ("an integer from 0 to 2**63 - 1", "iu")}
+#: (A seed netCDF cannot hold as an integer is written as its digits: the journal keeps every run recoverable.)
+NUMBER_ATTRS = {"sample_rate": ("a number [Hz]", "fiu"), "seed": ("an integer from 0 to 2**63 - 1", "iuU")}
 TEXT_ATTRS = tuple(a for a in REQUIRED_ATTRS if a not in NUMBER_ATTRS) + (
     "protocol_source", "measured", "metadata", "finished", "comment", "emulator_truth", "rig_idn", "model")
 

@@ -36,7 +36,7 @@ from .csvtable import read_csv
 from .journal import utc_now, write_dataset
 from .schema import VARIABLES, global_attrs, portable_command, time_attrs, variable_attrs
 from .tables import Table, read_mat, read_tdms
-from ..specs.importing import FORMATS, KINDS, MIN_STRETCH  # noqa: F401  (what import accepts; re-exported)
+from ..specs.importing import FORMATS, KINDS, MAX_STRETCH, MIN_STRETCH  # noqa: F401  (what import accepts; re-exported)
 
 #: mapped quantity -> (its dimension in pint's terms, name, SI unit, example unit)
 QUANTITIES = {
@@ -263,6 +263,15 @@ def import_file(path, card, options: ImportOptions, command: str = "") -> xr.Dat
                         f"position {table.text(j, i).strip()} gives stretch {stretch[i]:.6g} with L1 = "
                         f"{L1 * 1e3:g} mm, below {options.min_stretch:g} (more than noise below 1); check the "
                         "position's zero and sign")
+    high = ~(stretch <= MAX_STRETCH)
+    if high.any():
+        i, j = int(np.argmax(high)), cols["position"]
+        given = (f"unit {show(units['position'])} from --units" if origins["position"] == "--units"
+                 else f"unit {show(units['position'])} in the file")
+        raise SpecError(table.source, f"{table.where(i)}, {table.label(j)}",
+                        f"position {table.text(j, i).strip()} ({given}) gives stretch {stretch[i]:.3g} with L1 = "
+                        f"{L1 * 1e3:g} mm; allowed: stretch {options.min_stretch:g} to {MAX_STRETCH:g} (no elastomer "
+                        "is drawn further); check the position's unit")
     n = t.size
     data = {"stretch": stretch, "position": si["position"], "voltage": si.get("voltage", np.zeros(n)),
             "force": si["force"], "capacitance": si.get("capacitance", np.full(n, np.nan)),

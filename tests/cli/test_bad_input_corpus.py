@@ -169,3 +169,19 @@ def test_specimen_id_of_10000_characters(capsys, tmp_path):
     line = _check(capsys, ["run", GOOD_PROTOCOL, "--specimen", path, "--dry-run"], path)
     assert "id" in line and "allowed" in line and "..." in line, line
     assert len(line) < 400, line  # the id is not printed whole
+
+
+def test_positions_in_parsecs(capsys, tmp_path):
+    path = _write(tmp_path, "parsecs.csv", "time (s),position [pc],force (N)\n0.0,0.0,0.01\n0.1,0.4,0.02\n"
+                  "0.2,0.8,0.04\n")
+    line = _check(capsys, _import(path, tmp_path), path)
+    assert "position" in line and "'pc'" in line and "allowed" in line, line  # the column and the unit given
+    assert not (tmp_path / "out.nc").exists()
+
+
+@pytest.mark.parametrize("limit", ["max_force: 1e308 N", "max_voltage: 1e9 kV", "max_field: 1e9 V/um",
+                                   "max_stretch: 1e6"])
+def test_absurd_limits(capsys, tmp_path, limit):
+    path = _write(tmp_path, "absurd_limit.yaml", HEADER + f"limits: {{{limit}}}\n"
+                  "stretch: [{kind: hold, duration: 2 s}]\nvoltage: [{kind: hold, duration: 2 s}]\n")
+    _run_protocol(capsys, path, "limits." + limit.split(":")[0])
