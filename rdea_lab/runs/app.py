@@ -101,9 +101,13 @@ def check_outputs(paths, overwrite: bool = False, names=None) -> None:
 
 
 def check_seed(seed) -> int:
-    """A noise seed: an integer from 0 to 2**63 - 1 (what the rig and the dataset attributes hold)."""
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
-        raise SpecError(ARGS, "seed", f"{seed!r} is not an integer from 0 to 2**63 - 1")
+    """A noise seed: an integer from 0 to 2**63 - 1 (what the rig and the dataset attributes hold;
+    `rdea_lab.specs.errors.seed_problem`, the rule of truth files and campaigns too)."""
+    from ..specs.errors import seed_problem
+
+    problem = seed_problem(seed)
+    if problem:
+        raise SpecError(ARGS, "seed", problem)
     return int(seed)
 
 

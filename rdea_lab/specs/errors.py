@@ -423,6 +423,18 @@ class SpecModel(BaseModel):
             _FROM_YAML.reset(token)
 
 
+#: The largest noise seed: numpy's generators take any integer >= 0, but the rig's protocol and the
+#: dataset attributes hold a signed 64-bit integer.
+MAX_SEED = 2**63 - 1
+
+
+def seed_problem(value: Any) -> str | None:
+    """What is wrong with `value` as a noise seed (one rule everywhere: an integer 0 to 2**63 - 1), or None."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_SEED:
+        return f"{show(value)} is not an integer from 0 to 2**63 - 1; allowed: 0 to {MAX_SEED}"
+    return None
+
+
 _IDENTIFIER = re.compile(r"[A-Za-z0-9._-]+")
 #: The longest name or id: ids name folders and files (``datasets/<id>/<protocol>.nc``, and the journal's
 #: ``.part``), which a file system takes up to 255 bytes; 200 leaves room, and is far above any real name.
@@ -449,6 +461,6 @@ Identifier = Annotated[str, AfterValidator(_check_identifier)]
 
 
 __all__ = [
-    "DOCUMENT", "Identifier", "MAX_IDENTIFIER", "MAX_SPEC_BYTES", "check_file_size", "SpecError", "SpecModel", "format_loc", "parse_yaml_mapping",
+    "DOCUMENT", "Identifier", "MAX_IDENTIFIER", "MAX_SEED", "seed_problem", "MAX_SPEC_BYTES", "check_file_size", "SpecError", "SpecModel", "format_loc", "parse_yaml_mapping",
     "read_yaml_mapping", "show", "spec_error_from_validation", "units_required",
 ]

@@ -185,3 +185,23 @@ def test_absurd_limits(capsys, tmp_path, limit):
     path = _write(tmp_path, "absurd_limit.yaml", HEADER + f"limits: {{{limit}}}\n"
                   "stretch: [{kind: hold, duration: 2 s}]\nvoltage: [{kind: hold, duration: 2 s}]\n")
     _run_protocol(capsys, path, "limits." + limit.split(":")[0])
+
+
+def test_truth_seed_of_2_to_the_64(capsys, tmp_path):
+    import re
+
+    truth = ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml"
+    path = _write(tmp_path, "truth_seed.yaml", re.sub(r"(?m)^seed: .*$", f"seed: {2**64}", truth.read_text()))
+    line = _check(capsys, ["run", GOOD_PROTOCOL, "--specimen", GOOD_SPECIMEN, "--backend", "emulator", "--truth",
+                           path, "--out", tmp_path / "run.nc"], path)
+    assert "seed" in line and "allowed" in line, line
+    assert not (tmp_path / "run.nc").exists()
+
+
+def test_campaign_whose_second_run_seed_overflows_names_the_file_and_the_run(capsys, tmp_path):
+    path = _write(tmp_path, "campaign_seed.yaml", f"name: c\nbackend: twin\nseed: {2**63 - 1}\nout: {tmp_path}/out\n"
+                  "specimens: [specimens/specimen2.yaml]\n"
+                  "protocols: [protocols/tensile_ramp_sine_0V.yaml, protocols/blocking_force.yaml]\n")
+    line = _check(capsys, ["campaign", "run", path], path)
+    assert "seed" in line and "run 2" in line and "blocking_force" in line and "allowed" in line, line
+    assert not (tmp_path / "out").exists()
