@@ -335,6 +335,9 @@ def output_paths(paths, card_id: str, out=None, overwrite: bool = False) -> list
         existing dataset without `overwrite`.
     """
     paths = [Path(p) for p in paths]
+    if out is not None and Path(out).suffix and Path(out).suffix.lower() != ".nc" and not Path(out).is_dir():
+        raise SpecError(str(out), "--out", f"the suffix {Path(out).suffix!r}; allowed: a .nc file name (a dataset "
+                        "is written as netCDF) or a folder")
     if out is not None and Path(out).suffix == ".nc" and not Path(out).is_dir():
         if len(paths) > 1:
             raise SpecError("command line", "--out", f"{out} is one file, for {len(paths)} inputs; give a folder")

@@ -362,8 +362,9 @@ def recover(path: Path, out: Path | None = None) -> Path:
         raise RunInProgress(f"{folder}: a run is still writing it (pid {w.get('pid', '?')} on "
                             f"{w.get('host', '?')} since {w.get('started', '?')}); left alone")
     if out is not None:
-        from .outputs import check_writable
+        from .outputs import check_dataset_name, check_writable
 
+        check_dataset_name(out)
         check_writable(out)
     try:
         out = Path(out) if out is not None else folder.with_name(folder.name[: -len(".part")])
