@@ -341,6 +341,23 @@ def spec_error_from_validation(
     return SpecError(source, where or DOCUMENT, _message(err, model))
 
 
+_DECIMAL_TAIL = re.compile(r"\d+(?:[eE][+-]?\d+)?(?:\s+\S.*)?")
+
+
+def empty_value_error(data: dict, key: Any) -> SpecError:
+    """The error for ``key:`` with nothing after it in `data`. A key such as ``6 kV`` right after a key with a
+    number is a decimal comma inside ``{...}`` (``{voltage: 2,6 kV}`` reads as ``voltage: 2`` and ``6 kV:``)."""
+    keys = list(data)
+    i = keys.index(key) if key in keys else -1
+    before = keys[i - 1] if i > 0 else None
+    if (isinstance(key, str) and _DECIMAL_TAIL.fullmatch(key) and before is not None
+            and isinstance(data[before], (int, float)) and not isinstance(data[before], bool)):
+        written = f"{data[before]},{key}"
+        return SpecError("", str(before), f"'{written}' reads as '{data[before]}' and a key '{key}' (a comma "
+                         f"separates entries in {{...}}); use a decimal point, e.g. '{data[before]}.{key}'")
+    return SpecError("", str(key), "no value given")
+
+
 #: True while validating a mapping read from a file: quantities then need units
 _FROM_YAML: contextvars.ContextVar[bool] = contextvars.ContextVar("rdea_lab_specs_from_yaml", default=False)
 
@@ -354,8 +371,15 @@ def units_required() -> bool:
 def _check_keys(data: Any, loc: tuple, source: str) -> None:
     """Refuse non-text keys anywhere (YAML allows ``1: x``; a spec does not)."""
     if isinstance(data, dict):
-        for key, value in data.items():
+        keys = list(data)
+        for i, (key, value) in enumerate(data.items()):
             if not isinstance(key, str):
+                before = keys[i - 1] if i > 0 else None
+                if (value is None and isinstance(key, (int, float)) and isinstance(before, str)
+                        and isinstance(data[before], (int, float)) and not isinstance(data[before], bool)):
+                    raise SpecError(source, format_loc(loc + (before,)), f"a number with a decimal comma reads as "
+                                    f"two entries inside {{...}} ('{data[before]}' and a key {show(key)}); use a "
+                                    f"decimal point, e.g. '{data[before]}.5', not '{data[before]},5'")
                 raise SpecError(source, format_loc(loc + (str(key),)), f"key {show(key)} is not a text string")
             _check_keys(value, loc + (key,), source)
     elif isinstance(data, list):
@@ -401,7 +425,7 @@ class SpecModel(BaseModel):
         if units_required() and isinstance(data, dict):
             for key, value in data.items():
                 if value is None:
-                    raise SpecError("", str(key), "no value given")
+                    raise empty_value_error(data, key)
         return data
 
     @classmethod

@@ -32,7 +32,7 @@ import yaml
 from pydantic import PrivateAttr, field_validator, model_validator
 
 from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, show
-from .errors import units_required
+from .errors import empty_value_error, units_required
 from .protocol_presets import (  # noqa: F401  (re-exported: part of the protocol spec)
     BlockingForceSettings, CapacitanceSweepSettings, PRESETS, PresetSchema, Settings, TensileRampSineSettings,
 )
@@ -118,7 +118,7 @@ class ProtocolSpec(SpecModel):
         if units_required():
             for key, value in data.items():
                 if value is None:
-                    raise SpecError("", str(key), "no value given")
+                    raise empty_value_error(data, key)
         data = {k: v for k, v in data.items() if v is not None}
         has_preset, channels = "preset" in data, [c for c in CHANNELS if c in data]
         if has_preset and channels:

@@ -205,3 +205,31 @@ def test_campaign_whose_second_run_seed_overflows_names_the_file_and_the_run(cap
     line = _check(capsys, ["campaign", "run", path], path)
     assert "seed" in line and "run 2" in line and "blocking_force" in line and "allowed" in line, line
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("name", ["run.csv", "run"])
+def test_dataset_out_without_nc_suffix(capsys, tmp_path, name):
+    out = tmp_path / name
+    line = _check(capsys, ["run", GOOD_PROTOCOL, "--specimen", GOOD_SPECIMEN, "--backend", "twin", "--out", out], out)
+    assert "out" in line and ".nc" in line and "allowed" in line, line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_import_out_with_another_suffix(capsys, tmp_path):
+    out = tmp_path / "run.csv"
+    line = _check(capsys, _import(IMPORT_CSV, tmp_path)[:-1] + [out], out)
+    assert "--out" in line and ".nc" in line and "allowed" in line, line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_bare_voltage_hint_is_a_plausible_voltage(capsys):
+    path = ROOT / "tests" / "protocols" / "bad" / "voltage_3000_no_unit.yaml"
+    line = _check(capsys, ["run", path, "--specimen", GOOD_SPECIMEN, "--dry-run"], path)
+    assert "'3000 V'" in line or "'3 kV'" in line, line
+    assert "'3000 kV'" not in line, line  # 3 MV: no amplifier, no roll
+
+
+def test_a_decimal_comma_hint_asks_for_a_decimal_point(capsys):
+    path = ROOT / "tests" / "protocols" / "bad" / "decimal_comma.yaml"
+    line = _check(capsys, ["run", path, "--specimen", GOOD_SPECIMEN, "--dry-run"], path)
+    assert "2.6 kV" in line and "decimal point" in line, line
