@@ -3,7 +3,7 @@ problems into it.
 
 Every mistake a user can make in a specimen card or a parameter file ends as
 one `SpecError` whose ``str`` is a single line
-``"{source}: {field}: {message}"``, e.g.
+``"{source}: {field}: {message}"`` (``"{source}: {message}"`` for the document as a whole), e.g.
 ``specimens/x.yaml: membrane.L3: '48 kg' is not a length; give it with a
 length unit, e.g. '48 um'``.
 """
@@ -64,7 +64,9 @@ class SpecError(UserError):
         self.source = _one_line(source)
         self.field = _one_line(field)
         self.message = _one_line(message)
-        super().__init__(f"{self.source}: {self.field}: {self.message}")
+        # a problem of the file as a whole names no field ("x.yaml: file not found")
+        where = self.source if self.field == DOCUMENT else f"{self.source}: {self.field}"
+        super().__init__(f"{where}: {self.message}")
 
     def __reduce__(self):
         return (type(self), (self.source, self.field, self.message))
@@ -485,6 +487,8 @@ Identifier = Annotated[str, AfterValidator(_check_identifier)]
 
 
 __all__ = [
-    "DOCUMENT", "Identifier", "MAX_IDENTIFIER", "MAX_SEED", "seed_problem", "MAX_SPEC_BYTES", "check_file_size", "SpecError", "SpecModel", "format_loc", "parse_yaml_mapping",
+    "DOCUMENT", "Identifier", "MAX_IDENTIFIER", "MAX_SEED", "MAX_SPEC_BYTES", "check_file_size", "empty_value_error",
+    "seed_problem",
+    "SpecError", "SpecModel", "format_loc", "parse_yaml_mapping",
     "read_yaml_mapping", "show", "spec_error_from_validation", "units_required",
 ]

@@ -11,7 +11,10 @@ This module holds the table itself and the TDMS and .mat readers;
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -104,7 +107,8 @@ class Table:
             return self.aliases[key]
         if key in self.ambiguous:
             shared = ", ".join(self.names[j] for j in self.ambiguous[key])
-            raise SpecError(self.source, field, f"{show(col)} names several {self.kind}s ({shared}); give the full name")
+            raise SpecError(self.source, field,
+                            f"{show(col)} names several {self.kind}s ({shared}); give the full name")
         if re.fullmatch(r"\d+", col):
             j = int(col)
             if j < len(self.names):
@@ -143,6 +147,33 @@ class ArrayTable(Table):
 
 
 # -------------------------------------------------------------------- TDMS
+@contextlib.contextmanager
+def _quiet_library(name: str):
+    """While the block runs, the library `name`'s log records and warnings are kept, not printed (npTDMS
+    gives its loggers a console handler of its own); yields the list of what it said (warnings and above)."""
+    said: list[str] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record):
+            if record.levelno >= logging.WARNING:
+                said.append(record.getMessage())
+
+    loggers = [logging.getLogger(n) for n in list(logging.root.manager.loggerDict)
+               if n == name or n.startswith(name + ".")]
+    saved = [(log, log.handlers[:], log.propagate) for log in loggers]
+    keep = Keep()
+    for log in loggers:
+        log.handlers, log.propagate = [keep], False
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            yield said
+        said.extend(str(w.message) for w in caught)
+    finally:
+        for log, handlers, propagate in saved:
+            log.handlers, log.propagate = handlers, propagate
+
+
 def read_tdms(path: Path) -> ArrayTable:
     """The channels of a TDMS file: names ``group/channel`` (a channel's own
     name finds it too when no other group has one so named), units from the
@@ -151,10 +182,15 @@ def read_tdms(path: Path) -> ArrayTable:
 
     source = str(path)
     TdmsFile = require("nptdms", f"{source}: reading a TDMS file").TdmsFile
-    try:
-        tdms = TdmsFile.read(path)
-    except Exception as exc:  # npTDMS raises ValueError, KeyError, struct.error... on foreign bytes
-        raise SpecError(source, "<document>", f"not a readable TDMS file ({type(exc).__name__}: {exc})") from None
+    with _quiet_library("nptdms") as said:
+        try:
+            tdms = TdmsFile.read(path)
+        except Exception as exc:  # npTDMS raises ValueError, KeyError, struct.error... on foreign bytes
+            raise SpecError(source, "<document>", f"not a readable TDMS file ({type(exc).__name__}: "
+                            f"{show(str(exc), 200)})") from None
+    if said:  # npTDMS read past a problem (a truncated last segment, ...): the file is not what was written
+        raise SpecError(source, "<document>", f"an incomplete TDMS file (npTDMS: {show(said[0], 200)}); allowed: a "
+                        "complete TDMS file (a recording that was closed)")
     names, arrays, units, owners = [], [], [], {}
     for group in tdms.groups():
         for ch in group.channels():

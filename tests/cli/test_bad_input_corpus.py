@@ -53,6 +53,7 @@ def test_missing_files(capsys, tmp_path):
     line = _check(capsys, ["run", tmp_path / "none.yaml", "--specimen", GOOD_SPECIMEN, "--dry-run"],
                   tmp_path / "none.yaml")
     assert "not found" in line
+    assert "<document>" not in line, line  # no placeholder where a field would be
 
 
 # ------------------------------------------------ bounds (issue 25): generated files, one case per item
@@ -233,3 +234,24 @@ def test_a_decimal_comma_hint_asks_for_a_decimal_point(capsys):
     path = ROOT / "tests" / "protocols" / "bad" / "decimal_comma.yaml"
     line = _check(capsys, ["run", path, "--specimen", GOOD_SPECIMEN, "--dry-run"], path)
     assert "2.6 kV" in line and "decimal point" in line, line
+
+
+def test_truncated_tdms_gives_one_line_not_the_librarys_warnings(capfd, tmp_path):
+    pytest.importorskip("nptdms")
+    import numpy as np
+    from nptdms import ChannelObject, TdmsWriter
+
+    path = tmp_path / "truncated.tdms"
+    with TdmsWriter(str(path)) as writer:
+        writer.write_segment([ChannelObject("Rig", name, np.linspace(0.01, 1.0, 1000)) for name in ("t", "x", "F")])
+    with open(path, "r+b") as fh:  # a recording cut off half way
+        fh.truncate(path.stat().st_size // 2)
+    rc = run_cli(cli, [str(a) for a in ["import", path, "--format", "tdms", "--map", "time=Rig/t,position=Rig/x,"
+                                        "force=Rig/F", "--units", "time=s,position=mm,force=N", "--specimen", ROLL,
+                                        "--protocol-kind", "tensile", "--out", tmp_path / "out.nc"]])
+    out, err = capfd.readouterr()
+    lines = err.strip().splitlines()
+    assert rc == 2, err
+    assert len(lines) == 1 and "WARNING" not in err, err  # npTDMS's own log lines are kept, not printed
+    assert path.name in lines[0] and "allowed" in lines[0], lines[0]
+    assert not (tmp_path / "out.nc").exists()
