@@ -66,6 +66,8 @@ def gather_runs(inputs, kinds=("tensile",), skipped=None) -> list:
     for p in paths:
         try:
             runs.append(load_run(p))
+        except SpecError:  # already names the file and the field
+            raise
         except (KeyError, OSError, ValueError) as exc:
             raise SpecError(str(getattr(p, "encoding", {}).get("source", p)), "<document>",
                             f"cannot fit: {exc}") from None

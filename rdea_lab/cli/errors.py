@@ -131,7 +131,9 @@ def _run(group: click.Group, argv) -> int:
         # an internal error: say so, traceback on request
         if os.environ.get("RDEA_LAB_DEBUG"):
             traceback.print_exc()
-        click.echo(f"rdea-lab: internal error: {type(exc).__name__}: {_one_line(exc)} "
+        detail = _one_line(exc)
+        detail = detail if len(detail) <= 300 else detail[:297] + "..."  # never a whole huge value
+        click.echo(f"rdea-lab: internal error: {type(exc).__name__}: {detail} "
                    "(set RDEA_LAB_DEBUG=1 for a traceback)", err=True)
         return 1
 

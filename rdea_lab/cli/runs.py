@@ -10,7 +10,7 @@ from pathlib import Path
 import click
 
 from .. import api
-from ..specs import MODEL_CHOICES
+from ..specs import MODEL_CHOICES, UserError
 from .errors import EXIT_HELP, die, headless
 
 LIVE_HELP = ("Live view of the samples: 'table' (a line a second), 'plot' (a matplotlib window) "
@@ -237,6 +237,8 @@ def show(file, plot_path):
         die(f"{file}: no such file")
     try:
         ds = api.open_run(file)
+    except UserError:  # a dataset from elsewhere: the attribute or variable that is not rdea-lab's
+        raise
     except (OSError, ValueError) as exc:
         die(f"{file}: not a readable netCDF dataset ({type(exc).__name__})")
     if "time" not in ds or "force" not in ds:

@@ -45,7 +45,7 @@ from ..specs.errors import DOCUMENT
 from ..specs.truth import MODELS
 from ..store import open_run
 from ..store.journal import utc_now, write_dataset
-from ..store.outputs import check_writable
+from ..store.outputs import check_dataset_name, check_writable
 from ..twin.cf import SELFSENSE_VARIABLES, variable_attrs
 from ..twin.selfsense import BLEND_VOLTAGE, capacitance_rls, capacitance_secant, stretch_from_capacitance
 
@@ -103,6 +103,8 @@ def _read(run, source: str) -> xr.Dataset:
         raise SpecError(source, DOCUMENT, "no such file; give a run dataset (.nc) that recorded the current")
     try:
         return open_run(path)
+    except SpecError:  # an attribute or variable not of rdea-lab's types
+        raise
     except (OSError, ValueError) as exc:
         raise SpecError(source, DOCUMENT, f"not a readable netCDF run dataset ({type(exc).__name__})") from None
 
@@ -213,6 +215,7 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimat
     if tau is not None and not (tau > 0.0 and np.isfinite(tau)):
         raise SpecError("arguments", "tau", f"{tau!r} is not a finite time > 0 s")
     if out is not None:
+        check_dataset_name(out)
         if Path(out).exists() and not overwrite:
             raise SpecError(str(out), "out", "exists; give another output or overwrite it (--force)")
         check_writable(out)

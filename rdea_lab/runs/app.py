@@ -26,7 +26,7 @@ from ..physics.models import three_ring
 from ..protocols import as_plan, first_violation
 from ..specs import MODEL_CHOICES, SpecError, as_params, as_specimen
 from ..store import journal_path, open_run
-from ..store.outputs import OutputError, check_writable  # noqa: F401  (part of this layer's API)
+from ..store.outputs import OutputError, check_dataset_name, check_writable  # noqa: F401  (this layer's API)
 from .engine import check_metadata, execute
 
 DEFAULT_PARAMS = "params/paper2021_table3.yaml"
@@ -89,6 +89,7 @@ def check_outputs(paths, overwrite: bool = False, names=None) -> None:
                               "output (distinct specimen ids and protocol names)")
         seen[key] = name
     for out in paths:
+        check_dataset_name(out)
         if journal_path(out).exists():
             raise OutputInUse(str(out), "out", f"an unfinished run's journal {journal_path(out)} is in the way; "
                               "rdea-lab recover it, or remove it")
@@ -101,9 +102,13 @@ def check_outputs(paths, overwrite: bool = False, names=None) -> None:
 
 
 def check_seed(seed) -> int:
-    """A noise seed: an integer from 0 to 2**63 - 1 (what the rig and the dataset attributes hold)."""
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**63:
-        raise SpecError(ARGS, "seed", f"{seed!r} is not an integer from 0 to 2**63 - 1")
+    """A noise seed: an integer from 0 to 2**63 - 1 (what the rig and the dataset attributes hold;
+    `rdea_lab.specs.errors.seed_problem`, the rule of truth files and campaigns too)."""
+    from ..specs.errors import seed_problem
+
+    problem = seed_problem(seed)
+    if problem:
+        raise SpecError(ARGS, "seed", problem)
     return int(seed)
 
 

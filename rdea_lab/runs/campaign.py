@@ -86,7 +86,8 @@ def _checked(spec, root, out_dir, overwrite, metadata):
     """The experiments, each one's seed (``spec.seed + i``) and the metadata, every check done before any run."""
     runs = experiments(spec, root, out_dir)
     metadata = check_metadata(metadata)
-    check_seed(spec.seed + max(len(runs) - 1, 0))
+    check_seed(spec.seed)
+    spec.check_run_seeds([r.name for r in runs])
     check_outputs([r.out for r in runs], overwrite, names=[r.name for r in runs])
     return runs, {id(r): spec.seed + i for i, r in enumerate(runs)}, metadata  # each run its own noise
 

@@ -6,9 +6,11 @@ import os
 from pathlib import Path
 from typing import Literal
 
-from .errors import DOCUMENT, Identifier, SpecError, SpecModel, read_yaml_mapping, show
+from pydantic import PrivateAttr
+
+from .errors import DOCUMENT, MAX_SEED, Identifier, SpecError, SpecModel, read_yaml_mapping, show
 from ..paths import resolve
-from .truth import MODEL_CHOICES
+from .truth import MODEL_CHOICES, Seed
 
 
 class CampaignSpec(SpecModel):
@@ -29,10 +31,25 @@ class CampaignSpec(SpecModel):
     truth: str | None = None
     params: str | None = None
     model: Literal[MODEL_CHOICES] = "auto"
-    seed: int = 0
+    seed: Seed = 0
     out: str
     specimens: tuple[str, ...]
     protocols: tuple[str, ...]
+    _origin: str = PrivateAttr("<python>")
+
+    @property
+    def origin(self) -> str:
+        """Where the campaign was read from (a file path, or ``"<python>"``), for messages about it."""
+        return self._origin
+
+    def check_run_seeds(self, names) -> None:
+        """Refuse a ``seed`` whose run ``i`` (of the `names`, in order) would get a seed above `MAX_SEED`
+        (each run's seed is ``seed + i``), naming the campaign file and the first such run."""
+        for i, name in enumerate(names):
+            if self.seed + i > MAX_SEED:
+                raise SpecError(self.origin, "seed", f"run {i + 1} of {len(names)} ({name}) would get seed "
+                                f"{self.seed} + {i}, above 2**63 - 1; allowed: seed 0 to {MAX_SEED - len(names) + 1} "
+                                f"for {len(names)} runs")
 
 
 def load_campaign(path: str | os.PathLike) -> tuple[CampaignSpec, Path]:
@@ -58,7 +75,9 @@ def load_campaign(path: str | os.PathLike) -> tuple[CampaignSpec, Path]:
     for key, kind in (("truth", "truth"), ("params", "params")):
         if getattr(spec, key) is not None:
             update[key] = found(getattr(spec, key), kind, key)
-    return spec.model_copy(update=update), root
+    spec = spec.model_copy(update=update)
+    spec._origin = source
+    return spec, root
 
 
 __all__ = ["CampaignSpec", "DOCUMENT", "load_campaign"]

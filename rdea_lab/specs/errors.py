@@ -3,7 +3,7 @@ problems into it.
 
 Every mistake a user can make in a specimen card or a parameter file ends as
 one `SpecError` whose ``str`` is a single line
-``"{source}: {field}: {message}"``, e.g.
+``"{source}: {field}: {message}"`` (``"{source}: {message}"`` for the document as a whole), e.g.
 ``specimens/x.yaml: membrane.L3: '48 kg' is not a length; give it with a
 length unit, e.g. '48 um'``.
 """
@@ -64,7 +64,9 @@ class SpecError(UserError):
         self.source = _one_line(source)
         self.field = _one_line(field)
         self.message = _one_line(message)
-        super().__init__(f"{self.source}: {self.field}: {self.message}")
+        # a problem of the file as a whole names no field ("x.yaml: file not found")
+        where = self.source if self.field == DOCUMENT else f"{self.source}: {self.field}"
+        super().__init__(f"{where}: {self.message}")
 
     def __reduce__(self):
         return (type(self), (self.source, self.field, self.message))
@@ -93,11 +95,54 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                 )
         return super().construct_mapping(node, deep=deep)
 
+    def construct_yaml_int(self, node):
+        try:
+            return super().construct_yaml_int(node)
+        except ValueError:  # more digits than Python converts (sys.get_int_max_str_digits): no spec's number
+            return HugeInteger(self.construct_scalar(node))
+
+
+class HugeInteger(str):
+    """A YAML integer too long for Python to convert: kept as its text, so the field's own check refuses it
+    (naming the field and its allowed range) instead of the loader failing without a field."""
+
+    def __repr__(self) -> str:
+        return f"{str.__str__(self)[:12]}... (an integer of {len(self)} digits)"
+
+
+_UniqueKeyLoader.add_constructor("tag:yaml.org,2002:int", _UniqueKeyLoader.construct_yaml_int)
+
 
 #: The most values a spec may expand to (aliases counted as often as they are used) and the deepest
 #: nesting: far above any real card, protocol or parameter file, far below a "billion laughs" bomb.
 MAX_NODES = 100_000
 MAX_DEPTH = 64
+#: The largest spec file [bytes] read: a spec holds at most `MAX_NODES` values (a table of 100000 numbers
+#: is about 2 MB), so 10 MB is far above any real file; checked before reading (a 100 MB file would take
+#: minutes and gigabytes to parse, only to be refused).
+MAX_SPEC_BYTES = 10_000_000
+
+
+def megabytes(n: int) -> str:
+    """A byte count in MB for messages (``"10 MB"``, ``"12.5 MB"``)."""
+    return f"{n / 1e6:.3g} MB"
+
+
+def check_file_size(source: str, limit: int, allowed: str = "") -> None:
+    """Refuse a file larger than `limit` bytes before reading it (a missing one is left to the reader).
+
+    Raises
+    ------
+    SpecError
+        Naming `source`, its size and the limit; `allowed` adds why the limit is what it is.
+    """
+    try:
+        size = os.stat(source).st_size
+    except OSError:
+        return
+    if size > limit:
+        why = f" ({allowed})" if allowed else ""
+        raise SpecError(source, DOCUMENT, f"the file is {megabytes(size)}; allowed: at most {megabytes(limit)}{why}")
 
 
 def _check_size(data, source: str) -> None:
@@ -181,6 +226,8 @@ def read_yaml_mapping(path: str | os.PathLike, kind: str | None = None) -> tuple
     if kind is not None:
         path = resolve(path, kind)
     source = os.fspath(path)
+    if os.path.isfile(source):
+        check_file_size(source, MAX_SPEC_BYTES, f"a spec holds at most {MAX_NODES} values")
     try:
         with open(source, encoding="utf-8") as fh:
             text = fh.read()
@@ -296,6 +343,23 @@ def spec_error_from_validation(
     return SpecError(source, where or DOCUMENT, _message(err, model))
 
 
+_DECIMAL_TAIL = re.compile(r"\d+(?:[eE][+-]?\d+)?(?:\s+\S.*)?")
+
+
+def empty_value_error(data: dict, key: Any) -> SpecError:
+    """The error for ``key:`` with nothing after it in `data`. A key such as ``6 kV`` right after a key with a
+    number is a decimal comma inside ``{...}`` (``{voltage: 2,6 kV}`` reads as ``voltage: 2`` and ``6 kV:``)."""
+    keys = list(data)
+    i = keys.index(key) if key in keys else -1
+    before = keys[i - 1] if i > 0 else None
+    if (isinstance(key, str) and _DECIMAL_TAIL.fullmatch(key) and before is not None
+            and isinstance(data[before], (int, float)) and not isinstance(data[before], bool)):
+        written = f"{data[before]},{key}"
+        return SpecError("", str(before), f"'{written}' reads as '{data[before]}' and a key '{key}' (a comma "
+                         f"separates entries in {{...}}); use a decimal point, e.g. '{data[before]}.{key}'")
+    return SpecError("", str(key), "no value given")
+
+
 #: True while validating a mapping read from a file: quantities then need units
 _FROM_YAML: contextvars.ContextVar[bool] = contextvars.ContextVar("rdea_lab_specs_from_yaml", default=False)
 
@@ -309,8 +373,15 @@ def units_required() -> bool:
 def _check_keys(data: Any, loc: tuple, source: str) -> None:
     """Refuse non-text keys anywhere (YAML allows ``1: x``; a spec does not)."""
     if isinstance(data, dict):
-        for key, value in data.items():
+        keys = list(data)
+        for i, (key, value) in enumerate(data.items()):
             if not isinstance(key, str):
+                before = keys[i - 1] if i > 0 else None
+                if (value is None and isinstance(key, (int, float)) and isinstance(before, str)
+                        and isinstance(data[before], (int, float)) and not isinstance(data[before], bool)):
+                    raise SpecError(source, format_loc(loc + (before,)), f"a number with a decimal comma reads as "
+                                    f"two entries inside {{...}} ('{data[before]}' and a key {show(key)}); use a "
+                                    f"decimal point, e.g. '{data[before]}.5', not '{data[before]},5'")
                 raise SpecError(source, format_loc(loc + (str(key),)), f"key {show(key)} is not a text string")
             _check_keys(value, loc + (key,), source)
     elif isinstance(data, list):
@@ -356,7 +427,7 @@ class SpecModel(BaseModel):
         if units_required() and isinstance(data, dict):
             for key, value in data.items():
                 if value is None:
-                    raise SpecError("", str(key), "no value given")
+                    raise empty_value_error(data, key)
         return data
 
     @classmethod
@@ -378,10 +449,28 @@ class SpecModel(BaseModel):
             _FROM_YAML.reset(token)
 
 
+#: The largest noise seed: numpy's generators take any integer >= 0, but the rig's protocol and the
+#: dataset attributes hold a signed 64-bit integer.
+MAX_SEED = 2**63 - 1
+
+
+def seed_problem(value: Any) -> str | None:
+    """What is wrong with `value` as a noise seed (one rule everywhere: an integer 0 to 2**63 - 1), or None."""
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_SEED:
+        return f"{show(value)} is not an integer from 0 to 2**63 - 1; allowed: 0 to {MAX_SEED}"
+    return None
+
+
 _IDENTIFIER = re.compile(r"[A-Za-z0-9._-]+")
+#: The longest name or id: ids name folders and files (``datasets/<id>/<protocol>.nc``, and the journal's
+#: ``.part``), which a file system takes up to 255 bytes; 200 leaves room, and is far above any real name.
+MAX_IDENTIFIER = 200
 
 
 def _check_identifier(value: str) -> str:
+    if len(value) > MAX_IDENTIFIER:
+        raise SpecError("", "", f"{show(value)} is {len(value)} characters long; allowed: at most "
+                        f"{MAX_IDENTIFIER} letters, digits, '-', '_' and '.' (ids name files and folders)")
     if value in (".", "..") or value.startswith("."):
         raise SpecError("", "", f"{show(value)} is not a valid name: it may not start with '.' (ids name files "
                         "and folders, e.g. datasets/<id>/); use letters, digits, '-', '_' and '.'")
@@ -398,6 +487,8 @@ Identifier = Annotated[str, AfterValidator(_check_identifier)]
 
 
 __all__ = [
-    "DOCUMENT", "Identifier", "SpecError", "SpecModel", "format_loc", "parse_yaml_mapping",
+    "DOCUMENT", "Identifier", "MAX_IDENTIFIER", "MAX_SEED", "MAX_SPEC_BYTES", "check_file_size", "empty_value_error",
+    "seed_problem",
+    "SpecError", "SpecModel", "format_loc", "parse_yaml_mapping",
     "read_yaml_mapping", "show", "spec_error_from_validation", "units_required",
 ]

@@ -8,4 +8,9 @@ MODEL_CHOICES = (*MODELS, "auto")
 #: What a protocol (a run) is.
 KINDS = ("tensile", "blocking", "capacitance", "custom")
 
-__all__ = ["KINDS", "MODEL_CHOICES", "MODELS"]
+#: The largest stretch anything takes as one (an imported run, a protocol's limit): no elastomer film is
+#: drawn to 20 times its length (VHB 4910, the stretchiest common one, tears near 8-10 in uniaxial tension);
+#: above it, a unit or a zero is wrong.
+MAX_STRETCH = 20.0
+
+__all__ = ["KINDS", "MAX_STRETCH", "MODEL_CHOICES", "MODELS"]

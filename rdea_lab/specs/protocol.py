@@ -32,7 +32,7 @@ import yaml
 from pydantic import PrivateAttr, field_validator, model_validator
 
 from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, show
-from .errors import units_required
+from .errors import empty_value_error, units_required
 from .protocol_presets import (  # noqa: F401  (re-exported: part of the protocol spec)
     BlockingForceSettings, CapacitanceSweepSettings, PRESETS, PresetSchema, Settings, TensileRampSineSettings,
 )
@@ -118,7 +118,7 @@ class ProtocolSpec(SpecModel):
         if units_required():
             for key, value in data.items():
                 if value is None:
-                    raise SpecError("", str(key), "no value given")
+                    raise empty_value_error(data, key)
         data = {k: v for k, v in data.items() if v is not None}
         has_preset, channels = "preset" in data, [c for c in CHANNELS if c in data]
         if has_preset and channels:
@@ -198,6 +198,23 @@ class ProtocolSpec(SpecModel):
         if "current" not in self.measure:
             raise SpecError("", "measure", f"a probe is for self-sensing from the amplifier current: add current "
                                            f"to measure (got {', '.join(self.measure)})")
+        return self
+
+    @model_validator(mode="after")
+    def _below_nyquist(self) -> "ProtocolSpec":
+        # a sine above half the sample rate is sampled as another (aliased) one: never what was asked for
+        nyquist = 0.5 * self.sample_rate
+        if self.preset is not None:
+            items = [("settings", self.settings)]
+        else:
+            items = [(f"{c}[{i}]", seg) for c in CHANNELS for i, seg in enumerate(getattr(self, c))]
+        for where, model in items:
+            for key in ("frequency", "f_start", "f_end"):
+                value = getattr(model, key, None)
+                if value is not None and not value < nyquist:
+                    raise SpecError("", f"{where}.{key}", f"{rate_text(value, 6)} is not below the Nyquist frequency "
+                                    f"{rate_text(nyquist, 6)} of the sample rate {rate_text(self.sample_rate, 6)}; "
+                                    f"allowed: 0 < {key} < sample_rate / 2")
         return self
 
     @model_validator(mode="after")

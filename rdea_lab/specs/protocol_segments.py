@@ -13,7 +13,7 @@ from pydantic import AfterValidator, BaseModel, BeforeValidator, Field, model_va
 
 from .errors import DOCUMENT, SpecError, SpecModel, show
 from .errors import units_required
-from .names import KINDS  # noqa: F401  (re-exported: a protocol's kinds)
+from .names import KINDS, MAX_STRETCH  # noqa: F401  (re-exported: a protocol's kinds)
 from .units import _NUMBER, format_quantity, parse_quantity, quantity, ureg
 
 
@@ -87,9 +87,15 @@ def format_angle(value: float) -> str:
     return f"{value!r} rad"
 
 
+#: The most cycles a preset runs: a million cycles is a fatigue test of days at 10 Hz, and even at 1 kHz
+#: the sample count (`MAX_SAMPLES`) refuses more.
+MAX_CYCLES = 1_000_000
+
+
 def _whole_positive(value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
-        raise SpecError("", "", f"must be a whole number >= 1, got {show(value)}")
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 1 <= value <= MAX_CYCLES:
+        raise SpecError("", "", f"must be a whole number of cycles, got {show(value)}; allowed: 1 to "
+                        f"{MAX_CYCLES} cycles")
     return int(value)
 
 
@@ -104,8 +110,29 @@ Angle = Annotated[float, BeforeValidator(_angle)]
 Cycles = Annotated[int, BeforeValidator(_whole_positive)]
 
 
+#: Ceilings of the safety limits: a limit above them is no limit of a rolled DEA on a bench rig but a unit
+#: mistake (``max_force: 1e308 N``). High-voltage amplifiers for DEAs reach 10-30 kV; the paper's roll pulls a
+#: few newtons, and a 1 kN load cell is far beyond such a rig; no elastomer holds 1000 V/um (VHB breaks
+#: near 100-400 V/um); stretch at most `MAX_STRETCH`.
+LIMIT_CEILINGS = {"max_voltage": 30e3, "max_stretch": MAX_STRETCH, "max_force": 1e3, "max_field": 1000e6}
+
+
+def _ceiling(name: str, unit: str, why: str):
+    top = LIMIT_CEILINGS[name]
+
+    def check(value: float) -> float:
+        if not value <= top:
+            bottom = "1 <=" if name == "max_stretch" else f"0 {unit} <"
+            shown = f"{value:g}" if name == "max_stretch" else format_quantity(value, unit, digits=6)
+            raise SpecError("", "", f"{shown} is above any real limit ({why}); allowed: {bottom} {name} <= "
+                            f"{f'{top:g}' if name == 'max_stretch' else format_quantity(top, unit)}")
+        return value
+
+    return AfterValidator(check)
+
+
 class Limits(SpecModel):
-    """Safety limits of a protocol (SI).
+    """Safety limits of a protocol (SI), each at most its `LIMIT_CEILINGS` value.
 
     Attributes
     ----------
@@ -119,10 +146,14 @@ class Limits(SpecModel):
         Largest allowed field estimate ``|v| sqrt(stretch) / L3`` [V/m]; 80 V/um by default.
     """
 
-    max_voltage: quantity("voltage", "kV", gt=0.0) = 3e3
-    max_stretch: quantity("dimensionless", "", ge=1.0) = 2.0
-    max_force: quantity("force", "N", gt=0.0) = 50.0
-    max_field: quantity("electric_field", "V/um", gt=0.0) = 80e6
+    max_voltage: Annotated[quantity("voltage", "kV", gt=0.0),
+                           _ceiling("max_voltage", "kV", "DEA amplifiers reach 10-30 kV")] = 3e3
+    max_stretch: Annotated[quantity("dimensionless", "", ge=1.0),
+                           _ceiling("max_stretch", "", "no elastomer is drawn 20-fold")] = 2.0
+    max_force: Annotated[quantity("force", "N", gt=0.0),
+                         _ceiling("max_force", "N", "a rolled DEA pulls a few newtons; 1 kN is beyond the rig")] = 50.0
+    max_field: Annotated[quantity("electric_field", "V/um", gt=0.0),
+                         _ceiling("max_field", "V/um", "elastomers break down near 100-400 V/um")] = 80e6
 
     @classmethod
     def from_options(cls, values: dict, source: str = "command line") -> "Limits":

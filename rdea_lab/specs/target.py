@@ -37,7 +37,8 @@ from pydantic import field_validator, model_validator
 
 from ..paths import resolve
 
-from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, show
+from .errors import DOCUMENT, MAX_NODES, MAX_SPEC_BYTES, Identifier, SpecError, SpecModel, check_file_size
+from .errors import parse_yaml_mapping, show
 from .protocol_segments import Duration, Limits, MAX_TABLE_VALUES, SampleRate, Stretch
 from .units import format_quantity, parse_quantity, quantity
 
@@ -47,6 +48,8 @@ TARGETS = ("force", "stretch")
 BIAS_KINDS = ("none", "mass", "spring")
 #: the quantity of each target and its dimension, SI unit and example header
 COLUMNS = {"force": ("force", "N"), "stretch": ("dimensionless", "-")}
+#: The largest samples CSV [bytes]: `MAX_TABLE_VALUES` lines of two numbers of full precision are about 40 MB.
+MAX_CSV_BYTES = 64_000_000
 
 
 class NoBias(SpecModel):
@@ -277,7 +280,11 @@ def _inline_samples(data, quantity, source):
 
 
 def _read_text(source):
-    """A target file's text; a missing or unreadable file is a SpecError naming it."""
+    """A target file's text; a missing, unreadable or too large file is a SpecError naming it."""
+    if str(source).lower().endswith(".csv"):
+        check_file_size(source, MAX_CSV_BYTES, f"a samples file holds at most {MAX_TABLE_VALUES} lines")
+    else:
+        check_file_size(source, MAX_SPEC_BYTES, f"a spec holds at most {MAX_NODES} values")
     try:
         return Path(source).read_text(encoding="utf-8")
     except FileNotFoundError:
@@ -297,6 +304,9 @@ def read_csv_samples(path, quantity=None):
              not line.lstrip().startswith("#")]
     if not lines:
         raise SpecError(source, DOCUMENT, "no header; the first line must be e.g. 'time [s],force [N]'")
+    longest = max(len(line) for _, line in lines)
+    if longest >= csv.field_size_limit():  # a field may be as long as its line: refused for what it holds
+        csv.field_size_limit(longest + 1)
     header = next(csv.reader(io.StringIO(lines[0][1])))
     names, units = [], []
     for cell in header:

@@ -55,7 +55,8 @@ from typing import Annotated, Any
 import yaml
 from pydantic import AfterValidator, BeforeValidator
 
-from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, show
+from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, seed_problem
+from .errors import show
 from .params import ParameterSet, _Viscoelastic, _Yeoh, dump_params, params_from_mapping
 from .names import MODEL_CHOICES, MODELS  # noqa: F401  (MODEL_CHOICES re-exported)
 from .units import format_quantity, quantity
@@ -102,9 +103,11 @@ ModelName = Annotated[str, BeforeValidator(_model_name)]
 
 
 def _seed(value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
-        raise SpecError("", "", f"seed {show(value)} is not an integer >= 0")
-    return int(value)
+    value = int(value) if isinstance(value, numbers.Integral) and not isinstance(value, bool) else value
+    problem = seed_problem(value)
+    if problem:
+        raise SpecError("", "", problem)
+    return value
 
 
 Seed = Annotated[int, BeforeValidator(_seed)]

@@ -100,6 +100,34 @@ _UNIT_NAME = r"(?:[A-Za-zµμΩ°_]+|%)(?:(?:\^|\*\*)-?\d)?"
 _UNIT = re.compile(rf"(?:1\s*/\s*)?{_UNIT_NAME}(?:\s*[*/ ·⋅]\s*{_UNIT_NAME})*")
 
 
+#: Where a bare number's likely unit is looked for [SI]: a rolled DEA's voltages (up to the 30 kV of the
+#: limits' ceiling), forces, fields and frequencies. A number that is plausible in the field's display unit
+#: keeps it; '3000' for a voltage shown in kV is '3000 V' (or '3 kV'), not '3000 kV'.
+_PLAUSIBLE = {"voltage": (1.0, 30e3), "force": (1e-4, 1e3), "electric_field": (1e5, 1e9),
+              "frequency": (1e-4, 1e5)}
+
+
+def _bare_example(dimension: str, number: str, example_unit: str | None) -> str:
+    """The example for a number given without a unit: in the first unit (the field's, the dimension's
+    example's, SI) in which the number is plausible, and in the field's unit too."""
+    if dimension not in _PLAUSIBLE:
+        return _example(dimension, number, example_unit)
+    low, high = _PLAUSIBLE[dimension]
+    si_unit = _DIMENSIONS[dimension][0]
+    shown_unit = example_unit or _DIMENSIONS[dimension][2].partition(" ")[2]
+    for unit in dict.fromkeys(u for u in (shown_unit, _DIMENSIONS[dimension][2].partition(" ")[2], si_unit) if u):
+        try:
+            si = abs(float(number)) * float(ureg.Quantity(1.0, ureg.parse_units(unit)).to(si_unit).magnitude)
+        except Exception:  # a number or unit the example cannot use: the plain example
+            return _example(dimension, number, example_unit)
+        if low <= si <= high:
+            first = f"'{number} {unit}'"
+            if unit == shown_unit:
+                return first
+            return f"{first} or '{format_quantity(math.copysign(si, float(number)), shown_unit)}'"
+    return _example(dimension, number, example_unit)
+
+
 def _example(dimension: str, number: str | None, example_unit: str | None) -> str:
     ex_number, _, ex_unit = _DIMENSIONS[dimension][2].partition(" ")
     unit = ex_unit if example_unit is None else example_unit
@@ -160,7 +188,7 @@ def parse_quantity(
             raise fail(f"{value} is not a finite number; give a finite {name}")
         if dimension != "dimensionless":
             raise fail(
-                f"'{value}' has no unit; give a {name}, e.g. {_example(dimension, str(value), example_unit)}"
+                f"'{value}' has no unit; give a {name}, e.g. {_bare_example(dimension, str(value), example_unit)}"
             )
         return float(value)
 
@@ -174,7 +202,7 @@ def parse_quantity(
     if not math.isfinite(float(number)):
         raise fail(f"{show(value)} is not a finite number; give a finite {name}")
     if not unit_text and dimension != "dimensionless":
-        raise fail(f"{show(value)} has no unit; give a {name}, e.g. {_example(dimension, number, example_unit)}")
+        raise fail(f"{show(value)} has no unit; give a {name}, e.g. {_bare_example(dimension, number, example_unit)}")
     if unit_text and (len(unit_text) > 40 or not _UNIT.fullmatch(unit_text)):
         raise fail(
             f"{show(value)}: {show(unit_text)} is not a unit (names such as kV, V/um, kPa s; no arithmetic); "

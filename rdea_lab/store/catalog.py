@@ -9,8 +9,47 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
+from ..specs import SpecError
+from ..specs.errors import show
 from .journal import FORMAT, journal_writer
-from .schema import is_emulated
+from .schema import REQUIRED_ATTRS, is_emulated
+
+#: Attributes rdea-lab writes as numbers: name -> (what, numpy kinds allowed); every other attribute of
+#: `REQUIRED_ATTRS` is a text string (and those of `TEXT_ATTRS` when present).
+#: (A seed netCDF cannot hold as an integer is written as its digits: the journal keeps every run recoverable.)
+NUMBER_ATTRS = {"sample_rate": ("a number [Hz]", "fiu"), "seed": ("an integer from 0 to 2**63 - 1", "iuU")}
+TEXT_ATTRS = tuple(a for a in REQUIRED_ATTRS if a not in NUMBER_ATTRS) + (
+    "protocol_source", "measured", "metadata", "finished", "comment", "emulator_truth", "rig_idn", "model")
+
+
+def _kind(value) -> str:
+    """numpy's kind letter of an attribute value (``"U"`` text, ``"i"`` integer, ``"f"`` float, ...)."""
+    if isinstance(value, bool):
+        return "b"
+    return np.asarray(value).dtype.kind if np.ndim(value) == 0 else "array"
+
+
+def check_run(ds: xr.Dataset, source: str) -> None:
+    """Refuse a dataset whose attributes or variables are not of the types rdea-lab writes (a file made
+    elsewhere): attributes and dtypes only, no data read.
+
+    Raises
+    ------
+    SpecError
+        Naming `source`, the attribute or variable, and what rdea-lab writes there.
+    """
+    attrs = {k: v.item() if isinstance(v, np.generic) else v for k, v in ds.attrs.items()}
+    for name in TEXT_ATTRS:
+        if name in attrs and _kind(attrs[name]) != "U":
+            raise SpecError(source, f"attribute '{name}'", f"{show(attrs[name])} is not text; allowed: a text "
+                            "string (as rdea-lab writes it)")
+    for name, (what, kinds) in NUMBER_ATTRS.items():
+        if name in attrs and _kind(attrs[name]) not in kinds:
+            raise SpecError(source, f"attribute '{name}'", f"{show(attrs[name])}; allowed: {what}")
+    for name, var in ds.variables.items():
+        if var.dtype.kind not in "biuf":
+            raise SpecError(source, f"variable '{name}'", f"holds {var.dtype} values; allowed: numbers (float or "
+                            "integer, as rdea-lab writes them)")
 
 
 def open_run(path: Path) -> xr.Dataset:
@@ -19,8 +58,14 @@ def open_run(path: Path) -> xr.Dataset:
     ``time`` is float seconds since the run's start, as the file stores it (its
     ``units``, ``seconds since <start, ISO 8601 UTC>``, say when that was):
     times are not decoded to dates, so ``ds.time.values`` arithmetic is in seconds.
+
+    Raises
+    ------
+    SpecError
+        An attribute or variable not of the type rdea-lab writes (`check_run`).
     """
     with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
+        check_run(ds, str(path))
         return ds.load()
 
 

@@ -29,6 +29,7 @@ import numpy as np
 import pandas as pd
 
 from ..specs import SpecError, ureg
+from ..specs.errors import show
 from .tables import Table, unit_text
 
 ENCODINGS = ("utf-8", "utf-8-sig", "gbk", "cp1252", "latin-1")
@@ -65,6 +66,11 @@ def decode(raw: bytes, source: str, encoding: str | None = None) -> tuple[str, s
 
 
 def _split(line: str, sep: str) -> list[str]:
+    """The fields of one line; a field may be as long as the line (the csv module's default limit of
+    131072 characters is no limit of a data file: a preamble comment or a garbage cell is refused for what
+    it is, not for its length)."""
+    if len(line) >= csv.field_size_limit():
+        csv.field_size_limit(len(line) + 1)
     return next(csv.reader([line], delimiter=sep, quotechar='"'), [])
 
 
@@ -237,5 +243,5 @@ class CsvTable(Table):
         if bad.any():
             i = int(np.argmax(bad))
             raise SpecError(self.source, f"{self.where(i)}, {self.label(j)}",
-                            f"{self.text(j, i)!r} is not a number")
+                            f"{show(self.text(j, i))} is not a number")
         return values

@@ -31,11 +31,12 @@ import yaml
 from .._version import __version__
 from ..physics.geometry import geometry_from_card
 from ..specs import SpecError, dump_specimen, ureg
+from ..specs.errors import show
 from .csvtable import read_csv
 from .journal import utc_now, write_dataset
 from .schema import VARIABLES, global_attrs, portable_command, time_attrs, variable_attrs
 from .tables import Table, read_mat, read_tdms
-from ..specs.importing import FORMATS, KINDS, MIN_STRETCH  # noqa: F401  (what import accepts; re-exported)
+from ..specs.importing import FORMATS, KINDS, MAX_STRETCH, MIN_STRETCH  # noqa: F401  (what import accepts; re-exported)
 
 #: mapped quantity -> (its dimension in pint's terms, name, SI unit, example unit)
 QUANTITIES = {
@@ -60,12 +61,12 @@ def parse_pairs(text: str, option: str) -> dict[str, str]:
         key, eq, value = item.partition("=")
         key, value = key.strip(), value.strip()
         if not eq or not key or not value:
-            raise SpecError("command line", option, f"{item.strip()!r} is not KEY=VALUE "
+            raise SpecError("command line", option, f"{show(item.strip())} is not KEY=VALUE "
                                                     f"(e.g. {option} time=0,position=1,force=2)")
         if key not in QUANTITIES:
-            raise SpecError("command line", option, f"unknown key {key!r}; allowed: {', '.join(QUANTITIES)}")
+            raise SpecError("command line", option, f"unknown key {show(key)}; allowed: {', '.join(QUANTITIES)}")
         if key in out:
-            raise SpecError("command line", option, f"{key!r} is given twice")
+            raise SpecError("command line", option, f"{show(key)} is given twice")
         out[key] = value
     return out
 
@@ -85,7 +86,7 @@ def parse_units(text: str | None, mapping: dict[str, str]) -> dict[str, str]:
     units = parse_pairs(text, "--units") if text else {}
     for key, unit in units.items():
         if key not in mapping:
-            raise SpecError("command line", "--units", f"a unit for {key!r}, which --map does not map")
+            raise SpecError("command line", "--units", f"a unit for {show(key)}, which --map does not map")
         si_converter(unit, key, "command line", f"--units {key}")
     return units
 
@@ -105,9 +106,9 @@ def si_converter(unit: str, quantity: str, source: str, field: str):
     try:
         parsed = ureg.parse_units(unit)
     except Exception:  # pint raises several kinds on text that is no unit
-        raise SpecError(source, field, f"unknown unit {unit!r}; give a {name} unit, e.g. {example}") from None
+        raise SpecError(source, field, f"unknown unit {show(unit)}; give a {name} unit, e.g. {example}") from None
     if parsed.dimensionality != ureg.get_dimensionality(dim):
-        raise SpecError(source, field, f"unit {unit!r} is not a {name} unit ({quantity} needs one, e.g. {example})")
+        raise SpecError(source, field, f"unit {show(unit)} is not a {name} unit ({quantity} needs one, e.g. {example})")
     factor = float(ureg.Quantity(1.0, parsed).to(si).magnitude)
     if factor >= 1.0 and factor == round(factor):
         return lambda v: v * round(factor)
@@ -183,7 +184,7 @@ def _read_bytes(path: Path) -> bytes:
 
 def _column(table: Table, key: str, j: int, unit: str, origin: str) -> np.ndarray:
     """Column `j` in SI, every sample finite (capacitance may be NaN: not measured)."""
-    where_unit = f"--units {key}" if origin == "--units" else f"{table.label(j)} (unit {unit!r} in the file)"
+    where_unit = f"--units {key}" if origin == "--units" else f"{table.label(j)} (unit {show(unit)} in the file)"
     convert = si_converter(unit, key, "command line" if origin == "--units" else table.source, where_unit)
     values = table.values(j)
     if key != "capacitance":
@@ -191,7 +192,7 @@ def _column(table: Table, key: str, j: int, unit: str, origin: str) -> np.ndarra
         if bad.any():
             i = int(np.argmax(bad))
             text = table.text(j, i)
-            what = "an empty field" if not text.strip() else f"{text!r} is not a finite number"
+            what = "an empty field" if not text.strip() else f"{show(text)} is not a finite number"
             raise SpecError(table.source, f"{table.where(i)}, {table.label(j)}", f"{what} ({key})")
     return convert(values)
 
@@ -262,6 +263,15 @@ def import_file(path, card, options: ImportOptions, command: str = "") -> xr.Dat
                         f"position {table.text(j, i).strip()} gives stretch {stretch[i]:.6g} with L1 = "
                         f"{L1 * 1e3:g} mm, below {options.min_stretch:g} (more than noise below 1); check the "
                         "position's zero and sign")
+    high = ~(stretch <= MAX_STRETCH)
+    if high.any():
+        i, j = int(np.argmax(high)), cols["position"]
+        given = (f"unit {show(units['position'])} from --units" if origins["position"] == "--units"
+                 else f"unit {show(units['position'])} in the file")
+        raise SpecError(table.source, f"{table.where(i)}, {table.label(j)}",
+                        f"position {table.text(j, i).strip()} ({given}) gives stretch {stretch[i]:.3g} with L1 = "
+                        f"{L1 * 1e3:g} mm; allowed: stretch {options.min_stretch:g} to {MAX_STRETCH:g} (no elastomer "
+                        "is drawn further); check the position's unit")
     n = t.size
     data = {"stretch": stretch, "position": si["position"], "voltage": si.get("voltage", np.zeros(n)),
             "force": si["force"], "capacitance": si.get("capacitance", np.full(n, np.nan)),
@@ -325,6 +335,9 @@ def output_paths(paths, card_id: str, out=None, overwrite: bool = False) -> list
         existing dataset without `overwrite`.
     """
     paths = [Path(p) for p in paths]
+    if out is not None and Path(out).suffix and Path(out).suffix.lower() != ".nc" and not Path(out).is_dir():
+        raise SpecError(str(out), "--out", f"the suffix {Path(out).suffix!r}; allowed: a .nc file name (a dataset "
+                        "is written as netCDF) or a folder")
     if out is not None and Path(out).suffix == ".nc" and not Path(out).is_dir():
         if len(paths) > 1:
             raise SpecError("command line", "--out", f"{out} is one file, for {len(paths)} inputs; give a folder")

@@ -365,10 +365,11 @@ def recover(path: Path, out: Path | None = None) -> Path:
         w = journal_writer(folder) or {}
         raise RunInProgress(f"{folder}: a run is still writing it (pid {w.get('pid', '?')} on "
                             f"{w.get('host', '?')} since {w.get('started', '?')}); left alone")
-    from .outputs import OutputError, check_writable, shown
+    from .outputs import OutputError, check_dataset_name, check_writable, shown
 
     try:
         if out is not None:
+            check_dataset_name(out)
             check_writable(out)
         else:  # the dataset the run was writing: a name the run could not write is said, with the way out
             out = folder.with_name(folder.name[: -len(".part")])

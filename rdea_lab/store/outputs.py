@@ -22,6 +22,17 @@ def shown(path) -> str:
     return str(path).encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
 
 
+def check_dataset_name(path, what="out") -> None:
+    """Raise `OutputError` unless ``path`` names a netCDF file (``.nc``): a dataset written under another
+    suffix (``run.csv``) is netCDF all the same, and misleads every program that opens it by its name.
+    For dataset outputs only (reports and figures have their own suffixes)."""
+    suffix = Path(path).suffix
+    if suffix.lower() != ".nc":
+        given = f"the suffix {suffix!r}" if suffix else "no suffix"
+        raise OutputError(shown(path), what, f"{given}; allowed: a .nc file name (a dataset is written as "
+                          "netCDF)")
+
+
 def check_writable(path, what="out") -> None:
     """Raise `OutputError` unless the file ``path`` can be created: a name in UTF-8 (netCDF and the
     dataset's attributes store it as text), each part of it (and the journal's ``<name>.part``) no longer

@@ -11,12 +11,16 @@ This module holds the table itself and the TDMS and .mat readers;
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ..specs import SpecError
+from ..specs.errors import show
 
 #: How many column names an error message lists before "..."
 _LISTED = 24
@@ -75,10 +79,10 @@ class Table:
         return f"sample {i}"
 
     def label(self, j: int) -> str:
-        return f"{self.kind} {self.names[j]!r}" if self.names[j] else f"{self.kind} {j}"
+        return f"{self.kind} {show(self.names[j])}" if self.names[j] else f"{self.kind} {j}"
 
     def listing(self) -> str:
-        shown = [f"{j} {n!r}" if n else f"{j} (no name)" for j, n in enumerate(self.names[:_LISTED])]
+        shown = [f"{j} {show(n)}" if n else f"{j} (no name)" for j, n in enumerate(self.names[:_LISTED])]
         more = f", ... ({len(self.names)} in all)" if len(self.names) > _LISTED else ""
         return ", ".join(shown) + more if shown else "none"
 
@@ -94,7 +98,7 @@ class Table:
         col = col.strip()
         hits = [j for j, n in enumerate(self.names) if n.strip() == col]
         if len(hits) > 1:
-            raise SpecError(self.source, field, f"{len(hits)} {self.kind}s are named {col!r} "
+            raise SpecError(self.source, field, f"{len(hits)} {self.kind}s are named {show(col)} "
                                                 f"(indices {', '.join(map(str, hits))}); give the index instead")
         if hits:
             return hits[0]
@@ -103,14 +107,15 @@ class Table:
             return self.aliases[key]
         if key in self.ambiguous:
             shared = ", ".join(self.names[j] for j in self.ambiguous[key])
-            raise SpecError(self.source, field, f"{col!r} names several {self.kind}s ({shared}); give the full name")
+            raise SpecError(self.source, field,
+                            f"{show(col)} names several {self.kind}s ({shared}); give the full name")
         if re.fullmatch(r"\d+", col):
             j = int(col)
             if j < len(self.names):
                 return j
             raise SpecError(self.source, field, f"{self.kind} index {j} is out of range; the file has "
                                                 f"{len(self.names)} {self.kind}s: {self.listing()}")
-        raise SpecError(self.source, field, f"no {self.kind} {col!r}; available: {self.listing()}")
+        raise SpecError(self.source, field, f"no {self.kind} {show(col)}; available: {self.listing()}")
 
     @staticmethod
     def normalize(col: str) -> str:
@@ -142,6 +147,33 @@ class ArrayTable(Table):
 
 
 # -------------------------------------------------------------------- TDMS
+@contextlib.contextmanager
+def _quiet_library(name: str):
+    """While the block runs, the library `name`'s log records and warnings are kept, not printed (npTDMS
+    gives its loggers a console handler of its own); yields the list of what it said (warnings and above)."""
+    said: list[str] = []
+
+    class Keep(logging.Handler):
+        def emit(self, record):
+            if record.levelno >= logging.WARNING:
+                said.append(record.getMessage())
+
+    loggers = [logging.getLogger(n) for n in list(logging.root.manager.loggerDict)
+               if n == name or n.startswith(name + ".")]
+    saved = [(log, log.handlers[:], log.propagate) for log in loggers]
+    keep = Keep()
+    for log in loggers:
+        log.handlers, log.propagate = [keep], False
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            yield said
+        said.extend(str(w.message) for w in caught)
+    finally:
+        for log, handlers, propagate in saved:
+            log.handlers, log.propagate = handlers, propagate
+
+
 def read_tdms(path: Path) -> ArrayTable:
     """The channels of a TDMS file: names ``group/channel`` (a channel's own
     name finds it too when no other group has one so named), units from the
@@ -150,10 +182,15 @@ def read_tdms(path: Path) -> ArrayTable:
 
     source = str(path)
     TdmsFile = require("nptdms", f"{source}: reading a TDMS file").TdmsFile
-    try:
-        tdms = TdmsFile.read(path)
-    except Exception as exc:  # npTDMS raises ValueError, KeyError, struct.error... on foreign bytes
-        raise SpecError(source, "<document>", f"not a readable TDMS file ({type(exc).__name__}: {exc})") from None
+    with _quiet_library("nptdms") as said:
+        try:
+            tdms = TdmsFile.read(path)
+        except Exception as exc:  # npTDMS raises ValueError, KeyError, struct.error... on foreign bytes
+            raise SpecError(source, "<document>", f"not a readable TDMS file ({type(exc).__name__}: "
+                            f"{show(str(exc), 200)})") from None
+    if said:  # npTDMS read past a problem (a truncated last segment, ...): the file is not what was written
+        raise SpecError(source, "<document>", f"an incomplete TDMS file (npTDMS: {show(said[0], 200)}); allowed: a "
+                        "complete TDMS file (a recording that was closed)")
     names, arrays, units, owners = [], [], [], {}
     for group in tdms.groups():
         for ch in group.channels():

@@ -73,8 +73,8 @@ def test_plan_then_run_then_check(tmp_path, capsys):
     ("f.csv", (), r"f\.csv \(options for a CSV target\): stretch: missing"),
     ("f.csv", ("--stretch", "0.8"), r"--stretch: stretch 0\.8 is below 1"),
     ("f.csv", ("--stretch", "1.5", "--sample-rate", "0 Hz"), r"--sample-rate: must be > 0 Hz"),
-    ("short.yaml", ("--stretch", "1.5"), r"short\.yaml: <document>: the target file gives its own settings"),
-    ("missing.yaml", (), r"missing\.yaml: <document>: file not found"),
+    ("short.yaml", ("--stretch", "1.5"), r"short\.yaml: the target file gives its own settings"),
+    ("missing.yaml", (), r"missing\.yaml: file not found"),
 ])
 def test_bad_inputs_exit_2_with_one_line(tmp_path, capsys, target, extra, match):
     """In process (the CLI's own `run`, as the console script calls it): the same exit status and stderr."""

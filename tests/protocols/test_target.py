@@ -44,7 +44,7 @@ def test_the_written_protocol_drives_the_twin_backend_to_the_target(tmp_path):
     ds = rdea_lab.run_protocol(path, CARD, "twin", params=PARAMS, model="su", out=tmp_path / "r.nc")
     tr = tracking_error(ds, tp)
     assert tr["relative_max"] < 1e-6 and tr["stretch_error_max"] < 1e-9
-    with pytest.raises(SpecError, match=r"p\.yaml: <document>: exists; give another --out or --force"):
+    with pytest.raises(SpecError, match=r"p\.yaml: exists; give another --out or --force"):
         write_protocol(tp, path)
 
 

@@ -105,7 +105,7 @@ def test_bad_input_is_refused_naming_the_file_and_field(run, tmp_path):
     no_probe = twin_run(tmp_path, probe="", name="noprobe.nc")
     with pytest.raises(SpecError, match=r"noprobe.nc: protocol.probe: the run's protocol has no probe"):
         selfsense_run(no_probe, PARAMS)
-    with pytest.raises(SpecError, match=r"missing.nc: <document>: no such file"):
+    with pytest.raises(SpecError, match=r"missing.nc: no such file"):
         selfsense_run(tmp_path / "missing.nc", PARAMS)
     with pytest.raises(SpecError, match=r"tare: 'zero' is not one of rest, reference, none"):
         selfsense_run(run, PARAMS, tare="zero")
@@ -144,7 +144,7 @@ def test_cli_prints_one_line_and_writes_the_dataset(run, tmp_path, capsys, monke
      "rdea-lab: datasets/paper2021/specimen-2/blocking_force.nc: current: the run has no current variable"),
     (("RUN", "--params", "rdea_lab/data/protocols/blocking_force.yaml"),
      "rdea-lab: rdea_lab/data/protocols/blocking_force.yaml: "),
-    (("nowhere.nc", "--params", "params/paper2021_table3.yaml"), "rdea-lab: nowhere.nc: <document>: no such file"),
+    (("nowhere.nc", "--params", "params/paper2021_table3.yaml"), "rdea-lab: nowhere.nc: no such file"),
 ])
 def test_cli_bad_input_exit_2_one_line(run, tmp_path, capsys, monkeypatch, args, message):
     args = [str(run) if a == "RUN" else a for a in args]

@@ -251,7 +251,7 @@ def test_cli_report_writes_and_prints_the_table(report_cli, twin_folder, tmp_pat
 
 
 @pytest.mark.parametrize("argv, pattern", [
-    (["--params", "no/such.yaml", "--datasets", "{folder}"], r"no/such.yaml: <document>: file not found"),
+    (["--params", "no/such.yaml", "--datasets", "{folder}"], r"no/such.yaml: file not found"),
     (["--params", str(TABLE3), "--datasets", "{empty}"], r"no complete runs found"),
     (["--params", str(TABLE3), "--datasets", "{folder}", "--model", "5r"], r"'5r' is not one of"),
     (["--params", str(TABLE3)], r"Missing option '--datasets'"),

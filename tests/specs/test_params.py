@@ -258,7 +258,7 @@ def test_invalid_parameter_mappings(data, field, match):
 
 
 def test_params_not_a_mapping():
-    with pytest.raises(SpecError, match=r"^<string>: <document>: top level is a list"):
+    with pytest.raises(SpecError, match=r"^<string>: top level is a list"):
         params_from_yaml("- 1\n- 2\n")
-    with pytest.raises(SpecError, match=r"^<mapping>: <document>: expected a mapping of keys"):
+    with pytest.raises(SpecError, match=r"^<mapping>: expected a mapping of keys"):
         params_from_mapping("name: p")

@@ -196,7 +196,7 @@ def test_invalid_cards(base, path, value, field, match):
 
 
 def test_not_a_mapping():
-    with pytest.raises(SpecError, match=r"<mapping>: <document>: expected a mapping of keys, got \[1, 2\]"):
+    with pytest.raises(SpecError, match=r"<mapping>: expected a mapping of keys, got \[1, 2\]"):
         specimen_from_mapping([1, 2])
 
 
@@ -214,11 +214,11 @@ def test_python_construction_raises_spec_error():
 
 def test_load_errors_name_the_file(tmp_path):
     missing = tmp_path / "nope.yaml"
-    with pytest.raises(SpecError, match=r"nope\.yaml: <document>: file not found"):
+    with pytest.raises(SpecError, match=r"nope\.yaml: file not found"):
         load_specimen(missing)
-    with pytest.raises(SpecError, match=r"<document>: is a directory"):
+    with pytest.raises(SpecError, match=r": is a directory"):
         load_specimen(tmp_path)
     bad = tmp_path / "bad.yaml"
     bad.write_text("id: s\nkind: [roll\n")
-    with pytest.raises(SpecError, match=r"bad\.yaml: <document>: not valid YAML: .*\(line \d+, column \d+\)"):
+    with pytest.raises(SpecError, match=r"bad\.yaml: not valid YAML: .*\(line \d+, column \d+\)"):
         load_specimen(bad)

@@ -323,15 +323,15 @@ def test_mat_v73_is_refused_clearly(tmp_path):
     path = tmp_path / "new.mat"
     path.write_bytes(b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Mar  3 2025 HDF5 schema 1.00 ."
                      .ljust(512, b"\0"))
-    with pytest.raises(SpecError, match=r"new\.mat: <document>: a MATLAB v7\.3 \(HDF5\) file"):
+    with pytest.raises(SpecError, match=r"new\.mat: a MATLAB v7\.3 \(HDF5\) file"):
         import_file(path, load_specimen(ROLL), ImportOptions("mat", parse_map("time=t,position=x,force=F")))
 
 
 # -------------------------------------------------------- malformed inputs
 MAP = "time=0,position=1,force=2"
 BAD = {  # file -> (what the one line must say after the file's name, --map)
-    "bad_empty.csv": ("<document>: the file is empty", MAP),
-    "bad_no_data.csv": ("<document>: no data rows", MAP),
+    "bad_empty.csv": ("the file is empty", MAP),
+    "bad_no_data.csv": ("no data rows", MAP),
     "bad_text_in_number.csv": ("line 5, column 'force': 'n/a' is not a number", MAP),
     "bad_time_backwards.csv": ("line 6, column 'time': time does not increase: 0.15 after 0.20 (line 5; samples 2 "
                                "and 3)", MAP),
@@ -343,9 +343,9 @@ BAD = {  # file -> (what the one line must say after the file's name, --map)
     "bad_ragged_row.csv": ("line 5: 4 fields where the data rows have 3", MAP),
     "bad_stretch_below_one.csv": ("line 4, column 'position': position -5.000 gives stretch 0.852941 with L1 = 34 "
                                   "mm, below 0.999", MAP),
-    "bad_one_row.csv": ("<document>: 1 data row(s); need at least 2", MAP),
+    "bad_one_row.csv": ("1 data row(s); need at least 2", MAP),
     "bad_no_units.csv": ("--units time: no unit for time (column 'time'): the file gives none", MAP),
-    "bad_one_column.csv": ("<document>: cannot tell the column separator", MAP),
+    "bad_one_column.csv": ("cannot tell the column separator", MAP),
     "good_semicolon_decimal_comma.csv": ("--map force: no column 'force'; available: 0 'Zeit', 1 'Weg', 2 'Kraft', "
                                          "3 'Temperatur'", "time=Zeit,position=Weg,force=force"),
     "good_trailing_empty_columns.csv": ("--map force: column index 5 is out of range; the file has 5 columns: "
@@ -386,9 +386,9 @@ COMMAND_LINE = [  # (arguments replacing the defaults, what the one line says)
     ({"--units": "voltage=V"}, "--units: a unit for 'voltage', which --map does not map"),
     ({"--units": "force N"}, "--units: 'force N' is not KEY=VALUE"),
     ({"--encoding": "klingon"}, "good.csv: --encoding: unknown encoding 'klingon'"),
-    ({"--format": "tdms"}, "good.csv: <document>: not a readable TDMS file"),
-    ({"--format": "mat"}, "good.csv: <document>: not a readable MATLAB .mat file"),
-    ({"--specimen": "nowhere.yaml"}, "nowhere.yaml: <document>: file not found"),
+    ({"--format": "tdms"}, "good.csv: not a readable TDMS file"),
+    ({"--format": "mat"}, "good.csv: not a readable MATLAB .mat file"),
+    ({"--specimen": "nowhere.yaml"}, "nowhere.yaml: file not found"),
     ({"--protocol-kind": "fatigue"}, "Invalid value for '--protocol-kind'"),
 ]
 
@@ -410,7 +410,7 @@ def test_missing_file_and_directory(cli, capsys, tmp_path):
     base = ["--format", "csv", "--map", "time=0,position=1,force=2", "--specimen", ROLL, "--protocol-kind",
             "tensile", "--out", tmp_path / "o"]
     rc, _, err = invoke(cli, capsys, tmp_path / "absent.csv", *base)
-    assert rc == 2 and "absent.csv: <document>: file not found" in err and len(err.strip().splitlines()) == 1
+    assert rc == 2 and "absent.csv: file not found" in err and len(err.strip().splitlines()) == 1
     rc, _, err = invoke(cli, capsys, tmp_path, *base)
     assert rc == 2 and "is a directory" in err
 
