@@ -90,6 +90,7 @@ def check_outputs(paths, overwrite: bool = False, names=None) -> None:
         seen[key] = name
     for out in paths:
         check_dataset_name(out)
+        check_writable(out)  # first: a name the file system refuses cannot even be looked up
         if journal_path(out).exists():
             raise OutputInUse(str(out), "out", f"an unfinished run's journal {journal_path(out)} is in the way; "
                               "rdea-lab recover it, or remove it")
@@ -98,7 +99,6 @@ def check_outputs(paths, overwrite: bool = False, names=None) -> None:
         if out.exists() and not overwrite:
             raise OutputInUse(str(out), "out", "exists; give --force (overwrite=True) to overwrite, "
                               "or choose another output")
-        check_writable(out)
 
 
 def check_seed(seed) -> int:

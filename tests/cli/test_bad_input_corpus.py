@@ -255,3 +255,55 @@ def test_truncated_tdms_gives_one_line_not_the_librarys_warnings(capfd, tmp_path
     assert len(lines) == 1 and "WARNING" not in err, err  # npTDMS's own log lines are kept, not printed
     assert path.name in lines[0] and "allowed" in lines[0], lines[0]
     assert not (tmp_path / "out.nc").exists()
+
+
+def test_out_with_invalid_utf8_bytes_is_refused_before_the_run(capsys, tmp_path):
+    import os
+
+    out = Path(os.fsdecode(bytes(tmp_path) + b"/run-\xff\xfe.nc"))  # bytes no encoding can store as text
+    rc = run_cli(cli, ["run", str(GOOD_PROTOCOL), "--specimen", str(GOOD_SPECIMEN), "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert "out" in err[0] and "UTF-8" in err[0] and "allowed" in err[0], err[0]
+    assert list(tmp_path.iterdir()) == []  # refused before anything was journaled
+
+
+@pytest.mark.parametrize("length", [300, 251])  # over 255 bytes; over 255 with the journal's ".part"
+def test_out_with_a_name_the_file_system_does_not_take_is_refused_before_the_run(capsys, tmp_path, length):
+    import os
+
+    if os.pathconf(tmp_path, "PC_NAME_MAX") != 255:
+        pytest.skip("the file system here does not take 255-byte names")
+    out = tmp_path / ("r" * (length - 3) + ".nc")
+    rc = run_cli(cli, ["run", str(GOOD_PROTOCOL), "--specimen", str(GOOD_SPECIMEN), "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1, err
+    assert f"is {length} bytes" in err[0] and "at most 250 bytes" in err[0], err[0]
+    assert len(err[0]) < 400  # the name is not printed whole
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_recover_a_journal_whose_name_is_not_utf8(capsys, tmp_path):
+    """A journal under a name no dataset can take (left by an older version or another tool): recover says
+    how to get its samples, and --out elsewhere gets every one."""
+    import os
+
+    from rdea_lab.store import JournalWriter, journal_path, open_run
+
+    good = tmp_path / "run.nc"
+    writer = JournalWriter(good, {"title": "t", "sample_rate": 100.0})
+    import numpy as np
+    t = np.arange(250) / 100.0
+    writer.append({"time": t, "stretch": 1 + 0 * t, "voltage": 0 * t, "force": 0 * t})
+    writer._release()  # the process that wrote it died: its lock is gone with it
+    os.close(writer._fd)
+    bad = Path(os.fsdecode(bytes(tmp_path) + b"/run-\xff.nc.part"))
+    os.rename(journal_path(good), bad)
+    rc = run_cli(cli, ["recover", str(bad)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "UTF-8" in err[0] and "--out" in err[0], err
+    rescued = tmp_path / "rescued.nc"
+    assert run_cli(cli, ["recover", str(bad), "--out", str(rescued)]) == 0
+    ds = open_run(rescued)
+    np.testing.assert_array_equal(ds["time"].values, t)
+    ds.close()

@@ -169,3 +169,96 @@ def test_interrupt_soak(tmp_path):
     assert not dup, dup[:3]
     assert not recovered_live, recovered_live[:3]
     assert set(statuses) <= {"interrupted", "complete"}
+
+
+#: The cases of issue 25: a live table on the terminal, SIGTERM to a run, SIGTERM to an emulator run's
+#: whole process group (as `timeout` and service managers send it: the emulator's threads get it too).
+CASES = [("twin", ["--live", "table"], signal.SIGINT, False), ("twin", ["--live", "table"], signal.SIGTERM, False),
+         ("twin", [], signal.SIGTERM, False), ("emulator", [], signal.SIGTERM, True),
+         ("emulator", ["--live", "table"], signal.SIGINT, False), ("emulator", [], signal.SIGINT, True)]
+
+
+@pytest.mark.slow
+def test_interrupt_soak_live_table_and_sigterm(tmp_path):
+    """Every interrupt (Ctrl-C or SIGTERM, to the process or its group) ends exit 130 with the dataset
+    closed as ``interrupted``: no unclosed run, no "connection lost", none killed by the signal. At least
+    100 interrupts, two runs at a time, each at a random moment of its acquisition (about 4 minutes)."""
+    import rdea_lab
+
+    rng = random.Random(20261203)
+    protocol = tmp_path / "soak.yaml"
+    protocol.write_text(PROTOCOL)
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    n = int(os.environ.get("RDEA_LAB_SOAK_INTERRUPTS", "102"))
+    jobs = [(i, CASES[i % len(CASES)]) for i in range(n)]
+    rng.shuffle(jobs)
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    records = {}
+
+    def one(i, case):
+        backend, extra, sig, group = case
+        out = folder / f"{backend}-{i}.nc"
+        args = [sys.executable, "-m", "rdea_lab.cli", "run", str(protocol), "--specimen", str(CARD), "--backend",
+                backend, "--realtime", "--seed", str(i), "--out", str(out), *extra]
+        if not extra:
+            args.append("--quiet")
+        proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                start_new_session=group,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # as at a terminal
+        part = out.with_name(out.name + ".part")
+        t_seen, deadline = None, time.monotonic() + 60
+        while t_seen is None and time.monotonic() < deadline and proc.poll() is None:
+            if (part / "samples.f8").exists():
+                t_seen = time.monotonic()
+            time.sleep(0.02)
+        time.sleep(rng.uniform(0.0, 6.5))  # the run lasts 8 s: any moment of its acquisition
+        before = journal_samples(out)
+        if group:
+            os.killpg(proc.pid, sig)
+        else:
+            proc.send_signal(sig)
+        stdout, stderr = proc.communicate(timeout=60)
+        records[out] = {"case": f"{backend}{' ' + ' '.join(extra) if extra else ''} {sig.name}"
+                                + (" (group)" if group else ""),
+                        "rc": proc.returncode, "before": before, "stderr": stderr, "stdout": stdout[-300:]}
+
+    t0 = time.monotonic()
+    for k in range(0, len(jobs), 2):
+        pair = [threading.Thread(target=one, args=job) for job in jobs[k:k + 2]]
+        for t in pair:
+            t.start()
+        for t in pair:
+            t.join()
+    wall = time.monotonic() - t0
+
+    bad_exit, unclosed, not_interrupted, short, noisy, dup = [], [], [], [], [], []
+    for out, rec in records.items():
+        if rec["rc"] != 130:
+            bad_exit.append((rec["case"], rec["rc"], rec["stderr"][-200:]))
+        if out.with_name(out.name + ".part").exists() or not out.exists():
+            unclosed.append((rec["case"], str(out)))
+            continue
+        if "Traceback" in rec["stderr"] or len(rec["stderr"].splitlines()) > 1:
+            noisy.append((rec["case"], rec["stderr"][-300:]))
+        ds = rdea_lab.open_run(out)
+        if ds.attrs["status"] != "interrupted" or "interrupted by the user" not in ds.attrs["status_reason"]:
+            not_interrupted.append((rec["case"], ds.attrs["status"], ds.attrs["status_reason"]))
+        if ds.sizes["time"] < rec["before"]:
+            short.append((rec["case"], ds.sizes["time"], rec["before"]))
+        if not np.array_equal(ds["time"].values, np.arange(ds.sizes["time"]) / RATE):
+            dup.append(rec["case"])
+        ds.close()
+    by_case = {}
+    for rec in records.values():
+        by_case[rec["case"]] = by_case.get(rec["case"], 0) + 1
+    print(f"\nsoak (issue 25): {len(records)} interrupts in {wall:.0f} s, {by_case}; exit != 130: {len(bad_exit)}, "
+          f"unclosed {len(unclosed)}, status not interrupted {len(not_interrupted)}, more than one stderr line "
+          f"{len(noisy)}, short of the disk {len(short)}, duplicated/skipped {len(dup)}")
+    assert len(records) == n >= 100
+    assert not bad_exit, bad_exit[:3]
+    assert not unclosed, unclosed[:3]
+    assert not not_interrupted, not_interrupted[:3]
+    assert not noisy, noisy[:3]
+    assert not short, short[:3]
+    assert not dup, dup[:3]
