@@ -56,6 +56,16 @@ def journal_samples(out: Path) -> int:
         return 0
 
 
+def two_at_a_time(one, jobs) -> None:
+    """``one(*job)`` for every job, two at a time (the machine has two cores)."""
+    for k in range(0, len(jobs), 2):
+        pair = [threading.Thread(target=one, args=job) for job in jobs[k:k + 2]]
+        for t in pair:
+            t.start()
+        for t in pair:
+            t.join()
+
+
 @pytest.mark.slow
 def test_interrupt_soak(tmp_path):
     import rdea_lab
@@ -125,12 +135,7 @@ def test_interrupt_soak(tmp_path):
     recover_thread.start()
     t0 = time.monotonic()
     try:
-        for k in range(0, len(jobs), 2):
-            pair = [threading.Thread(target=one, args=job) for job in jobs[k:k + 2]]
-            for t in pair:
-                t.start()
-            for t in pair:
-                t.join()
+        two_at_a_time(one, jobs)
     finally:
         stop.set()
         recover_thread.join()
@@ -224,12 +229,7 @@ def test_interrupt_soak_live_table_and_sigterm(tmp_path):
                         "rc": proc.returncode, "before": before, "stderr": stderr, "stdout": stdout[-300:]}
 
     t0 = time.monotonic()
-    for k in range(0, len(jobs), 2):
-        pair = [threading.Thread(target=one, args=job) for job in jobs[k:k + 2]]
-        for t in pair:
-            t.start()
-        for t in pair:
-            t.join()
+    two_at_a_time(one, jobs)
     wall = time.monotonic() - t0
 
     bad_exit, unclosed, not_interrupted, short, noisy, dup = [], [], [], [], [], []
@@ -255,7 +255,7 @@ def test_interrupt_soak_live_table_and_sigterm(tmp_path):
     print(f"\nsoak (issue 25): {len(records)} interrupts in {wall:.0f} s, {by_case}; exit != 130: {len(bad_exit)}, "
           f"unclosed {len(unclosed)}, status not interrupted {len(not_interrupted)}, more than one stderr line "
           f"{len(noisy)}, short of the disk {len(short)}, duplicated/skipped {len(dup)}")
-    assert len(records) == n >= 100
+    assert len(records) == n and (n >= 100 or "RDEA_LAB_SOAK_INTERRUPTS" in os.environ)  # a shorter try, asked for
     assert not bad_exit, bad_exit[:3]
     assert not unclosed, unclosed[:3]
     assert not not_interrupted, not_interrupted[:3]
