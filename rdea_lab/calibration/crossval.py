@@ -31,9 +31,10 @@ import numpy as np
 import xarray as xr
 import yaml
 
-from ..runs.app import check_writable
+from ..store.outputs import check_new
 from ..specs import SpecError
 from .app import ARGS, calibrate_runs, gather_runs
+from .record import record_files
 from .envelope import Envelope, beyond, envelope, moving_rates, run_envelope, stretch_text
 from .objective import ERROR_LEGEND, find_runs, goodness, predict_force
 from .parameters import values_of
@@ -222,6 +223,8 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         With ``cv``: a folder for ``cv.csv``, ``cv.md`` and each fold's record ``fold-<k>.yaml``.
         With ``holdout``: the record of the fit (as `calibrate_runs` writes it); the held-out rows go
         beside it to ``<stem>.holdout.csv`` and into its ``calibration`` section as ``validation``.
+        An existing output (a folder that holds files, with ``cv``) is refused before any fit unless
+        ``overwrite`` (in ``calibrate_kwargs``).
     announce_fold : callable, optional
         ``announce_fold(index, count, label, fitted_names, predicted_names)`` before each fold's fit.
     fold_done : callable, optional
@@ -255,8 +258,12 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         raise SpecError(str(out), "out", "is a file; with --cv, --out names a folder")
     if out is not None and cv is None and out.is_dir():
         raise SpecError(str(out), "out", "is a folder; with --holdout, --out names the record file")
-    if out is not None and cv is not None:
-        check_writable(out / "cv.md")  # before any fit, as calibrate_runs checks its record
+    overwrite = calibrate_kwargs.get("overwrite", False)
+    if out is not None and cv is not None:  # before any fit, as calibrate_runs checks its record
+        check_new(out, overwrite, "out", folder=True)
+    if out is not None and cv is None:
+        for path in (*record_files(out).values(), _holdout_csv(out)):
+            check_new(path, overwrite)
     kinds = tuple(calibrate_kwargs.get("kinds", ("tensile",)))
     skipped = []
     items = _expand(inputs, kinds, skipped)
@@ -388,6 +395,10 @@ def validation_mapping(result: CrossValidation) -> dict:
             "envelope": fold.envelope.mapping(), "measures": ERROR_LEGEND}
 
 
+def _holdout_csv(record) -> Path:
+    return Path(record).with_name(Path(record).stem + ".holdout.csv")
+
+
 def write_holdout(result: CrossValidation, record: Path) -> dict:
     """``<stem>.holdout.csv`` beside the record, and the record's ``calibration.validation`` section.
 
@@ -396,7 +407,7 @@ def write_holdout(result: CrossValidation, record: Path) -> dict:
     record = Path(record)
     files = dict(result.folds[0].result.record_files)
     rows = [r for r in result.rows if r["role"] == "predicted"]
-    files["holdout"] = _write_csv(record.with_name(record.stem + ".holdout.csv"), rows, result.folds)
+    files["holdout"] = _write_csv(_holdout_csv(record), rows, result.folds)
     add_to_record(record, validation_mapping(result))
     return files
 

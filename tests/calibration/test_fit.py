@@ -283,5 +283,5 @@ def test_cli_prints_progress_and_a_final_line_on_stderr_unless_quiet(capsys, tmp
     assert lines[0].startswith("  evaluations      1  best ")  # the first report
     nfev = int(captured.out.split(" after ")[1].split()[0])  # from the fit report on stdout
     assert lines[-1].startswith(f"done: {nfev} evaluations, best ") and lines[-1].endswith(", converged")
-    assert run_cli(cli, [*args, "--quiet"]) == 0
+    assert run_cli(cli, [*args, "--quiet", "--force"]) == 0  # the same record again: replaced with --force
     assert capsys.readouterr().err == ""
