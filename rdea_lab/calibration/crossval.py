@@ -117,7 +117,7 @@ class CrossValidation:
 
 CSV_KEYS = ["fold", "held_out", "role", "file", "specimen", "protocol", "samples", "rate_per_s", "max_stretch",
             "rms_error_N", "max_rel_error", "rms_rel_error", "p99_rel_error", "flags", "fold_nfev",
-            "fold_wall_time_s", "model", "path", "sha256"]
+            "fold_converged", "fold_wall_time_s", "model", "path", "sha256"]
 
 
 def _sig(x: float, digits: int) -> float:
@@ -314,8 +314,8 @@ def _row(fold: Fold, role: str, run, env: Envelope) -> dict:
             "protocol": run.protocol, "samples": run.n, "rate_per_s": nominal_rate(run),
             "max_stretch": own.stretch[1], "rms_error_N": g["rms_error_N"], "max_rel_error": g["max_rel_error"],
             "rms_rel_error": g["rms_rel_error"], "p99_rel_error": g["p99_rel_error"], "flags": beyond(env, own),
-            "fold_nfev": res.nfev, "fold_wall_time_s": round(res.wall_time, 3), "model": res.model,
-            "path": str(run.path), "sha256": run.sha256}
+            "fold_nfev": res.nfev, "fold_converged": res.converged, "fold_wall_time_s": round(res.wall_time, 3),
+            "model": res.model, "path": str(run.path), "sha256": run.sha256}
 
 
 # ------------------------------------------------------------------ output
@@ -344,8 +344,9 @@ def _fold_line(f: Fold) -> str:
     values = ", ".join(f"{n} {v / 1e3:.5g} kPa" + (" s" if n.startswith("eta") else "")
                        for n, v in values_of(f.params).items())
     rec = f.result.record_files.get("params")
+    state = "" if f.result.converged else f", not converged ({f.result.message})"
     return (f"fold {f.index} (held out: {f.label}): fitted on {', '.join(f.fitted)}; {f.nfev} evaluations, "
-            f"{f.wall_time:.2f} s; {values}" + (f"; record {Path(rec).name}" if rec else ""))
+            f"{f.wall_time:.2f} s{state}; {values}" + (f"; record {Path(rec).name}" if rec else ""))
 
 
 def format_cv(result: CrossValidation) -> str:
