@@ -64,6 +64,7 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
             return [api.LivePlot()]
         if not live.lower().endswith(".png"):
             die(f"--live: {live!r}; allowed: table, plot or a FILE.png")
+        api.check_figure(live, "--live")  # a folder it can be written in, before the run
         headless()
         return [api.LivePlot(Path(live))]
     if quiet or not (sys.stdout.isatty() and sys.stderr.isatty()) or (seconds is not None and seconds <= 1.0):
@@ -212,7 +213,8 @@ def ls_(folder):
 
 @click.command()
 @click.argument("file", type=click.Path(dir_okay=False))
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write a PNG of the run.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Write a PNG of the run (or .pdf, .svg, ...: matplotlib's formats).")
 def show(file, plot_path):
     """Summary of one run (with the user's metadata), and optionally a plot.
 
@@ -220,6 +222,8 @@ def show(file, plot_path):
     Example:
       rdea-lab show datasets/demo.nc --plot demo.png
     """
+    if plot_path:
+        api.check_figure(plot_path)
     if not Path(file).is_file():
         die(f"{file}: no such file")
     try:
@@ -244,7 +248,8 @@ def protocol():
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--specimen", "card_path", type=click.Path(dir_okay=False),
               help="Also check the field limit against this specimen's layer thickness.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write a PNG of the setpoints.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Write a PNG of the setpoints (or .pdf, .svg, ...: matplotlib's formats).")
 def protocol_show(file, card_path, plot_path):
     """Print the expanded plan of a protocol (duration, samples, envelope), and draw it.
 
@@ -252,6 +257,8 @@ def protocol_show(file, card_path, plot_path):
     Example:
       rdea-lab protocol show protocols/blocking_force.yaml --plot blocking.png
     """
+    if plot_path:
+        api.check_figure(plot_path)
     plan = api.load_plan(file)
     L3 = api.geometry(card_path).L3 if card_path else None
     click.echo(plan.describe())

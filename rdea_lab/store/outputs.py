@@ -97,3 +97,26 @@ def check_new(path, overwrite: bool = False, what="out", *, folder: bool = False
     if path.exists() and not overwrite:
         raise error(shown(path), what, f"exists; {FORCE_HINT}")
     check_writable(path, what)
+
+
+def figure_formats() -> tuple[str, ...]:
+    """The file suffixes matplotlib writes (``png``, ``pdf``, ``svg``, ...), from its canvas alone: no pyplot, no
+    backend chosen."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return tuple(sorted(FigureCanvasBase.get_supported_filetypes()))
+
+
+def check_figure(path, what="--plot") -> None:
+    """Raise `OutputError` unless matplotlib can write a figure to ``path``: a suffix among its formats
+    (`figure_formats`), and a place `check_writable` accepts; before the work the figure shows."""
+    path = Path(path)
+    suffix = path.suffix.lower().lstrip(".")
+    formats = figure_formats()
+    if suffix not in formats:
+        given = f"the suffix {path.suffix!r}" if path.suffix else "no suffix"
+        raise OutputError(shown(path), what, f"{given} is not a figure format matplotlib writes; allowed: "
+                          + ", ".join(f".{f}" for f in formats))
+    if path.is_dir():
+        raise OutputError(shown(path), what, "is a folder; give the path of a file")
+    check_writable(path, what)
