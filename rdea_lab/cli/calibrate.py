@@ -10,7 +10,7 @@ import click
 
 from .. import api
 from ..specs import MODEL_CHOICES
-from .errors import headless
+from .errors import EXIT_HELP, headless
 
 
 class FitProgress:
@@ -75,7 +75,7 @@ class FitProgress:
             self.line(f"  held out: {held}")
 
 
-@click.command()
+@click.command(epilog=EXIT_HELP)
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=False))
 @click.option("--model", type=click.Choice(MODEL_CHOICES, case_sensitive=False), default="su",
               show_default=True, help="Quasi-static model of the twin.")

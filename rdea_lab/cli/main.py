@@ -123,7 +123,7 @@ def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet, 
     click.echo(f"  {'total':<15} {result['seconds']:6.1f} s")
 
 
-@click.command()
+@click.command(epilog=EXIT_HELP)
 @click.option("--samples", default=100_000, show_default=True, type=click.IntRange(1000, 10_000_000),
               help="Samples per model.")
 @click.option("--baseline-samples", default=1000, show_default=True, type=click.IntRange(10, 100_000),

@@ -6,7 +6,7 @@ import click
 
 from .. import api
 from ..specs import MODEL_CHOICES
-from .errors import headless
+from .errors import EXIT_HELP, headless
 
 MODELS = MODEL_CHOICES
 
@@ -21,7 +21,7 @@ class _ReportGroup(click.Group):
         return super().parse_args(ctx, args)
 
 
-@click.group(cls=_ReportGroup)
+@click.group(cls=_ReportGroup, epilog=EXIT_HELP)
 def report():
     """Reports: the twin against measured runs (validation), and speed against error (speed).
 
@@ -32,7 +32,7 @@ def report():
     """
 
 
-@report.command()
+@report.command(epilog=EXIT_HELP)
 @click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False),
               help="Parameter set (YAML), e.g. a calibration record.")
 @click.option("--datasets", "datasets", required=True, type=click.Path(file_okay=False),
@@ -76,7 +76,7 @@ def validation(params_path, datasets, out_dir, model, tolerance, no_figures, ove
                f"{len(result['figures'])} figures) in {out_dir}")
 
 
-@report.command()
+@report.command(epilog=EXIT_HELP)
 @click.option("--out", "out_dir", default="reports/speed", show_default=True, type=click.Path(file_okay=False),
               help="Folder for speed.md, speed.csv, pareto.png and the Figure 8 sweep.")
 @click.option("--repeats", type=click.IntRange(1, 50), default=3, show_default=True,

@@ -146,7 +146,7 @@ def run(protocol, card_path, backend, rig_address, token_file, truth_path, fault
         sys.exit(result.exit_code)
 
 
-@click.command()
+@click.command(epilog=EXIT_HELP)
 @click.argument("paths", nargs=-1, required=True, type=click.Path())
 @click.option("--out", "out_path", type=click.Path(dir_okay=False),
               help="Write the dataset here instead (one journal only), e.g. on another disk.")
@@ -183,7 +183,7 @@ def recover(paths, out_path):
         click.echo(f"{out}: {ds.sizes['time']} samples recovered, status {ds.attrs['status']}")
 
 
-@click.command(name="ls")
+@click.command(name="ls", epilog=EXIT_HELP)
 @click.argument("folder", default="datasets", type=click.Path(file_okay=False))
 def ls_(folder):
     """A table of the runs below FOLDER, from their attributes (with the user's metadata).
@@ -211,7 +211,7 @@ def ls_(folder):
         click.echo("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip())
 
 
-@click.command()
+@click.command(epilog=EXIT_HELP)
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
               help="Write a PNG of the run (or .pdf, .svg, ...: matplotlib's formats).")
@@ -239,12 +239,12 @@ def show(file, plot_path):
         click.echo(f"plot: {plot_path}")
 
 
-@click.group()
+@click.group(epilog=EXIT_HELP)
 def protocol():
     """Inspect protocols."""
 
 
-@protocol.command(name="show")
+@protocol.command(name="show", epilog=EXIT_HELP)
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--specimen", "card_path", type=click.Path(dir_okay=False),
               help="Also check the field limit against this specimen's layer thickness.")
@@ -270,7 +270,7 @@ def protocol_show(file, card_path, plot_path):
         click.echo(f"plot: {plot_path}")
 
 
-@click.group()
+@click.group(epilog=EXIT_HELP)
 def campaign():
     """Run a whole campaign of experiments (campaigns/*.yaml)."""
 
