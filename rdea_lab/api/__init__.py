@@ -84,7 +84,8 @@ _EXPORTS = {
     "track_target": "rdea_lab.reports.tracking",
     # design studies
     "load_study": "rdea_lab.specs.study", "run_study": "rdea_lab.design", "StudyResult": "rdea_lab.design",
-    "StudyError": "rdea_lab.design", "SchedulerError": "rdea_lab.design", "write_study": "rdea_lab.design.outputs",
+    "StudyError": "rdea_lab.design", "SchedulerError": "rdea_lab.design",
+    "StudyAborted": "rdea_lab.design", "write_study": "rdea_lab.design.outputs",
     "check_study_out": "rdea_lab.design.outputs", "study_summary": "rdea_lab.design.outputs",
     "study_lines": "rdea_lab.design.outputs", "check_card_run": "rdea_lab.design.outputs",
     "run_card": "rdea_lab.design.outputs", "solve_designs": "rdea_lab.physics.designs",
