@@ -36,6 +36,7 @@ _EXPORTS = {
     "check_outputs": "rdea_lab.runs.app", "default_out": "rdea_lab.runs.app", "emulated_rig": "rdea_lab.runs.app",
     "project_default": "rdea_lab.runs.app", "check_seed": "rdea_lab.runs.app", "OutputInUse": "rdea_lab.runs.app",
     "OutputError": "rdea_lab.store.outputs", "check_writable": "rdea_lab.store.outputs",
+    "check_new": "rdea_lab.store.outputs", "check_figure": "rdea_lab.store.outputs",
     "DEFAULT_PARAMS": "rdea_lab.runs.app", "DEFAULT_TRUTH": "rdea_lab.runs.app", "BACKENDS": "rdea_lab.runs.app",
     "run_campaign": "rdea_lab.runs.campaign", "experiments": "rdea_lab.runs.campaign",
     "RunResult": "rdea_lab.runs.engine", "EXIT_CODES": "rdea_lab.runs.engine", "execute": "rdea_lab.runs.engine",
@@ -83,7 +84,8 @@ _EXPORTS = {
     "track_target": "rdea_lab.reports.tracking",
     # design studies
     "load_study": "rdea_lab.specs.study", "run_study": "rdea_lab.design", "StudyResult": "rdea_lab.design",
-    "StudyError": "rdea_lab.design", "SchedulerError": "rdea_lab.design", "write_study": "rdea_lab.design.outputs",
+    "StudyError": "rdea_lab.design", "SchedulerError": "rdea_lab.design",
+    "StudyAborted": "rdea_lab.design", "write_study": "rdea_lab.design.outputs",
     "check_study_out": "rdea_lab.design.outputs", "study_summary": "rdea_lab.design.outputs",
     "study_lines": "rdea_lab.design.outputs", "check_card_run": "rdea_lab.design.outputs",
     "run_card": "rdea_lab.design.outputs", "solve_designs": "rdea_lab.physics.designs",

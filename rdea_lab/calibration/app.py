@@ -17,14 +17,14 @@ import numpy as np
 import xarray as xr
 
 from ..physics.selection import ORDER, select_model
-from ..runs.app import check_writable
+from ..store.outputs import check_new
 from ..specs import LAWS, MODEL_CHOICES, SpecError, ViscoBranch, as_params
 from ..specs.protocol import KINDS
 from .fit import CalibrationResult, calibrate, calibrate_growing, initial_guess
 from .methods import METHODS
 from .objective import find_runs, load_run
 from .parameters import names_for, values_of
-from .record import write_record
+from .record import record_files, write_record
 
 MODELS = MODEL_CHOICES
 DEFAULT_EPS_R = 2.8  # Table 1 of [1]
@@ -91,7 +91,8 @@ def choose_model(runs, start, model: str, tolerance: float = 0.01) -> tuple[str,
 
 def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, eps_r=None, kinds=("tensile",),
                    metric="rms", max_evals=20000, max_time=300.0, tolerance=0.01, out=None, name=None,
-                   progress=None, announce=None, method="nelder-mead", law=None, stage=None) -> CalibrationResult:
+                   progress=None, announce=None, method="nelder-mead", law=None, stage=None,
+                   overwrite=False) -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters (eps_r fixed) to measured runs (Nelder-Mead or least squares).
 
     Parameters
@@ -118,7 +119,8 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         Budgets (evaluations, seconds), over all restarts and branch-growth stages.
     out : path, optional
         Write the record there (a parameter file with a ``calibration``
-        section, plus ``.history.csv`` / ``.history.png``).
+        section, plus ``.history.csv`` / ``.history.png``); refused before the fit if any of them
+        exists, unless ``overwrite``.
     name : str, optional
         Name of the calibrated set in the record (default: ``out``'s stem).
     progress : callable, optional
@@ -134,6 +136,8 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     law : {"linear", "finite_strain"}, optional
         Viscoelastic law of the branches; default ``init``'s, or linear (eq. (44) of [1]). An ``init`` of
         the other law starts from the same relaxation times with ``mu = k / 3`` (the small-strain map).
+    overwrite : bool
+        Replace an existing record (the CLI's ``--force``).
 
     Returns
     -------
@@ -177,8 +181,9 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     if unknown:
         raise SpecError(ARGS, "free", f"{', '.join(unknown)} unknown; allowed: {', '.join(names)}")
     model, why = choose_model(runs, start, model, tolerance)
-    if out is not None:
-        check_writable(out)  # before a long fit, not after it
+    if out is not None:  # before a long fit, not after it
+        for path in record_files(out).values():
+            check_new(path, overwrite)
     if announce is not None:
         announce(runs, model, why, free, tuple(skipped))
     try:

@@ -31,9 +31,10 @@ import numpy as np
 import xarray as xr
 import yaml
 
-from ..runs.app import check_writable
+from ..store.outputs import check_new
 from ..specs import SpecError
 from .app import ARGS, calibrate_runs, gather_runs
+from .record import record_files
 from .envelope import Envelope, beyond, envelope, moving_rates, run_envelope, stretch_text
 from .objective import ERROR_LEGEND, find_runs, goodness, predict_force
 from .parameters import values_of
@@ -116,7 +117,7 @@ class CrossValidation:
 
 CSV_KEYS = ["fold", "held_out", "role", "file", "specimen", "protocol", "samples", "rate_per_s", "max_stretch",
             "rms_error_N", "max_rel_error", "rms_rel_error", "p99_rel_error", "flags", "fold_nfev",
-            "fold_wall_time_s", "model", "path", "sha256"]
+            "fold_converged", "fold_wall_time_s", "model", "path", "sha256"]
 
 
 def _sig(x: float, digits: int) -> float:
@@ -222,6 +223,8 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         With ``cv``: a folder for ``cv.csv``, ``cv.md`` and each fold's record ``fold-<k>.yaml``.
         With ``holdout``: the record of the fit (as `calibrate_runs` writes it); the held-out rows go
         beside it to ``<stem>.holdout.csv`` and into its ``calibration`` section as ``validation``.
+        An existing output (a folder that holds files, with ``cv``) is refused before any fit unless
+        ``overwrite`` (in ``calibrate_kwargs``).
     announce_fold : callable, optional
         ``announce_fold(index, count, label, fitted_names, predicted_names)`` before each fold's fit.
     fold_done : callable, optional
@@ -255,8 +258,12 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         raise SpecError(str(out), "out", "is a file; with --cv, --out names a folder")
     if out is not None and cv is None and out.is_dir():
         raise SpecError(str(out), "out", "is a folder; with --holdout, --out names the record file")
-    if out is not None and cv is not None:
-        check_writable(out / "cv.md")  # before any fit, as calibrate_runs checks its record
+    overwrite = calibrate_kwargs.get("overwrite", False)
+    if out is not None and cv is not None:  # before any fit, as calibrate_runs checks its record
+        check_new(out, overwrite, "out", folder=True)
+    if out is not None and cv is None:
+        for path in (*record_files(out).values(), _holdout_csv(out)):
+            check_new(path, overwrite)
     kinds = tuple(calibrate_kwargs.get("kinds", ("tensile",)))
     skipped = []
     items = _expand(inputs, kinds, skipped)
@@ -307,8 +314,8 @@ def _row(fold: Fold, role: str, run, env: Envelope) -> dict:
             "protocol": run.protocol, "samples": run.n, "rate_per_s": nominal_rate(run),
             "max_stretch": own.stretch[1], "rms_error_N": g["rms_error_N"], "max_rel_error": g["max_rel_error"],
             "rms_rel_error": g["rms_rel_error"], "p99_rel_error": g["p99_rel_error"], "flags": beyond(env, own),
-            "fold_nfev": res.nfev, "fold_wall_time_s": round(res.wall_time, 3), "model": res.model,
-            "path": str(run.path), "sha256": run.sha256}
+            "fold_nfev": res.nfev, "fold_converged": res.converged, "fold_wall_time_s": round(res.wall_time, 3),
+            "model": res.model, "path": str(run.path), "sha256": run.sha256}
 
 
 # ------------------------------------------------------------------ output
@@ -337,8 +344,9 @@ def _fold_line(f: Fold) -> str:
     values = ", ".join(f"{n} {v / 1e3:.5g} kPa" + (" s" if n.startswith("eta") else "")
                        for n, v in values_of(f.params).items())
     rec = f.result.record_files.get("params")
+    state = "" if f.result.converged else f", not converged ({f.result.message})"
     return (f"fold {f.index} (held out: {f.label}): fitted on {', '.join(f.fitted)}; {f.nfev} evaluations, "
-            f"{f.wall_time:.2f} s; {values}" + (f"; record {Path(rec).name}" if rec else ""))
+            f"{f.wall_time:.2f} s{state}; {values}" + (f"; record {Path(rec).name}" if rec else ""))
 
 
 def format_cv(result: CrossValidation) -> str:
@@ -388,6 +396,10 @@ def validation_mapping(result: CrossValidation) -> dict:
             "envelope": fold.envelope.mapping(), "measures": ERROR_LEGEND}
 
 
+def _holdout_csv(record) -> Path:
+    return Path(record).with_name(Path(record).stem + ".holdout.csv")
+
+
 def write_holdout(result: CrossValidation, record: Path) -> dict:
     """``<stem>.holdout.csv`` beside the record, and the record's ``calibration.validation`` section.
 
@@ -396,7 +408,7 @@ def write_holdout(result: CrossValidation, record: Path) -> dict:
     record = Path(record)
     files = dict(result.folds[0].result.record_files)
     rows = [r for r in result.rows if r["role"] == "predicted"]
-    files["holdout"] = _write_csv(record.with_name(record.stem + ".holdout.csv"), rows, result.folds)
+    files["holdout"] = _write_csv(_holdout_csv(record), rows, result.folds)
     add_to_record(record, validation_mapping(result))
     return files
 

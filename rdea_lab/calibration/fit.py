@@ -228,8 +228,7 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
                 restarts, nit, converged, message = bounded_least_squares(obj, xtol=xatol, ftol=ftol, gtol=ftol)
         except OutOfBudget:
             budget_reached = "evaluations" if obj.nfev >= max_evals else "time"
-            message = (f"evaluation budget {max_evals} reached" if budget_reached == "evaluations"
-                       else f"time budget {max_time:g} s reached")
+            message = budget_message(budget_reached, max_evals, max_time, obj.nfev)
     else:
         converged, message = True, "no free parameters"
     if method == "nelder-mead":
@@ -244,6 +243,14 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     best = with_values(start, values, start.M)
     return _finish(obj, parameters, best, values, model, metric, method, restarts, nit, converged, message,
                    budgets, budget_reached)
+
+
+def budget_message(budget_reached: str, max_evals: int, max_time: float, nfev: int) -> str:
+    """Why a fit stopped short: ``"stopped at the evaluation budget of 20 evaluations"`` or ``"stopped at the
+    300 s time budget after 1234 evaluations"``."""
+    if budget_reached == "evaluations":
+        return f"stopped at the evaluation budget of {max_evals} evaluations"
+    return f"stopped at the {max_time:g} s time budget after {nfev} evaluations"
 
 
 def _finish(obj, parameters, best, values, model, metric, method, restarts, nit, converged, message, budgets,
@@ -458,9 +465,8 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
     if stopped is None:
         converged, message = best.converged, f"{best.message} ({grown})"
     else:
-        spent = (f"evaluation budget {max_evals}" if stopped["budget_reached"] == "evaluations"
-                 else f"time budget {max_time:g} s")
-        converged, message = False, (f"{spent} reached in stage {stopped['stage']} '{stopped['label']}'; "
+        spent = budget_message(stopped["budget_reached"], max_evals, max_time, sum(r.nfev for r in done))
+        converged, message = False, (f"{spent}, in stage {stopped['stage']} '{stopped['label']}'; "
                                      f"the best fit so far kept ({grown})")
     return dataclasses.replace(
         best, nfev=sum(r.nfev for r in done), nit=sum(r.nit for r in done), restarts=sum(r.restarts for r in done),

@@ -82,9 +82,18 @@ def record_mapping(result, runs) -> dict:
     }
 
 
+def record_files(out) -> dict[str, Path]:
+    """The files a record at ``out`` is: ``params`` (``out``), ``history`` (``<out stem>.history.csv``),
+    ``plot`` (``<out stem>.history.png``)."""
+    out = Path(out)
+    return {"params": out, "history": out.with_name(out.stem + ".history.csv"),
+            "plot": out.with_name(out.stem + ".history.png")}
+
+
 def write_record(result, runs, out: Path, name: str | None = None) -> dict[str, Path]:
     """Write ``out`` (loadable by load_params), ``<out>.history.csv`` and ``<out>.history.png``."""
-    out = Path(out)
+    paths = record_files(out)
+    out, hist, png = paths["params"], paths["history"], paths["plot"]
     out.parent.mkdir(parents=True, exist_ok=True)
     params = result.params.replace(name=name) if name else result.params
     files = ", ".join(sorted({r.path.name for r in runs}))
@@ -94,14 +103,12 @@ def write_record(result, runs, out: Path, name: str | None = None) -> dict[str, 
     text += yaml.safe_dump({"calibration": record_mapping(result, runs)}, sort_keys=False, width=1000,
                            allow_unicode=True)
     out.write_text(text)
-    hist = out.with_name(out.stem + ".history.csv")
     with open(hist, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["evaluation", "best_objective", "stage"])
         w.writerows([[int(n), repr(float(f)), int(st)] for n, f, st in result.history])
-    png = out.with_name(out.stem + ".history.png")
     _plot_history(result, png)
-    return {"params": out, "history": hist, "plot": png}
+    return paths
 
 
 def _plot_history(result, path: Path) -> None:
@@ -125,4 +132,4 @@ def _plot_history(result, path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
-__all__ = ["record_mapping", "write_record", "format_quantity"]
+__all__ = ["record_files", "record_mapping", "write_record", "format_quantity"]

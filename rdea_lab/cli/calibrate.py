@@ -10,7 +10,7 @@ import click
 
 from .. import api
 from ..specs import MODEL_CHOICES
-from .errors import headless
+from .errors import EXIT_HELP, headless
 
 
 class FitProgress:
@@ -75,7 +75,7 @@ class FitProgress:
             self.line(f"  held out: {held}")
 
 
-@click.command()
+@click.command(epilog=EXIT_HELP)
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=False))
 @click.option("--model", type=click.Choice(MODEL_CHOICES, case_sensitive=False), default="su",
               show_default=True, help="Quasi-static model of the twin.")
@@ -103,6 +103,8 @@ class FitProgress:
 @click.option("--name", help="Name of the calibrated parameter set [default: from --out].")
 @click.option("--out", "out_path", required=True, type=click.Path(),
               help="Record to write (a parameter file with a calibration section); with --cv a folder.")
+@click.option("--force", "overwrite", is_flag=True,
+              help="Replace an existing record (--out and the files beside it; with --cv a folder that holds files).")
 @click.option("--quiet", is_flag=True, help="No progress on stderr (evaluations, best objective, stages, folds).")
 @click.option("--holdout", multiple=True, type=click.Path(), metavar="FILE",
               help="A run among INPUTS to predict instead of fit (repeatable); its errors and envelope flags "
@@ -112,7 +114,7 @@ class FitProgress:
                    "stretch; each fold fits the others and predicts its own. --out is then a folder: cv.csv, "
                    "cv.md, fold-<k>.yaml.")
 def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric, method, law, max_evals, max_time, name,
-              out_path, quiet, holdout, cv):
+              out_path, overwrite, quiet, holdout, cv):
     """Fit the Yeoh and viscoelastic parameters to measured runs (Nelder-Mead, or least squares).
 
     INPUTS are datasets or folders of datasets (a folder gives its complete
@@ -151,7 +153,7 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
     result = fit(list(inputs), model=model.lower(), init=init_path, free=free_text, branches=M,
                  eps_r=eps_r, kinds=kinds, metric=metric, max_evals=max_evals, max_time=max_time,
                  out=out_path, name=name, progress=progress, stage=progress.stage, announce=announce,
-                 method=method.lower(), law=law.lower() if law else None)
+                 method=method.lower(), law=law.lower() if law else None, overwrite=overwrite)
     if not cross:
         progress.done(result)
     if cross:

@@ -14,7 +14,7 @@ import click
 
 from .. import api
 from ..specs import MODELS
-from .errors import die
+from .errors import EXIT_HELP, die
 
 #: Table 1 of [1]: the datasheet permittivity of the silicone.
 DEFAULT_EPS_R = 2.8
@@ -37,7 +37,7 @@ def _jsonable(value):
     return convert(value)
 
 
-@click.command()
+@click.command(epilog=EXIT_HELP)
 @click.argument("card", type=click.Path(dir_okay=False))
 @click.option("--params", "params_path", type=click.Path(dir_okay=False),
               help="Parameter set whose eps_r gives C0 (default: eps_r = 2.8, Table 1).")
@@ -116,7 +116,7 @@ def _parse_voltages(text: str) -> list[float]:
     return out
 
 
-@click.command()
+@click.command(epilog=EXIT_HELP)
 @click.option("--specimen", "card", required=True, type=click.Path(dir_okay=False), help="Specimen card (YAML).")
 @click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False), help="Parameter set (YAML).")
 @click.option("--model", type=click.Choice(MODELS, case_sensitive=False), default="su",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 
 import click
 
@@ -44,8 +45,12 @@ def design(study_path, out, scheduler, workers, synchronous, backend, overwrite,
         api.check_card_run(study)  # before hours of work, not after
     out = out or f"designs/{study.name}"
     api.check_study_out(out, overwrite)
-    result = api.run_study(study, scheduler=scheduler, workers=workers, synchronous=synchronous,
-                           progress=not quiet, quiet=quiet)
+    try:
+        result = api.run_study(study, scheduler=scheduler, workers=workers, synchronous=synchronous,
+                               progress=not quiet, quiet=quiet)
+    except api.StudyAborted as exc:  # the cluster lost the work: ended by the environment, as a run's abort
+        click.echo(f"rdea-lab: {exc}", err=True)
+        sys.exit(3)
     paths = api.write_study(result, out, overwrite, figures=not no_figures)
     summary = api.study_summary(result)
     summary["outputs"] = paths

@@ -9,9 +9,10 @@ import click
 
 from .. import api
 from ..specs.importing import FORMATS, KINDS, MIN_STRETCH
+from .errors import EXIT_HELP
 
 
-@click.command(name="import")
+@click.command(name="import", epilog=EXIT_HELP)
 @click.argument("files", nargs=-1, required=True, type=click.Path())
 @click.option("--format", "fmt", required=True, metavar="|".join(FORMATS),
               help="How the files are written: " + ", ".join(FORMATS) + ".")

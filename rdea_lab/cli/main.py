@@ -65,10 +65,12 @@ def cli():
               type=click.Path(file_okay=False), help="Folder for everything reproduce writes (refused if it "
               "holds files, unless --force).")
 @click.option("--datasets", "datasets_dir", type=click.Path(file_okay=False),
-              help="Folder for the campaign's datasets [default: OUT/datasets].")
+              help="Folder for the campaign's datasets [default: OUT/datasets] (refused if it holds files, unless "
+              "--force).")
 @click.option("--campaign", "campaign_path", type=click.Path(dir_okay=False),
               help="Campaign file [default: the packaged paper2021]; must include specimen 2's tensile tests.")
-@click.option("--force", "overwrite", is_flag=True, help="Write over an output folder that holds files.")
+@click.option("--force", "overwrite", is_flag=True,
+              help="Write over an output folder (and a --datasets folder) that holds files.")
 @click.option("--no-speed", is_flag=True, help="Skip the speed-against-error study.")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--pdf", is_flag=True, help="A PDF beside every PNG figure (vector, for a paper).")
@@ -121,7 +123,7 @@ def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet, 
     click.echo(f"  {'total':<15} {result['seconds']:6.1f} s")
 
 
-@click.command()
+@click.command(epilog=EXIT_HELP)
 @click.option("--samples", default=100_000, show_default=True, type=click.IntRange(1000, 10_000_000),
               help="Samples per model.")
 @click.option("--baseline-samples", default=1000, show_default=True, type=click.IntRange(10, 100_000),

@@ -66,6 +66,9 @@ def plan(target_path, card, params_path, model, out, overwrite, stretch, bias, s
         die("plan: give --run or --check, not both")
     if run_out and not backend:
         die("--run-out: only with --run")
+    api.check_new(out, overwrite, "--out")  # before the planning; the --run's dataset too
+    if backend and run_out:
+        api.check_outputs([run_out], overwrite)
     target = api.load_target(target_path, stretch=stretch, bias=bias, sample_rate=sample_rate, approach=approach,
                              settle=settle)
     tp = api.plan_target(target, card, params_path, model)

@@ -6,7 +6,7 @@ import click
 
 from .. import api
 from ..specs import MODEL_CHOICES
-from .errors import headless
+from .errors import EXIT_HELP, headless
 
 MODELS = MODEL_CHOICES
 
@@ -21,7 +21,7 @@ class _ReportGroup(click.Group):
         return super().parse_args(ctx, args)
 
 
-@click.group(cls=_ReportGroup)
+@click.group(cls=_ReportGroup, epilog=EXIT_HELP)
 def report():
     """Reports: the twin against measured runs (validation), and speed against error (speed).
 
@@ -32,7 +32,7 @@ def report():
     """
 
 
-@report.command()
+@report.command(epilog=EXIT_HELP)
 @click.option("--params", "params_path", required=True, type=click.Path(dir_okay=False),
               help="Parameter set (YAML), e.g. a calibration record.")
 @click.option("--datasets", "datasets", required=True, type=click.Path(file_okay=False),
@@ -44,7 +44,8 @@ def report():
 @click.option("--tolerance", type=click.FloatRange(min=0.0, min_open=True), default=0.01, show_default=True,
               help="For --model auto: allowed deviation from CR, relative to the peak stress.")
 @click.option("--no-figures", is_flag=True, help="Tables and index.html only.")
-def validation(params_path, datasets, out_dir, model, tolerance, no_figures):
+@click.option("--force", "overwrite", is_flag=True, help="Write into an --out that holds files.")
+def validation(params_path, datasets, out_dir, model, tolerance, no_figures, overwrite):
     """The twin against measured runs: the Table 4 analogue, figures 11-16, index.html.
 
     Runs the twin on every complete run's own stretch and voltage history
@@ -65,7 +66,7 @@ def validation(params_path, datasets, out_dir, model, tolerance, no_figures):
     headless()
     click.echo(f"evaluating the twin ({model.lower()}) on the runs in {datasets} ...")
     result = api.validation_report(params_path, datasets, out_dir, model=model.lower(), tolerance=tolerance,
-                                   figures=not no_figures)
+                                   figures=not no_figures, overwrite=overwrite)
     click.echo(result["caption"])
     click.echo(result["markdown"], nl=False)
     click.echo(result["legend"])
@@ -75,14 +76,15 @@ def validation(params_path, datasets, out_dir, model, tolerance, no_figures):
                f"{len(result['figures'])} figures) in {out_dir}")
 
 
-@report.command()
+@report.command(epilog=EXIT_HELP)
 @click.option("--out", "out_dir", default="reports/speed", show_default=True, type=click.Path(file_okay=False),
               help="Folder for speed.md, speed.csv, pareto.png and the Figure 8 sweep.")
 @click.option("--repeats", type=click.IntRange(1, 50), default=3, show_default=True,
               help="Timing repeats per model and scene (the best is kept).")
 @click.option("--tolerance", type=click.FloatRange(min=0.0, min_open=True), default=0.01, show_default=True,
               help="For auto: allowed deviation from CR, relative to the peak stress.")
-def speed(out_dir, repeats, tolerance):
+@click.option("--force", "overwrite", is_flag=True, help="Write into an --out that holds files.")
+def speed(out_dir, repeats, tolerance, overwrite):
     """SU, 1R, 3R, CR and auto: time per sample against stress error from CR, per scene.
 
     Scenes: the three paper specimens under the paper's protocols, and the
@@ -94,7 +96,7 @@ def speed(out_dir, repeats, tolerance):
     """
     headless()
     click.echo(f"timing SU, 1R, 3R, CR and auto (best of {repeats}) ...")
-    result = api.speed_study(out_dir, repeats=repeats, tolerance=tolerance)
+    result = api.speed_study(out_dir, repeats=repeats, tolerance=tolerance, overwrite=overwrite)
     for a in result["auto"]:
         click.echo(f"  {a['scene']}: auto picks {a['model_used']} ({a['auto_reason']})")
     for c in result["reference_check"]:

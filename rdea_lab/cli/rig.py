@@ -8,15 +8,15 @@ import threading
 import click
 
 from .. import api
-from .errors import die, flush_stdout
+from .errors import EXIT_HELP, die, flush_stdout
 
 
-@click.group()
+@click.group(epilog=EXIT_HELP)
 def rig():
     """The test rig: serve the built-in emulator."""
 
 
-@rig.command()
+@rig.command(epilog=EXIT_HELP)
 @click.option("--specimen", "card_path", required=True, type=click.Path(dir_okay=False),
               help="Specimen card (YAML) of the roll on the emulated rig.")
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False),

@@ -64,6 +64,7 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
             return [api.LivePlot()]
         if not live.lower().endswith(".png"):
             die(f"--live: {live!r}; allowed: table, plot or a FILE.png")
+        api.check_figure(live, "--live")  # a folder it can be written in, before the run
         headless()
         return [api.LivePlot(Path(live))]
     if quiet or not (sys.stdout.isatty() and sys.stderr.isatty()) or (seconds is not None and seconds <= 1.0):
@@ -195,7 +196,7 @@ def recover(paths, out_path):
         sys.exit(LIVE_LEFT_ALONE)
 
 
-@click.command(name="ls")
+@click.command(name="ls", epilog=EXIT_HELP)
 @click.argument("folder", default="datasets", type=click.Path(file_okay=False))
 def ls_(folder):
     """A table of the runs below FOLDER, from their attributes (with the user's metadata).
@@ -223,9 +224,10 @@ def ls_(folder):
         click.echo("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip())
 
 
-@click.command()
+@click.command(epilog=EXIT_HELP)
 @click.argument("file", type=click.Path(dir_okay=False))
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write a PNG of the run.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Write a PNG of the run (or .pdf, .svg, ...: matplotlib's formats).")
 def show(file, plot_path):
     """Summary of one run (with the user's metadata), and optionally a plot.
 
@@ -233,6 +235,8 @@ def show(file, plot_path):
     Example:
       rdea-lab show datasets/demo.nc --plot demo.png
     """
+    if plot_path:
+        api.check_figure(plot_path)
     if not Path(file).is_file():
         die(f"{file}: no such file")
     try:
@@ -250,16 +254,17 @@ def show(file, plot_path):
         click.echo(f"plot: {plot_path}")
 
 
-@click.group()
+@click.group(epilog=EXIT_HELP)
 def protocol():
     """Inspect protocols."""
 
 
-@protocol.command(name="show")
+@protocol.command(name="show", epilog=EXIT_HELP)
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--specimen", "card_path", type=click.Path(dir_okay=False),
               help="Also check the field limit against this specimen's layer thickness.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False), help="Write a PNG of the setpoints.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
+              help="Write a PNG of the setpoints (or .pdf, .svg, ...: matplotlib's formats).")
 def protocol_show(file, card_path, plot_path):
     """Print the expanded plan of a protocol (duration, samples, envelope), and draw it.
 
@@ -267,6 +272,8 @@ def protocol_show(file, card_path, plot_path):
     Example:
       rdea-lab protocol show protocols/blocking_force.yaml --plot blocking.png
     """
+    if plot_path:
+        api.check_figure(plot_path)
     plan = api.load_plan(file)
     L3 = api.geometry(card_path).L3 if card_path else None
     click.echo(plan.describe())
@@ -278,7 +285,7 @@ def protocol_show(file, card_path, plot_path):
         click.echo(f"plot: {plot_path}")
 
 
-@click.group()
+@click.group(epilog=EXIT_HELP)
 def campaign():
     """Run a whole campaign of experiments (campaigns/*.yaml)."""
 

@@ -27,7 +27,7 @@ from .errors import EXIT_HELP, headless
               help="Dataset to write [default: RUN.selfsense.nc beside the run].")
 @click.option("--force", "overwrite", is_flag=True, help="Overwrite an existing --out.")
 @click.option("--plot", "plot_path", type=click.Path(dir_okay=False),
-              help="Write a PNG: both stretches and the error against time.")
+              help="Write a PNG (or .pdf, .svg, ...): both stretches and the error against time.")
 def selfsense(run_path, params_path, model, tare, reference, estimator, out_path, overwrite, plot_path):
     """Self-sensing: the stretch estimated from the amplifier current, beside the encoder's.
 
@@ -45,6 +45,8 @@ def selfsense(run_path, params_path, model, tare, reference, estimator, out_path
       rdea-lab selfsense runs/sense2.nc --params params/paper2021_table3.yaml --out runs/sense2.selfsense.nc
       rdea-lab selfsense runs/sense2.nc --params params/paper2021_table3.yaml --reference runs/sense2-0V.nc
     """
+    if plot_path:
+        api.check_figure(plot_path)
     if out_path is None:
         out_path = str(run_path)[:-3] + ".selfsense.nc" if str(run_path).endswith(".nc") else str(run_path) + \
             ".selfsense.nc"

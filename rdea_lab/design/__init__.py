@@ -9,8 +9,8 @@ them (feasibility, Pareto front, Sobol indices) and refines the best
 the best design's specimen card.
 """
 
-from .cluster import SchedulerError, connect
+from .cluster import SchedulerError, StudyAborted, connect
 from .study import StudyError, StudyResult, card_of, evaluate_table, feasible, pareto, run_study, sample
 
-__all__ = ["SchedulerError", "StudyError", "StudyResult", "card_of", "connect", "evaluate_table", "feasible",
-           "pareto", "run_study", "sample"]
+__all__ = ["SchedulerError", "StudyAborted", "StudyError", "StudyResult", "card_of", "connect", "evaluate_table",
+           "feasible", "pareto", "run_study", "sample"]

@@ -27,6 +27,11 @@ class SchedulerError(UserError):
     """The scheduler address is malformed or nothing answers there (exit status 2)."""
 
 
+class StudyAborted(RuntimeError):
+    """The cluster lost the study's work: a worker died while it ran a task (killed, out of memory), or the
+    data every task shares went with the workers that held it. The CLI: exit status 3, one line."""
+
+
 def scheduler_address(given: str | None) -> str | None:
     """The address to connect to: ``given``, else ``DASK_SCHEDULER_ADDRESS``, else None (a local cluster)."""
     address = given or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
@@ -39,17 +44,35 @@ def scheduler_address(given: str | None) -> str | None:
     return address
 
 
+#: The loggers of dask.distributed and what it runs on, silenced while a client or cluster shuts down.
+DASK_LOGGERS = ("distributed", "tornado", "asyncio", "bokeh")
+
+
+def silence_dask() -> None:
+    """No dask log record reaches stderr from now on: a client or cluster torn down early (Ctrl-C, an
+    error) makes the scheduler report, at CRITICAL, every result it can no longer send (hundreds of lines
+    of tracebacks after the one line that says what happened)."""
+    import logging
+
+    for name in list(logging.root.manager.loggerDict):
+        if name.split(".")[0] in DASK_LOGGERS:
+            logging.getLogger(name).disabled = True
+    for name in DASK_LOGGERS:
+        logging.getLogger(name).disabled = True
+
+
 @contextlib.contextmanager
 def connect(address: str | None = None, *, workers: int | None = None, quiet: bool = False):
     """A `distributed.Client` for the block: to ``address`` or to a new local cluster of ``workers``
-    single-threaded processes (default: one per core). Prints where the dashboard is."""
+    single-threaded processes (default: one per core). Prints where the dashboard is. A block that ends
+    in an exception (Ctrl-C included) closes the client and the cluster with dask's logging silenced."""
     import logging
 
     from distributed import Client, LocalCluster
 
     for name in ("distributed", "distributed.worker", "distributed.scheduler", "distributed.nanny",
                  "bokeh", "tornado"):
-        logging.getLogger(name).setLevel(logging.ERROR)
+        logging.getLogger(name).setLevel(logging.CRITICAL)  # what went wrong reaches the user as one exception
     given = address
     address = scheduler_address(address)
     if address is not None and workers:
@@ -63,7 +86,8 @@ def connect(address: str | None = None, *, workers: int | None = None, quiet: bo
                 n = len(client.scheduler_info().get("workers", {}))
                 _say(f"dask: scheduler {address} ({n} workers, connected in {time.monotonic() - t0:.1f} s), "
                      f"dashboard {client.dashboard_link}")
-            yield client
+            with _silenced_on_error():
+                yield client
         return
     n = workers or os.cpu_count() or 1
     # dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536, so glibc hands every freed buffer back to
@@ -74,13 +98,125 @@ def connect(address: str | None = None, *, workers: int | None = None, quiet: bo
 
     spawn = dict(dask.config.get("distributed.nanny.pre-spawn-environ", {}))
     spawn.pop("MALLOC_TRIM_THRESHOLD_", None)
-    with (dask.config.set({"distributed.nanny.pre-spawn-environ": spawn}),
-          LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                       dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR) as cluster,
-          Client(cluster, set_as_default=False) as client):
+    # Ctrl-C reaches the terminal's whole process group, our workers with it: they leave it to this process,
+    # which closes the cluster (each worker's own KeyboardInterrupt was a 30-line traceback)
+    preload = [*dask.config.get("distributed.worker.preload", []), __name__]
+    from distributed.deploy.spec import SpecCluster
+
+    earlier = set(SpecCluster._instances)
+    with contextlib.ExitStack() as stack:
+        cluster = None
+        try:
+            with _signals_deferred():
+                # a worker that dies while it runs a task ends the study (StudyAborted), not the tasks' retries
+                stack.enter_context(dask.config.set({"distributed.nanny.pre-spawn-environ": spawn,
+                                                     "distributed.worker.preload": preload,
+                                                     "distributed.worker.multiprocessing-method": "forkserver",
+                                                     "distributed.scheduler.allowed-failures": 0}))
+                _start_forkserver()
+                cluster = stack.enter_context(LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                                           host="127.0.0.1", dashboard_address="127.0.0.1:0",
+                                                           silence_logs=logging.CRITICAL))
+                client = stack.enter_context(Client(cluster, set_as_default=False))
+        except BaseException:  # Ctrl-C as the cluster started, or it did not start
+            silence_dask()
+            for unstarted in set(SpecCluster._instances) - earlier - {cluster}:
+                # dask's exit handler fails on it (a traceback after our line); its processes end with ours
+                SpecCluster._instances.discard(unstarted)
+            raise
         if not quiet:
             _say(f"dask: local cluster, {n} worker{'s' if n > 1 else ''}, dashboard {client.dashboard_link}")
-        yield client
+        with _silenced_on_error():
+            yield client
+
+
+def _start_forkserver() -> None:
+    """multiprocessing's fork server, with dask's preloads, started here with SIGINT ignored (if it is not
+    running yet): an ignored signal stays ignored through exec, so the server and every worker it forks
+    ignore Ctrl-C from their first instruction (a worker spawned from dask's threads had Python's handler,
+    and a traceback for a Ctrl-C while it started). This process ignores SIGINT only while it forks the
+    server (milliseconds: a Ctrl-C then is lost; press it again)."""
+    import signal
+    import threading
+    from multiprocessing import forkserver
+
+    from distributed.utils import get_mp_context
+
+    get_mp_context()  # sets the fork server's preloads (distributed, numpy, ...)
+    if threading.current_thread() is not threading.main_thread():
+        forkserver.ensure_running()
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        forkserver.ensure_running()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """Ctrl-C and SIGTERM recorded, not raised, while the block starts the cluster, then handled as they would
+    have been once it has started (and can be closed cleanly): one that interrupted the start left dask's
+    half-made cluster to its exit handler, which failed on it, and workers forked after this process had gone
+    (a traceback from each)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got = []
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(sig)
+        if callable(handler):  # Python's or the CLI's handler (an ignored or default one is left alone)
+            previous[sig] = signal.signal(sig, lambda signum, frame: got.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if got:
+        previous[got[0]](got[0], None)
+
+
+@contextlib.contextmanager
+def _silenced_on_error():
+    """The block; if it ends in an exception, dask's logging silenced before the client and cluster close,
+    and the work the cluster lost (`lost_work`) raised as `StudyAborted`."""
+    try:
+        yield
+    except BaseException as exc:
+        silence_dask()
+        lost = lost_work(exc)
+        if lost:
+            raise StudyAborted(lost) from None
+        raise
+
+
+def lost_work(exc: BaseException) -> str:
+    """What the cluster lost, if ``exc`` says it lost work (a worker died running a task; a task cancelled
+    because its shared data went with its workers), else ``""``."""
+    from distributed.client import FutureCancelledError
+    from distributed.scheduler import KilledWorker
+
+    if isinstance(exc, KilledWorker):
+        return (f"design: a dask worker died while it ran task {exc.task!r} (killed, or out of memory); the "
+                "study stopped, nothing written")
+    if isinstance(exc, FutureCancelledError):
+        return (f"design: task {exc.key!r} was cancelled ({exc.reason.rstrip('.')}): the dask workers that held "
+                "the study's shared data were lost (killed, or out of memory); the study stopped, nothing written")
+    return ""
+
+
+def dask_setup(worker) -> None:
+    """In each worker process of our local cluster (a dask preload): SIGINT ignored, the client's process
+    stops the cluster."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _client(Client, address):

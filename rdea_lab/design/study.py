@@ -104,7 +104,9 @@ def evaluate_table(study: Study, table: dict, *, client=None, progress: bool = F
             futures.append(client.submit(evaluate_chunk, shared, np.arange(a, b), rows,
                                          key=f"rdea-design-{label}-{a}-{dask.base.tokenize(shared.key, rows)}"))
         with client.as_current():
-            for _ in as_completed(futures):
+            for future in as_completed(futures):
+                if future.status != "finished":  # lost with a worker, or failed: stop here, not at 100 %
+                    future.result()
                 bar.update()
         parts = client.gather(futures)
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}

@@ -30,7 +30,7 @@ from ..calibration import calibrate, find_runs, initial_guess, load_run
 from ..calibration.record import write_record
 from ..paths import data_dir
 from ..runs import check_writable, experiments, run_campaign, submit_campaign
-from ..store.outputs import OutputError
+from ..store.outputs import check_new
 from ..specs.campaign import load_campaign
 from ..specs.errors import UserError
 from .paper_models import reproduce_models
@@ -54,7 +54,8 @@ def reproduce(out: Path, *, datasets=None, campaign=None, speed=True, overwrite=
     out : Path
         Output folder. An existing folder with files in it is refused unless ``overwrite``.
     datasets : Path, optional
-        Folder for the campaign's datasets (default ``out/datasets``). The committed reference
+        Folder for the campaign's datasets (default ``out/datasets``); one that holds files is refused unless
+        ``overwrite``. The committed reference
         report of a source checkout is regenerated with ``out=reports/paper2021`` and
         ``datasets=datasets/paper2021`` (CONTRIBUTING.md; PNG figures only, as committed).
     campaign : Path, optional
@@ -63,7 +64,7 @@ def reproduce(out: Path, *, datasets=None, campaign=None, speed=True, overwrite=
     speed : bool
         Run the speed-against-error study.
     overwrite : bool
-        Write over an ``out`` that already holds files (its datasets are replaced).
+        Write over an ``out`` (and a ``datasets`` folder) that already holds files (its datasets are replaced).
     echo : callable
         Where progress lines go.
     progress_factory : callable, optional
@@ -90,6 +91,8 @@ def reproduce(out: Path, *, datasets=None, campaign=None, speed=True, overwrite=
     out = Path(out)
     data = Path(datasets) if datasets is not None else out / "datasets"
     check_fresh(out, overwrite)
+    if datasets is not None:  # a folder of its own (the committed datasets/paper2021: only with --force)
+        check_new(data, overwrite, "--datasets", folder=True)
     check_writable(data / "x.nc", "--datasets" if datasets is not None else "--out")  # before twelve runs
     workers = default_workers() if workers is None else int(workers)
     if workers < 1:
@@ -144,7 +147,8 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
 
     with stage("validation"):
         echo("[3/5] validation report: the twin on every run's own stretch and voltage")
-        report = validation_report(files["params"], data, out / "validation", model="su", pdf=pdf, executor=pool)
+        report = validation_report(files["params"], data, out / "validation", model="su", pdf=pdf, executor=pool,
+                                   overwrite=True)  # out: checked by check_fresh
     result = {"campaign": [str(r.path) for r in results], "campaign_name": spec.name, "calibration": files,
               "calibration_result": fit, "validation": report, "datasets": str(data), "workers": workers}
     if models is None:
@@ -155,7 +159,7 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
     if speed:
         with stage("speed study"):  # last, and alone: it times the models
             echo("[4/5] speed against error: SU, 1R, 3R, CR and auto on the paper's scenes and the Section 3.4 cores")
-            result["speed"] = speed_study(out / "speed", root, pdf=pdf,
+            result["speed"] = speed_study(out / "speed", root, pdf=pdf, overwrite=True,
                                           sweep=(result["models"]["figure8"], out / "models" / "figure8_sweep.png"))
     else:
         echo("[4/5] speed study skipped")
@@ -284,9 +288,4 @@ def _calibrate(out, paths, echo, stage):
 
 def check_fresh(out: Path, overwrite: bool) -> None:
     """Refuse an output folder that already holds files, unless ``overwrite`` (checked before any work)."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise OutputError(str(out), "--out", "is a file; give a folder")
-    if not overwrite and out.is_dir() and any(out.iterdir()):
-        raise OutputError(str(out), "--out", "exists and holds files; give another folder, or --force "
-                          "(overwrite=True) to write over it")
+    check_new(out, overwrite, "--out", folder=True)

@@ -45,7 +45,7 @@ from ..specs.errors import DOCUMENT
 from ..specs.truth import MODELS
 from ..store import open_run
 from ..store.journal import utc_now, write_dataset
-from ..store.outputs import check_dataset_name, check_writable
+from ..store.outputs import check_dataset_name, check_new
 from ..twin.cf import SELFSENSE_VARIABLES, variable_attrs
 from ..twin.selfsense import BLEND_VOLTAGE, capacitance_rls, capacitance_secant, stretch_from_capacitance
 
@@ -216,9 +216,7 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimat
         raise SpecError("arguments", "tau", f"{tau!r} is not a finite time > 0 s")
     if out is not None:
         check_dataset_name(out)
-        if Path(out).exists() and not overwrite:
-            raise SpecError(str(out), "out", "exists; give another output or overwrite it (--force)")
-        check_writable(out)
+        check_new(out, overwrite)
     params = as_params(params)
     ds, card, probe, est = _sense(run, source, estimator, tau)
     protocol_name = str(ds.attrs.get("protocol_name", "unknown"))

@@ -39,12 +39,12 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from ..paths import data_dir
-from ..runs import check_writable
 from ..physics.geometry import geometry_from_card
 from ..physics.models import continuum, solve
 from ..physics.selection import select_model
 from ..protocols import load_plan
 from ..specs import MODEL_CHOICES, load_params, load_specimen
+from ..store.outputs import check_new
 from . import tables
 from .paper_models import IDENTICAL, figure8
 from .plots import save_figure
@@ -307,13 +307,13 @@ def _markdown(rows, auto, check, quad, sweep, repeats, tolerance) -> str:
 
 
 def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_samples: int = 2001,
-                pdf: bool = True, sweep=None) -> dict:
+                pdf: bool = True, sweep=None, overwrite: bool = False) -> dict:
     """Write ``speed.md``, ``speed.csv``, ``pareto.png``, ``figure8_sweep.png`` and ``figure8.csv`` into ``out``.
 
     Parameters
     ----------
     out : path
-        Output folder (created).
+        Output folder (created); one that holds files is refused before the work unless ``overwrite``.
     root : path, optional
         Folder holding ``specimens/``, ``params/``, ``protocols/`` (default: the packaged ones,
         `rdea_lab.paths.data_dir`).
@@ -329,6 +329,8 @@ def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_
         The Figure 8 sweep made already (``(rows, png)``: what :func:`~rdea_lab.reports.paper_models.figure8`
         returned and the PNG it wrote, a PDF beside it if ``pdf``), copied here instead of computed again
         (`reproduce` makes it for the models section).
+    overwrite : bool
+        Write into an ``out`` that holds files (the CLI's ``--force``).
 
     Returns
     -------
@@ -337,7 +339,7 @@ def speed_study(out, root=None, repeats: int = 3, tolerance: float = 0.01, core_
         ``reference_check`` (3R against fsolve), ``quadrature_check`` (CR against a finer
         quadrature), ``figure8``, ``files``.
     """
-    check_writable(Path(out) / "speed.md", "--out")  # before the timing, not after it
+    check_new(out, overwrite, "--out", folder=True)  # before the timing, not after it
     root = Path(root) if root is not None else data_dir()
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats}")

@@ -29,10 +29,10 @@ import xarray as xr
 from ..calibration.crossval import nominal_rate
 from ..calibration.envelope import beyond, run_envelope, stretch_text
 from ..calibration.objective import error_measures, load_run
-from ..runs.app import check_writable
 from ..specs import MODEL_CHOICES, UserError, as_params
-from ..twin import predict
 from ..store import open_run
+from ..store.outputs import check_new
+from ..twin import predict
 from . import tables
 from .html import write_validation_index
 from .provenance import (NONE_RECORDED, NOT_CHECKED, calibration_envelope, calibration_summary, data_origin, role,
@@ -238,7 +238,7 @@ def _sort_key(row):
 
 
 def validation_report(params_path, datasets_folder, out, model: str = "su", tolerance: float = 0.01,
-                      figures: bool = True, pdf: bool = True, executor=None) -> dict:
+                      figures: bool = True, pdf: bool = True, executor=None, overwrite: bool = False) -> dict:
     """Write the Table 4 analogue, the figures and ``index.html`` for a parameter set and a folder of runs.
 
     Parameters
@@ -249,7 +249,7 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
     datasets_folder : path
         Folder searched recursively for complete runs (``*.nc``).
     out : path
-        Output folder (created).
+        Output folder (created); one that holds files is refused before the work unless ``overwrite``.
     model : {"su", "1r", "3r", "cr", "auto"}
         Quasi-static model of the twin; ``auto`` picks per run with :func:`select_model`.
     tolerance : float
@@ -261,6 +261,8 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
     executor : concurrent.futures.Executor, optional
         Evaluate the runs and draw the figures as its tasks (a process pool: on every core), with the
         numbers and files of the serial report.
+    overwrite : bool
+        Write into an ``out`` that holds files (the CLI's ``--force``).
 
     Returns
     -------
@@ -273,6 +275,8 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
     ------
     SpecError
         The parameter file is missing or invalid.
+    OutputError
+        ``out`` holds files (and not ``overwrite``), is a file, or cannot be written.
     ReportInputError
         Unknown model, no folder, or no complete runs in it.
     """
@@ -281,8 +285,8 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
     folder = Path(datasets_folder)
     if not folder.is_dir():
         raise ReportInputError(f"{folder}: no such folder of datasets")
-    check_writable(Path(out) / "table4.md", "out")  # before the work, not after it
     params = as_params(params_path)
+    check_new(out, overwrite, "out", folder=True)  # before the work, not after it
     paths, skipped = scan_runs(folder)
     evaluated = []
     n = len(paths)

@@ -26,7 +26,7 @@ from ..physics.models import three_ring
 from ..protocols import as_plan, first_violation
 from ..specs import MODEL_CHOICES, SpecError, as_params, as_specimen
 from ..store import journal_path, open_run
-from ..store.outputs import OutputError, check_dataset_name, check_writable  # noqa: F401  (this layer's API)
+from ..store.outputs import OutputError, check_dataset_name, check_new, check_writable  # noqa: F401  (this layer's API)
 from .engine import check_metadata, execute
 
 DEFAULT_PARAMS = "params/paper2021_table3.yaml"
@@ -94,11 +94,7 @@ def check_outputs(paths, overwrite: bool = False, names=None) -> None:
         if journal_path(out).exists():
             raise OutputInUse(str(out), "out", f"an unfinished run's journal {journal_path(out)} is in the way; "
                               "rdea-lab recover it, or remove it")
-        if out.is_dir():
-            raise OutputInUse(str(out), "out", "is a folder; give the path of a .nc file")
-        if out.exists() and not overwrite:
-            raise OutputInUse(str(out), "out", "exists; give --force (overwrite=True) to overwrite, "
-                              "or choose another output")
+        check_new(out, overwrite, error=OutputInUse)
 
 
 def check_seed(seed) -> int:

@@ -34,6 +34,7 @@ from ..specs import SpecError, dump_specimen, ureg
 from ..specs.errors import show
 from .csvtable import read_csv
 from .journal import utc_now, write_dataset
+from .outputs import check_new
 from .schema import VARIABLES, global_attrs, portable_command, time_attrs, variable_attrs
 from .tables import Table, read_mat, read_tdms
 from ..specs.importing import FORMATS, KINDS, MAX_STRETCH, MIN_STRETCH  # noqa: F401  (what import accepts; re-exported)
@@ -350,8 +351,7 @@ def output_paths(paths, card_id: str, out=None, overwrite: bool = False) -> list
         if target in seen:
             raise SpecError(str(p), "--out", f"{seen[target]} and {p} would both be written to {target}")
         seen[target] = p
-        if target.exists() and not overwrite:
-            raise SpecError(str(target), "--out", "exists already; give --force to overwrite it")
+        check_new(target, overwrite, "--out")
     return targets
 
 

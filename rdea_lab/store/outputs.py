@@ -1,4 +1,8 @@
-"""Where a dataset, a figure or a record is to be written: checked before anything is measured or computed."""
+"""Where a dataset, a figure or a record is to be written: checked before anything is measured or computed.
+
+The one rule of every writer (`check_new`): an existing output is refused unless ``overwrite`` (the CLI's
+``--force``), before any work; then the place must be writable (`check_writable`).
+"""
 
 from __future__ import annotations
 
@@ -68,3 +72,62 @@ def check_writable(path, what="out") -> None:
     except OSError as exc:
         raise OutputError(str(path), what, f"cannot write in the folder {folder} "
                           f"({exc.strerror or type(exc).__name__})") from None
+
+
+#: What a refused output tells the user to do (the same words for every writer).
+FORCE_HINT = "give --force (overwrite=True) to replace it, or another output"
+
+
+def check_new(path, overwrite: bool = False, what="out", *, folder: bool = False, error=OutputError) -> None:
+    """Raise ``error`` (an `OutputError`) if the output ``path`` exists and not ``overwrite``, or cannot be
+    written (`check_writable`): the one rule of every command that writes, checked before any work.
+
+    Parameters
+    ----------
+    path : path
+        A file to be written, or with ``folder`` a folder to be written into.
+    overwrite : bool
+        Replace what is there (``--force``).
+    what : str
+        The field the path came from, for the message (``out``, ``--out``, ...).
+    folder : bool
+        ``path`` is a folder: refused when it holds anything (a file is refused as not a folder, even with
+        ``overwrite``); otherwise a folder at ``path`` is refused as not a file.
+    """
+    path = Path(path)
+    if folder:
+        if path.exists() and not path.is_dir():
+            raise error(shown(path), what, "is a file; give a folder")
+        if not overwrite and path.is_dir() and any(path.iterdir()):
+            raise error(shown(path), what, "exists and holds files; give --force (overwrite=True) to write "
+                        "over it, or another folder")
+        check_writable(path / "x", what)
+        return
+    if path.is_dir():
+        raise error(shown(path), what, "is a folder; give the path of a file")
+    if path.exists() and not overwrite:
+        raise error(shown(path), what, f"exists; {FORCE_HINT}")
+    check_writable(path, what)
+
+
+def figure_formats() -> tuple[str, ...]:
+    """The file suffixes matplotlib writes (``png``, ``pdf``, ``svg``, ...), from its canvas alone: no pyplot, no
+    backend chosen."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return tuple(sorted(FigureCanvasBase.get_supported_filetypes()))
+
+
+def check_figure(path, what="--plot") -> None:
+    """Raise `OutputError` unless matplotlib can write a figure to ``path``: a suffix among its formats
+    (`figure_formats`), and a place `check_writable` accepts; before the work the figure shows."""
+    path = Path(path)
+    suffix = path.suffix.lower().lstrip(".")
+    formats = figure_formats()
+    if suffix not in formats:
+        given = f"the suffix {path.suffix!r}" if path.suffix else "no suffix"
+        raise OutputError(shown(path), what, f"{given} is not a figure format matplotlib writes; allowed: "
+                          + ", ".join(f".{f}" for f in formats))
+    if path.is_dir():
+        raise OutputError(shown(path), what, "is a folder; give the path of a file")
+    check_writable(path, what)

@@ -133,6 +133,10 @@ def test_cli_cv_writes_the_folder_and_prints_the_table(imported, tmp_path, capsy
         assert float(back[2 * k - 1]["C10_Pa"]) == pytest.approx(fold.C10, rel=1e-5)  # the record: 6 digits
     md = (out / "cv.md").read_text()
     assert "max/peak" in md and "rms/peak" in md and "p99/peak" in md and "Legend:" in md
+    # the 200 evaluations end each fold's fit before it converges: the table and each fold's line say so
+    assert {r["fold_converged"] for r in back} == {"False"}
+    assert md.count("200 evaluations, ") == 2 and md.count(
+        ", not converged (stopped at the evaluation budget of 200 evaluations); ") == 2
     last = stdout.split("Legend:")[0].strip().splitlines()[-1]  # the table's last row: fold 2's prediction
     assert re.match(r"\| 2 +\| stretch 3.0 +\| predicted +\| 0d05_3d0.nc ", last), last
     assert "stretch 3.0 beyond the calibrated 1.5" in stdout and "Legend:" in stdout

@@ -100,7 +100,8 @@ def test_a_parameter_the_data_cannot_see_is_flagged(clean):
 
 def test_fixed_parameters_stay_and_budgets_stop_cleanly(clean):
     res = calibrate(clean, factor3_start(), model="su", free=["C10"], max_evals=50)
-    assert res.nfev == 50 and "evaluation budget 50 reached" in res.message and not res.converged
+    assert res.nfev == 50 and res.message == "stopped at the evaluation budget of 50 evaluations"
+    assert not res.converged
     assert res.params.C20 == factor3_start().C20 and res.free_names == ("C10",)
     res = calibrate(clean, TRUE, model="su", free=[])
     assert res.message == "no free parameters" and res.nfev == 0
@@ -113,10 +114,11 @@ def test_a_fit_its_time_budget_stopped_records_not_converged(clean, tmp_path):
     import yaml
 
     res = calibrate(clean, factor3_start(), model="su", free=FREE, max_time=1e-9)
-    assert not res.converged and res.message == "time budget 1e-09 s reached" and res.nfev == 0
+    why = "stopped at the 1e-09 s time budget after 0 evaluations"
+    assert not res.converged and res.message == why and res.nfev == 0
     assert res.stages[0]["budget_reached"] == "time" and not res.stages[0]["converged"]
     record = yaml.safe_load(write_record(res, clean, tmp_path / "cal.yaml")["params"].read_text())["calibration"]
-    assert record["converged"] is False and record["message"] == "time budget 1e-09 s reached"
+    assert record["converged"] is False and record["message"] == why
     assert record["stages"][0]["budget_reached"] == "time"
     full = calibrate(clean, factor3_start(), model="su", free=FREE, method="least-squares")
     assert full.converged and full.stages[0]["budget_reached"] == ""  # the same fit, unhurried
@@ -225,9 +227,11 @@ def test_a_budget_that_stops_the_last_stage_of_a_growth_leaves_it_not_converged(
     assert res.nfev == budget and [st["budget_reached"] for st in res.stages] == ["", "", "evaluations"]
     assert res.stages[1]["converged"] and res.stages[1]["kept"]  # the kept fit converged; the growth did not
     assert not res.converged
-    assert res.message.startswith(f"evaluation budget {budget} reached in stage 2 'M = 2, new branch faster")
+    assert res.message.startswith(f"stopped at the evaluation budget of {budget} evaluations, in stage 2 "
+                                  "'M = 2, new branch faster")
     tiny = calibrate_growing(runs, start, 2, max_time=1e-9, **kw)  # the time budget, spent at once
-    assert not tiny.converged and tiny.message.startswith("time budget 1e-09 s reached in stage 0 'M = 1'")
+    assert not tiny.converged and tiny.message.startswith("stopped at the 1e-09 s time budget after 0 evaluations, in "
+                                                        "stage 0 'M = 1'; the best fit so far kept")
 
 
 @pytest.fixture
@@ -283,5 +287,5 @@ def test_cli_prints_progress_and_a_final_line_on_stderr_unless_quiet(capsys, tmp
     assert lines[0].startswith("  evaluations      1  best ")  # the first report
     nfev = int(captured.out.split(" after ")[1].split()[0])  # from the fit report on stdout
     assert lines[-1].startswith(f"done: {nfev} evaluations, best ") and lines[-1].endswith(", converged")
-    assert run_cli(cli, [*args, "--quiet"]) == 0
+    assert run_cli(cli, [*args, "--quiet", "--force"]) == 0  # the same record again: replaced with --force
     assert capsys.readouterr().err == ""

@@ -2,6 +2,8 @@
 
 from types import SimpleNamespace
 
+import pytest
+
 from rdea_lab.cli.calibrate import FitProgress
 
 
@@ -49,3 +51,48 @@ def test_quiet_prints_nothing(capsys):
     progress.stage(1, 1, "M = 1")
     progress.done(SimpleNamespace(nfev=1, objective=1.0, wall_time=0.0, converged=True, message=""))
     assert capsys.readouterr().err == ""
+
+
+# ---------------------------------------------- what the record says of the fit's end (issue 25)
+import yaml  # noqa: E402
+
+from rdea_lab.cli.errors import run as run_cli  # noqa: E402
+from rdea_lab.cli.main import cli  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+DATA = Path(__file__).resolve().parents[2] / "rdea_lab" / "data"
+
+
+@pytest.fixture(scope="module")
+def tensile(tmp_path_factory):
+    """A twin run of the 0 V tensile test (Table 3 parameters), to fit Rizzello 2020's C10 and C20 to."""
+    path = tmp_path_factory.mktemp("cal") / "t.nc"
+    assert run_cli(cli, ["run", str(DATA / "protocols" / "tensile_ramp_sine_0V.yaml"), "--specimen",
+                         str(DATA / "specimens" / "specimen2.yaml"), "--backend", "twin", "--model", "su", "--quiet",
+                         "--out", str(path)]) == 0
+    return path
+
+
+def _record(path):
+    return yaml.safe_load(path.read_text())["calibration"]
+
+
+def test_a_fit_the_evaluation_budget_stopped_records_not_converged_and_why(tensile, tmp_path, capsys):
+    out = tmp_path / "b.yaml"
+    assert run_cli(cli, ["calibrate", str(tensile), "--init", str(DATA / "params" / "rizzello2020.yaml"),
+                         "--free", "C10,C20", "--max-evals", "10", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    record = _record(out)
+    assert record["converged"] is False and record["statistics"]["nfev"] == 10
+    assert record["message"] == "stopped at the evaluation budget of 10 evaluations"
+    assert record["stages"][0]["budget_reached"] == "evaluations"
+    assert err.splitlines()[-1].endswith(", not converged (stopped at the evaluation budget of 10 evaluations)")
+
+
+def test_a_fit_that_converges_records_converged(tensile, tmp_path):
+    out = tmp_path / "a.yaml"
+    assert run_cli(cli, ["calibrate", str(tensile), "--init", str(DATA / "params" / "rizzello2020.yaml"),
+                         "--free", "C10,C20", "--method", "least-squares", "--quiet", "--out", str(out)]) == 0
+    record = _record(out)
+    assert record["converged"] is True and record["stages"][0]["budget_reached"] == ""
+    assert record["statistics"]["nfev"] < record["budgets"]["max_evals"]

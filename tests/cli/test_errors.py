@@ -28,7 +28,8 @@ WITHOUT_FORCE = sorted(path for path, command in _commands() if not _has_force(c
 def test_the_commands_that_write_have_force():
     # the commands whose outputs may exist already: each has --force (so the suggestion below is tested on them)
     assert {("reproduce",), ("run",), ("import",), ("campaign", "run"), ("design",), ("plan",),
-            ("selfsense",)} <= set(WITH_FORCE)
+            ("selfsense",), ("calibrate",), ("report", "validation"),
+            ("report", "speed")} <= set(WITH_FORCE)
 
 
 @pytest.mark.parametrize("path", WITH_FORCE, ids=" ".join)

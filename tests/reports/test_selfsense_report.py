@@ -135,8 +135,8 @@ def test_cli_prints_one_line_and_writes_the_dataset(run, tmp_path, capsys, monke
     assert (tmp_path / "o.nc").is_file()
     again = cli_here(capsys, monkeypatch, "selfsense", run, "--params", PARAMS, "--out", tmp_path / "o.nc",
                      cwd=tmp_path)
-    assert again.returncode == 2 and again.stderr == f"rdea-lab: {tmp_path / 'o.nc'}: out: exists; give another " \
-                                                     "output or overwrite it (--force)\n"
+    assert again.returncode == 2 and again.stderr == f"rdea-lab: {tmp_path / 'o.nc'}: out: exists; give --force " \
+                                                     "(overwrite=True) to replace it, or another output\n"
 
 
 @pytest.mark.parametrize("args, message", [

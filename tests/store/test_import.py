@@ -181,7 +181,7 @@ def test_three_vhb_files_to_the_default_folder(cli, capsys, tmp_path, monkeypatc
     assert [p.stem for p in written] == [p.stem for p in VHB_FILES]
     before = written[0].read_bytes()
     rc, _, err = invoke(cli, capsys, *args)  # again: never overwrite without --force
-    assert rc == 2 and "exists already" in err and "--force" in err and len(err.strip().splitlines()) == 1
+    assert rc == 2 and "0d01_1d5.nc: --out: exists; give --force" in err and len(err.strip().splitlines()) == 1
     assert written[0].read_bytes() == before
     rc, _, err = invoke(cli, capsys, *args, "--force")
     assert rc == 0, err
