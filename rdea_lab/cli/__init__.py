@@ -22,8 +22,9 @@ import os as _os
 _os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
-def main(argv=None):
-    """Console entry point. Ctrl-C and SIGTERM are caught from here on, before click and the commands load
+def entry(argv=None):
+    """The console entry point (``rdea-lab``; not named ``main``: that is the submodule). Ctrl-C and SIGTERM
+    are caught from here on, before click and the commands load
     (what comes before is the interpreter's own start-up, a few tens of milliseconds)."""
     import sys
 

@@ -1,5 +1,5 @@
 """``python -m rdea_lab.cli``: the ``rdea-lab`` command."""
 
-from . import main
+from . import entry
 
-main()
+entry()

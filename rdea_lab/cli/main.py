@@ -175,7 +175,7 @@ for command in (reproduce, bench):  # this module's own; the others load from CO
 
 def main(argv=None):
     """The command, for a caller that has loaded the CLI already (``python -m rdea_lab.cli.main``); the console
-    entry point is `rdea_lab.cli.main` (the package's), which catches signals from before click loads."""
+    entry point is `rdea_lab.cli.entry`, which catches signals from before click loads."""
     sys.exit(run(cli, argv, process=True))
 
 

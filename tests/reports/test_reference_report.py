@@ -72,6 +72,7 @@ def _printed_table(stdout: str) -> list[str]:
     return [line for line in stdout.splitlines() if line.startswith("|")]
 
 
+@pytest.mark.slow  # two whole reproduce runs (33 s of the default suite's 206 s); test_reproduce.py runs one short
 def test_reproduce_prints_the_committed_table_every_time(tmp_path):
     """`rdea-lab reproduce` is deterministic to the digits it prints: two runs on this machine print the
     same Table 4 analogue, and it is the committed reference report's (reports/paper2021, made on
