@@ -31,6 +31,28 @@ def signal_name(signum: int) -> str:
     return "Ctrl-C" if signum == signal.SIGINT else f"signal {signal.Signals(signum).name}"
 
 
+@contextlib.contextmanager
+def deferred():
+    """SIGINT and SIGTERM recorded, not raised, while the block runs (a step that must not be cut in two: a
+    journal being created, a cluster starting), then handed to the handler in place before it, as if they had
+    come just after. Main thread only; an ignored or default handler is left alone."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got, previous = [], {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        handler = signal.getsignal(sig)
+        if callable(handler):  # Python's, the CLI's or the engine's
+            previous[sig] = signal.signal(sig, lambda signum, frame: got.append(signum))
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    if got:
+        previous[got[0]](got[0], None)
+
+
 class Signals:
     """SIGINT and SIGTERM raise ``error(name)`` until `closing` is set; then they are recorded in `pending`.
 
@@ -69,22 +91,6 @@ class Signals:
     def __exit__(self, *exc):
         self.restore()
         return False
-
-    @contextlib.contextmanager
-    def deferred(self):
-        """A step that must not be cut in two (a journal being created): a signal during it is raised after."""
-        if self.closing:
-            yield
-            return
-        self.closing = True
-        try:
-            yield
-        finally:
-            self.closing = False
-        if self.pending:
-            name, self.pending = self.pending, ""
-            self.closing = self.once
-            raise self.error(name)
 
     def hold(self) -> None:
         """The process is about to exit: block both signals for good (the interpreter's finalization puts the

@@ -16,6 +16,7 @@ import re
 import sys
 import time
 
+from ..signals import deferred
 from ..specs.errors import UserError
 
 #: seconds a scheduler has to answer
@@ -107,7 +108,7 @@ def connect(address: str | None = None, *, workers: int | None = None, quiet: bo
     with contextlib.ExitStack() as stack:
         cluster = None
         try:
-            with _signals_deferred():
+            with deferred():  # a signal as the cluster starts is taken once it has (and can be closed)
                 # a worker that dies while it runs a task ends the study (StudyAborted), not the tasks' retries
                 stack.enter_context(dask.config.set({"distributed.nanny.pre-spawn-environ": spawn,
                                                      "distributed.worker.preload": preload,
@@ -151,33 +152,6 @@ def _start_forkserver() -> None:
         forkserver.ensure_running()
     finally:
         signal.signal(signal.SIGINT, previous)
-
-
-@contextlib.contextmanager
-def _signals_deferred():
-    """Ctrl-C and SIGTERM recorded, not raised, while the block starts the cluster, then handled as they would
-    have been once it has started (and can be closed cleanly): one that interrupted the start left dask's
-    half-made cluster to its exit handler, which failed on it, and workers forked after this process had gone
-    (a traceback from each)."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    got = []
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        handler = signal.getsignal(sig)
-        if callable(handler):  # Python's or the CLI's handler (an ignored or default one is left alone)
-            previous[sig] = signal.signal(sig, lambda signum, frame: got.append(signum))
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-    if got:
-        previous[got[0]](got[0], None)
 
 
 @contextlib.contextmanager

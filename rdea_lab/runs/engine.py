@@ -27,7 +27,7 @@ from ..specs import SpecError, dump_specimen
 from ..store.journal import DiskFull, JournalWriter, utc_now
 from ..store.schema import OPTIONAL_RUN_VARIABLES, global_attrs, portable_command, portable_path
 from .callbacks import RunBlock, subscriber_name
-from ..signals import Signals
+from ..signals import Signals, deferred
 
 #: Exit status of a run by its dataset status (the CLI's, and `RunResult.exit_code`).
 EXIT_CODES = {"complete": 0, "aborted": 3, "interrupted": 130}
@@ -187,7 +187,7 @@ def _execute(plan, card, backend, out, seed, command, subscribers, metadata, sig
         attrs = run_attrs(plan, card, backend, seed, command, metadata)
         # the output is claimed (journal folder and lock) before anything moves: a second run on it is refused
         measured = tuple(m for m in plan.measure if m in OPTIONAL_RUN_VARIABLES)  # e.g. current
-        with signals.deferred():  # the claim is whole or not made
+        with deferred():  # the claim is whole or not made
             writer = JournalWriter(out, None, extra=(*backend.extra_variables, *measured))
         for cb in subscribers:  # a subscriber that cannot start stops the run before anything moves
             start = getattr(cb, "start", None)
@@ -196,7 +196,7 @@ def _execute(plan, card, backend, out, seed, command, subscribers, metadata, sig
         backend.start(plan)  # may refuse (its own limits, configuration) before anything moves
         started = True
         attrs.update(backend.attrs())  # what the backend knows once started (model choice, rig identity)
-        with signals.deferred():
+        with deferred():
             writer.begin(attrs)
     except BaseException:
         signals.closing = True
