@@ -3,22 +3,32 @@
 The physics follows [1]; see ``paper/ERRATA.md`` in the shared folder for the
 equations that are corrected here.
 
-Quick start::
+Quick start (the one in the package; ``tests/api/test_package_docstrings.py`` runs it)::
 
-    import rdea_lab
-    card = rdea_lab.load_specimen("specimens/specimen2.yaml")
-    params = rdea_lab.load_params("params/paper2021_table3.yaml")
-    ds = rdea_lab.run_protocol("protocols/blocking_force.yaml", card, "twin", params=params, out="demo.nc")
-    twin = rdea_lab.predict(ds, params, "su")       # the twin on the run's own history
-    ds.rdea.plot(prediction=twin)                    # the run and the prediction, as a Figure
+    >>> import rdea_lab
+    >>> card = rdea_lab.load_specimen("specimen2")             # a packaged card, or a path
+    >>> params = rdea_lab.load_params("paper2021_table3")
+    >>> ds = rdea_lab.run_protocol("blocking_force", card, rdea_lab.Twin(params, "su"), out="demo.nc")
+    >>> ds.attrs["status"]
+    'complete'
+    >>> twin = ds.rdea.predict(params, "su")                   # the twin on the run's own history
+    >>> bool(abs(twin["force"] - ds["force"]).max() < 1e-9)    # the twin run is the twin
+    True
+    >>> fig = ds.rdea.plot(prediction=twin)                    # the run and the prediction: a Figure
 
-The public functions (`run_protocol`, `calibrate_runs`, `predict`, `catalog`,
-`open_run`, `validation_report`, ...) are those of `rdea_lab.api`, loaded on
-first use. Subpackages, bottom to top: `specs` (cards, parameters, protocols,
-units), `physics` (geometry, Yeoh, SU/1R/3R, viscoelasticity), `twin`,
-`protocols` (plans), `emulator` (the rig's stand-in), `backends`, `store`
-(netCDF, journal, catalogue, import), `runs` (engine, run_protocol,
-campaigns), `calibration`, `reports`, `api`, `cli`.
+The public names, about thirty, in `__all__`: runs (`run_protocol`,
+`prepare_run`, `run_campaign`, the backends `Twin`, `Emulator`, `Rig`, the
+live views `LiveTable`, `LivePlot`), data (`open_run`, `catalog`, `recover`,
+`import_files`), the twin (`predict`, `simulate`, `TwinStep`, `geometry`),
+calibration and reports (`calibrate_runs`, `cross_validate`,
+`validation_report`, `reproduce`), planning and design (`plan_target`,
+`run_study`), inputs and errors (`load_specimen`, `load_params`,
+`load_protocol`, `load_study`, `SpecError`, `LimitError`) and `RigServer`.
+The rest lives in the subpackages, bottom to top: `specs` (cards, parameters,
+protocols, units), `physics` (geometry, Yeoh, SU/1R/3R, viscoelasticity),
+`twin`, `protocols` (plans), `emulator` (the rig's stand-in), `backends`,
+`store` (netCDF, journal, catalogue, import), `runs` (engine, run_protocol,
+campaigns), `calibration`, `reports`, `design`, `api`, `cli`.
 
 [1] J. Prechtl, J. Kunze, G. Moretti, D. Bruch, S. Seelecke, G. Rizzello,
     "Modeling and experimental validation of thin, tightly rolled dielectric
@@ -28,45 +38,13 @@ campaigns), `calibration`, `reports`, `api`, `cli`.
 
 from ._version import __version__  # noqa: E402,F401
 
-import importlib.abc  # noqa: E402
-import importlib.machinery  # noqa: E402
-import sys  # noqa: E402
-
 from . import api as _api  # noqa: E402
-
-
-class _RegisterAccessorWithXarray(importlib.abc.MetaPathFinder):
-    """Registers ``ds.rdea`` right after xarray is imported, so that ``import rdea_lab`` (and every
-    ``rdea-lab`` command that needs no dataset) does not pay for importing xarray."""
-
-    def find_spec(self, name, path=None, target=None):
-        if name != "xarray":
-            return None
-        spec = importlib.machinery.PathFinder.find_spec(name, path)  # the ordinary search, without this hook
-        if spec is None or spec.loader is None or not hasattr(spec.loader, "exec_module"):
-            return spec
-        run = spec.loader.exec_module
-
-        def exec_module(module):  # only a real import gets here (a find_spec probe does not)
-            run(module)
-            if self in sys.meta_path:
-                sys.meta_path.remove(self)
-            importlib.import_module("rdea_lab.api.accessor")
-
-        spec.loader.exec_module = exec_module
-        return spec
-
-
-if "xarray" in sys.modules:
-    from .api import accessor as _accessor  # noqa: F401  (registers ds.rdea)
-elif not any(isinstance(f, _RegisterAccessorWithXarray) for f in sys.meta_path):
-    sys.meta_path.insert(0, _RegisterAccessorWithXarray())
 
 __all__ = ["__version__", *_api.__all__]
 
 
 _SUBPACKAGES = ("specs", "physics", "twin", "protocols", "emulator", "backends", "store", "runs", "calibration",
-                "reports", "api", "cli", "paths")
+                "reports", "design", "api", "cli", "paths", "signals")
 
 
 def __getattr__(name):

@@ -81,3 +81,48 @@ def test_cli_commands_are_module_level_and_thin():
                             "command" in ast.unparse(d) or "group" in ast.unparse(d) for d in inner.decorator_list):
                         nested.append(f"{path.relative_to(PKG)}:{inner.lineno} {inner.name} inside {node.name}")
     assert not nested, "\n".join(nested)
+
+
+def _root_imports(path: Path):
+    """Imports of the package root itself (``import rdea_lab``, ``from rdea_lab import name``, ``from ..
+    import name`` for a name that is not a module): its public names are the api layer's."""
+    modules = {p.stem for p in PKG.glob("*.py")} | {p.name for p in PKG.iterdir() if (p / "__init__.py").exists()}
+    tree = ast.parse(path.read_text())
+    depth = len(path.relative_to(PKG).parts) - 1  # packages between the root and this module
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import) and any(a.name == "rdea_lab" for a in node.names):
+            yield node.lineno, "import rdea_lab"
+        elif isinstance(node, ast.ImportFrom):
+            root = (node.level == 0 and node.module == "rdea_lab") or (node.level == depth + 1 and not node.module)
+            if root:
+                names = [a.name for a in node.names if a.name not in modules]
+                if names:
+                    yield node.lineno, f"from the root: {', '.join(names)}"
+
+
+def test_no_module_below_the_api_imports_the_package_root():
+    bad = []
+    for path in sorted(PKG.rglob("*.py")):
+        own = path.relative_to(PKG).parts[0]
+        if own in LAYERS and LAYERS.index(own) < LAYERS.index("api"):
+            bad += [f"{path.relative_to(PKG)}:{line} {what}" for line, what in _root_imports(path)]
+    assert not bad, "\n".join(bad)
+
+
+def test_the_public_names_are_few_and_each_documented():
+    import importlib
+
+    import rdea_lab
+
+    assert len(rdea_lab.__all__) <= 30, len(rdea_lab.__all__)
+    text = (PKG.parent / "docs" / "api.md").read_text()
+    undocumented = []
+    for name in rdea_lab.__all__:
+        if name == "__version__":
+            continue
+        obj = getattr(rdea_lab, name)
+        doc = (getattr(obj, "__doc__", None) or "").strip()
+        if len(doc.split()) < 8 or f".{name}\n" not in text:
+            undocumented.append(name)
+        importlib.import_module(obj.__module__)
+    assert not undocumented, undocumented

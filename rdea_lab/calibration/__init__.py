@@ -9,11 +9,7 @@
 - The objective predicts the force through the twin's one composition
   (:func:`rdea_lab.twin.compose`), with a cached SU stress basis.
 
-Quick start::
-
-    import rdea_lab
-    fit = rdea_lab.calibrate_runs("datasets/paper2021/specimen-2", model="su", out="calibrated.yaml")
-    print(rdea_lab.calibration.format_result(fit))
+The quick start is `rdea_lab`'s (one, run as a doctest).
 """
 
 from .app import calibrate_runs, format_result, gather_runs

@@ -8,7 +8,7 @@ import time
 
 import click
 
-from .. import api
+from ..api import _cli as api
 from ..specs import MODEL_CHOICES
 from .errors import EXIT_HELP, headless
 

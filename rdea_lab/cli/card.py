@@ -12,7 +12,7 @@ import math
 
 import click
 
-from .. import api
+from ..api import _cli as api
 from ..specs import MODELS
 from .errors import EXIT_HELP, die
 

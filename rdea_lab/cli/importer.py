@@ -7,7 +7,7 @@ import sys
 
 import click
 
-from .. import api
+from ..api import _cli as api
 from ..specs.importing import FORMATS, KINDS, MIN_STRETCH
 from .errors import EXIT_HELP
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import click
 
-from .. import api
+from ..api import _cli as api
 from .._version import __version__
 from .errors import EXIT_HELP, die, run
 from .lazy import LazyGroup

@@ -6,7 +6,7 @@ import json
 
 import click
 
-from .. import api
+from ..api import _cli as api
 from ..specs import MODELS
 from .errors import EXIT_HELP, die
 

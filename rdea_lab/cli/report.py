@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .. import api
+from ..api import _cli as api
 from ..specs import MODEL_CHOICES
 from .errors import EXIT_HELP, headless
 

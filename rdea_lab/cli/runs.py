@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 
-from .. import api
+from ..api import _cli as api
 from ..specs import MODEL_CHOICES, UserError
 from .errors import EXIT_HELP, die, headless
 
@@ -122,10 +122,12 @@ def run(protocol, card_path, backend, rig_address, token_file, truth_path, fault
     from ..specs import read_token  # here: the module loads for --help too
 
     metadata = parse_metadata(md)
-    setup = api.prepare_run(protocol, card_path, backend, params=params_path, model=model.lower(),
-                            tolerance=tolerance, out=out_path, seed=seed, realtime=realtime, address=rig_address,
-                            token=read_token(token_file, "--token-file") if token_file else None,
-                            truth=truth_path, faults=faults, stall_timeout=stall_timeout, trust_card=trust_card)
+    executor = api.backend_from_choice(backend, params=params_path, model=model, tolerance=tolerance,
+                                       realtime=realtime, address=rig_address,
+                                       token=read_token(token_file, "--token-file") if token_file else None,
+                                       truth=truth_path, faults=faults, stall_timeout=stall_timeout,
+                                       trust_card=trust_card)
+    setup = api.prepare_run(protocol, card_path, executor, out=out_path, seed=seed)
     if dry_run:
         click.echo(setup.describe())
         return

@@ -196,12 +196,13 @@ def run_card(result, card_path, backend: str, out, overwrite: bool = False) -> d
     """Run the study's protocol on the best design's card (``emulator`` or ``twin``); the run's peak force and
     the study's prediction of it for the card."""
     from ..runs.app import run_protocol
+    from ..runs.backend import Emulator, Twin
 
     study = result.study
     check_card_run(study)
-    twin = {"params": study.params, "model": study.model} if backend == "twin" else {}
-    ds = run_protocol(study.protocol_path, card_path, backend, out=out, overwrite=overwrite,
-                      metadata={"study": study.name}, command="rdea-lab design", **twin)
+    executor = Twin(study.params, study.model) if backend == "twin" else Emulator()
+    ds = run_protocol(study.protocol_path, card_path, executor, out=out, overwrite=overwrite,
+                      metadata={"study": study.name}, command="rdea-lab design")
     return {"backend": backend, "dataset": str(out), "peak_force": float(ds["force"].max()),
             "predicted_peak_force": result.optimum["card_metrics"].get("peak_force", float("nan"))}
 

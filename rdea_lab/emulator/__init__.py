@@ -8,13 +8,7 @@ tolerances, instrument effects) is a `rdea_lab.specs.truth.TruthSpec`.
 The server enforces its own limits (``LIM:*`` and ``ARM``), whatever a
 client checked; it binds loopback unless it has a token.
 
-Quick start (the whole library: see `rdea_lab`)::
-
-    import rdea_lab
-    card = rdea_lab.load_specimen("specimens/specimen2.yaml")
-    params = rdea_lab.load_params("params/paper2021_table3.yaml")
-    ds = rdea_lab.run_protocol("protocols/blocking_force.yaml", card, "twin", params=params, out="demo.nc")
-    twin = rdea_lab.predict(ds, params, "su")
+The quick start is `rdea_lab`'s (one, run as a doctest).
 """
 
 from .controller import FAULTS, RigController, RigError

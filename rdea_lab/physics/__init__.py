@@ -8,12 +8,6 @@ material, stretch, voltage)` -> `ModelResult` with a per-sample status),
 `branch` (the equilibrium rules: a rising ramp, or the path of a time series).
 Functions take loaded objects, never paths (the application layer reads files).
 
-Quick start (the whole library: see `rdea_lab`)::
-
-    import rdea_lab
-    card = rdea_lab.load_specimen("specimens/specimen2.yaml")
-    params = rdea_lab.load_params("params/paper2021_table3.yaml")
-    ds = rdea_lab.run_protocol("protocols/blocking_force.yaml", card, "twin", params=params, out="demo.nc")
-    twin = rdea_lab.predict(ds, params, "su")
+The quick start is `rdea_lab`'s (one, run as a doctest).
 """
 

@@ -7,13 +7,7 @@ violation, `first_violation` raises the first.
 
 ``as_plan`` takes a plan, a ProtocolSpec or a path.
 
-Quick start (the whole library: see `rdea_lab`)::
-
-    import rdea_lab
-    card = rdea_lab.load_specimen("specimens/specimen2.yaml")
-    params = rdea_lab.load_params("params/paper2021_table3.yaml")
-    ds = rdea_lab.run_protocol("protocols/blocking_force.yaml", card, "twin", params=params, out="demo.nc")
-    twin = rdea_lab.predict(ds, params, "su")
+The quick start is `rdea_lab`'s (one, run as a doctest).
 """
 
 from .plan import Plan, as_plan, check_plan, expand, first_violation, load_plan

@@ -22,7 +22,8 @@ import os
 import numpy as np
 
 from ..protocols.target import TargetPlan, plan_target
-from ..runs.app import run_protocol
+from ..runs.app import as_backend, run_protocol
+from ..runs.backend import Twin
 from ..specs.errors import DOCUMENT, SpecError
 from ..store import open_run
 from ..twin.simulate import as_geometry
@@ -99,8 +100,8 @@ def track_target(target, specimen, params, model="su", *, backend="emulator", ou
         ``plan`` (the `TargetPlan`), ``run`` (the dataset), ``tracking`` (`tracking_error`).
     """
     tp = target if isinstance(target, TargetPlan) else plan_target(target, specimen, params, model)
-    kwargs = {"params": params, "model": model} if backend == "twin" else {}
-    ds = run_protocol(tp.plan, specimen, backend, out=out, overwrite=overwrite, seed=seed, command=command, **kwargs)
+    executor = Twin(params, model) if backend == "twin" else as_backend(backend)
+    ds = run_protocol(tp.plan, specimen, executor, out=out, overwrite=overwrite, seed=seed, command=command)
     return {"plan": tp, "run": ds, "tracking": tracking_error(ds, tp, specimen)}
 
 

@@ -8,23 +8,19 @@
 - `execute`: the engine (plan -> backend -> blocks -> journal -> dataset).
 - `callbacks`: `LiveTable`, `RunBlock`; `live.LivePlot`.
 
-Quick start::
-
-    import rdea_lab
-    ds = rdea_lab.run_protocol("protocols/blocking_force.yaml", "specimens/specimen2.yaml", "twin",
-                               out="demo.nc", metadata={"operator": "ana"})
-    ds.rdea.plot()
+The quick start is `rdea_lab`'s (one, run as a doctest).
 """
 
 from .app import (
-    BACKENDS, OutputError, OutputInUse, RunSetup, check_writable, check_outputs, default_out, emulated_rig,
-    execute_setup, prepare_run, run_protocol,
+    OutputError, OutputInUse, RunSetup, check_writable, check_outputs, default_out, execute_setup, prepare_run,
+    run_protocol,
 )
+from .backend import BACKENDS, Emulator, Rig, Twin, backend_from_choice, emulated_rig
 from .callbacks import LiveTable, RunBlock
 from .campaign import Experiment, experiments, run_campaign, run_experiment, submit_campaign
 from .engine import EXIT_CODES, RunResult, check_metadata, execute, run_attrs
 
-__all__ = ["BACKENDS", "EXIT_CODES", "Experiment", "LiveTable", "OutputError", "OutputInUse", "check_writable",
-           "RunBlock", "RunResult", "RunSetup", "check_metadata", "check_outputs", "default_out", "emulated_rig",
-           "execute", "execute_setup", "experiments", "prepare_run", "run_attrs", "run_campaign", "run_experiment",
-           "run_protocol", "submit_campaign"]
+__all__ = ["backend_from_choice", "BACKENDS", "check_metadata", "check_outputs", "check_writable", "default_out",
+           "emulated_rig", "Emulator", "execute", "execute_setup", "EXIT_CODES", "Experiment", "experiments",
+           "LiveTable", "OutputError", "OutputInUse", "prepare_run", "Rig", "run_attrs", "run_campaign",
+           "run_experiment", "run_protocol", "RunBlock", "RunResult", "RunSetup", "submit_campaign", "Twin"]

@@ -8,7 +8,8 @@ from pathlib import Path
 from ..physics.geometry import geometry_from_card
 from ..protocols import first_violation, load_plan
 from ..specs import load_params, load_specimen
-from .app import DEFAULT_PARAMS, DEFAULT_TRUTH, check_outputs, check_seed, emulated_rig, execute_setup, prepare_run
+from .app import check_outputs, check_seed, execute_setup, prepare_run
+from .backend import DEFAULT_PARAMS, DEFAULT_TRUTH, Rig, Twin, emulated_rig
 from .engine import RunResult, check_metadata
 
 
@@ -64,10 +65,9 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
         return result.status != "interrupted"  # Ctrl-C ends the campaign, not only the run
 
     if spec.backend == "twin":
-        params = load_params(root / spec.params if spec.params else DEFAULT_PARAMS)
+        twin = Twin(load_params(root / spec.params if spec.params else DEFAULT_PARAMS), spec.model, realtime=realtime)
         for run in runs:
-            setup = prepare_run(run.plan, run.card, "twin", params=params, model=spec.model, out=run.out,
-                                seed=seeds[id(run)], realtime=realtime)
+            setup = prepare_run(run.plan, run.card, twin, out=run.out, seed=seeds[id(run)])
             if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
                 break
         return results
@@ -76,7 +76,7 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
         mine = [r for r in runs if r.card.id == card_id]
         with emulated_rig(mine[0].card, truth, realtime=realtime) as address:  # one rig per specimen
             for run in mine:
-                setup = prepare_run(run.plan, run.card, "rig", address=address, out=run.out, seed=seeds[id(run)])
+                setup = prepare_run(run.plan, run.card, Rig(address), out=run.out, seed=seeds[id(run)])
                 if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
                     return results
     return results
@@ -129,8 +129,8 @@ def run_experiment(backend: str, run: Experiment, seed: int, *, truth=None, para
     rig of its own (``truth``), started for this run and stopped after it. What a task of
     `submit_campaign` runs; returns the engine's `RunResult`."""
     if backend == "twin":
-        setup = prepare_run(run.plan, run.card, "twin", params=params, model=model, out=run.out, seed=seed)
+        setup = prepare_run(run.plan, run.card, Twin(params, model), out=run.out, seed=seed)
         return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)
     with emulated_rig(run.card, truth) as address:
-        setup = prepare_run(run.plan, run.card, "rig", address=address, out=run.out, seed=seed)
+        setup = prepare_run(run.plan, run.card, Rig(address), out=run.out, seed=seed)
         return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)

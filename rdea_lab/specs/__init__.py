@@ -11,13 +11,7 @@ Loaders take a path (``load_specimen``, ``load_params``, ``load_protocol``,
 object or a path. ``limit_violations`` checks stretch and voltage arrays
 against a protocol's `Limits` (`LimitError`).
 
-Quick start (the whole library: see `rdea_lab`)::
-
-    import rdea_lab
-    card = rdea_lab.load_specimen("specimens/specimen2.yaml")
-    params = rdea_lab.load_params("params/paper2021_table3.yaml")
-    ds = rdea_lab.run_protocol("protocols/blocking_force.yaml", card, "twin", params=params, out="demo.nc")
-    twin = rdea_lab.predict(ds, params, "su")
+The quick start is `rdea_lab`'s (one, run as a doctest).
 """
 
 import importlib as _importlib

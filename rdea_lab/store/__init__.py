@@ -4,13 +4,7 @@
 runs, with the users' metadata as ``md.<key>`` columns), ``recover`` (a killed
 run's journal to a dataset), ``importers.import_files`` (CSV, TDMS, .mat).
 
-Quick start (the whole library: see `rdea_lab`)::
-
-    import rdea_lab
-    card = rdea_lab.load_specimen("specimens/specimen2.yaml")
-    params = rdea_lab.load_params("params/paper2021_table3.yaml")
-    ds = rdea_lab.run_protocol("protocols/blocking_force.yaml", card, "twin", params=params, out="demo.nc")
-    twin = rdea_lab.predict(ds, params, "su")
+The quick start is `rdea_lab`'s (one, run as a doctest).
 """
 
 from .catalog import catalog, describe_run, open_run

@@ -10,12 +10,7 @@
 - `TwinStep`: one sample per call, compiled, for a control loop.
 - `compose`: the one composition of eqs. (43), (44) and (16) of [1].
 
-Quick start::
-
-    import rdea_lab
-    params = rdea_lab.load_params("params/paper2021_table3.yaml")
-    ds = rdea_lab.open_run("datasets/paper2021/specimen-2/blocking_force.nc")
-    twin = rdea_lab.predict(ds, params, "su")       # force, capacitance, stress, status
+The quick start is `rdea_lab`'s (one, run as a doctest).
 """
 
 from .curves import quasi_static_curves

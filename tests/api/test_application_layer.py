@@ -46,7 +46,7 @@ def short_file(tmp_path_factory):
 def twin_run(short_file, tmp_path_factory):
     """One su twin run of the short protocol, from paths, with metadata."""
     out = tmp_path_factory.mktemp("runs") / "twin.nc"
-    return rdea_lab.run_protocol(short_file, CARD, "twin", params=PARAMS, model="su", out=out,
+    return rdea_lab.run_protocol(short_file, CARD, rdea_lab.Twin(PARAMS, "su"), out=out,
                                  metadata={"operator": "ana", "batch": "B7"})
 
 
@@ -80,8 +80,8 @@ def test_an_unknown_name_is_an_attribute_error():
 
 # -------------------------------------------------------------- run_protocol
 def test_paths_and_objects_give_identical_data(short_file, twin_run, tmp_path):
-    ds = rdea_lab.run_protocol(load_protocol(short_file), load_specimen(CARD), "twin", params=load_params(PARAMS),
-                               model="su", out=tmp_path / "objects.nc")
+    ds = rdea_lab.run_protocol(load_protocol(short_file), load_specimen(CARD), rdea_lab.Twin(load_params(PARAMS), "su"),
+                               out=tmp_path / "objects.nc")
     assert set(ds.data_vars) == set(twin_run.data_vars)
     a, b = ds.drop_attrs(deep=False), twin_run.drop_attrs(deep=False)
     for x, run in ((a, ds), (b, twin_run)):  # time units name each run's own start (CF); the rest is identical
@@ -263,8 +263,10 @@ def test_an_existing_file_is_refused_without_overwrite(tmp_path):
 def test_overwrite_keeps_the_old_dataset_until_the_new_one_is_written(short_file, tmp_path):
     out = tmp_path / "a.nc"
     first = rdea_lab.run_protocol(short_file, CARD, "twin", out=out)
-    with pytest.raises(rdea_lab.RigRefused):  # nothing listens on port 1: the rig is refused, the old run stays
-        rdea_lab.run_protocol(short_file, CARD, "rig", address="tcp://127.0.0.1:1", out=out, overwrite=True)
+    from rdea_lab.backends.rig import RigRefused
+
+    with pytest.raises(RigRefused):  # nothing listens on port 1: the rig is refused, the old run stays
+        rdea_lab.run_protocol(short_file, CARD, rdea_lab.Rig("tcp://127.0.0.1:1"), out=out, overwrite=True)
     assert rdea_lab.open_run(out).attrs["run_id"] == first.attrs["run_id"]
     second = rdea_lab.run_protocol(short_file, CARD, "twin", out=out, overwrite=True)
     assert rdea_lab.open_run(out).attrs["run_id"] == second.attrs["run_id"] != first.attrs["run_id"]

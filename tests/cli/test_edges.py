@@ -50,7 +50,7 @@ stretch:
 voltage:
   - {kind: hold, duration: 5 s}
 """)
-    ds = rdea_lab.run_protocol(proto, CARD, "twin", model="su", out=tmp_path / "x.nc")
+    ds = rdea_lab.run_protocol(proto, CARD, rdea_lab.Twin(model="su"), out=tmp_path / "x.nc")
     reason = ds.attrs["status_reason"]
     assert ds.attrs["status"] == "aborted"
     shown = float(reason.split("force ")[1].split(" N")[0])

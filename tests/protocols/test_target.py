@@ -41,7 +41,7 @@ def test_the_written_protocol_drives_the_twin_backend_to_the_target(tmp_path):
     tp = plan_target(short(), CARD, PARAMS)
     path = write_protocol(tp, tmp_path / "p.yaml")
     np.testing.assert_array_equal(load_plan(path).voltage, tp.plan.voltage)
-    ds = rdea_lab.run_protocol(path, CARD, "twin", params=PARAMS, model="su", out=tmp_path / "r.nc")
+    ds = rdea_lab.run_protocol(path, CARD, rdea_lab.Twin(PARAMS, "su"), out=tmp_path / "r.nc")
     tr = tracking_error(ds, tp)
     assert tr["relative_max"] < 1e-6 and tr["stretch_error_max"] < 1e-9
     with pytest.raises(SpecError, match=r"p\.yaml: exists; give another --out or --force"):
@@ -91,7 +91,7 @@ def test_a_bias_that_would_push_is_refused():
 def test_a_run_of_another_plan_is_refused(tmp_path):
     tp = plan_target(short(), CARD, PARAMS)
     other = plan_target(short(bias={"kind": "spring", "stiffness": "210 N/m", "preload": "1 N"}), CARD, PARAMS)
-    ds = rdea_lab.run_protocol(other.plan, CARD, "twin", params=PARAMS, model="su", out=tmp_path / "r.nc")
+    ds = rdea_lab.run_protocol(other.plan, CARD, rdea_lab.Twin(PARAMS, "su"), out=tmp_path / "r.nc")
     with pytest.raises(SpecError, match=r"r\.nc: voltage_setpoint: differs from the plan short-plan by up to"):
         tracking_error(ds, tp)
 

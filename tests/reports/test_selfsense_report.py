@@ -38,8 +38,8 @@ def twin_run(folder, probe="probe: {amplitude: 20 V, frequency: 200 Hz}", name="
     protocol = folder / "sense.yaml"
     protocol.write_text(PROTOCOL.format(probe=probe))
     out = folder / name
-    rdea_lab.run_protocol(protocol, ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml", "twin", params=PARAMS,
-                          model="su", out=out)
+    rdea_lab.run_protocol(protocol, ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml",
+                          rdea_lab.Twin(PARAMS, "su"), out=out)
     return out
 
 
@@ -78,8 +78,8 @@ def test_the_reference_tare_fits_gain_and_offset_on_a_0V_run(run, tmp_path):
     protocol.write_text(PROTOCOL.format(probe="probe: {amplitude: 20 V, frequency: 200 Hz}").replace(
         "mean: 1 kV, amplitude: 1 kV", "mean: 0 kV, amplitude: 0 kV"))
     ref = folder / "ref.nc"
-    rdea_lab.run_protocol(protocol, ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml", "twin", params=PARAMS,
-                          model="su", out=ref)
+    rdea_lab.run_protocol(protocol, ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml",
+                          rdea_lab.Twin(PARAMS, "su"), out=ref)
     result = selfsense_run(run, PARAMS, "su", reference=ref)
     # the twin's capacitance is the model's: the fitted map gain C0 lambda + offset is C0 lambda over the
     # sweep's stretches to the estimator's error at 0 V with the probe, 1e-5 of C (as the rest tare above);
@@ -92,8 +92,8 @@ def test_the_reference_tare_fits_gain_and_offset_on_a_0V_run(run, tmp_path):
     with pytest.raises(SpecError, match=r"reference: the reference tare needs a reference run"):
         selfsense_run(run, PARAMS, "su", tare="reference")
     other = folder / "other.nc"
-    rdea_lab.run_protocol(protocol, ROOT / "rdea_lab" / "data" / "specimens" / "specimen1.yaml", "twin", params=PARAMS,
-                          model="su", out=other)
+    rdea_lab.run_protocol(protocol, ROOT / "rdea_lab" / "data" / "specimens" / "specimen1.yaml",
+                          rdea_lab.Twin(PARAMS, "su"), out=other)
     with pytest.raises(SpecError, match=r"other.nc: specimen: the reference run is of specimen-1, the run of "
                                         r"specimen-2"):
         selfsense_run(run, PARAMS, "su", reference=other)

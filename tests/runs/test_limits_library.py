@@ -127,12 +127,11 @@ def assert_rig_untouched(server):
 def test_run_protocol_refuses_before_anything_moves(case, backend, tmp_path, request, emulators):
     spec, name = LIMIT_CASES[case]
     out = tmp_path / "x.nc"
-    kwargs = {}
     if backend == "rig":
         server = request.getfixturevalue("rig")
-        kwargs["address"] = server.url
+        backend = rdea_lab.Rig(server.url)
     with pytest.raises(LimitError, match=name):
-        rdea_lab.run_protocol(spec, CARD, backend, out=out, **kwargs)
+        rdea_lab.run_protocol(spec, CARD, backend, out=out)
     assert_nothing_written(tmp_path, out)
     assert emulators == []  # not even the built-in emulator was started
     if backend == "rig":
@@ -173,9 +172,9 @@ def test_field_estimate_uses_sqrt_stretch_and_the_cards_L3(stretch, limit, refus
                     "[{kind: hold, duration: 2 s, value: 2.4 kV}]", "field_edge")
     if refused:
         with pytest.raises(LimitError, match="max_field"):
-            rdea_lab.prepare_run(spec, card, "twin", params=PARAMS)
+            rdea_lab.prepare_run(spec, card, rdea_lab.Twin(PARAMS))
     else:
-        rdea_lab.prepare_run(spec, card, "twin", params=PARAMS)
+        rdea_lab.prepare_run(spec, card, rdea_lab.Twin(PARAMS))
 
 
 # -------------------------------------------------------------------- max_force
@@ -194,14 +193,13 @@ def check_force_abort(ds, received, planned):
 @pytest.mark.parametrize("backend", ["twin", "emulator", "rig"])
 def test_run_protocol_aborts_at_max_force(backend, tmp_path, request, emulators):
     received = []
-    kwargs = {}
+    name = backend
     if backend == "rig":
         server = request.getfixturevalue("rig")
-        kwargs["address"] = server.url
-    ds = rdea_lab.run_protocol(FORCE_LIMITED, CARD, backend, out=tmp_path / "x.nc", callbacks=received.append,
-                               **kwargs)
+        backend = rdea_lab.Rig(server.url)
+    ds = rdea_lab.run_protocol(FORCE_LIMITED, CARD, backend, out=tmp_path / "x.nc", callbacks=received.append)
     check_force_abort(ds, received, expand(FORCE_LIMITED).samples)
-    if backend == "rig":
+    if name == "rig":
         assert server.connections >= 1  # the counter counts: the refusals above really never connected
         assert server.controller.state == "ABORTED"
         assert server.controller.voltage_on is False

@@ -100,12 +100,13 @@ def written(tmp_path_factory):
     folder = tmp_path_factory.mktemp("cf")
     short = _protocol(folder, "50 N")
     out = {}
-    rdea_lab.run_protocol(short, CARD, "twin", model="su", out=folder / "twin.nc",
+    rdea_lab.run_protocol(short, CARD, rdea_lab.Twin(model="su"), out=folder / "twin.nc",
                           metadata={"institution": "Example Lab, Example University"})
     out["twin"] = folder / "twin.nc"
     rdea_lab.run_protocol(short, CARD, "emulator", out=folder / "emulator.nc", seed=3)
     out["emulator"] = folder / "emulator.nc"
-    aborted = rdea_lab.run_protocol(_protocol(folder, "0.01 N"), CARD, "twin", model="su", out=folder / "aborted.nc")
+    aborted = rdea_lab.run_protocol(_protocol(folder, "0.01 N"), CARD, rdea_lab.Twin(model="su"),
+                                    out=folder / "aborted.nc")
     assert aborted.attrs["status"] == "aborted"
     out["aborted"] = folder / "aborted.nc"
     # a run killed outright: its journal, rebuilt by recover
@@ -237,7 +238,7 @@ def test_each_writer_says_how_its_data_were_made(written):
 def test_a_packaged_protocol_is_named_by_its_packaged_name(tmp_path):
     """No machine's absolute path in a dataset: a packaged input is named as `rdea_lab.paths.resolve` finds it."""
     packaged = ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml"
-    ds = rdea_lab.run_protocol(packaged, CARD, "twin", model="su", out=tmp_path / "b.nc",
+    ds = rdea_lab.run_protocol(packaged, CARD, rdea_lab.Twin(model="su"), out=tmp_path / "b.nc",
                                command=f"rdea-lab run {packaged}")
     assert ds.attrs["protocol_source"] == "protocols/blocking_force.yaml"
     assert ds.attrs["history"].split("\n")[0].endswith(": rdea-lab run protocols/blocking_force.yaml")
@@ -261,7 +262,9 @@ def test_a_run_with_current_and_its_selfsense_dataset_pass_both_checkers(tmp_pat
     protocol = tmp_path / "sense.yaml"
     protocol.write_text(SENSE)
     rdea_lab.run_protocol(protocol, CARD, "emulator", out=tmp_path / "run.nc")
-    rdea_lab.selfsense_run(tmp_path / "run.nc", PARAMS, out=tmp_path / "sense.nc")
+    from rdea_lab.reports.selfsense import selfsense_run
+
+    selfsense_run(tmp_path / "run.nc", PARAMS, out=tmp_path / "sense.nc")
     for path in (tmp_path / "run.nc", tmp_path / "sense.nc"):
         assert ioos(path) == {"high": [], "medium": [], "low": [], "exceptions": []}, path.name
         found = cfchecks(path)
