@@ -81,3 +81,12 @@ def test_cli_commands_are_module_level_and_thin():
                             "command" in ast.unparse(d) or "group" in ast.unparse(d) for d in inner.decorator_list):
                         nested.append(f"{path.relative_to(PKG)}:{inner.lineno} {inner.name} inside {node.name}")
     assert not nested, "\n".join(nested)
+
+
+def test_the_rig_driver_imports_nothing_of_the_emulator():
+    """The driver and the emulator share the wire protocol (``rdea_lab.specs.rigwire``), not each other's code:
+    a lab's own rig server and the built-in emulator are driven alike."""
+    bad = [f"{path.relative_to(PKG)}:{line} imports emulator"
+           for path in sorted((PKG / "backends").rglob("*.py"))
+           for layer, line in imported_layers(path) if layer == "emulator"]
+    assert not bad, "\n".join(bad)

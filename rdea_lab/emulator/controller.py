@@ -20,7 +20,6 @@ import math
 import re
 import secrets
 import threading
-import zlib
 import time
 
 import numpy as np
@@ -28,7 +27,7 @@ import numpy as np
 from .._version import __version__
 from ..physics import viscoelastic
 from ..specs.truth import truth_json
-from .framing import FramingError, decode_block, encode_block
+from ..specs.rigwire import FramingError, RigError, armed_checksum, decode_block, encode_block
 from .rig import BLOCK, EmulatedRig, RunConfig, limit_violation
 
 #: Faults that can be injected, each at a run time [s].
@@ -49,14 +48,6 @@ _NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
 _CHANNELS = {"FORC": "force", "CAP": "capacitance", "CUR": "current"}
 _LIMITS = (("volt", "LIM:VOLT <V>"), ("str", "LIM:STR <max>"), ("forc", "LIM:FORC <N>"),
            ("fiel", "LIM:FIEL <V/m>"))
-
-
-class RigError(Exception):
-    """A command failed: replied as ``ERR <code>,"<message>"`` and queued."""
-
-    def __init__(self, code: int, message: str):
-        super().__init__(message)
-        self.code, self.message = code, message
 
 
 class CloseConnection(Exception):
@@ -695,17 +686,6 @@ class RigController:
         self._no_arg("ABOR", arg)
         self.emergency_stop("aborted by ABOR")
         return "OK"
-
-
-def armed_checksum(rate, limits, thickness, stretch, voltage) -> str:
-    """CRC-32 (8 hex digits) of what the client configured and ARM armed: ``CONF:RATE``, the four
-    ``LIM:*`` values (VOLT, STR, FORC, FIEL), ``CONF:THIC`` and both trajectories, each as
-    little-endian float64, in that order. The driver computes the same from what it sent."""
-    head = np.array([rate, *limits, thickness], "<f8")
-    crc = zlib.crc32(head.tobytes())
-    crc = zlib.crc32(np.ascontiguousarray(stretch, "<f8").tobytes(), crc)
-    crc = zlib.crc32(np.ascontiguousarray(voltage, "<f8").tobytes(), crc)
-    return f"{crc:08x}"
 
 
 __all__ = ["FAULTS", "CloseConnection", "RigController", "RigError", "armed_checksum", "check_faults"]

@@ -8,7 +8,6 @@ run it drives: voltage off.
 
 from __future__ import annotations
 
-import hashlib
 import hmac
 import ipaddress
 import itertools
@@ -20,6 +19,7 @@ import time
 
 from .controller import CloseConnection, RigController, check_faults
 from .framing import ByteBudget, CommandReader, ConnectionClosed, FramingError
+from ..specs.rigwire import auth_response
 from ..specs.tokens import check_token
 from .truth import true_geometry
 
@@ -377,12 +377,6 @@ class RigServer:
                 sock.sendall(data[i:i + SEND_CHUNK])
         finally:
             sock.settimeout(None)
-
-
-def auth_response(token: str, nonce: str) -> str:
-    """The answer to the nonce of ``SYST:AUTH?``: HMAC-SHA256 of the nonce (ASCII) keyed with the token
-    (ASCII), in lowercase hex. The token itself never travels."""
-    return hmac.new(token.encode("ascii"), nonce.encode("ascii"), hashlib.sha256).hexdigest()
 
 
 __all__ = ["RigServer", "auth_response", "is_loopback"]
