@@ -126,3 +126,12 @@ def test_the_public_names_are_few_and_each_documented():
             undocumented.append(name)
         importlib.import_module(obj.__module__)
     assert not undocumented, undocumented
+
+
+def test_the_rig_driver_imports_nothing_of_the_emulator():
+    """The driver and the emulator share the wire protocol (``rdea_lab.specs.rigwire``), not each other's code:
+    a lab's own rig server and the built-in emulator are driven alike."""
+    bad = [f"{path.relative_to(PKG)}:{line} imports emulator"
+           for path in sorted((PKG / "backends").rglob("*.py"))
+           for layer, line in imported_layers(path) if layer == "emulator"]
+    assert not bad, "\n".join(bad)

@@ -16,11 +16,11 @@ import time as _time
 
 import numpy as np
 
+from ..specs import rigwire as wire
 from ..specs.errors import UserError
+from ..specs.rigwire import COLUMNS
 from .base import BackendFailure
 
-COLUMNS = ("time", "stretch", "position", "voltage", "force", "capacitance", "stretch_setpoint",
-           "voltage_setpoint")
 _ADDRESS = re.compile(r"^tcp://(?P<host>[A-Za-z0-9.\-]+|\[[0-9a-fA-F:]+\]):(?P<port>\d{1,5})$")
 
 
@@ -137,13 +137,11 @@ class RigBackend:
         does not open another connection."""
         if self.token is None:
             return
-        from ..emulator.server import auth_response
-
         nonce = self._query("SYST:AUTH?")
-        if nonce.startswith("ERR") or not (len(nonce) == 32 and all(c in "0123456789abcdef" for c in nonce)):
+        if nonce.startswith("ERR") or not wire.is_nonce(nonce):
             raise RigRefused(f"rig {self.address}: no nonce for SYST:AUTH (it replied {nonce[:80]!r}); "
                              "a server of an older protocol, or not a rig")
-        self._command(f"SYST:AUTH {auth_response(self.token, nonce)}")
+        self._command(wire.line("SYST:AUTH", wire.auth_response(self.token, nonce)))
 
     def _check_identity(self) -> None:
         """The rig's ``*IDN?`` serial names the specimen it holds (``-`` or empty: it does not know); one
@@ -184,7 +182,7 @@ class RigBackend:
             out["rig_identity"] = self.identity
         if not _loopback(self.host):
             out["rig_address"] = self.address
-        if self.truth or self.idn.split(",")[1:2] == ["rig-emulator"]:
+        if self.truth or wire.idn_model(self.idn) == wire.EMULATOR_MODEL:
             name = truth_name(self.truth) or "not given"
             out.update({"emulated": 1, "comment": "data from the rdea-lab rig emulator, not a physical rig",
                         "source": f"rdea-lab rig emulator (truth {name})"})
@@ -217,30 +215,25 @@ class RigBackend:
             raise RigRefused(f"rig {self.address}: {_error_text(self.idn)}")
         self._check_identity()
         self._check_free()
-        if self.idn.split(",")[1:2] == ["rig-emulator"]:
+        if wire.idn_model(self.idn) == wire.EMULATOR_MODEL:
             truth = self._query("SYST:TRUTH?")
             self.truth = "" if truth.startswith("ERR") else truth
         lim = plan.limits
         self._touched = True  # from here on the rig is ours: a failure sends ABOR
-        meas = ",".join({"force": "FORC", "capacitance": "CAP", "current": "CUR"}[m] for m in plan.measure)
         # rows gain a ninth column, the amplifier current, when it is measured (docs/rig-protocol.md)
-        self._columns = COLUMNS + (("current",) if "current" in plan.measure else ())
-        for command in ("*RST", f"CONF:RATE {plan.sample_rate!r}", f"CONF:MEAS {meas}",
-                        f"CONF:LENG {geom.L1!r}", f"CONF:THIC {geom.L3!r}", f"CONF:SEED {self.seed}",
-                        f"LIM:VOLT {lim.max_voltage!r}",
-                        f"LIM:STR {lim.max_stretch!r}", f"LIM:FORC {lim.max_force!r}",
-                        f"LIM:FIEL {lim.max_field!r}"):
-            self._command(command)
+        self._columns = wire.row_columns(plan.measure)
+        limits = (lim.max_voltage, lim.max_stretch, lim.max_force, lim.max_field)  # in the order of wire.LIMITS
+        for header, value in (("*RST", None), ("CONF:RATE", plan.sample_rate), ("CONF:MEAS", plan.measure),
+                              ("CONF:LENG", geom.L1), ("CONF:THIC", geom.L3), ("CONF:SEED", self.seed),
+                              *zip(wire.LIMITS, limits)):
+            self._command(wire.line(header, value))
         self._upload("TRAJ:STR", plan.stretch)
         self._upload("TRAJ:VOLT", plan.voltage)
         reply = self._query("ARM")
         if reply != "OK" and not reply.startswith("OK,"):
             raise RigRefused(f"rig {self.address} refused ARM: {_error_text(reply)}")
         if reply.startswith("OK,"):  # the rig says what it armed: it must be what was sent
-            from ..emulator.controller import armed_checksum
-
-            ours = armed_checksum(plan.sample_rate, [lim.max_voltage, lim.max_stretch, lim.max_force,
-                                                     lim.max_field], geom.L3, plan.stretch, plan.voltage)
+            ours = wire.armed_checksum(plan.sample_rate, limits, geom.L3, plan.stretch, plan.voltage)
             if reply[3:].strip().lower() != ours:
                 self._query("ABOR")
                 raise RigRefused(f"rig {self.address} armed something else than was sent (checksum "
@@ -343,16 +336,14 @@ def _loopback(host: str) -> bool:
         return False
 
 
-def _error_text(reply: str) -> str:
-    m = re.match(r'^ERR\s*(-?\d+)\s*,\s*"(.*)"\s*$', reply)
-    return m[2] if m else (reply or "no reply")
+_error_text = wire.error_message
 
 
 def _status(reply: str):
-    m = re.match(r'^([A-Z]+),(\d+),(\d+),"(.*)"$', reply)
-    if not m:
+    status = wire.read_status(reply)
+    if status is None:
         raise BackendFailure(f"unreadable rig status {reply!r}")
-    return m[1], int(m[2]), int(m[3]), m[4]
+    return status
 
 
 def truth_name(truth_json: str) -> str:

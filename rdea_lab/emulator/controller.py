@@ -1,16 +1,21 @@
-"""The rig's state machine behind the command set of ``docs/rig-protocol.md``.
+"""The interpreter of the rig's command set (``docs/rig-protocol.md``), over `RigState`.
 
 `RigController` executes one command at a time for a numbered session (a
-connection) and returns the reply; it knows nothing of sockets. One run at a
-time: from ``ARM`` until the run ends, only the session that armed it may
-send commands that change or consume anything; the others may ask
-``*IDN?``, ``STAT?``, ``LIM?``, ``CONF:RATE?``, ``CONF:MEAS?``,
-``TRAJ:POIN?``, ``SYST:ERR?`` and ``SYST:TRUTH?``.
+connection) and returns the reply; it knows nothing of sockets. It looks the
+header up in the protocol's table (`rdea_lab.specs.rigwire.COMMANDS`),
+checks who sent it (only the controlling connection may send the commands
+declared ``CONTROLLER``; the first such command makes a connection the
+controlling one), refuses a setting while a run is armed, parses the
+argument as declared, and calls the rig state (`rdea_lab.emulator.rigstate`)
+under its lock; errors become ``ERR`` replies and are queued per session
+for ``SYST:ERR?``. One run at a time: from ``ARM`` until the run ends, only
+the session that armed it may send commands that change or consume
+anything; the others may ask ``*IDN?``, ``STAT?``, ``LIM?``,
+``CONF:RATE?``, ``CONF:MEAS?``, ``TRAJ:POIN?``, ``SYST:ERR?`` and
+``SYST:TRUTH?``.
 
-Time is virtual by default: samples are produced when ``FETC?`` asks for them.
-With ``realtime=True`` only samples with ``t <=`` the wall time since ``INIT``
-exist, and a thread produces them (so limits abort a run even when nobody
-fetches).
+``ABOR`` never takes the lock (`RigState.emergency_stop`); ``STAT?`` waits
+for it `STAT_WAIT` s at most, then answers from what it can read without it.
 """
 
 from __future__ import annotations
@@ -18,92 +23,25 @@ from __future__ import annotations
 import collections
 import math
 import re
-import secrets
-import threading
-import zlib
 import time
 
-import numpy as np
-
 from .._version import __version__
-from ..physics import viscoelastic
+from ..specs.rigwire import (CHANNEL_CODES, COMMAND_ERROR, COMMANDS, CONTROLLER, LIMITS, NOT_IN_CONTROL,
+                             SYNTAX_ERROR, UNDEFINED_HEADER, PARAMETER_NOT_ALLOWED, QUEUE_OVERFLOW, Block,
+                             FramingError, RigError, armed_checksum, clean, encode_block, error_reply, new_nonce,
+                             status_reply)
 from ..specs.truth import truth_json
-from .framing import FramingError, decode_block, encode_block
-from .rig import BLOCK, EmulatedRig, RunConfig, limit_violation
+from .rigstate import FAULTS, CloseConnection, RigState, check_faults
 
-#: Faults that can be injected, each at a run time [s].
-FAULTS = ("disconnect", "breakdown", "stall")
-STATES = ("IDLE", "ARMED", "RUNNING", "DONE", "ABORTED")
-MIN_RATE, MAX_RATE = 1.0, 100e3
 #: Most rows one ``FETC?`` returns.
 MAX_FETCH = 1_000_000
-#: Longest the rig computes samples while holding its lock [s]: a ``FETC?`` returns the rows made by then
-#: (fewer than asked; the client asks again), the realtime producer goes on at its next turn. So no
-#: command, heartbeat or status waits longer than this (and a block) for the lock; ``ABOR`` waits for none.
-PRODUCE_SLICE = 0.1
 #: Longest ``STAT?`` waits for the lock before it answers from what it can read without it [s].
 STAT_WAIT = 0.02
-MAX_POINTS = 10_000_000
 _ERRORS_KEPT = 20
-_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
-_CHANNELS = {"FORC": "force", "CAP": "capacitance", "CUR": "current"}
-_LIMITS = (("volt", "LIM:VOLT <V>"), ("str", "LIM:STR <max>"), ("forc", "LIM:FORC <N>"),
-           ("fiel", "LIM:FIEL <V/m>"))
-
-
-class RigError(Exception):
-    """A command failed: replied as ``ERR <code>,"<message>"`` and queued."""
-
-    def __init__(self, code: int, message: str):
-        super().__init__(message)
-        self.code, self.message = code, message
-
-
-class CloseConnection(Exception):
-    """The session's connection is to be closed without a reply (injected disconnect)."""
-
-
-def check_faults(faults) -> dict[str, float]:
-    """``[("stall", 3.0), ...]`` -> ``{"stall": 3.0}``; ValueError naming the bad item."""
-    out: dict[str, float] = {}
-    for item in faults:
-        try:
-            kind, at = item
-            at = float(at)
-        except (TypeError, ValueError):
-            raise ValueError(f"fault {item!r} is not (kind, seconds); kinds: {', '.join(FAULTS)}") from None
-        if kind not in FAULTS:
-            raise ValueError(f"unknown fault {kind!r}; allowed: {', '.join(FAULTS)}")
-        if not (math.isfinite(at) and at >= 0.0):
-            raise ValueError(f"fault {kind} at {at!r} s: the time must be a finite number of seconds >= 0")
-        if kind in out:
-            raise ValueError(f"fault {kind} given twice")
-        out[kind] = at
-    return out
-
-
-def _clean(text: str) -> str:
-    """One line without double quotes (they delimit the message in replies)."""
-    return " ".join(str(text).replace('"', "'").split())
-
-
-def _number(arg: str, what: str) -> float:
-    text = arg.strip()
-    if not text:
-        raise RigError(-109, f"missing parameter: {what}")
-    if not _NUMBER.fullmatch(text):
-        raise RigError(-104, f"{text!r} is not a plain decimal number ({what})")
-    return float(text)
-
-
-def _in_range(value: float, ok: bool, message: str) -> float:
-    if not (ok and math.isfinite(value)):
-        raise RigError(-222, message)
-    return value
 
 
 class RigController:
-    """State machine of one emulated rig (see the module docstring).
+    """The interpreter of one emulated rig (see the module docstring).
 
     Parameters
     ----------
@@ -129,199 +67,75 @@ class RigController:
         own specimen thickness, whatever ``CONF:THIC`` says.
     heartbeat : float
         Seconds a run may go without a command from its controlling
-        connection before the rig aborts it (voltage to zero) [s].
+        connection before the rig aborts it (voltage off) [s].
     """
 
     def __init__(self, card, truth, *, realtime=False, faults=(), truth_source=None, close_session=None,
                  clock=time.monotonic, limits=None, heartbeat=10.0):
-        from ..physics.geometry import geometry_from_card
-        from ..specs import Limits
-
-        self.card, self.truth, self.truth_source = card, truth, truth_source
-        viscoelastic.prepare(truth.material.law)  # before any client waits on a reply
-        hard = limits if limits is not None else Limits()
-        self.hard_limits = {"volt": float(hard.max_voltage), "str": float(hard.max_stretch),
-                            "forc": float(hard.max_force), "fiel": float(hard.max_field)}
-        self.thickness = float(geometry_from_card(card).L3)  # the rig's own, for the field limit
-        if not (isinstance(heartbeat, (int, float)) and 0.1 <= heartbeat <= 3600):
-            raise ValueError(f"heartbeat {heartbeat!r} s; allowed: 0.1 to 3600 s")
-        self.heartbeat = float(heartbeat)
-        self._last_heard = clock()
-        self._watchdog: threading.Thread | None = None
-        self.realtime = bool(realtime)
-        self.faults = check_faults(faults)
+        self.rig = rig = RigState(card, truth, realtime=realtime, faults=faults, truth_source=truth_source,
+                                  close_session=close_session, clock=clock, limits=limits, heartbeat=heartbeat)
         self.idn = f"rdea-lab,rig-emulator,{card.id},{__version__}"
         self._truth_json = truth_json(truth)
-        self._close_session = close_session or (lambda session: None)
-        self._doomed = None  # the session an injected realtime disconnect closes at its next command
-        self._clock = clock
-        self._lock = threading.RLock()
-        self._tripped: str | None = None  # an emergency stop not yet booked under the lock (see emergency_stop)
-        self._trip_lock = threading.Lock()  # held for a few statements only, never while computing
         self._errors: dict[object, collections.deque] = {}
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
-        self._commands = {
-            "*IDN?": (self._idn, False), "SYST:AUTH": (self._auth, False), "SYST:ERR?": (self._err, False),
-            "SYST:TRUTH?": (self._truth, False), "*RST": (self._rst, True),
-            "CONF:RATE": (self._conf_rate, True), "CONF:RATE?": (self._conf_rate_q, False),
-            "CONF:MEAS": (self._conf_meas, True), "CONF:MEAS?": (self._conf_meas_q, False),
-            "CONF:LENG": (self._conf_leng, True), "CONF:THIC": (self._conf_thic, True),
-            "CONF:SEED": (self._conf_seed, True), "CONF:SEED?": (self._conf_seed_q, False),
-            "LIM:VOLT": (self._lim("volt"), True), "LIM:STR": (self._lim("str"), True),
-            "LIM:FORC": (self._lim("forc"), True), "LIM:FIEL": (self._lim("fiel"), True),
-            "LIM?": (self._lim_q, False), "TRAJ:STR": (self._traj("str"), True),
-            "TRAJ:VOLT": (self._traj("volt"), True), "TRAJ:POIN?": (self._traj_poin, False),
-            "ARM": (self._arm, True), "INIT": (self._init, True), "STAT?": (self._stat, False),
-            "FETC?": (self._fetch, True), "ABOR": (self._abor, False), "SYST:REL": (self._release, True),
-            "SYST:BEAT": (self._beat, False), "SYST:CTRL?": (self._ctrl, False), "SYST:AUTH?": (self._nonce, False),
+        codes = {name: code for code, name in CHANNEL_CODES.items()}
+        actions = {
+            "*IDN?": lambda session, _: self.idn,
+            "SYST:AUTH?": lambda session, _: new_nonce(),  # the server answers it where a token is set
+            "SYST:AUTH": lambda session, _: "OK",  # the token is checked by the server before the first command
+            "SYST:CTRL?": lambda session, _: "NONE" if rig.owner is None else (
+                "THIS" if rig.owner == session else "OTHER"),
+            "SYST:ERR?": lambda session, _: self._next_error(session),
+            "SYST:TRUTH?": lambda session, _: self._truth_json,
+            "*RST": lambda session, _: _ok(rig.reset(session)),
+            "SYST:REL": lambda session, _: _ok(rig.release(session)),
+            "SYST:BEAT": lambda session, _: "OK",
+            "CONF:RATE?": lambda session, _: repr(rig.rate) if rig.rate is not None else "nan",
+            "CONF:MEAS?": lambda session, _: ",".join(codes[m] for m in rig.measure),
+            "CONF:SEED?": lambda session, _: str(rig.seed),
+            "LIM?": lambda session, _: ",".join(repr(x) for x in rig.limits_in_force()),
+            "TRAJ:POIN?": lambda session, _: str(_size(rig.trajectories["TRAJ:STR"])),
+            "ARM": lambda session, _: f"OK,{rig.arm(session)}",
+            "INIT": lambda session, _: _ok(rig.init()),
+            "STAT?": lambda session, _: self._stat(),
+            "FETC?": lambda session, rows: encode_block(rig.fetch(session, min(rows, MAX_FETCH))),
+            "ABOR": lambda session, _: _ok(rig.emergency_stop("aborted by ABOR")),  # (execute serves ABOR itself)
         }
+        for header, name in (("CONF:RATE", "rate"), ("CONF:MEAS", "measure"), ("CONF:LENG", "L1"),
+                             ("CONF:THIC", "L3"), ("CONF:SEED", "seed")):
+            actions[header] = lambda session, value, name=name: _ok(rig.configure(name, value))
+        for header in LIMITS:
+            actions[header] = lambda session, value, header=header: _ok(rig.set_limit(header, value))
+        for header in ("TRAJ:STR", "TRAJ:VOLT"):
+            actions[header] = lambda session, value, header=header: _ok(rig.set_trajectory(header, value))
+        assert actions.keys() == COMMANDS.keys(), set(actions) ^ set(COMMANDS)
+        #: header -> (handler(session, arg, block), whether only the controlling connection may send it)
+        self._commands = {h: (self._handler(COMMANDS[h], action), COMMANDS[h].access == CONTROLLER)
+                          for h, action in actions.items()}
         #: commands any connection may send, whoever controls the rig: queries and the emergency stops
-        self._anyone = {h for h, (_, controls) in self._commands.items() if not controls} | {"*RST"}
-        self._clear()
+        self._anyone = {h for h, command in COMMANDS.items() if command.access != CONTROLLER}
+        self._blocks = {h for h, command in COMMANDS.items() if isinstance(command.arg, Block)}
 
-    # ------------------------------------------------------------- state
-    def _clear(self) -> None:
-        self.rate: float | None = None
-        self.measure: tuple = ("force",)
-        self.L1: float | None = None
-        self.L3: float | None = None
-        self.seed = 0
-        self.limits: dict[str, float | None] = {key: None for key, _ in _LIMITS}
-        self.trajectories: dict[str, np.ndarray | None] = {"str": None, "volt": None}
-        self.state = "IDLE"
-        self.reason = ""
-        self.owner = None
-        self._armed: RunConfig | None = None
-        self.run: EmulatedRig | None = None
-        self._rows: collections.deque = collections.deque()
-        self._buffered = 0
-        self.fetched = 0
-        self._t0 = 0.0
-        self._disconnect_fired = False
+    def _handler(self, command, action):
+        """The command's handler: a setting is refused while armed, the argument parsed as declared."""
+        def handler(session, arg, block):
+            if command.setting:
+                self.rig.check_configurable(command.header)
+            return action(session, command.arg.parse(command.header, arg, block))
 
-    @property
-    def acquired(self) -> int:
-        return self.run.acquired if self.run is not None else 0
+        return handler
 
-    @property
-    def voltage_on(self) -> bool:
-        """True while a run drives the specimen (the amplifier may be on); False from the instant of an
-        emergency stop, before its bookkeeping."""
-        run = self.run
-        return run is not None and run.running and not run.interlocked and self._tripped is None
+    # ----------------------------------------------- the rig state, read
+    state = property(lambda self: self.rig.state, doc="``IDLE``, ``ARMED``, ``RUNNING``, ``DONE``, ``ABORTED``")
+    reason = property(lambda self: self.rig.reason, doc="Why the last run ended (empty if it did not abort).")
+    owner = property(lambda self: self.rig.owner, doc="The session that controls the rig, or None.")
+    acquired = property(lambda self: self.rig.acquired, doc="Samples the run has acquired.")
+    fetched = property(lambda self: self.rig.fetched, doc="Samples fetched of the run.")
+    voltage_on = property(lambda self: self.rig.voltage_on,
+                          doc="True while a run drives the specimen; False from the instant of an emergency stop.")
 
-    # -------------------------------------------------- emergency stop
     def emergency_stop(self, reason: str = "aborted by ABOR") -> None:
-        """Voltage off now, whatever else the rig is doing: never waits for the lock.
-
-        The amplifier's interlock opens first (`EmulatedRig.interlock`: no sample is made with the voltage
-        on after it; a computation under way stops at its next block); the bookkeeping (state ``ABORTED``,
-        the reason, the actuator back to its start) follows under the lock, by a thread of its own, and
-        every command that takes the lock books it first.
-        """
-        with self._trip_lock:
-            first = self._tripped is None
-            if first:
-                self._tripped = reason
-            run = self.run
-        if run is not None:
-            run.interlock()
-        self._stop.set()
-        if first:  # one booking thread per stop, however many ABOR arrive before it is booked
-            threading.Thread(target=self._book_trip, daemon=True, name="rig-emulator-estop").start()
-
-    def _book_trip(self) -> None:
-        with self._lock:
-            self._take_trip()
-
-    def _take_trip(self) -> None:
-        """Book an emergency stop (under the lock): the run aborts, state ABORTED."""
-        with self._trip_lock:
-            reason, self._tripped = self._tripped, None
-        if reason is not None:
-            self._abort(reason)
-
-    def _abort(self, reason: str) -> None:
-        """Voltage to 0, actuator back to start; state ABORTED with `reason`."""
-        if self.state == "RUNNING" and self.run is not None:
-            self.run.abort(reason)
-        if self.state in ("ARMED", "RUNNING"):
-            self.state, self.reason = "ABORTED", reason
-        self._stop.set()
-
-    def _sync_state(self) -> None:
-        if self.state == "RUNNING" and self.run is not None and not self.run.running:
-            self.state = "DONE" if self.run.state == "done" else "ABORTED"
-            self.reason = self.run.reason
-            self._stop.set()  # the controlling connection keeps control for its next run
-
-    # ------------------------------------------------------- production
-    def _caps(self) -> int:
-        """Samples that may exist at all: before a stall or an injected disconnect."""
-        cap = self.run.n
-        for kind in ("stall", "disconnect"):
-            if kind in self.faults:
-                cap = min(cap, self.run.samples_before(self.faults[kind]))
-        return cap
-
-    def _produce_to(self, target: int) -> None:
-        """Samples up to `target` (within the faults' caps), for at most `PRODUCE_SLICE` s of computing."""
-        target = min(target, self._caps())
-        end = time.monotonic() + PRODUCE_SLICE
-        while self.run.running and self.run.acquired < target and self._tripped is None:
-            rows = self.run.produce(min(target - self.run.acquired, BLOCK))
-            if rows.shape[0]:
-                self._rows.append(rows)
-                self._buffered += rows.shape[0]
-            if time.monotonic() >= end:
-                break
-        self._take_trip()
-        self._sync_state()
-
-    def _disconnect_due(self, wanted: int) -> bool:
-        """Whether the run has reached the injected disconnect (asked for a sample at t >= T)."""
-        if "disconnect" not in self.faults or self._disconnect_fired or self.state != "RUNNING":
-            return False
-        cap = self.run.samples_before(self.faults["disconnect"])
-        return cap < self.run.n and wanted > cap and self.run.acquired >= cap  # every sample before it made
-
-    def _fire_disconnect(self) -> object:
-        self._disconnect_fired = True
-        session = self.owner
-        self._abort("client disconnected")
-        return session
-
-    def _advance_realtime(self) -> None:
-        if self.state != "RUNNING":
-            return
-        elapsed = self._clock() - self._t0
-        wanted = self.run.samples_until(elapsed)
-        self._produce_to(wanted)
-        if self._disconnect_due(wanted):
-            # the line drops between two commands of the controlling connection, never under a reply
-            # already taken from the buffer (closing the socket from here raced with the handler sending
-            # a FETC? reply: its rows were counted fetched and lost): an idle connection is closed now
-            # (close_session leaves a busy one alone), a busy one at its next command
-            self._doomed = self._fire_disconnect()
-            self._close_session(self._doomed)
-
-    def _producer(self, stop: threading.Event) -> None:
-        while not stop.is_set():
-            with self._lock:
-                if stop.is_set():
-                    break
-                self._advance_realtime()
-                if self.state != "RUNNING":
-                    break
-            stop.wait(0.02)
-
-    def _stop_producer(self) -> None:
-        """Stop and join the producer thread; never call it holding the lock."""
-        self._stop.set()
-        thread, self._thread = self._thread, None
-        if thread is not None and thread is not threading.current_thread():
-            thread.join()
+        """Voltage off now, without waiting for the lock (`RigState.emergency_stop`)."""
+        self.rig.emergency_stop(reason)
 
     # --------------------------------------------------------- commands
     def execute(self, session, text: str, block: bytes | None = None) -> str | bytes:
@@ -334,378 +148,87 @@ class RigController:
         """
         header, _, arg = text.strip().partition(" ")
         header = header.upper()
+        rig = self.rig
         try:
             try:
-                handler, controls = self._commands[header]
+                handler = self._commands[header][0]
             except KeyError:
                 if not header:
-                    raise RigError(-102, "syntax error: a block without a command") from None
-                raise RigError(-113, f"undefined header {header[:40]!r}; see docs/rig-protocol.md") from None
-            if block is not None and header not in ("TRAJ:STR", "TRAJ:VOLT"):
-                raise RigError(-108, f"parameter not allowed: {header} takes no binary block")
-            if header == "ABOR":  # the emergency stop: no lock, no wait (see emergency_stop)
-                self._no_arg("ABOR", arg.strip())
-                self.emergency_stop("aborted by ABOR")
-                if session == self.owner:
-                    self._last_heard = self._clock()
+                    raise RigError(SYNTAX_ERROR, "syntax error: a block without a command") from None
+                raise RigError(UNDEFINED_HEADER, f"undefined header {header[:40]!r}; see docs/rig-protocol.md") \
+                    from None
+            if block is not None and header not in self._blocks:
+                raise RigError(PARAMETER_NOT_ALLOWED, f"parameter not allowed: {header} takes no binary block")
+            if header == "ABOR":  # the emergency stop: no lock, no wait (see RigState.emergency_stop)
+                COMMANDS["ABOR"].arg.parse("ABOR", arg.strip(), None)
+                rig.emergency_stop("aborted by ABOR")
+                rig.heard(session)
                 return "OK"
             if header == "*RST":
-                self.emergency_stop("*RST")  # the voltage off first; the reset under the lock below
+                rig.emergency_stop("*RST")  # the voltage off first; the reset under the lock below
             if header == "STAT?":  # a status that never waits long: from what can be read without the lock
-                if not self._lock.acquire(timeout=STAT_WAIT):
-                    self._no_arg("STAT?", arg.strip())
-                    return self._status()
-                self._lock.release()
-            with self._lock:
-                self._take_trip()
-                if session is not None and session == self._doomed:  # the injected disconnect (realtime)
-                    self._doomed = None
+                if not rig.lock.acquire(timeout=STAT_WAIT):
+                    COMMANDS["STAT?"].arg.parse("STAT?", arg.strip(), None)
+                    return status_reply(*rig.status())
+                rig.lock.release()
+            with rig.lock:
+                rig.take_trip()
+                if rig.doomed(session):  # the injected disconnect (realtime)
                     raise CloseConnection()
-                if session == self.owner:
-                    self._last_heard = self._clock()  # any command of the controlling connection is a heartbeat
+                rig.heard(session)  # any command of the controlling connection is a heartbeat
                 if header not in self._anyone:
-                    if self.owner is not None and self.owner != session:
-                        raise RigError(-200, f"another connection controls the rig ({self.state}); {header} "
-                                             "refused (queries, ABOR and *RST are allowed to anyone)")
-                    if self.owner is None:  # the first configuring command makes this the controlling connection
-                        self.owner, self._last_heard = session, self._clock()
+                    if rig.owner is not None and rig.owner != session:
+                        raise RigError(NOT_IN_CONTROL, f"another connection controls the rig ({rig.state}); "
+                                                       f"{header} refused (queries, ABOR and *RST are allowed "
+                                                       "to anyone)")
+                    if rig.owner is None:  # the first configuring command makes this the controlling connection
+                        rig.take_control(session)
                 return handler(session, arg.strip(), block)
         except (RigError, FramingError) as err:
             return self._error(session, err.code, err.message)
         except CloseConnection:
             raise
         except Exception as exc:  # a bug must not take the server down: report it
-            return self._error(session, -100, f"{type(exc).__name__}: {exc}")
+            return self._error(session, COMMAND_ERROR, f"{type(exc).__name__}: {exc}")
+
+    def _stat(self) -> str:
+        if self.rig.realtime:
+            self.rig.advance_realtime()
+        return status_reply(*self.rig.status())
 
     def _error(self, session, code: int, message: str) -> str:
-        message = _clean(message)
+        message = clean(message)
         queue = self._errors.setdefault(session, collections.deque())
         if len(queue) < _ERRORS_KEPT:
             queue.append((code, message))
         else:
-            queue[-1] = (-350, "Queue overflow")
-        return f'ERR {code},"{message}"'
+            queue[-1] = (QUEUE_OVERFLOW, "Queue overflow")
+        return error_reply(code, message)
 
-    def session_closed(self, session) -> None:
-        """A connection ended: a run it armed or drives aborts (voltage off), and it controls the rig no more."""
-        with self._lock:
-            self._errors.pop(session, None)
-            if self.owner == session:
-                if self.state in ("ARMED", "RUNNING"):
-                    self._abort("client disconnected")
-                self.owner = None
-        self._stop_producer_if_ended()
-
-    def _stop_producer_if_ended(self) -> None:
-        if self._stop.is_set():
-            self._stop_producer()
-
-    def shutdown(self) -> None:
-        """End of the server: abort anything running (voltage off) and stop the producer."""
-        with self._lock:
-            self._abort("server shut down")
-        self._stop_producer()
-
-    @staticmethod
-    def _no_arg(header: str, arg: str) -> None:
-        if arg:
-            raise RigError(-108, f"parameter not allowed: {header} takes none, got {arg[:40]!r}")
-
-    def _idn(self, session, arg, block):
-        self._no_arg("*IDN?", arg)
-        return self.idn
-
-    def _auth(self, session, arg, block):
-        return "OK"  # the token is checked by the server before the first command
-
-    def _err(self, session, arg, block):
-        self._no_arg("SYST:ERR?", arg)
+    def _next_error(self, session) -> str:
         queue = self._errors.get(session)
         if not queue:
             return '0,"No error"'
         code, message = queue.popleft()
         return f'{code},"{message}"'
 
-    def _truth(self, session, arg, block):
-        self._no_arg("SYST:TRUTH?", arg)
-        return self._truth_json
+    def session_closed(self, session) -> None:
+        """A connection ended: a run it armed or drives aborts (voltage off), and it controls the rig no more."""
+        with self.rig.lock:
+            self._errors.pop(session, None)
+        self.rig.session_closed(session)
 
-    def _rst(self, session, arg, block):
-        self._no_arg("*RST", arg)
-        self._abort("*RST")
-        self._stop.set()  # the producer thread ends by itself (joining here, under the lock, would deadlock)
-        owner = self.owner
-        self._clear()
-        if owner is not None and owner != session:  # an emergency stop from elsewhere: control is released
-            self.owner = None
-        else:
-            self.owner = session
-        return "OK"
-
-    def _release(self, session, arg, block):
-        self._no_arg("SYST:REL", arg)
-        if self.state in ("ARMED", "RUNNING"):
-            raise RigError(-221, f"settings conflict: SYST:REL while {self.state}; send ABOR first")
-        self.owner = None
-        return "OK"
-
-    def _beat(self, session, arg, block):
-        self._no_arg("SYST:BEAT", arg)
-        return "OK"
-
-    def _configurable(self, header: str) -> None:
-        if self.state in ("ARMED", "RUNNING"):
-            raise RigError(-221, f"settings conflict: {header} while {self.state}; send ABOR or *RST first")
-
-    def _conf_rate(self, session, arg, block):
-        self._configurable("CONF:RATE")
-        value = _number(arg, "sample rate [Hz]")
-        self.rate = _in_range(value, MIN_RATE <= value <= MAX_RATE,
-                              f"sample rate {value:g} Hz is outside {MIN_RATE:g} Hz to {MAX_RATE:g} Hz")
-        return "OK"
-
-    def _conf_seed(self, session, arg, block):
-        """The run's noise seed: the noise comes from (truth seed, run seed), so two runs
-        with the same trajectory differ unless they are given the same seed."""
-        self._configurable("CONF:SEED")
-        try:
-            value = int(arg)
-        except ValueError:
-            raise RigError(-104, f"data type error: seed {arg[:40]!r} is not an integer") from None
-        self.seed = _in_range(value, 0 <= value < 2**63, f"seed {value} is outside 0 to 2**63 - 1")
-        return "OK"
-
-    def _conf_seed_q(self, session, arg, block):
-        self._no_arg("CONF:SEED?", arg)
-        return str(self.seed)
-
-    def _conf_rate_q(self, session, arg, block):
-        self._no_arg("CONF:RATE?", arg)
-        return repr(self.rate) if self.rate is not None else "nan"
-
-    def _conf_meas(self, session, arg, block):
-        self._configurable("CONF:MEAS")
-        names = [a.strip().upper() for a in arg.split(",")] if arg else []
-        bad = [n for n in names if n not in _CHANNELS]
-        if bad:
-            raise RigError(-224, f"unknown channel {bad[0][:20]!r}; allowed: FORC, CAP (comma-separated)")
-        if len(set(names)) != len(names):
-            raise RigError(-224, f"channel listed twice in {arg!r}")
-        self.measure = tuple(_CHANNELS[n] for n in names)
-        return "OK"
-
-    def _conf_meas_q(self, session, arg, block):
-        self._no_arg("CONF:MEAS?", arg)
-        back = {v: k for k, v in _CHANNELS.items()}
-        return ",".join(back[m] for m in self.measure)
-
-    def _conf_leng(self, session, arg, block):
-        self._configurable("CONF:LENG")
-        value = _number(arg, "specimen length L1 [m]")
-        self.L1 = _in_range(value, value > 0, f"length {value:g} m must be > 0 m")
-        return "OK"
-
-    def _conf_thic(self, session, arg, block):
-        self._configurable("CONF:THIC")
-        value = _number(arg, "membrane thickness L3 [m]")
-        self.L3 = _in_range(value, value > 0, f"thickness {value:g} m must be > 0 m")
-        return "OK"
-
-    def _lim(self, key: str):
-        header = {"volt": "LIM:VOLT", "str": "LIM:STR", "forc": "LIM:FORC", "fiel": "LIM:FIEL"}[key]
-        rules = {"volt": (lambda x: x > 0, "must be > 0 V"), "str": (lambda x: x >= 1, "must be >= 1"),
-                 "forc": (lambda x: x > 0, "must be > 0 N"), "fiel": (lambda x: x > 0, "must be > 0 V/m")}
-        ok, rule = rules[key]
-
-        unit = {"volt": "V", "str": "", "forc": "N", "fiel": "V/m"}[key]
-
-        def handler(session, arg, block):
-            self._configurable(header)
-            value = _number(arg, f"{header} limit")
-            value = _in_range(value, ok(value), f"{header} {value:g} {rule}")
-            hard = self.hard_limits[key]
-            if value > hard * (1.0 + 1e-12):
-                raise RigError(-222, f"{header} {value:g} {unit} is above the rig's own limit {hard:g} {unit}; "
-                                     "a client can only lower it".replace("  ", " "))
-            self.limits[key] = value
-            return "OK"
-
-        return handler
-
-    def _lim_q(self, session, arg, block):
-        """The limits in force: the client's where it set one, else the rig's own."""
-        self._no_arg("LIM?", arg)
-        return ",".join(repr(self.limits[k] if self.limits[k] is not None else self.hard_limits[k])
-                        for k, _ in _LIMITS)
-
-    def _traj(self, key: str):
-        header = {"str": "TRAJ:STR", "volt": "TRAJ:VOLT"}[key]
-
-        def handler(session, arg, block):
-            self._configurable(header)
-            if block is None:
-                raise RigError(-104, f"{header} takes a definite-length binary block #<d><n><bytes> "
-                                     "of little-endian float64")
-            if arg:
-                raise RigError(-102, f"syntax error: {arg[:40]!r} between {header} and its block")
-            values = decode_block(block)
-            if values.size > MAX_POINTS:
-                raise RigError(-222, f"{values.size} setpoints; at most {MAX_POINTS}")
-            bad = np.flatnonzero(~np.isfinite(values))
-            if bad.size:
-                raise RigError(-224, f"{header} setpoint {int(bad[0])} is {values[bad[0]]!r}, not a finite number")
-            self.trajectories[key] = values
-            return "OK"
-
-        return handler
-
-    def _traj_poin(self, session, arg, block):
-        self._no_arg("TRAJ:POIN?", arg)
-        x = self.trajectories["str"]
-        return str(0 if x is None else x.size)
-
-    def _arm(self, session, arg, block):
-        self._no_arg("ARM", arg)
-        if self.state == "RUNNING":
-            raise RigError(-221, "settings conflict: a run is RUNNING; send ABOR first")
-        missing = [cmd for key, cmd in _LIMITS if self.limits[key] is None]
-        if missing:
-            raise RigError(-221, f"no limit in force for {', '.join(c.split()[0] for c in missing)}: "
-                                 f"set {' and '.join(missing)} before ARM")
-        lim = {k: min(self.limits[k], self.hard_limits[k]) for k, _ in _LIMITS}  # never above the rig's own
-        for value, cmd in ((self.rate, "CONF:RATE <Hz>"), (self.L1, "CONF:LENG <m>"), (self.L3, "CONF:THIC <m>")):
-            if value is None:
-                raise RigError(-221, f"set {cmd} before ARM")
-        x, v = self.trajectories["str"], self.trajectories["volt"]
-        if x is None or v is None or x.size == 0:
-            raise RigError(-221, "no trajectories: upload TRAJ:STR and TRAJ:VOLT before ARM")
-        if x.size != v.size:
-            raise RigError(-221, f"TRAJ:STR has {x.size} setpoints but TRAJ:VOLT {v.size}; need as many")
-        # the field is checked with the thinner of the rig's own thickness and the client's: CONF:THIC
-        # cannot talk the rig out of its field limit
-        config = RunConfig(self.rate, x, v, L1=self.L1, L3=min(self.L3, self.thickness), max_voltage=lim["volt"],
-                           max_stretch=lim["str"], max_force=lim["forc"], max_field=lim["fiel"],
-                           measure=self.measure)
-        problem = limit_violation(config)
-        if problem:
-            raise RigError(-222, problem)
-        self._stop.set()
-        self._armed, self.run, self.state, self.reason, self.owner = config, None, "ARMED", "", session
-        self._rows.clear()
-        self._buffered = self.fetched = 0
-        self._disconnect_fired = False
-        return f"OK,{armed_checksum(self.rate, [self.limits[k] for k, _ in _LIMITS], self.L3, x, v)}"
-
-    def _init(self, session, arg, block):
-        self._no_arg("INIT", arg)
-        if self.state != "ARMED":
-            raise RigError(-221, f"settings conflict: INIT needs an armed run, the rig is {self.state}; send ARM first")
-        rng = np.random.default_rng([self.truth.seed, self.seed])
-        self.run = EmulatedRig(self.card, self.truth, rng, self._armed, breakdown_at=self.faults.get("breakdown"),
-                               truth_source=self.truth_source)
-        self.state = "RUNNING"
-        self._t0 = self._last_heard = self._clock()
-        self._start_watchdog()
-        if self.realtime:
-            self._stop = threading.Event()
-            self._thread = threading.Thread(target=self._producer, args=(self._stop,), daemon=True,
-                                            name="rig-emulator-daq")
-            self._thread.start()
-        return "OK"
-
-    def _start_watchdog(self) -> None:
-        """A thread that aborts the run (voltage off) when its controlling connection falls silent."""
-        if self._watchdog is not None and self._watchdog.is_alive():
-            return
-
-        def watch():  # without the lock: it trips the emergency stop, which waits for nothing
-            while True:
-                time.sleep(min(0.2, self.heartbeat / 4))
-                if self.state != "RUNNING" or self._tripped is not None:
-                    return
-                silent = self._clock() - self._last_heard
-                if silent > self.heartbeat:
-                    self.emergency_stop(f"no command from the controlling connection for {silent:.3g} s "
-                                        f"(heartbeat {self.heartbeat:g} s)")
-                    return
-
-        self._watchdog = threading.Thread(target=watch, daemon=True, name="rig-emulator-heartbeat")
-        self._watchdog.start()
-
-    def _stat(self, session, arg, block):
-        self._no_arg("STAT?", arg)
-        if self.realtime:
-            self._advance_realtime()
-        return self._status()
-
-    def _status(self) -> str:
-        """The ``STAT?`` reply; also without the lock (an emergency stop not yet booked reads ABORTED)."""
-        state, reason, tripped = self.state, self.reason, self._tripped
-        if tripped is not None and state in ("ARMED", "RUNNING"):
-            state, reason = "ABORTED", tripped
-        return f'{state},{self.acquired},{self.fetched},"{_clean(reason)}"'
-
-    def _ctrl(self, session, arg, block):
-        self._no_arg("SYST:CTRL?", arg)
-        return "NONE" if self.owner is None else ("THIS" if self.owner == session else "OTHER")
-
-    def _nonce(self, session, arg, block):
-        self._no_arg("SYST:AUTH?", arg)  # the server answers it where a token is set; without one, any will do
-        return secrets.token_hex(16)
-
-    def _fetch(self, session, arg, block):
-        text = arg.strip()
-        if not text:
-            raise RigError(-109, "missing parameter: FETC? <max rows>")
-        if not text.isdigit():
-            raise RigError(-104, f"{text[:40]!r} is not a number of rows (an integer >= 0)")
-        wanted = min(int(text), MAX_FETCH)
-        if self.run is None:
-            return encode_block([])
-        if self.realtime:
-            self._advance_realtime()
-            if session is not None and session == self._doomed:  # the disconnect fired: no rows taken
-                self._doomed = None
-                raise CloseConnection()
-        elif self.state == "RUNNING" and self._buffered < wanted:
-            target = self.run.acquired + wanted - self._buffered
-            self._produce_to(target)
-            if self._disconnect_due(target):
-                self._fire_disconnect()
-                raise CloseConnection()
-        rows = self._pop(wanted)
-        self.fetched += rows.shape[0]
-        return encode_block(rows)
-
-    def _pop(self, n: int) -> np.ndarray:
-        out, got = [], 0
-        while self._rows and got < n:
-            head = self._rows[0]
-            take = min(n - got, head.shape[0])
-            out.append(head[:take])
-            if take == head.shape[0]:
-                self._rows.popleft()
-            else:
-                self._rows[0] = head[take:]
-            got += take
-        self._buffered -= got
-        return np.concatenate(out) if out else np.empty((0, len(self.run.config.columns)))
-
-    def _abor(self, session, arg, block):  # (execute serves ABOR itself, before the lock)
-        self._no_arg("ABOR", arg)
-        self.emergency_stop("aborted by ABOR")
-        return "OK"
+    def shutdown(self) -> None:
+        """End of the server: abort anything running (voltage off) and stop the producer."""
+        self.rig.shutdown()
 
 
-def armed_checksum(rate, limits, thickness, stretch, voltage) -> str:
-    """CRC-32 (8 hex digits) of what the client configured and ARM armed: ``CONF:RATE``, the four
-    ``LIM:*`` values (VOLT, STR, FORC, FIEL), ``CONF:THIC`` and both trajectories, each as
-    little-endian float64, in that order. The driver computes the same from what it sent."""
-    head = np.array([rate, *limits, thickness], "<f8")
-    crc = zlib.crc32(head.tobytes())
-    crc = zlib.crc32(np.ascontiguousarray(stretch, "<f8").tobytes(), crc)
-    crc = zlib.crc32(np.ascontiguousarray(voltage, "<f8").tobytes(), crc)
-    return f"{crc:08x}"
+def _ok(_) -> str:
+    return "OK"
+
+
+def _size(values) -> int:
+    return 0 if values is None else values.size
 
 
 __all__ = ["FAULTS", "CloseConnection", "RigController", "RigError", "armed_checksum", "check_faults"]

@@ -4,7 +4,8 @@ A command is ASCII text ending in ``\\n``; an array argument is a block
 ``#<d><n><n bytes>`` (little-endian float64) followed by ``\\n``. The reader
 copes with any split of the bytes over ``recv`` calls, and turns every
 malformed input into a `FramingError` that the server answers with one
-``ERR`` line, after which it is in step with the client again.
+``ERR`` line, after which it is in step with the client again. The blocks'
+encoding and `FramingError` are the protocol's (`rdea_lab.specs.rigwire`).
 """
 
 from __future__ import annotations
@@ -13,38 +14,12 @@ import socket
 import threading
 import time
 
-import numpy as np
+from ..specs.rigwire import (BLOCK_DATA_ERROR, COMMAND_ERROR, INVALID_CHARACTER, TOKEN_REQUIRED,
+                              FramingError, decode_block, encode_block)
 
 
 class ConnectionClosed(Exception):
     """The peer closed the connection (or it was shut down)."""
-
-
-class FramingError(Exception):
-    """Malformed input; ``code`` and ``message`` make the ``ERR`` reply.
-
-    ``fatal`` means the reader cannot find the next command again (a block
-    header announcing more bytes than accepted): the connection is closed.
-    """
-
-    def __init__(self, code: int, message: str, fatal: bool = False):
-        super().__init__(message)
-        self.code, self.message, self.fatal = code, message, fatal
-
-
-def encode_block(values) -> bytes:
-    """Values as a definite-length block of little-endian float64 (``#10`` if empty)."""
-    data = np.ascontiguousarray(values, dtype="<f8").tobytes()
-    size = str(len(data))
-    return f"#{len(size)}{size}".encode("ascii") + data
-
-
-def decode_block(payload: bytes) -> np.ndarray:
-    """The float64 values of a block's payload; FramingError if not whole values."""
-    if len(payload) % 8:
-        raise FramingError(-161, f"block of {len(payload)} bytes is not a whole number of float64 values "
-                                 "(8 bytes each)")
-    return np.frombuffer(payload, dtype="<f8").astype(float)
 
 
 class ConnectionIdle(ConnectionClosed):
@@ -162,15 +137,15 @@ class CommandReader:
                 if not self._fill(end):
                     got = len(self._buf)
                     self._buf.clear()
-                    raise FramingError(-161, f"{what}: not whole in time ({got} bytes; at least "
+                    raise FramingError(BLOCK_DATA_ERROR, f"{what}: not whole in time ({got} bytes; at least "
                                              f"{self.min_block_rate:g} bytes/s); closing the connection",
                                        fatal=True)
                 continue
             if not self._fill(gap):
                 got = len(self._buf)
                 self._buf.clear()
-                raise FramingError(-161, f"{what}: nothing arrived for {self.block_timeout:g} s after {got} bytes; "
-                                         "closing the connection", fatal=True)
+                raise FramingError(BLOCK_DATA_ERROR, f"{what}: nothing arrived for {self.block_timeout:g} s after "
+                                                     f"{got} bytes; closing the connection", fatal=True)
 
     def _resync(self, quiet: float = 0.1, limit: float = 2.0) -> None:
         """Drop the buffer and whatever arrives until the line is quiet for `quiet` s."""
@@ -227,7 +202,7 @@ class CommandReader:
                 line = bytes(self._buf[:nl])
                 del self._buf[:nl + 1]
                 if len(line) > self.max_line:
-                    raise FramingError(-100, f"command longer than {self.max_line} bytes")
+                    raise FramingError(COMMAND_ERROR, f"command longer than {self.max_line} bytes")
                 return self._text(line.rstrip(b"\r")), None
             if len(self._buf) > self.max_line:
                 return self._too_long()
@@ -236,15 +211,15 @@ class CommandReader:
     def _too_long(self):
         self._buf.clear()
         self._skip_line = True
-        raise FramingError(-100, f"command longer than {self.max_line} bytes")
+        raise FramingError(COMMAND_ERROR, f"command longer than {self.max_line} bytes")
 
     @staticmethod
     def _text(raw: bytes) -> str:
         try:
             return raw.decode("ascii")
         except UnicodeDecodeError as exc:
-            raise FramingError(-101, f"invalid character: byte 0x{raw[exc.start]:02x} at position {exc.start} "
-                                     "is not ASCII") from None
+            raise FramingError(INVALID_CHARACTER, f"invalid character: byte 0x{raw[exc.start]:02x} at position "
+                                                  f"{exc.start} is not ASCII") from None
 
     def _block(self, start: int) -> bytes:
         """Parse the block whose ``#`` is at `start`; consume it and its newline."""
@@ -252,28 +227,28 @@ class CommandReader:
         d = chr(self._buf[start + 1])
         if d == "0":
             self._drop_line(start)
-            raise FramingError(-161, "indefinite-length block (#0) not accepted; send a definite-length "
+            raise FramingError(BLOCK_DATA_ERROR, "indefinite-length block (#0) not accepted; send a definite-length "
                                      "block #<d><n><bytes>")
         if not d.isdigit():
             self._drop_line(start)
-            raise FramingError(-161, f"invalid block header: {d!r} after '#' is not a digit 1-9")
+            raise FramingError(BLOCK_DATA_ERROR, f"invalid block header: {d!r} after '#' is not a digit 1-9")
         digits = int(d)
         self._need(start + 2 + digits, "block header")
         size_text = bytes(self._buf[start + 2:start + 2 + digits])
         if not size_text.isdigit():
             self._drop_line(start)
-            raise FramingError(-161, f"invalid block header: length {size_text!r} is not {digits} digits")
+            raise FramingError(BLOCK_DATA_ERROR, f"invalid block header: length {size_text!r} is not {digits} digits")
         size = int(size_text)
         if size > self.max_block:
             self._buf.clear()
             if self.max_block == 0:
-                raise FramingError(-300, "blocks only after authentication (SYST:AUTH)", fatal=True)
-            raise FramingError(-161, f"block of {size} bytes is larger than the largest accepted "
+                raise FramingError(TOKEN_REQUIRED, "blocks only after authentication (SYST:AUTH)", fatal=True)
+            raise FramingError(BLOCK_DATA_ERROR, f"block of {size} bytes is larger than the largest accepted "
                                      f"({self.max_block} bytes)", fatal=True)
         if self.budget is not None:
             if not self.budget.take(size):
                 self._buf.clear()
-                raise FramingError(-161, f"server busy: blocks of other connections already hold "
+                raise FramingError(BLOCK_DATA_ERROR, f"server busy: blocks of other connections already hold "
                                          f"{self.budget.used} of {self.budget.total} bytes; try again", fatal=True)
             self._held = size
         begin = start + 2 + digits
@@ -288,7 +263,8 @@ class CommandReader:
             end += 1
         if self._buf[end:end + 1] != b"\n":
             self._resync()
-            raise FramingError(-161, f"block longer than its header says ({size} bytes), or no newline after it")
+            raise FramingError(BLOCK_DATA_ERROR,
+                               f"block longer than its header says ({size} bytes), or no newline after it")
         payload = bytes(self._buf[begin:begin + size])
         del self._buf[:end + 1]
         return payload

@@ -41,17 +41,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..physics.result import LIMIT_POINT, OUTSIDE_RANGE, STATUS_NAMES, is_valid
+from ..specs.rigwire import CHANNELS, COLUMNS, CURRENT_COLUMN, row_columns
 from .roll import TrueRoll
 from .instruments import CurrentMonitor, FirstOrderLag, lcr_bridge, load_cell, tau_of_bandwidth
 from .truth import true_geometry
 
-#: Columns of a sample row, in order (the rows of ``FETC?``).
-COLUMNS = ("time", "stretch", "position", "voltage", "force", "capacitance", "stretch_setpoint",
-           "voltage_setpoint")
-#: The column a row gains when ``current`` is measured (after `COLUMNS`).
-CURRENT_COLUMN = "current"
-#: Channels that can be measured.
-CHANNELS = ("force", "capacitance", "current")
 #: The LCR bridge measures only below this |voltage| [V].
 LCR_MAX_VOLTAGE = 1.0
 #: Samples computed at once, in blocks aligned on the start of the run [samples].
@@ -108,7 +102,7 @@ class RunConfig:
     @property
     def columns(self) -> tuple:
         """The columns of this run's rows: `COLUMNS`, and ``current`` when it is measured."""
-        return COLUMNS + ((CURRENT_COLUMN,) if "current" in self.measure else ())
+        return row_columns(self.measure)
 
     @property
     def time(self) -> np.ndarray:

@@ -8,11 +8,9 @@ run it drives: voltage off.
 
 from __future__ import annotations
 
-import hashlib
 import hmac
 import ipaddress
 import itertools
-import secrets
 import socket
 import socketserver
 import threading
@@ -20,6 +18,8 @@ import time
 
 from .controller import CloseConnection, RigController, check_faults
 from .framing import ByteBudget, CommandReader, ConnectionClosed, FramingError
+from ..specs.rigwire import (BEFORE_AUTH, COMMANDS, TOKEN_REQUIRED, TOO_MANY_CONNECTIONS, auth_response, error_reply,
+                             new_nonce)
 from ..specs.tokens import check_token
 from .truth import true_geometry
 
@@ -261,9 +261,10 @@ class RigServer:
                     text, block = reader.read_command()
                 except FramingError as err:
                     if not state["authenticated"]:
-                        self._send(sock, 'ERR -300,"token required: SYST:AUTH? then SYST:AUTH <HMAC>"')
+                        self._send(sock, error_reply(TOKEN_REQUIRED,
+                                                     "token required: SYST:AUTH? then SYST:AUTH <HMAC>"))
                         break
-                    self._send(sock, f'ERR {err.code},"{err.message}"')
+                    self._send(sock, error_reply(err.code, err.message))
                     if err.fatal:
                         break
                     continue
@@ -283,8 +284,9 @@ class RigServer:
                                 self._sessions[session] = sock
                                 state["slot"] = True
                         if full:
-                            self._send(sock, f'ERR -310,"too many connections: {self.max_connections} already '
-                                             'served (ABOR is served on any connection)"')
+                            self._send(sock, error_reply(TOO_MANY_CONNECTIONS, f"too many connections: "
+                                                         f"{self.max_connections} already served (ABOR is served "
+                                                         "on any connection)"))
                             break
                         self._send(sock, "OK")
                         reader.budget, reader.max_block, reader.max_line = self._budget, MAX_BLOCK, 4096
@@ -320,10 +322,13 @@ class RigServer:
         no credential), ``SYST:AUTH?`` (a fresh nonce), ``SYST:AUTH <mac>`` (the HMAC of that nonce)."""
         header, _, arg = text.strip().partition(" ")
         header = header.upper()
+        refusal = error_reply(TOKEN_REQUIRED, "token required: SYST:AUTH? then SYST:AUTH <HMAC-SHA256 of the nonce>")
+        if header not in COMMANDS or COMMANDS[header].access != BEFORE_AUTH:  # the protocol's table says which
+            return refusal, True
         if header == "ABOR":
             return self.controller.execute(session, text), False
         if header == "SYST:AUTH?":
-            state["nonce"] = secrets.token_hex(16)
+            state["nonce"] = new_nonce()
             return state["nonce"], False
         if header == "SYST:AUTH" and state["nonce"] is not None:
             nonce, state["nonce"] = state["nonce"], None  # one answer per nonce: a captured one does not replay
@@ -331,7 +336,7 @@ class RigServer:
                                    auth_response(self._token, nonce).encode("ascii")):
                 state["authenticated"] = True
                 return None, False
-        return 'ERR -300,"token required: SYST:AUTH? then SYST:AUTH <HMAC-SHA256 of the nonce>"', True
+        return refusal, True
 
     def _overflow(self, sock: socket.socket) -> None:
         """A connection beyond the cap: its first line is read (for at most `OVERFLOW_TIMEOUT` s) and served
@@ -341,7 +346,8 @@ class RigServer:
             served = self._overflowing < MAX_OVERFLOW
             if served:
                 self._overflowing += 1
-        refusal = f'ERR -310,"too many connections: {self.max_connections} already served (ABOR is served on any)"'
+        refusal = error_reply(TOO_MANY_CONNECTIONS, f"too many connections: {self.max_connections} already served "
+                                                    "(ABOR is served on any)")
         try:
             if served:
                 until = time.monotonic() + OVERFLOW_TIMEOUT
@@ -377,12 +383,6 @@ class RigServer:
                 sock.sendall(data[i:i + SEND_CHUNK])
         finally:
             sock.settimeout(None)
-
-
-def auth_response(token: str, nonce: str) -> str:
-    """The answer to the nonce of ``SYST:AUTH?``: HMAC-SHA256 of the nonce (ASCII) keyed with the token
-    (ASCII), in lowercase hex. The token itself never travels."""
-    return hmac.new(token.encode("ascii"), nonce.encode("ascii"), hashlib.sha256).hexdigest()
 
 
 __all__ = ["RigServer", "auth_response", "is_loopback"]
