@@ -8,7 +8,9 @@ from typing import Literal
 
 from pydantic import PrivateAttr
 
-from .errors import DOCUMENT, MAX_SEED, Identifier, SpecError, SpecModel, read_yaml_mapping, show
+from .base import Identifier, SpecModel
+from .errors import DOCUMENT, MAX_SEED, SpecError, show
+from .yamlio import read_yaml_mapping
 from ..paths import resolve
 from .truth import MODEL_CHOICES, Seed
 

@@ -28,7 +28,9 @@ from typing import Any, Literal
 import yaml
 from pydantic import model_validator
 
-from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, show
+from .base import Identifier, SpecModel
+from .errors import DOCUMENT, SpecError, show
+from .yamlio import parse_yaml_mapping, read_yaml_mapping
 from .units import _dimension_of, format_quantity, parse_quantity, quantity
 
 Pressure = quantity("pressure", "kPa")

@@ -31,8 +31,9 @@ from typing import Any
 import yaml
 from pydantic import PrivateAttr, field_validator, model_validator
 
-from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, show
-from .errors import empty_value_error, units_required
+from .base import Identifier, SpecModel, empty_value_error, units_required
+from .errors import DOCUMENT, SpecError, show
+from .yamlio import parse_yaml_mapping, read_yaml_mapping
 from .protocol_presets import (  # noqa: F401  (re-exported: part of the protocol spec)
     BlockingForceSettings, CapacitanceSweepSettings, PRESETS, PresetSchema, Settings, TensileRampSineSettings,
 )

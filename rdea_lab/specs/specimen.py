@@ -27,7 +27,9 @@ from typing import Any
 import yaml
 from pydantic import Field, field_validator, model_validator
 
-from .errors import DOCUMENT, Identifier, SpecError, SpecModel, read_yaml_mapping, parse_yaml_mapping, show
+from .base import Identifier, SpecModel
+from .errors import DOCUMENT, SpecError, show
+from .yamlio import parse_yaml_mapping, read_yaml_mapping
 from .units import format_quantity, quantity
 
 #: Specimen lengths: above 1 um and up to 10 m, thicknesses from 100 nm to 10 mm (anything outside is a

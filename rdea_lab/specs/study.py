@@ -42,7 +42,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import DOCUMENT, SpecError, read_yaml_mapping, show
+from .errors import DOCUMENT, SpecError, show
+from .yamlio import read_yaml_mapping
 from .params import load_params
 from .protocol import load_protocol
 from .specimen import load_specimen

@@ -37,8 +37,9 @@ from pydantic import field_validator, model_validator
 
 from ..paths import resolve
 
-from .errors import DOCUMENT, MAX_NODES, MAX_SPEC_BYTES, Identifier, SpecError, SpecModel, check_file_size
-from .errors import parse_yaml_mapping, show
+from .base import Identifier, SpecModel
+from .errors import DOCUMENT, SpecError, show
+from .yamlio import MAX_NODES, MAX_SPEC_BYTES, check_file_size, parse_yaml_mapping
 from .protocol_segments import Duration, Limits, MAX_TABLE_VALUES, SampleRate, Stretch
 from .units import format_quantity, parse_quantity, quantity
 

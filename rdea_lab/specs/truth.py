@@ -55,8 +55,9 @@ from typing import Annotated, Any
 import yaml
 from pydantic import AfterValidator, BeforeValidator
 
-from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, seed_problem
-from .errors import show
+from .base import Identifier, SpecModel
+from .errors import DOCUMENT, SpecError, seed_problem, show
+from .yamlio import parse_yaml_mapping, read_yaml_mapping
 from .params import ParameterSet, _Viscoelastic, _Yeoh, dump_params, params_from_mapping
 from .names import MODEL_CHOICES, MODELS  # noqa: F401  (MODEL_CHOICES re-exported)
 from .units import format_quantity, quantity
