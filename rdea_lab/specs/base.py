@@ -249,7 +249,7 @@ class SpecModel(BaseModel):
     @classmethod
     def from_yaml(cls, text: str, source: str = "<string>", **context):
         """Validate YAML text of this kind (e.g. a dataset attr); `source` names it in messages."""
-        return cls.from_mapping(parse_yaml_mapping(text, source), source, **context)
+        return cls.from_mapping(parse_yaml_mapping(text, source), source, **context)._read_from(text)
 
     @classmethod
     def from_mapping(cls, mapping: Any, source: str = "<mapping>", **context):
@@ -272,6 +272,10 @@ class SpecModel(BaseModel):
     def _from_form(cls, mapping: dict, source: str):
         """The model from its YAML form (a kind whose file is not its fields overrides this)."""
         return cls.from_yaml_mapping(mapping, source)
+
+    def _read_from(self, text: str):
+        """This spec, read from the YAML `text` (a kind that keeps its text overrides this)."""
+        return self
 
     def _form(self) -> dict:
         """The YAML form of this spec (quantities as strings with units), for `dump`."""

@@ -36,18 +36,20 @@ import itertools
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import DOCUMENT, SpecError, show
-from .yamlio import read_yaml_mapping
-from .params import load_params
-from .protocol import load_protocol
-from .specimen import load_specimen
-from .target import BIAS_KINDS, bias_from_mapping
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
+
+from .base import SpecModel, spec_error_from_validation
+from .errors import SpecError, show
+from .params import ParameterSet, load_params
+from .protocol import ProtocolSpec, load_protocol
+from .specimen import SpecimenCard, load_specimen
+from .target import BIAS_KINDS, MassBias, NoBias, SpringBias, bias_from_mapping
 from .units import _dimension_of, format_quantity, parse_quantity
 
 #: variable -> (dimension, display unit, lower bound it must stay above (SI), upper sanity bound (SI))
@@ -163,49 +165,6 @@ class CurveBias:
         return np.interp((np.asarray(stretch, float) - 1.0) * L1, self.extension, self.force_values)
 
 
-@dataclass(frozen=True)
-class Study:
-    """A validated design study (SI). `source` is the file, for messages; paths are resolved."""
-
-    name: str
-    source: str
-    model: str
-    params: Any
-    specimen: Any
-    variables: tuple[Variable, ...]
-    method: str
-    n: int
-    seed: int
-    voltage: float
-    bias: Any
-    objectives: tuple[Goal, ...]
-    constraints: tuple[Bound, ...]
-    description: str | None = None
-    radii_tolerance: float = 0.0
-    mc_samples: int = 0
-    mc_seed: int = 0
-    sensitivity_n: int = 0
-    sensitivity_seed: int = 0
-    optimize: Mapping | None = None
-    protocol: Any = None
-    protocol_path: str | None = None
-    chunk: int = 256
-    density: float | None = None
-    text: str = field(default="", repr=False)
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        return tuple(v.name for v in self.variables)
-
-    @property
-    def metrics(self) -> tuple[str, ...]:
-        """Every metric the study computes (protocol ones only with a protocol, mass ones with a density)."""
-        out = [m for m in METRICS if m not in PROTOCOL_METRICS or self.protocol is not None]
-        out = [m for m in out if m not in ("preload", "bias_mass")
-               or (m == "preload") == (self.bias.kind == "spring") and self.bias.kind in ("spring", "mass")]
-        return tuple(m for m in out if m not in DENSITY_METRICS or self.density is not None)
-
-
 def _mapping(value, source, where):
     if not isinstance(value, Mapping):
         raise SpecError(source, where, f"expected a mapping, got {show(value)}")
@@ -293,7 +252,7 @@ def _resolve(folder: Path, rel, source, key, loader):
     return loader(path), str(path)
 
 
-def _bias(value, source, L1):
+def _bias(value, source):
     if value is None or value == "none":
         value = {"kind": "none"}
     value = _mapping(value, source, "bias")
@@ -328,145 +287,362 @@ def _bias(value, source, L1):
         raise err.with_source(source) from None
 
 
-def study_from_mapping(mapping: Any, source: str = "<mapping>", folder: str | os.PathLike = ".") -> Study:
-    """Validate a study given as a mapping (paths relative to ``folder``)."""
-    if not isinstance(mapping, Mapping):
-        raise SpecError(source, DOCUMENT, f"expected a mapping of keys, got {show(mapping)}")
-    data = {str(k): v for k, v in mapping.items()}
-    unknown = sorted(set(data) - set(_KEYS))
-    if unknown:
-        raise SpecError(source, unknown[0], f"unknown key; allowed: {', '.join(_KEYS)}")
-    folder = Path(folder)
-    for key in ("name", "params", "specimen", "variables", "objectives"):
-        if key not in data:
-            raise SpecError(source, key, "missing")
-    name = data["name"]
-    if not isinstance(name, str) or not name.replace("-", "").replace("_", "").replace(".", "").isalnum():
-        raise SpecError(source, "name", f"{show(name)}; give letters, digits, '-', '_' or '.'")
-    model = data.get("model", "su")
-    if model not in DESIGN_MODELS:
-        raise SpecError(source, "model", f"{show(model)}; allowed: {', '.join(DESIGN_MODELS)} (the models a study "
-                        "maps over designs; 3R and CR see the ring radii themselves)")
-    params, _ = _resolve(folder, data["params"], source, "params", load_params)
-    card, _ = _resolve(folder, data["specimen"], source, "specimen", load_specimen)
-    if getattr(card, "membrane", None) is None:
-        raise SpecError(source, "specimen", "the card gives no membrane; a study varies the unwound membrane "
-                        "(give a card with membrane: L1, L2, L3, L1e, Lp1, L2e)")
-    variables = _mapping(data["variables"], source, "variables")
-    if not variables:
-        raise SpecError(source, "variables", "empty; give at least one, e.g. L1: [20 mm, 60 mm]")
-    var = tuple(_variable(k, v, source) for k, v in variables.items())
-    names = {v.name for v in var}
-    if names & {"C10", "C20", "C30"} and model != "su":
-        raise SpecError(source, "variables", f"{sorted(names & {'C10', 'C20', 'C30'})[0]}: the 1R branch solver "
-                        "takes one material; vary Yeoh coefficients with model: su")
-    if {"L2", "L2e", "Lp1", "Lp2"} <= names:
-        raise SpecError(source, "variables", "L2, L2e, Lp1 and Lp2: L2 = Lp1 + L2e + Lp2; vary three of them")
-    sampling = _mapping(data.get("sampling", {}), source, "sampling")
-    extra = set(sampling) - {"method", "n", "seed"}
-    if extra:
-        raise SpecError(source, f"sampling.{sorted(extra)[0]}", "unknown key; allowed: method, n, seed")
-    method = sampling.get("method", "sobol")
-    if method not in SAMPLINGS:
-        raise SpecError(source, "sampling.method", f"{show(method)}; allowed: {', '.join(SAMPLINGS)}")
-    if method == "grid":
-        if "n" in sampling:
-            raise SpecError(source, "sampling.n", "a grid's size is the product of its variables' levels; "
-                            "give levels per variable instead")
-        n = int(np.prod([v.levels for v in var]))
-        if n > 10**7:
-            raise SpecError(source, "variables", f"a grid of {n} designs; at most 1e7")
-    else:
-        n = _int(sampling.get("n", 256), source, "sampling.n", 2)
-    seed = _int(sampling.get("seed", 0), source, "sampling.seed", 0, 2**32 - 1)
-    voltage = 0.0
-    if "voltage" in data:
-        voltage = parse_quantity(data["voltage"], "voltage", source=source, field="voltage", example_unit="kV")
-        if not 0 <= voltage <= 1e5:
-            raise SpecError(source, "voltage", f"{format_quantity(voltage, 'kV')}; give 0 to 100 kV")
-    elif "voltage" not in names:
-        raise SpecError(source, "voltage", "missing; give the operating voltage, e.g. 2.6 kV (or vary it)")
-    bias = _bias(data.get("bias"), source, card.membrane.L1)
-    kind = bias.kind
-    for v in var:
-        if v.name in ("stiffness", "preload", "mass", "prestretch") and v.name not in BIAS_VARIABLES[kind]:
-            raise SpecError(source, f"variables.{v.name}", f"not a variable of a {kind} bias; allowed with it: "
-                            f"{', '.join(BIAS_VARIABLES[kind]) or 'none'}")
-    if "prestretch" in names and names & {"preload", "mass"}:
-        raise SpecError(source, "variables.prestretch", "sets the preload (or mass) itself; vary one of them")
-    objectives = data["objectives"]
-    if not isinstance(objectives, (list, tuple)) or not objectives:
-        raise SpecError(source, "objectives", "give a list, e.g. [{maximize: stroke}]")
-    goals = tuple(_goal(i, g, source) for i, g in enumerate(objectives))
-    bounds = tuple(_bound(k, v, source) for k, v in _mapping(data.get("constraints", {}), source,
-                                                               "constraints").items())
-    density = None
-    if "density" in data:
-        density = parse_quantity(data["density"], "density", source=source, field="density", example_unit="kg/m^3")
+#: a key the file does not give (``key:`` with nothing after it is given, as None)
+_MISSING = object()
+
+
+def _given(value) -> bool:
+    return value is not _MISSING
+
+
+class _StudyFile(BaseModel):
+    """The study file's form. Each key's check runs in this order and sees the keys before it
+    (``info.data``: only those that passed); `Study._from_form` reports the first problem. A check that
+    needs a key which failed is skipped: that key's problem comes first. A plain pydantic model, not a
+    `SpecModel`: its validators read the file's name and folder from pydantic's validation context, which
+    `SpecModel`'s own ``__init__`` would drop."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", validate_default=True, arbitrary_types_allowed=True)
+
+    name: Any = None
+    description: Any = None
+    model: Any = "su"
+    params: Any = None
+    specimen: Any = None
+    variables: Any = None
+    sampling: Any = Field(default_factory=dict)
+    voltage: Any = _MISSING
+    bias: Any = None
+    objectives: Any = None
+    constraints: Any = Field(default_factory=dict)
+    density: Any = _MISSING
+    protocol: Any = _MISSING
+    tolerances: Any = Field(default_factory=dict)
+    sensitivity: Any = Field(default_factory=dict)
+    optimize: Any = _MISSING
+    chunk: Any = 256
+
+    @model_validator(mode="before")
+    @classmethod
+    def _keys(cls, data: Any, info: ValidationInfo) -> dict:
+        source = info.context["source"]
+        data = {str(k): v for k, v in data.items()}
+        unknown = sorted(set(data) - set(_KEYS))
+        if unknown:
+            raise SpecError(source, unknown[0], f"unknown key; allowed: {', '.join(_KEYS)}")
+        for key in ("name", "params", "specimen", "variables", "objectives"):
+            if key not in data:
+                raise SpecError(source, key, "missing")
+        return data
+
+    @field_validator("name")
+    @classmethod
+    def _name(cls, name, info: ValidationInfo):
+        if not isinstance(name, str) or not name.replace("-", "").replace("_", "").replace(".", "").isalnum():
+            raise SpecError(info.context["source"], "name", f"{show(name)}; give letters, digits, '-', '_' or '.'")
+        return name
+
+    @field_validator("model")
+    @classmethod
+    def _model(cls, model, info: ValidationInfo):
+        if model not in DESIGN_MODELS:
+            raise SpecError(info.context["source"], "model", f"{show(model)}; allowed: {', '.join(DESIGN_MODELS)} "
+                            "(the models a study maps over designs; 3R and CR see the ring radii themselves)")
+        return model
+
+    @field_validator("params")
+    @classmethod
+    def _params(cls, rel, info: ValidationInfo):
+        return _resolve(info.context["folder"], rel, info.context["source"], "params", load_params)[0]
+
+    @field_validator("specimen")
+    @classmethod
+    def _specimen(cls, rel, info: ValidationInfo):
+        source = info.context["source"]
+        card, _ = _resolve(info.context["folder"], rel, source, "specimen", load_specimen)
+        if getattr(card, "membrane", None) is None:
+            raise SpecError(source, "specimen", "the card gives no membrane; a study varies the unwound membrane "
+                            "(give a card with membrane: L1, L2, L3, L1e, Lp1, L2e)")
+        return card
+
+    @field_validator("variables")
+    @classmethod
+    def _variables(cls, value, info: ValidationInfo):
+        """The variables and the mapping they came from (its ``levels`` are checked against the sampling)."""
+        source = info.context["source"]
+        variables = _mapping(value, source, "variables")
+        if not variables:
+            raise SpecError(source, "variables", "empty; give at least one, e.g. L1: [20 mm, 60 mm]")
+        var = tuple(_variable(k, v, source) for k, v in variables.items())
+        names = {v.name for v in var}
+        if names & {"C10", "C20", "C30"} and info.data.get("model", "su") != "su":
+            raise SpecError(source, "variables", f"{sorted(names & {'C10', 'C20', 'C30'})[0]}: the 1R branch "
+                            "solver takes one material; vary Yeoh coefficients with model: su")
+        if {"L2", "L2e", "Lp1", "Lp2"} <= names:
+            raise SpecError(source, "variables", "L2, L2e, Lp1 and Lp2: L2 = Lp1 + L2e + Lp2; vary three of them")
+        return var, variables
+
+    @field_validator("sampling")
+    @classmethod
+    def _sampling(cls, value, info: ValidationInfo):
+        """``(method, n, seed)``."""
+        source = info.context["source"]
+        sampling = _mapping(value, source, "sampling")
+        extra = set(sampling) - {"method", "n", "seed"}
+        if extra:
+            raise SpecError(source, f"sampling.{sorted(extra)[0]}", "unknown key; allowed: method, n, seed")
+        method = sampling.get("method", "sobol")
+        if method not in SAMPLINGS:
+            raise SpecError(source, "sampling.method", f"{show(method)}; allowed: {', '.join(SAMPLINGS)}")
+        if method == "grid":
+            if "n" in sampling:
+                raise SpecError(source, "sampling.n", "a grid's size is the product of its variables' levels; "
+                                "give levels per variable instead")
+            if "variables" not in info.data:
+                return method, 0, 0
+            n = int(np.prod([v.levels for v in info.data["variables"][0]]))
+            if n > 10**7:
+                raise SpecError(source, "variables", f"a grid of {n} designs; at most 1e7")
+        else:
+            n = _int(sampling.get("n", 256), source, "sampling.n", 2)
+        return method, n, _int(sampling.get("seed", 0), source, "sampling.seed", 0, 2**32 - 1)
+
+    @field_validator("voltage")
+    @classmethod
+    def _voltage(cls, value, info: ValidationInfo):
+        source = info.context["source"]
+        if _given(value):
+            voltage = parse_quantity(value, "voltage", source=source, field="voltage", example_unit="kV")
+            if not 0 <= voltage <= 1e5:
+                raise SpecError(source, "voltage", f"{format_quantity(voltage, 'kV')}; give 0 to 100 kV")
+            return voltage
+        if "voltage" not in _names(info):
+            raise SpecError(source, "voltage", "missing; give the operating voltage, e.g. 2.6 kV (or vary it)")
+        return 0.0
+
+    @field_validator("bias")
+    @classmethod
+    def _bias(cls, value, info: ValidationInfo):
+        source = info.context["source"]
+        bias = _bias(value, source)
+        kind, names = bias.kind, _names(info)
+        for v in info.data.get("variables", ((), {}))[0]:
+            if v.name in ("stiffness", "preload", "mass", "prestretch") and v.name not in BIAS_VARIABLES[kind]:
+                raise SpecError(source, f"variables.{v.name}", f"not a variable of a {kind} bias; allowed with it: "
+                                f"{', '.join(BIAS_VARIABLES[kind]) or 'none'}")
+        if "prestretch" in names and names & {"preload", "mass"}:
+            raise SpecError(source, "variables.prestretch", "sets the preload (or mass) itself; vary one of them")
+        return bias
+
+    @field_validator("objectives")
+    @classmethod
+    def _objectives(cls, objectives, info: ValidationInfo):
+        source = info.context["source"]
+        if not isinstance(objectives, (list, tuple)) or not objectives:
+            raise SpecError(source, "objectives", "give a list, e.g. [{maximize: stroke}]")
+        return tuple(_goal(i, g, source) for i, g in enumerate(objectives))
+
+    @field_validator("constraints")
+    @classmethod
+    def _constraints(cls, value, info: ValidationInfo):
+        source = info.context["source"]
+        return tuple(_bound(k, v, source) for k, v in _mapping(value, source, "constraints").items())
+
+    @field_validator("density")
+    @classmethod
+    def _density(cls, value, info: ValidationInfo):
+        if not _given(value):
+            return None
+        source = info.context["source"]
+        density = parse_quantity(value, "density", source=source, field="density", example_unit="kg/m^3")
         if not 10.0 <= density <= 1e5:
             raise SpecError(source, "density", f"{density:g} kg/m^3; give 10 to 1e5 kg/m^3, e.g. 1100 kg/m^3")
-    protocol = protocol_path = None
-    if "protocol" in data:
-        protocol, protocol_path = _resolve(folder, data["protocol"], source, "protocol", load_protocol)
-    for what, metric in [("objectives", g.metric) for g in goals] + [("constraints", b.metric) for b in bounds]:
-        if metric in PROTOCOL_METRICS and protocol is None:
-            raise SpecError(source, what, f"{metric} is a protocol's metric; give a protocol to run")
-        if metric in DENSITY_METRICS and density is None:
-            raise SpecError(source, what, f"{metric} needs the elastomer's density, e.g. density: 1100 kg/m^3")
-        if kind == "none" and metric in ("work", "energy_density", "specific_energy"):
-            raise SpecError(source, what, f"{metric}: with no bias nothing is done work on; give a bias")
-    tol = _mapping(data.get("tolerances", {}), source, "tolerances")
-    extra = set(tol) - {"radii", "samples", "seed"}
-    if extra:
-        raise SpecError(source, f"tolerances.{sorted(extra)[0]}", "unknown key; allowed: radii, samples, seed")
-    radii_tol = parse_quantity(tol.get("radii", 0), "dimensionless", source=source, field="tolerances.radii")
-    if not 0 <= radii_tol <= 0.2:
-        raise SpecError(source, "tolerances.radii", f"{radii_tol:g}; give a relative spread from 0 to 20 %")
-    mc = _int(tol.get("samples", 32 if radii_tol > 0 else 0), source, "tolerances.samples", 0, 10000)
-    if radii_tol > 0 and mc < 2:
-        raise SpecError(source, "tolerances.samples", "give at least 2 Monte Carlo samples")
-    mc_seed = _int(tol.get("seed", 0), source, "tolerances.seed", 0, 2**32 - 1)
-    sens = _mapping(data.get("sensitivity", {}), source, "sensitivity")
-    extra = set(sens) - {"n", "seed"}
-    if extra:
-        raise SpecError(source, f"sensitivity.{sorted(extra)[0]}", "unknown key; allowed: n, seed")
-    sens_n = _int(sens.get("n", 0), source, "sensitivity.n", 0, 2**20) if sens else 0
-    if sens_n and (sens_n & (sens_n - 1)):
-        raise SpecError(source, "sensitivity.n", f"{sens_n}; Saltelli's sampling needs a power of 2, e.g. 128")
-    opt = None
-    if "optimize" in data:
-        opt = _mapping(data["optimize"], source, "optimize")
+        return density
+
+    @field_validator("protocol")
+    @classmethod
+    def _protocol(cls, rel, info: ValidationInfo):
+        """``(protocol, path)``, both None without one; then what the objectives and constraints need."""
+        source = info.context["source"]
+        protocol = protocol_path = None
+        if _given(rel):
+            protocol, protocol_path = _resolve(info.context["folder"], rel, source, "protocol", load_protocol)
+        if not {"objectives", "constraints", "density", "bias"} <= set(info.data):
+            return protocol, protocol_path
+        density, kind = info.data["density"], info.data["bias"].kind
+        for what, metric in [("objectives", g.metric) for g in info.data["objectives"]] \
+                + [("constraints", b.metric) for b in info.data["constraints"]]:
+            if metric in PROTOCOL_METRICS and protocol is None:
+                raise SpecError(source, what, f"{metric} is a protocol's metric; give a protocol to run")
+            if metric in DENSITY_METRICS and density is None:
+                raise SpecError(source, what, f"{metric} needs the elastomer's density, e.g. density: 1100 kg/m^3")
+            if kind == "none" and metric in ("work", "energy_density", "specific_energy"):
+                raise SpecError(source, what, f"{metric}: with no bias nothing is done work on; give a bias")
+        return protocol, protocol_path
+
+    @field_validator("tolerances")
+    @classmethod
+    def _tolerances(cls, value, info: ValidationInfo):
+        """``(radii, samples, seed)``: the Monte Carlo spread of the radii."""
+        source = info.context["source"]
+        tol = _mapping(value, source, "tolerances")
+        extra = set(tol) - {"radii", "samples", "seed"}
+        if extra:
+            raise SpecError(source, f"tolerances.{sorted(extra)[0]}", "unknown key; allowed: radii, samples, seed")
+        radii_tol = parse_quantity(tol.get("radii", 0), "dimensionless", source=source, field="tolerances.radii")
+        if not 0 <= radii_tol <= 0.2:
+            raise SpecError(source, "tolerances.radii", f"{radii_tol:g}; give a relative spread from 0 to 20 %")
+        mc = _int(tol.get("samples", 32 if radii_tol > 0 else 0), source, "tolerances.samples", 0, 10000)
+        if radii_tol > 0 and mc < 2:
+            raise SpecError(source, "tolerances.samples", "give at least 2 Monte Carlo samples")
+        return radii_tol, mc, _int(tol.get("seed", 0), source, "tolerances.seed", 0, 2**32 - 1)
+
+    @field_validator("sensitivity")
+    @classmethod
+    def _sensitivity(cls, value, info: ValidationInfo):
+        """``(n, the mapping)``: its seed is checked after every other key (`Study._from_form`), as it always was."""
+        source = info.context["source"]
+        sens = _mapping(value, source, "sensitivity")
+        extra = set(sens) - {"n", "seed"}
+        if extra:
+            raise SpecError(source, f"sensitivity.{sorted(extra)[0]}", "unknown key; allowed: n, seed")
+        sens_n = _int(sens.get("n", 0), source, "sensitivity.n", 0, 2**20) if sens else 0
+        if sens_n and (sens_n & (sens_n - 1)):
+            raise SpecError(source, "sensitivity.n", f"{sens_n}; Saltelli's sampling needs a power of 2, e.g. 128")
+        return sens_n, sens
+
+    @field_validator("optimize")
+    @classmethod
+    def _optimize(cls, value, info: ValidationInfo):
+        if not _given(value):
+            return None
+        source = info.context["source"]
+        opt = _mapping(value, source, "optimize")
         extra = set(opt) - {"objective", "starts", "max_iter"}
         if extra:
             raise SpecError(source, f"optimize.{sorted(extra)[0]}", "unknown key; allowed: objective, starts, "
                             "max_iter")
-        metric = opt.get("objective", goals[0].metric)
+        goals = info.data.get("objectives", ())
+        metric = opt.get("objective", goals[0].metric if goals else None)
         if metric not in [g.metric for g in goals]:
             raise SpecError(source, "optimize.objective", f"{show(metric)}; allowed: one of the objectives "
                             f"({', '.join(g.metric for g in goals)})")
-        opt = {"objective": metric, "starts": _int(opt.get("starts", 4), source, "optimize.starts", 1, 64),
-               "max_iter": _int(opt.get("max_iter", 25), source, "optimize.max_iter", 1, 10000)}
-    chunk = _int(data.get("chunk", 256), source, "chunk", 1, 10**6)
-    if method != "grid":
-        for v in var:
-            if isinstance(variables[v.name], Mapping) and "levels" in variables[v.name]:
-                raise SpecError(source, f"variables.{v.name}.levels", f"a grid's; sampling is {method} (n designs)")
-    _check_material(var, params, source)
-    study = Study(name=name, source=source, model=model, params=params, specimen=card, variables=var,
-                 method=method, n=n, seed=seed, voltage=voltage, bias=bias, objectives=goals, constraints=bounds,
-                 description=data.get("description"), radii_tolerance=radii_tol, mc_samples=mc if radii_tol else 0,
-                 mc_seed=mc_seed, sensitivity_n=sens_n, sensitivity_seed=_int(sens.get("seed", 0), source,
-                                                                              "sensitivity.seed", 0, 2**32 - 1),
-                 optimize=opt, protocol=protocol, protocol_path=protocol_path, chunk=chunk, density=density)
-    for what, metric in [(f"objectives[{i}]", g.metric) for i, g in enumerate(goals)] \
-            + [(f"constraints.{b.metric}", b.metric) for b in bounds]:
-        if metric not in study.metrics:
-            need = {"preload": "a spring bias", "bias_mass": "a mass bias"}.get(metric, "what this study lacks")
-            raise SpecError(source, what, f"{metric}: only with {need}")
-        if kind == "none" and metric in ("blocking_force", "rest_force"):
-            raise SpecError(source, what, f"{metric}: with no bias the roll rests at its own length, where it "
-                            "carries no force; give a bias")
-    return study
+        return {"objective": metric, "starts": _int(opt.get("starts", 4), source, "optimize.starts", 1, 64),
+                "max_iter": _int(opt.get("max_iter", 25), source, "optimize.max_iter", 1, 10000)}
+
+    @field_validator("chunk")
+    @classmethod
+    def _chunk(cls, value, info: ValidationInfo):
+        return _int(value, info.context["source"], "chunk", 1, 10**6)
+
+    @model_validator(mode="after")
+    def _last(self, info: ValidationInfo) -> "_StudyFile":
+        """A grid's levels only with a grid, and Yeoh ranges that stay physical."""
+        source = info.context["source"]
+        (var, variables), method = self.variables, self.sampling[0]
+        if method != "grid":
+            for v in var:
+                if isinstance(variables[v.name], Mapping) and "levels" in variables[v.name]:
+                    raise SpecError(source, f"variables.{v.name}.levels", f"a grid's; sampling is {method} (n designs)")
+        _check_material(var, self.params, source)
+        return self
+
+
+def _names(info: ValidationInfo) -> set[str]:
+    """The names of the variables (none if they did not pass)."""
+    return {v.name for v in info.data.get("variables", ((), {}))[0]}
+
+
+class Study(SpecModel):
+    """A validated design study (SI). `source` is the file, for messages; paths are resolved.
+
+    ``Study.load(path)`` reads a study file (its paths relative to its folder) and keeps its text;
+    ``Study.from_mapping(mapping, source, folder=...)`` validates a mapping (paths relative to ``folder``,
+    by default the folder of `source`).
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid", arbitrary_types_allowed=True)
+    spec_kind = "studies"
+
+    name: str
+    source: str
+    model: str
+    params: ParameterSet
+    specimen: SpecimenCard
+    variables: tuple[Variable, ...]
+    method: str
+    n: int
+    seed: int
+    voltage: float
+    bias: NoBias | MassBias | SpringBias | CurveBias
+    objectives: tuple[Goal, ...]
+    constraints: tuple[Bound, ...]
+    description: Any = None
+    radii_tolerance: float = 0.0
+    mc_samples: int = 0
+    mc_seed: int = 0
+    sensitivity_n: int = 0
+    sensitivity_seed: int = 0
+    optimize: dict | None = None
+    protocol: ProtocolSpec | None = None
+    protocol_path: str | None = None
+    chunk: int = 256
+    density: float | None = None
+    text: str = Field("", repr=False)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(v.name for v in self.variables)
+
+    @property
+    def metrics(self) -> tuple[str, ...]:
+        """Every metric the study computes (protocol ones only with a protocol, mass ones with a density)."""
+        return _metrics(self.protocol, self.bias.kind, self.density)
+
+    @classmethod
+    def _from_form(cls, mapping: dict, source: str, folder: str | os.PathLike | None = None) -> "Study":
+        folder = Path(source).parent if folder is None else Path(folder)
+        try:
+            f = _StudyFile.model_validate(mapping, context={"source": source, "folder": folder})
+        except ValidationError as exc:  # the first problem, as the file's checks are ordered
+            raise _first(exc, source) from None
+        var, _ = f.variables
+        (method, n, seed), (radii_tol, mc, mc_seed), (sens_n, sens) = f.sampling, f.tolerances, f.sensitivity
+        sens_seed = _int(sens.get("seed", 0), source, "sensitivity.seed", 0, 2**32 - 1)
+        protocol, protocol_path = f.protocol
+        study = cls(name=f.name, source=source, model=f.model, params=f.params, specimen=f.specimen, variables=var,
+                    method=method, n=n, seed=seed, voltage=f.voltage, bias=f.bias, objectives=f.objectives,
+                    constraints=f.constraints, description=f.description, radii_tolerance=radii_tol,
+                    mc_samples=mc if radii_tol else 0, mc_seed=mc_seed, sensitivity_n=sens_n,
+                    sensitivity_seed=sens_seed, optimize=f.optimize, protocol=protocol, protocol_path=protocol_path,
+                    chunk=f.chunk, density=f.density)
+        kind = study.bias.kind
+        for what, metric in [(f"objectives[{i}]", g.metric) for i, g in enumerate(study.objectives)] \
+                + [(f"constraints.{b.metric}", b.metric) for b in study.constraints]:
+            if metric not in study.metrics:
+                need = {"preload": "a spring bias", "bias_mass": "a mass bias"}.get(metric, "what this study lacks")
+                raise SpecError(source, what, f"{metric}: only with {need}")
+            if kind == "none" and metric in ("blocking_force", "rest_force"):
+                raise SpecError(source, what, f"{metric}: with no bias the roll rests at its own length, where it "
+                                "carries no force; give a bias")
+        return study
+
+    def _read_from(self, text: str) -> "Study":
+        return self.model_copy(update={"text": text})
+
+
+def _metrics(protocol, kind: str, density) -> tuple[str, ...]:
+    out = [m for m in METRICS if m not in PROTOCOL_METRICS or protocol is not None]
+    out = [m for m in out if m not in ("preload", "bias_mass")
+           or (m == "preload") == (kind == "spring") and kind in ("spring", "mass")]
+    return tuple(m for m in out if m not in DENSITY_METRICS or density is not None)
+
+
+def _first(exc: ValidationError, source: str) -> SpecError:
+    """The `SpecError` a study's check raised (its field is the file's, not pydantic's location)."""
+    err = exc.errors(include_url=False)[0]
+    inner = (err.get("ctx") or {}).get("error")
+    return inner if isinstance(inner, SpecError) else spec_error_from_validation(exc, source=source, model=_StudyFile)
 
 
 #: largest I1 - 3 the equilibrium search reaches (stretch 2.5 in uniaxial tension)
@@ -490,8 +666,13 @@ def _check_material(var, params, source) -> None:
                             "material; narrow the ranges")
 
 
+def study_from_mapping(mapping: Any, source: str = "<mapping>", folder: str | os.PathLike = ".") -> Study:
+    """`Study.from_mapping`: a study given as a mapping (paths relative to ``folder``)."""
+    return Study.from_mapping(mapping, source, folder=folder)
+
+
 def load_study(path: str | os.PathLike) -> Study:
-    """Read and validate a study file.
+    """`Study.load`: read and validate a study file, keeping its text.
 
     Raises
     ------
@@ -499,9 +680,7 @@ def load_study(path: str | os.PathLike) -> Study:
         Naming the file, the field and what is allowed (unknown variable, empty range, inverted bounds,
         a metric that needs what the study does not give, ...).
     """
-    mapping, source = read_yaml_mapping(path, "studies")
-    study = study_from_mapping(mapping, source, Path(source).parent)
-    return study.__class__(**{**study.__dict__, "text": Path(source).read_text(encoding="utf-8")})
+    return Study.load(path)
 
 
 __all__ = ["BIAS_KINDS", "METRICS", "SAMPLINGS", "VARIABLES", "Bound", "CurveBias", "Goal", "Study", "Variable",
