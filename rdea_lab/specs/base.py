@@ -173,6 +173,12 @@ class SpecModel(BaseModel):
     ``"<python>"``), never a raw pydantic ``ValidationError``. Quantities
     given as numbers are taken as SI; strings with units are parsed.
 
+    Every kind is read and written the same way, by the methods defined here once:
+    ``Kind.load(path)``, ``Kind.from_yaml(text, source)``, ``Kind.from_mapping(mapping, source)``
+    and ``spec.dump()``. A kind says only what differs: `spec_kind` (the folder of packaged files
+    `load` falls back to), `_from_form` (its YAML form to the model, when the file is not the model's
+    fields), `_form` (the model to its YAML form) and `yaml_dumper`.
+
     Notes
     -----
     pydantic calls an overridden ``__init__`` for nested models too, so a

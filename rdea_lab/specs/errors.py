@@ -83,7 +83,6 @@ def seed_problem(value: Any) -> str | None:
     return None
 
 
-
 #: Names that moved to `yamlio` and `base`, still importable from here (PEP 562).
 _MOVED = {
     "yamlio": ("HugeInteger", "MAX_DEPTH", "MAX_NODES", "MAX_SPEC_BYTES", "check_file_size", "megabytes",
