@@ -29,10 +29,10 @@ from pathlib import Path
 
 import numpy as np
 import xarray as xr
-import yaml
 
 from ..store.outputs import check_new
 from ..specs import SpecError
+from ..specs.record import add_record_section
 from .app import ARGS, calibrate_runs, gather_runs
 from .record import record_files
 from .envelope import Envelope, beyond, envelope, moving_rates, run_envelope, stretch_text
@@ -414,24 +414,8 @@ def write_holdout(result: CrossValidation, record: Path) -> dict:
 
 
 def add_to_record(record: Path, section: dict, key: str = "validation") -> None:
-    """Add ``key: section`` to the ``calibration`` mapping of a record written by `write_record`.
-
-    The record's text is kept as it is when ``calibration`` is its last top-level key (the section is
-    appended, indented under it); otherwise the document is written again from its parsed form.
-    """
-    text = Path(record).read_text()
-    doc = yaml.safe_load(text)
-    if not isinstance(doc, dict) or not isinstance(doc.get("calibration"), dict):
-        raise ValueError(f"{record}: no calibration section to add {key!r} to")
-    block = yaml.safe_dump({key: section}, sort_keys=False, width=1000, allow_unicode=True)
-    if list(doc)[-1] == "calibration" and key not in doc["calibration"]:
-        new = text.rstrip("\n") + "\n" + "".join("  " + ln + "\n" for ln in block.splitlines())
-        check = yaml.safe_load(new)
-        if check.get("calibration", {}).get(key) == yaml.safe_load(block)[key]:
-            Path(record).write_text(new)
-            return
-    doc["calibration"][key] = section
-    Path(record).write_text(yaml.safe_dump(doc, sort_keys=False, width=1000, allow_unicode=True))
+    """`rdea_lab.specs.record.add_record_section`: add ``key: section`` to the record's ``calibration``."""
+    add_record_section(record, section, key)
 
 
 __all__ = ["CSV_KEYS", "CV_CHOICES", "CrossValidation", "Fold", "add_to_record", "cross_validate", "format_cv",

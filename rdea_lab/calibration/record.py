@@ -6,9 +6,8 @@ import csv
 import math
 from pathlib import Path
 
-import yaml
-
 from ..specs import dump_params, format_quantity
+from ..specs.record import CalibrationRecord, FitParameter, FitRun, Matrix, Statistics
 
 _UNIT = {"Pa": "kPa", "Pa s": "kPa s"}
 _SCALE = {"Pa": 1e3, "Pa s": 1e3}
@@ -25,8 +24,8 @@ def _na(result) -> str | None:
     return f"not applicable (metric {result.metric})" if result.metric != "rms" else None
 
 
-def record_mapping(result, runs) -> dict:
-    """The ``calibration`` section of the record (YAML-ready), with lmfit's names for the statistics."""
+def calibration_record(result, runs) -> CalibrationRecord:
+    """The calibration record of a fit (`rdea_lab.specs.CalibrationRecord`), with lmfit's names for the statistics."""
     na = _na(result)
     params = {}
     for p in result.parameters:
@@ -38,7 +37,7 @@ def record_mapping(result, runs) -> dict:
                                         ("not identifiable", result.unidentifiable)) if p.name in names]
             if flags:
                 entry["flags"] = flags
-        params[p.name] = entry
+        params[p.name] = FitParameter(**entry)
     units = {p.name: p.unit for p in result.parameters}
 
     def matrix(m, digits):
@@ -47,39 +46,33 @@ def record_mapping(result, runs) -> dict:
     if na:
         corr = covar = na
     else:
-        corr = {"names": list(result.free_names), "matrix": matrix(result.correlation, 4)}
-        covar = {"names": list(result.free_names), "matrix": matrix(result.covar, 6),
-                 "units": "SI: entry (i, j) in the unit of names[i] times that of names[j] ("
-                          + ", ".join(f"{n} {units[n]}" for n in result.free_names) + ")"}
-    stats = {"ndata": result.ndata, "nvarys": result.nvarys, "nfree": result.nfree, "chisqr": result.chisqr,
-             "redchi": result.redchi, "aic": None if na else result.aic, "bic": None if na else result.bic,
-             "nfev": result.nfev, "nit": result.nit, "restarts": result.restarts,
-             "wall_time_s": round(result.wall_time, 3)}
+        corr = Matrix(names=list(result.free_names), matrix=matrix(result.correlation, 4))
+        covar = Matrix(names=list(result.free_names), matrix=matrix(result.covar, 6),
+                       units="SI: entry (i, j) in the unit of names[i] times that of names[j] ("
+                             + ", ".join(f"{n} {units[n]}" for n in result.free_names) + ")")
+    stats = Statistics(ndata=result.ndata, nvarys=result.nvarys, nfree=result.nfree, chisqr=result.chisqr,
+                       redchi=result.redchi, aic=None if na else result.aic, bic=None if na else result.bic,
+                       nfev=result.nfev, nit=result.nit, restarts=result.restarts,
+                       wall_time_s=round(result.wall_time, 3))
     notes = ["standard errors and covar from the Jacobian at the optimum, covar = redchi (J^T J)^-1; residuals "
              "of a time series are correlated, so they are lower bounds"]
     if na:
         notes = [f"stderr, covar, correlation, aic and bic: {na}: they describe a least-squares (rms) estimate"]
     stages = [{k: (round(v, 3) if k == "wall_time_s" else v) for k, v in st.items()} for st in result.stages]
-    return {
-        "model": result.model,
-        "viscoelastic_law": result.params.law,
-        "metric": result.metric,
-        "method": result.method,
-        "objective": float(result.objective),
-        "converged": result.converged,
-        "message": result.message,
-        "parameters": params,
-        "correlation": corr,
-        "covar": covar,
-        "runs": [{**g, "sha256": r.sha256} for g, r in zip(result.runs, runs)],
-        "skipped": [dict(s) for s in getattr(result, "skipped", ())],
-        "statistics": stats,
-        "stages": stages,
-        "budgets": dict(result.budgets),
-        "notes": "; ".join(notes),
-        "software": f"rdea-lab {result.software}",
-        "versions": dict(result.versions),
-    }
+    return CalibrationRecord(
+        model=result.model, viscoelastic_law=result.params.law, metric=result.metric, method=result.method,
+        objective=float(result.objective), converged=result.converged, message=result.message,
+        parameters=params, correlation=corr, covar=covar,
+        runs=[FitRun(**{**g, "sha256": r.sha256}) for g, r in zip(result.runs, runs)],
+        skipped=[dict(s) for s in getattr(result, "skipped", ())], statistics=stats, stages=stages,
+        budgets=dict(result.budgets), notes="; ".join(notes), software=f"rdea-lab {result.software}",
+        versions=dict(result.versions),
+    )
+
+
+def record_mapping(result, runs) -> dict:
+    """The ``calibration`` section of the record (YAML-ready): `calibration_record` as a mapping."""
+    return calibration_record(result, runs).mapping()
 
 
 def record_files(out) -> dict[str, Path]:
@@ -99,10 +92,7 @@ def write_record(result, runs, out: Path, name: str | None = None) -> dict[str, 
     files = ", ".join(sorted({r.path.name for r in runs}))
     params = params.replace(description=f"calibrated by rdea-lab on {len(runs)} run(s): {files}",
                             source=f"rdea-lab calibrate, model {result.model}, metric {result.metric}")
-    text = dump_params(params)
-    text += yaml.safe_dump({"calibration": record_mapping(result, runs)}, sort_keys=False, width=1000,
-                           allow_unicode=True)
-    out.write_text(text)
+    out.write_text(dump_params(params) + calibration_record(result, runs).block())
     with open(hist, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["evaluation", "best_objective", "stage"])
@@ -132,4 +122,4 @@ def _plot_history(result, path: Path) -> None:
     fig.savefig(path, dpi=120)
 
 
-__all__ = ["record_files", "record_mapping", "write_record", "format_quantity"]
+__all__ = ["calibration_record", "record_files", "record_mapping", "write_record", "format_quantity"]

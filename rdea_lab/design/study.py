@@ -19,7 +19,7 @@ import itertools
 import json
 import math
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 import xarray as xr
@@ -157,7 +157,7 @@ def sensitivity(study: Study, *, client=None, progress=False, fixed=None) -> dic
     fixed = fixed or Fixed.of(study)
     if not protocol_needed(study):  # the objectives need no protocol: the sensitivity's designs skip it
         fixed = Fixed(fixed.study, None)
-    nominal = replace(study, mc_samples=0)  # indices of the nominal design's objectives
+    nominal = study.model_copy(update={"mc_samples": 0})  # indices of the nominal design's objectives
     metrics = evaluate_table(nominal, table_of(study, unit), client=client, progress=progress, label="sobol",
                              fixed=Fixed(nominal, fixed.history))
     out = {}

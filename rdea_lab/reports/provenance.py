@@ -18,12 +18,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import yaml
-
 from ..backends.rig import truth_name
 from ..calibration.envelope import Envelope, envelope
 from ..calibration.objective import file_hash, load_run
 from ..specs import SpecError
+from ..specs.record import CalibrationRecord
 from ..store.schema import is_emulated
 
 CALIBRATION_RUN = "calibration run"
@@ -38,32 +37,31 @@ def calibration_summary(params_path) -> dict:
     """Provenance of a parameter file: its hash and, if present, its calibration record in brief.
 
     A parameter set given as an object (not a file) has neither: it says so.
+
+    Raises
+    ------
+    SpecError
+        The record is there but a field is not what a record holds (`rdea_lab.specs.CalibrationRecord`).
     """
     if not isinstance(params_path, (str, os.PathLike)):
         name = getattr(params_path, "name", "?")
         return {"file": f"<ParameterSet {name}>", "sha256": "", "record": False, "specimens": [], "runs": [],
                 "envelope": None, "summary": "parameters given as an object: no file, no calibration record"}
-    text = Path(params_path).read_text()
-    try:
-        record = (yaml.safe_load(text) or {}).get("calibration")
-    except (yaml.YAMLError, AttributeError):
-        record = None
-    out = {"file": str(params_path), "sha256": file_hash(params_path), "record": isinstance(record, dict),
+    record = CalibrationRecord.of_file(params_path)
+    out = {"file": str(params_path), "sha256": file_hash(params_path), "record": record is not None,
            "envelope": None}
-    if not isinstance(record, dict):
+    if record is None:
         return {**out, "specimens": [], "runs": [], "summary": "no calibration record in the file"}
-    runs = [r for r in record.get("runs") or [] if isinstance(r, dict)]
-    out.update({k: record.get(k) for k in ("model", "metric", "objective", "converged", "message", "software")})
-    out["runs"] = [{k: r.get(k) for k in ("specimen", "protocol", "file", "sha256", "max_rel_error")} for r in runs]
-    out["specimens"] = sorted({str(r["specimen"]) for r in runs if r.get("specimen")})
-    env = (record.get("validation") or {}).get("envelope") if isinstance(record.get("validation"), dict) else None
-    if isinstance(env, dict):
-        out["envelope"] = env
-    stats = record.get("statistics") or {}
-    out["nfev"] = stats.get("nfev")
+    runs = record.runs
+    out.update({k: getattr(record, k) for k in ("model", "metric", "objective", "converged", "message", "software")})
+    out["runs"] = [{k: getattr(r, k) for k in ("specimen", "protocol", "file", "sha256", "max_rel_error")}
+                   for r in runs]
+    out["specimens"] = sorted({str(r.specimen) for r in runs if r.specimen})
+    if record.validation is not None and record.validation.envelope is not None:
+        out["envelope"] = record.validation.envelope
+    out["nfev"] = record.statistics.nfev if record.statistics is not None else None
     out["summary"] = (f"model {out['model']}, {out['metric']} objective {out['objective']}, "
-                      f"{len(runs)} run(s): " + ", ".join(f"{r.get('specimen')}/{Path(str(r.get('file'))).stem}"
-                                                          for r in runs))
+                      f"{len(runs)} run(s): " + ", ".join(f"{r.specimen}/{Path(str(r.file)).stem}" for r in runs))
     return out
 
 

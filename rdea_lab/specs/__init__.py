@@ -25,6 +25,7 @@ _EXPORTS = {
     "names": ("MODEL_CHOICES", "MODELS"),
     "params": ("LAWS", "MODULUS", "ParameterSet", "ViscoBranch", "dump_params", "load_params", "material_problems",
                "params_from_mapping", "params_from_yaml", "yeoh_slope_nonpositive_at"),
+    "record": ("CalibrationRecord",),
     "protocol": ("Limits", "ProtocolSpec", "dump_protocol", "load_protocol", "protocol_from_mapping",
                  "protocol_from_yaml"),
     "specimen": ("Membrane", "Radii", "SpecimenCard", "dump_specimen", "load_specimen", "specimen_from_mapping",
@@ -59,5 +60,5 @@ __all__ = [
     "material_problems", "params_from_mapping", "params_from_yaml", "parse_quantity",
     "specimen_from_mapping", "specimen_from_yaml", "ureg", "yeoh_slope_nonpositive_at",
     "Instrument", "MODEL_CHOICES", "MODELS", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth",
-    "truth_as_mapping", "truth_from_mapping", "truth_from_yaml", "truth_json",
+    "truth_as_mapping", "truth_from_mapping", "truth_from_yaml", "truth_json", "CalibrationRecord",
 ]

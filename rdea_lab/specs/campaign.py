@@ -8,7 +8,8 @@ from typing import Literal
 
 from pydantic import PrivateAttr
 
-from .errors import DOCUMENT, MAX_SEED, Identifier, SpecError, SpecModel, read_yaml_mapping, show
+from .base import Identifier, SpecModel
+from .errors import DOCUMENT, MAX_SEED, SpecError, show
 from ..paths import resolve
 from .truth import MODEL_CHOICES, Seed
 
@@ -37,10 +38,44 @@ class CampaignSpec(SpecModel):
     protocols: tuple[str, ...]
     _origin: str = PrivateAttr("<python>")
 
+    spec_kind = "campaigns"
+
     @property
     def origin(self) -> str:
         """Where the campaign was read from (a file path, or ``"<python>"``), for messages about it."""
         return self._origin
+
+    @property
+    def folder(self) -> Path:
+        """The folder the campaign's input paths are relative to (``root`` from the file's folder)."""
+        return (Path(self._origin).parent / self.root).resolve()
+
+    @classmethod
+    def _from_form(cls, mapping: dict, source: str) -> "CampaignSpec":
+        """The campaign with its input paths found (under `folder`, else packaged) and made absolute."""
+        spec = cls.from_yaml_mapping(mapping, source)
+        for key in ("specimens", "protocols"):
+            if not getattr(spec, key):
+                raise SpecError(source, key, "an empty list; give at least one file")
+        root = (Path(source).parent / spec.root).resolve()
+        if spec.backend == "twin" and spec.truth is not None:
+            raise SpecError(source, "truth", "a truth file is for the emulator; the twin takes 'params'")
+
+        def found(rel, kind, where):  # under root, else a packaged input of that name
+            path = root / rel
+            path = path if path.is_file() else resolve(rel, kind)
+            if not path.is_file():
+                raise SpecError(source, where, f"{show(rel)} not found under {root} (nor a packaged {kind} file)")
+            return str(path)
+
+        update = {key: tuple(found(rel, key, f"{key}[{i}]") for i, rel in enumerate(getattr(spec, key)))
+                  for key in ("specimens", "protocols")}
+        for key, kind in (("truth", "truth"), ("params", "params")):
+            if getattr(spec, key) is not None:
+                update[key] = found(getattr(spec, key), kind, key)
+        spec = spec.model_copy(update=update)
+        spec._origin = source
+        return spec
 
     def check_run_seeds(self, names) -> None:
         """Refuse a ``seed`` whose run ``i`` (of the `names`, in order) would get a seed above `MAX_SEED`
@@ -53,31 +88,8 @@ class CampaignSpec(SpecModel):
 
 
 def load_campaign(path: str | os.PathLike) -> tuple[CampaignSpec, Path]:
-    """Read a campaign file; returns the spec and the folder its paths are relative to."""
-    mapping, source = read_yaml_mapping(path, "campaigns")
-    spec = CampaignSpec.from_yaml_mapping(mapping, source)
-    for key in ("specimens", "protocols"):
-        if not getattr(spec, key):
-            raise SpecError(source, key, "an empty list; give at least one file")
-    root = (Path(source).parent / spec.root).resolve()
-    if spec.backend == "twin" and spec.truth is not None:
-        raise SpecError(source, "truth", "a truth file is for the emulator; the twin takes 'params'")
-
-    def found(rel, kind, where):  # under root, else a packaged input of that name
-        path = root / rel
-        path = path if path.is_file() else resolve(rel, kind)
-        if not path.is_file():
-            raise SpecError(source, where, f"{show(rel)} not found under {root} (nor a packaged {kind} file)")
-        return str(path)
-
-    update = {key: tuple(found(rel, key, f"{key}[{i}]") for i, rel in enumerate(getattr(spec, key)))
-              for key in ("specimens", "protocols")}
-    for key, kind in (("truth", "truth"), ("params", "params")):
-        if getattr(spec, key) is not None:
-            update[key] = found(getattr(spec, key), kind, key)
-    spec = spec.model_copy(update=update)
-    spec._origin = source
-    return spec, root
+    """`CampaignSpec.load`: read a campaign file; returns the spec and the folder its paths are relative to."""
+    return (spec := CampaignSpec.load(path)), spec.folder
 
 
 __all__ = ["CampaignSpec", "DOCUMENT", "load_campaign"]

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import os
 
-from .params import ParameterSet, load_params
-from .protocol import ProtocolSpec, load_protocol
-from .specimen import SpecimenCard, load_specimen
+from .params import ParameterSet
+from .protocol import ProtocolSpec
+from .specimen import SpecimenCard
 
 
 def _wrong(what: str, expected: str, value) -> TypeError:
@@ -18,7 +18,7 @@ def _wrong(what: str, expected: str, value) -> TypeError:
 def as_specimen(card, what: str = "specimen") -> SpecimenCard:
     """A `SpecimenCard`, or one loaded from the path ``card``."""
     if isinstance(card, (str, os.PathLike)):
-        return load_specimen(card)
+        return SpecimenCard.load(card)
     if isinstance(card, SpecimenCard) or any(hasattr(card, a) for a in ("membrane", "radii", "thickness")):
         return card  # a card, or one in disguise (a roll by its membrane or radii, a strip)
     raise _wrong(what, "a SpecimenCard", card)
@@ -27,7 +27,7 @@ def as_specimen(card, what: str = "specimen") -> SpecimenCard:
 def as_params(params, what: str = "params") -> ParameterSet:
     """A `ParameterSet`, or one loaded from the path ``params``."""
     if isinstance(params, (str, os.PathLike)):
-        return load_params(params)
+        return ParameterSet.load(params)
     if isinstance(params, ParameterSet) or hasattr(params, "C10"):  # a parameter set, or one in disguise
         return params
     raise _wrong(what, "a ParameterSet", params)
@@ -36,7 +36,7 @@ def as_params(params, what: str = "params") -> ParameterSet:
 def as_protocol(protocol, what: str = "protocol") -> ProtocolSpec:
     """A `ProtocolSpec`, or one loaded from the path ``protocol``."""
     if isinstance(protocol, (str, os.PathLike)):
-        return load_protocol(protocol)
+        return ProtocolSpec.load(protocol)
     if isinstance(protocol, ProtocolSpec):
         return protocol
     raise _wrong(what, "a ProtocolSpec", protocol)

@@ -22,13 +22,13 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from typing import Any, Literal
 
-import yaml
 from pydantic import model_validator
 
-from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, show
+from .base import Identifier, SpecModel
+from .errors import SpecError
 from .units import _dimension_of, format_quantity, parse_quantity, quantity
 
 Pressure = quantity("pressure", "kPa")
@@ -295,6 +295,39 @@ class ParameterSet(SpecModel):
         data.update(changes)
         return type(self)(**data)
 
+    spec_kind = "params"
+
+    @classmethod
+    def _from_form(cls, mapping: dict, source: str) -> "ParameterSet":
+        """The set from its file's form (``yeoh``, ``viscoelastic`` sections; a ``calibration`` record is
+        read by `rdea_lab.specs.calibration_record`, not kept in the set)."""
+        f = _ParamsFile.from_yaml_mapping(dict(mapping), source)
+        try:
+            return cls(
+                name=f.name, description=f.description, source=f.source,
+                C10=f.yeoh.C10, C20=f.yeoh.C20, C30=f.yeoh.C30, eps_r=f.eps_r,
+                law=f.viscoelastic.law, branches=f.viscoelastic.branches, eta_v0=f.viscoelastic.eta_v0,
+            )
+        except SpecError as err:
+            raise err.with_source(source) from None
+
+    def _form(self) -> dict:
+        """The YAML form, each quantity in one fixed unit (moduli in kPa, viscosities in kPa s); read back
+        equal (to the last digit but one at worst)."""
+        data: dict[str, Any] = {"name": self.name}
+        for key in ("description", "source"):
+            if getattr(self, key) is not None:
+                data[key] = getattr(self, key)
+        data["yeoh"] = {k: _fixed(getattr(self, k), "kPa") for k in ("C10", "C20", "C30")}
+        data["eps_r"] = self.eps_r
+        data["viscoelastic"] = {
+            "law": self.law,
+            "branches": [{MODULUS[self.law]: _fixed(b.modulus, "kPa"), "eta": _fixed(b.eta, "kPa s")}
+                         for b in self.branches],
+            "eta_v0": _fixed(self.eta_v0, "kPa s"),
+        }
+        return data
+
 
 # ------------------------------------------------------------- YAML form
 class _Yeoh(SpecModel):
@@ -321,41 +354,18 @@ class _ParamsFile(SpecModel):
 
 
 def params_from_mapping(mapping: Any, source: str = "<mapping>") -> ParameterSet:
-    """Validate a parameter set given as a mapping in the YAML form.
-
-    Raises
-    ------
-    SpecError
-    """
-    if not isinstance(mapping, Mapping):
-        raise SpecError(source, DOCUMENT, f"expected a mapping of keys, got {show(mapping)}")
-    f = _ParamsFile.from_yaml_mapping(dict(mapping), source)
-    try:
-        return ParameterSet(
-            name=f.name, description=f.description, source=f.source,
-            C10=f.yeoh.C10, C20=f.yeoh.C20, C30=f.yeoh.C30, eps_r=f.eps_r,
-            law=f.viscoelastic.law, branches=f.viscoelastic.branches, eta_v0=f.viscoelastic.eta_v0,
-        )
-    except SpecError as err:
-        raise err.with_source(source) from None
+    """`ParameterSet.from_mapping`: a parameter set given as a mapping in the YAML form."""
+    return ParameterSet.from_mapping(mapping, source)
 
 
 def params_from_yaml(text: str, source: str = "<string>") -> ParameterSet:
-    """Validate a parameter set given as YAML text (e.g. a dataset attr)."""
-    return params_from_mapping(parse_yaml_mapping(text, source), source)
+    """`ParameterSet.from_yaml`: a parameter set given as YAML text (e.g. a dataset attr)."""
+    return ParameterSet.from_yaml(text, source)
 
 
 def load_params(path: str | os.PathLike) -> ParameterSet:
-    """Read and validate a parameter set YAML file.
-
-    Raises
-    ------
-    SpecError
-        The file is missing, not YAML, not a mapping, or a value is invalid
-        or non-physical; the message names the file and the field.
-    """
-    mapping, source = read_yaml_mapping(path, "params")
-    return params_from_mapping(mapping, source)
+    """`ParameterSet.load`: read and validate a parameter set YAML file."""
+    return ParameterSet.load(path)
 
 
 def _fixed(value: float, unit: str) -> str:
@@ -369,21 +379,8 @@ def _fixed(value: float, unit: str) -> str:
 
 
 def dump_params(ps: ParameterSet) -> str:
-    """Write a parameter set as YAML with units, each quantity in one fixed unit (moduli in kPa,
-    viscosities in kPa s); `load_params` reads it back equal (to the last digit but one at worst)."""
-    data: dict[str, Any] = {"name": ps.name}
-    for key in ("description", "source"):
-        if getattr(ps, key) is not None:
-            data[key] = getattr(ps, key)
-    data["yeoh"] = {k: _fixed(getattr(ps, k), "kPa") for k in ("C10", "C20", "C30")}
-    data["eps_r"] = ps.eps_r
-    data["viscoelastic"] = {
-        "law": ps.law,
-        "branches": [{MODULUS[ps.law]: _fixed(b.modulus, "kPa"), "eta": _fixed(b.eta, "kPa s")}
-                     for b in ps.branches],
-        "eta_v0": _fixed(ps.eta_v0, "kPa s"),
-    }
-    return yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=1000)
+    """`ParameterSet.dump`: a parameter set as YAML with units (moduli in kPa, viscosities in kPa s)."""
+    return ps.dump()
 
 
 __all__ = [

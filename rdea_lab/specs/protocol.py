@@ -31,8 +31,8 @@ from typing import Any
 import yaml
 from pydantic import PrivateAttr, field_validator, model_validator
 
-from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, show
-from .errors import empty_value_error, units_required
+from .base import Identifier, SpecModel, empty_value_error, units_required
+from .errors import SpecError, show
 from .protocol_presets import (  # noqa: F401  (re-exported: part of the protocol spec)
     BlockingForceSettings, CapacitanceSweepSettings, PRESETS, PresetSchema, Settings, TensileRampSineSettings,
 )
@@ -46,6 +46,28 @@ from .protocol_segments import (  # noqa: F401  (re-exported: part of the protoc
     _ROUNDING, _join, _segments,
 )
 from .units import format_quantity
+
+
+# ---------------------------------------------------------------- YAML dumper
+class _Flow(dict):
+    """A mapping written on one line (``{kind: hold, duration: 2 s}``)."""
+
+
+class _FlowList(list):
+    """A list written on one line (``[force, capacitance]``)."""
+
+
+class _Dumper(yaml.SafeDumper):
+    pass
+
+
+_Dumper.add_representer(
+    _Flow, lambda dumper, data: dumper.represent_mapping("tag:yaml.org,2002:map", list(data.items()), flow_style=True)
+)
+
+_Dumper.add_representer(
+    _FlowList, lambda dumper, data: dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=True)
+)
 
 
 # ------------------------------------------------------------- protocol
@@ -236,58 +258,57 @@ class ProtocolSpec(SpecModel):
         """Duration of the explicit channels [s] (the stretch channel's sum); None for a preset."""
         return None if self.stretch is None else channel_duration(self.stretch)
 
+    spec_kind = "protocols"
+    yaml_dumper = _Dumper
+
+    @classmethod
+    def _from_form(cls, mapping: dict, source: str) -> "ProtocolSpec":
+        return cls.from_yaml_mapping(mapping, source).with_origin(source)
+
+    def _form(self) -> dict:
+        """The YAML form; a preset is written as ``preset`` and the settings that were given."""
+        data: dict[str, Any] = {"name": self.name, "kind": self.kind}
+        for key in ("description", "source"):
+            if getattr(self, key) is not None:
+                data[key] = getattr(self, key)
+        data["sample_rate"] = rate_text(self.sample_rate)
+        data["measure"] = _FlowList(self.measure)
+        data["limits"] = {
+            "max_voltage": format_quantity(self.limits.max_voltage, "kV"),
+            "max_stretch": self.limits.max_stretch,
+            "max_force": format_quantity(self.limits.max_force, "N"),
+            "max_field": format_quantity(self.limits.max_field, "V/um"),
+        }
+        if self.probe is not None:
+            data["probe"] = _Flow({"amplitude": format_quantity(self.probe.amplitude, "V"),
+                                   "frequency": format_quantity(self.probe.frequency, "Hz")})
+        if self.preset is not None:
+            data["preset"] = self.preset
+            settings = _dump_fields(self.settings, "settings", only_set=True)
+            if settings:
+                data["settings"] = settings
+        else:
+            for channel in CHANNELS:
+                data[channel] = [_Flow(_dump_fields(s, channel)) for s in getattr(self, channel)]
+        return data
+
 
 def protocol_from_mapping(mapping: Any, source: str = "<mapping>") -> ProtocolSpec:
-    """Validate a protocol given as a mapping (as read from YAML).
-
-    Raises
-    ------
-    SpecError
-    """
-    if not isinstance(mapping, Mapping):
-        raise SpecError(source, DOCUMENT, f"expected a mapping of keys, got {show(mapping)}")
-    return ProtocolSpec.from_yaml_mapping(dict(mapping), source).with_origin(source)
+    """`ProtocolSpec.from_mapping`: a protocol given as a mapping (as read from YAML)."""
+    return ProtocolSpec.from_mapping(mapping, source)
 
 
 def protocol_from_yaml(text: str, source: str = "<string>") -> ProtocolSpec:
-    """Validate a protocol given as YAML text (e.g. a dataset attr)."""
-    return protocol_from_mapping(parse_yaml_mapping(text, source), source)
+    """`ProtocolSpec.from_yaml`: a protocol given as YAML text (e.g. a dataset attr)."""
+    return ProtocolSpec.from_yaml(text, source)
 
 
 def load_protocol(path: str | os.PathLike) -> ProtocolSpec:
-    """Read and validate a protocol YAML file.
-
-    Raises
-    ------
-    SpecError
-        The file is missing, not YAML, not a mapping, or the protocol is
-        invalid; the message names the file and the field.
-    """
-    mapping, source = read_yaml_mapping(path, "protocols")
-    return protocol_from_mapping(mapping, source)
+    """`ProtocolSpec.load`: read and validate a protocol YAML file."""
+    return ProtocolSpec.load(path)
 
 
 # ---------------------------------------------------------------- dump
-class _Flow(dict):
-    """A mapping written on one line (``{kind: hold, duration: 2 s}``)."""
-
-
-class _FlowList(list):
-    """A list written on one line (``[force, capacitance]``)."""
-
-
-class _Dumper(yaml.SafeDumper):
-    pass
-
-
-_Dumper.add_representer(
-    _Flow, lambda dumper, data: dumper.represent_mapping("tag:yaml.org,2002:map", list(data.items()), flow_style=True)
-)
-
-_Dumper.add_representer(
-    _FlowList, lambda dumper, data: dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=True)
-)
-
 _TIME_KEYS, _FREQUENCY_KEYS = ("duration", "settle", "approach"), ("frequency", "f_start", "f_end")
 
 
@@ -319,34 +340,8 @@ def _dump_fields(model: SpecModel, channel: str, only_set: bool = False) -> dict
 
 
 def dump_protocol(spec: ProtocolSpec) -> str:
-    """Write a protocol as YAML with units; `protocol_from_yaml` reads it back equal.
-
-    A preset is written as ``preset`` and the settings that were given.
-    """
-    data: dict[str, Any] = {"name": spec.name, "kind": spec.kind}
-    for key in ("description", "source"):
-        if getattr(spec, key) is not None:
-            data[key] = getattr(spec, key)
-    data["sample_rate"] = rate_text(spec.sample_rate)
-    data["measure"] = _FlowList(spec.measure)
-    data["limits"] = {
-        "max_voltage": format_quantity(spec.limits.max_voltage, "kV"),
-        "max_stretch": spec.limits.max_stretch,
-        "max_force": format_quantity(spec.limits.max_force, "N"),
-        "max_field": format_quantity(spec.limits.max_field, "V/um"),
-    }
-    if spec.probe is not None:
-        data["probe"] = _Flow({"amplitude": format_quantity(spec.probe.amplitude, "V"),
-                               "frequency": format_quantity(spec.probe.frequency, "Hz")})
-    if spec.preset is not None:
-        data["preset"] = spec.preset
-        settings = _dump_fields(spec.settings, "settings", only_set=True)
-        if settings:
-            data["settings"] = settings
-    else:
-        for channel in CHANNELS:
-            data[channel] = [_Flow(_dump_fields(s, channel)) for s in getattr(spec, channel)]
-    return yaml.dump(data, Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=1000)
+    """`ProtocolSpec.dump`: a protocol as YAML with units; `protocol_from_yaml` reads it back equal."""
+    return spec.dump()
 
 
 __all__ = [

@@ -7,7 +7,8 @@ from typing import NamedTuple, Union
 
 from pydantic import model_validator
 
-from .errors import SpecError, SpecModel
+from .base import SpecModel
+from .errors import SpecError
 from .protocol_segments import Cycles, Duration, Frequency, Stretch, Voltage
 from .units import format_quantity
 

@@ -11,8 +11,8 @@ from typing import Annotated, Any, Literal, Union
 import numpy as np
 from pydantic import AfterValidator, BaseModel, BeforeValidator, Field, model_validator
 
-from .errors import DOCUMENT, SpecError, SpecModel, show
-from .errors import units_required
+from .base import SpecModel, units_required
+from .errors import DOCUMENT, SpecError, show
 from .names import KINDS, MAX_STRETCH  # noqa: F401  (re-exported: a protocol's kinds)
 from .units import _NUMBER, format_quantity, parse_quantity, quantity, ureg
 

@@ -21,13 +21,12 @@ All lengths are stored as SI floats [m].
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
 from typing import Any
 
-import yaml
 from pydantic import Field, field_validator, model_validator
 
-from .errors import DOCUMENT, Identifier, SpecError, SpecModel, read_yaml_mapping, parse_yaml_mapping, show
+from .base import Identifier, SpecModel
+from .errors import SpecError, show
 from .units import format_quantity, quantity
 
 #: Specimen lengths: above 1 um and up to 10 m, thicknesses from 100 nm to 10 mm (anything outside is a
@@ -273,60 +272,44 @@ class SpecimenCard(SpecModel):
             return self.thickness
         return self.membrane.L3 if self.membrane is not None else self.radii_L3
 
+    spec_kind = "specimens"
+
+    def _form(self) -> dict:
+        """The YAML form: the card's geometry form with lengths in mm (thicknesses in um)."""
+        data: dict[str, Any] = {"id": self.id, "kind": self.kind}
+        for key in ("description", "source"):
+            if getattr(self, key) is not None:
+                data[key] = getattr(self, key)
+        if self.kind == "strip":
+            data.update({k: _mm(getattr(self, k)) for k in _STRIP})
+            if self.electrode is not None:
+                data["electrode"] = {k: _mm(getattr(self.electrode, k)) for k in ("length", "width")}
+        elif self.membrane is not None:
+            data["membrane"] = {k: _mm(getattr(self.membrane, k), k) for k in Membrane.model_fields}
+        else:
+            data["radii"] = {k: _mm(getattr(self.radii, k), k) for k in Radii.model_fields}
+            data.update({k: _mm(getattr(self, k), k) for k in _TOP})
+        return data
+
 
 def specimen_from_mapping(mapping: Any, source: str = "<mapping>") -> SpecimenCard:
-    """Validate a specimen card given as a mapping (as read from YAML).
-
-    Parameters
-    ----------
-    mapping : Mapping
-        Keys as in a specimen YAML file; lengths as strings with units.
-    source : str
-        Where the mapping came from, for error messages.
-
-    Raises
-    ------
-    SpecError
-    """
-    if not isinstance(mapping, Mapping):
-        raise SpecError(source, DOCUMENT, f"expected a mapping of keys, got {show(mapping)}")
-    return SpecimenCard.from_yaml_mapping(dict(mapping), source)
+    """`SpecimenCard.from_mapping`: a card given as a mapping (as read from YAML)."""
+    return SpecimenCard.from_mapping(mapping, source)
 
 
 def specimen_from_yaml(text: str, source: str = "<string>") -> SpecimenCard:
-    """Validate a specimen card given as YAML text (e.g. a dataset attr)."""
-    return specimen_from_mapping(parse_yaml_mapping(text, source), source)
+    """`SpecimenCard.from_yaml`: a card given as YAML text (e.g. a dataset attr)."""
+    return SpecimenCard.from_yaml(text, source)
 
 
 def load_specimen(path: str | os.PathLike) -> SpecimenCard:
-    """Read and validate a specimen card YAML file.
-
-    Raises
-    ------
-    SpecError
-        The file is missing, not YAML, not a mapping, or the card is invalid;
-        the message names the file and the field.
-    """
-    mapping, source = read_yaml_mapping(path, "specimens")
-    return specimen_from_mapping(mapping, source)
+    """`SpecimenCard.load`: read and validate a specimen card YAML file."""
+    return SpecimenCard.load(path)
 
 
 def dump_specimen(card: SpecimenCard) -> str:
-    """Write a card as YAML with units; `load_specimen` reads it back equal."""
-    data: dict[str, Any] = {"id": card.id, "kind": card.kind}
-    for key in ("description", "source"):
-        if getattr(card, key) is not None:
-            data[key] = getattr(card, key)
-    if card.kind == "strip":
-        data.update({k: _mm(getattr(card, k)) for k in _STRIP})
-        if card.electrode is not None:
-            data["electrode"] = {k: _mm(getattr(card.electrode, k)) for k in ("length", "width")}
-    elif card.membrane is not None:
-        data["membrane"] = {k: _mm(getattr(card.membrane, k), k) for k in Membrane.model_fields}
-    else:
-        data["radii"] = {k: _mm(getattr(card.radii, k), k) for k in Radii.model_fields}
-        data.update({k: _mm(getattr(card, k), k) for k in _TOP})
-    return yaml.safe_dump(data, sort_keys=False, allow_unicode=True, width=1000)
+    """`SpecimenCard.dump`: a card as YAML with units; `load_specimen` reads it back equal."""
+    return card.dump()
 
 
 __all__ = [

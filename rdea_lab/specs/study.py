@@ -32,165 +32,61 @@ beyond them.
 
 from __future__ import annotations
 
-import itertools
-import math
 import os
-from collections.abc import Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+from pydantic import ConfigDict, Field, ValidationError
 
-from .errors import DOCUMENT, SpecError, read_yaml_mapping, show
-from .params import load_params
-from .protocol import load_protocol
-from .specimen import load_specimen
-from .target import BIAS_KINDS, bias_from_mapping
-from .units import _dimension_of, format_quantity, parse_quantity
-
-#: variable -> (dimension, display unit, lower bound it must stay above (SI), upper sanity bound (SI))
-VARIABLES = {
-    "L1": ("length", "mm", 0.0, 10.0), "L1e": ("length", "mm", 0.0, 10.0), "L2": ("length", "mm", 0.0, 100.0),
-    "L2e": ("length", "mm", 0.0, 100.0), "Lp1": ("length", "mm", -1e-300, 100.0),
-    "Lp2": ("length", "mm", -1e-300, 100.0), "L3": ("length", "um", 0.0, 1e-2),
-    "stiffness": ("stiffness", "N/m", -1e-300, 1e7), "preload": ("force", "N", -1e-300, 1e3),
-    "mass": ("mass", "g", 0.0, 100.0), "prestretch": ("dimensionless", "", 1.0, 3.0),
-    "voltage": ("voltage", "kV", -1e-300, 1e5), "C10": ("pressure", "kPa", 0.0, 1e9),
-    "C20": ("pressure", "kPa", -1e9, 1e9), "C30": ("pressure", "kPa", -1e9, 1e9),
-    "eps_r": ("dimensionless", "", 1.0, 100.0),
-}
-MEMBRANE = ("L1", "L1e", "L2", "L2e", "Lp1", "Lp2", "L3")
-MATERIAL = ("C10", "C20", "C30", "eps_r")
-BIAS_VARIABLES = {"none": (), "mass": ("mass", "prestretch"), "spring": ("stiffness", "preload", "prestretch"),
-                  "curve": ()}
-SAMPLINGS = ("sobol", "lhs", "grid")
-#: the models a study maps over designs (`rdea_lab.physics.designs.DESIGN_MODELS`, which a test keeps equal)
-DESIGN_MODELS = ("su", "1r")
-#: metric -> (unit SI, display unit, description); `rdea_lab.design.evaluate` computes them
-METRICS = {
-    "stroke": ("m", "mm", "lengthening from the 0 V equilibrium with the bias to the one at the voltage"),
-    "strain": ("1", "", "stroke / rest length"),
-    "blocking_force": ("N", "N", "force lost at the rest length when the voltage is applied"),
-    "work": ("J", "mJ", "work done on the bias over the stroke"),
-    "energy_density": ("J/m^3", "kJ/m^3", "work per volume of elastomer"),
-    "specific_energy": ("J/kg", "J/kg", "work per mass of elastomer (needs density)"),
-    "field": ("V/m", "V/um", "nominal field V lambda1 lambda2 / L3 at the voltage"),
-    "stress": ("Pa", "kPa", "largest axial stress of the two operating points"),
-    "rest_stretch": ("1", "", "stretch of the 0 V equilibrium"),
-    "on_stretch": ("1", "", "stretch of the equilibrium at the voltage"),
-    "rest_force": ("N", "N", "force at the 0 V equilibrium"),
-    "capacitance": ("F", "nF", "capacitance at the 0 V equilibrium"),
-    "outer_radius": ("m", "mm", "outer radius of the roll (appendix of the paper)"),
-    "volume": ("m^3", "mm^3", "elastomer volume 2 L1 L2 L3"),
-    "mass": ("kg", "g", "elastomer mass (needs density)"),
-    "preload": ("N", "N", "spring bias: its pull at the roll's rest length (a prestretch sets it)"),
-    "bias_mass": ("kg", "g", "mass bias: its mass (a prestretch sets it)"),
-    "peak_force": ("N", "N", "largest force over the protocol"),
-    "force_range": ("N", "N", "largest minus smallest force over the protocol"),
-    "hysteresis": ("J", "mJ", "net mechanical work done on the roll over the protocol, integral of F dx (the "
-                   "energy dissipated where it ends as it began and at 0 V)"),
-    "peak_field": ("V/m", "V/um", "largest nominal field over the protocol"),
-    "peak_capacitance": ("F", "nF", "largest capacitance over the protocol"),
-    "limit_field": ("V/m", "V/um", "the protocol's field estimate |v| sqrt(stretch) / L3 at its worst sample "
-                    "(what its max_field limits)"),
-}
-PROTOCOL_METRICS = ("peak_force", "force_range", "hysteresis", "peak_field", "peak_capacitance", "limit_field")
-DENSITY_METRICS = ("specific_energy", "mass")
-_KEYS = ("name", "description", "model", "params", "specimen", "variables", "sampling", "voltage", "bias",
-         "objectives", "constraints", "tolerances", "sensitivity", "optimize", "protocol", "chunk", "density")
+from .base import SpecModel, spec_error_from_validation
+from .errors import SpecError
+from .params import ParameterSet
+from .protocol import ProtocolSpec
+from .specimen import SpecimenCard
+from .study_file import _StudyFile, _int
+from .study_terms import (  # noqa: F401  (the study's vocabulary, imported from here)
+    BIAS_VARIABLES, DENSITY_METRICS, DESIGN_MODELS, MATERIAL, MEMBRANE, METRICS, PROTOCOL_METRICS, SAMPLINGS,
+    VARIABLES, Bound, CurveBias, Goal, Variable,
+)
+from .target import BIAS_KINDS, MassBias, NoBias, SpringBias
 
 
-@dataclass(frozen=True)
-class Variable:
-    """A design variable: SI bounds, the grid's levels, a log scale."""
+class Study(SpecModel):
+    """A validated design study (SI). `source` is the file, for messages; paths are resolved.
 
-    name: str
-    low: float
-    high: float
-    levels: int = 5
-    log: bool = False
+    ``Study.load(path)`` reads a study file (its paths relative to its folder) and keeps its text;
+    ``Study.from_mapping(mapping, source, folder=...)`` validates a mapping (paths relative to ``folder``,
+    by default the folder of `source`).
+    """
 
-    @property
-    def unit(self) -> str:
-        return VARIABLES[self.name][1]
-
-    def from_unit(self, u):
-        """Values at unit-cube coordinates ``u`` in [0, 1]."""
-        u = np.asarray(u, float)
-        if self.log:
-            return np.exp(np.log(self.low) + u * (np.log(self.high) - np.log(self.low)))
-        return self.low + u * (self.high - self.low)
-
-    def to_unit(self, x):
-        x = np.asarray(x, float)
-        if self.log:
-            return (np.log(x) - np.log(self.low)) / (np.log(self.high) - np.log(self.low))
-        return (x - self.low) / (self.high - self.low)
-
-
-@dataclass(frozen=True)
-class Goal:
-    """An objective: the metric and its sense (+1 maximize, -1 minimize)."""
-
-    metric: str
-    sense: int
-
-    @property
-    def label(self) -> str:
-        return f"{'max' if self.sense > 0 else 'min'} {self.metric}"
-
-
-@dataclass(frozen=True)
-class Bound:
-    """A constraint ``low <= metric <= high`` [SI] (either side may be open)."""
-
-    metric: str
-    low: float = -math.inf
-    high: float = math.inf
-
-
-@dataclass(frozen=True)
-class CurveBias:
-    """A user's bias curve: force [N] against the roll's extension ``(lambda1 - 1) L1`` [m]."""
-
-    extension: np.ndarray
-    force_values: np.ndarray
-    kind: str = "curve"
-
-    def force(self, stretch, L1):
-        return np.interp((np.asarray(stretch, float) - 1.0) * L1, self.extension, self.force_values)
-
-
-@dataclass(frozen=True)
-class Study:
-    """A validated design study (SI). `source` is the file, for messages; paths are resolved."""
+    model_config = ConfigDict(frozen=True, extra="forbid", arbitrary_types_allowed=True)
+    spec_kind = "studies"
 
     name: str
     source: str
     model: str
-    params: Any
-    specimen: Any
+    params: ParameterSet
+    specimen: SpecimenCard
     variables: tuple[Variable, ...]
     method: str
     n: int
     seed: int
     voltage: float
-    bias: Any
+    bias: NoBias | MassBias | SpringBias | CurveBias
     objectives: tuple[Goal, ...]
     constraints: tuple[Bound, ...]
-    description: str | None = None
+    description: Any = None
     radii_tolerance: float = 0.0
     mc_samples: int = 0
     mc_seed: int = 0
     sensitivity_n: int = 0
     sensitivity_seed: int = 0
-    optimize: Mapping | None = None
-    protocol: Any = None
+    optimize: dict | None = None
+    protocol: ProtocolSpec | None = None
     protocol_path: str | None = None
     chunk: int = 256
     density: float | None = None
-    text: str = field(default="", repr=False)
+    text: str = Field("", repr=False)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -199,298 +95,61 @@ class Study:
     @property
     def metrics(self) -> tuple[str, ...]:
         """Every metric the study computes (protocol ones only with a protocol, mass ones with a density)."""
-        out = [m for m in METRICS if m not in PROTOCOL_METRICS or self.protocol is not None]
-        out = [m for m in out if m not in ("preload", "bias_mass")
-               or (m == "preload") == (self.bias.kind == "spring") and self.bias.kind in ("spring", "mass")]
-        return tuple(m for m in out if m not in DENSITY_METRICS or self.density is not None)
+        return _metrics(self.protocol, self.bias.kind, self.density)
+
+    @classmethod
+    def _from_form(cls, mapping: dict, source: str, folder: str | os.PathLike | None = None) -> "Study":
+        folder = Path(source).parent if folder is None else Path(folder)
+        try:
+            f = _StudyFile.model_validate(mapping, context={"source": source, "folder": folder})
+        except ValidationError as exc:  # the first problem, as the file's checks are ordered
+            raise _first(exc, source) from None
+        var, _ = f.variables
+        (method, n, seed), (radii_tol, mc, mc_seed), (sens_n, sens) = f.sampling, f.tolerances, f.sensitivity
+        sens_seed = _int(sens.get("seed", 0), source, "sensitivity.seed", 0, 2**32 - 1)
+        protocol, protocol_path = f.protocol
+        study = cls(name=f.name, source=source, model=f.model, params=f.params, specimen=f.specimen, variables=var,
+                    method=method, n=n, seed=seed, voltage=f.voltage, bias=f.bias, objectives=f.objectives,
+                    constraints=f.constraints, description=f.description, radii_tolerance=radii_tol,
+                    mc_samples=mc if radii_tol else 0, mc_seed=mc_seed, sensitivity_n=sens_n,
+                    sensitivity_seed=sens_seed, optimize=f.optimize, protocol=protocol, protocol_path=protocol_path,
+                    chunk=f.chunk, density=f.density)
+        kind = study.bias.kind
+        for what, metric in [(f"objectives[{i}]", g.metric) for i, g in enumerate(study.objectives)] \
+                + [(f"constraints.{b.metric}", b.metric) for b in study.constraints]:
+            if metric not in study.metrics:
+                need = {"preload": "a spring bias", "bias_mass": "a mass bias"}.get(metric, "what this study lacks")
+                raise SpecError(source, what, f"{metric}: only with {need}")
+            if kind == "none" and metric in ("blocking_force", "rest_force"):
+                raise SpecError(source, what, f"{metric}: with no bias the roll rests at its own length, where it "
+                                "carries no force; give a bias")
+        return study
+
+    def _read_from(self, text: str) -> "Study":
+        return self.model_copy(update={"text": text})
 
 
-def _mapping(value, source, where):
-    if not isinstance(value, Mapping):
-        raise SpecError(source, where, f"expected a mapping, got {show(value)}")
-    return {str(k): v for k, v in value.items()}
+def _metrics(protocol, kind: str, density) -> tuple[str, ...]:
+    out = [m for m in METRICS if m not in PROTOCOL_METRICS or protocol is not None]
+    out = [m for m in out if m not in ("preload", "bias_mass")
+           or (m == "preload") == (kind == "spring") and kind in ("spring", "mass")]
+    return tuple(m for m in out if m not in DENSITY_METRICS or density is not None)
 
 
-def _int(value, source, where, low=1, high=10**7):
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise SpecError(source, where, f"{show(value)}; give a whole number from {low} to {high}")
-    return value
-
-
-def _variable(name, value, source) -> Variable:
-    where = f"variables.{name}"
-    if name not in VARIABLES:
-        raise SpecError(source, where, f"unknown variable; allowed: {', '.join(VARIABLES)}")
-    dim, unit, floor, ceiling = VARIABLES[name]
-    opts = {}
-    if isinstance(value, Mapping):
-        opts = _mapping(value, source, where)
-        unknown = set(opts) - {"range", "levels", "scale"}
-        if unknown:
-            raise SpecError(source, f"{where}.{sorted(unknown)[0]}", "unknown key; allowed: range, levels, scale")
-        if "range" not in opts:
-            raise SpecError(source, f"{where}.range", "missing; give [low, high] with units")
-        value = opts["range"]
-    if not isinstance(value, (list, tuple)) or len(value) != 2:
-        raise SpecError(source, where, f"{show(value)}; give a range [low, high] with units, e.g. "
-                        f"[{'1' if not unit else '20 ' + unit}, {'2' if not unit else '60 ' + unit}]")
-    low, high = (parse_quantity(v, dim, source=source, field=f"{where}[{i}]", example_unit=unit or None)
-                 for i, v in enumerate(value))
-    shown = f"[{format_quantity(low, unit)}, {format_quantity(high, unit)}]"
-    if low > high:
-        raise SpecError(source, where, f"inverted bounds {shown}; give [low, high] with low < high")
-    if low == high:
-        raise SpecError(source, where, f"empty range {shown}; give low < high (a fixed value belongs in the "
-                        "specimen, params or study, not in variables)")
-    if not low > floor or not high <= ceiling:
-        raise SpecError(source, where, f"{shown} leaves the physical range ({format_quantity(max(floor, 0.0), unit)}"
-                        f" exclusive to {format_quantity(ceiling, unit)}); check the units")
-    levels = _int(opts.get("levels", 5), source, f"{where}.levels", 2, 1000)
-    scale = opts.get("scale", "linear")
-    if scale not in ("linear", "log"):
-        raise SpecError(source, f"{where}.scale", f"{show(scale)}; allowed: linear, log")
-    if scale == "log" and not low > 0:
-        raise SpecError(source, f"{where}.scale", "log needs a positive range")
-    return Variable(name, low, high, levels, scale == "log")
-
-
-def _goal(i, value, source) -> Goal:
-    where = f"objectives[{i}]"
-    value = _mapping(value, source, where)
-    if len(value) != 1 or next(iter(value)) not in ("maximize", "minimize"):
-        raise SpecError(source, where, f"{show(value)}; give {{maximize: METRIC}} or {{minimize: METRIC}}")
-    sense, metric = next(iter(value.items()))
-    if metric not in METRICS:
-        raise SpecError(source, f"{where}.{sense}", f"unknown metric {show(metric)}; allowed: {', '.join(METRICS)}")
-    return Goal(metric, 1 if sense == "maximize" else -1)
-
-
-def _bound(metric, value, source) -> Bound:
-    where = f"constraints.{metric}"
-    if metric not in METRICS:
-        raise SpecError(source, where, f"unknown metric; allowed: {', '.join(METRICS)}")
-    value = _mapping(value, source, where)
-    unknown = set(value) - {"min", "max"}
-    if unknown or not value:
-        raise SpecError(source, where, f"{show(value)}; give {{min: ...}}, {{max: ...}} or both, with units")
-    si, _, _ = METRICS[metric]
-    dim = _dimension_of(si)
-    ex = METRICS[metric][1] or None
-    sides = {k: parse_quantity(v, dim, source=source, field=f"{where}.{k}", example_unit=ex) for k, v in value.items()}
-    low, high = sides.get("min", -math.inf), sides.get("max", math.inf)
-    if low >= high:
-        raise SpecError(source, where, f"min {low:g} >= max {high:g}: no value meets it")
-    return Bound(metric, low, high)
-
-
-def _resolve(folder: Path, rel, source, key, loader):
-    if not isinstance(rel, str):
-        raise SpecError(source, key, f"{show(rel)}; give a file path relative to the study")
-    path = folder / rel
-    if not path.is_file():
-        raise SpecError(source, key, f"{show(rel)} not found (relative to {folder})")
-    return loader(path), str(path)
-
-
-def _bias(value, source, L1):
-    if value is None or value == "none":
-        value = {"kind": "none"}
-    value = _mapping(value, source, "bias")
-    if value.get("kind") == "curve":
-        unknown = set(value) - {"kind", "extension", "force", "units"}
-        if unknown:
-            raise SpecError(source, f"bias.{sorted(unknown)[0]}", "unknown key; allowed: extension, force, units")
-        units = _mapping(value.get("units", {}), source, "bias.units")
-        if set(units) - {"extension", "force"}:
-            raise SpecError(source, f"bias.units.{sorted(set(units) - {'extension', 'force'})[0]}",
-                            "unknown key; allowed: extension, force")
-        cols = {}
-        for key, dim in (("extension", "length"), ("force", "force")):
-            raw = value.get(key)
-            if not isinstance(raw, (list, tuple)) or len(raw) < 2:
-                raise SpecError(source, f"bias.{key}", f"{show(raw)}; give a list of at least two values")
-            unit = units.get(key)
-            cols[key] = np.array([parse_quantity(f"{v} {unit}" if unit and not isinstance(v, str) else v, dim,
-                                                 source=source, field=f"bias.{key}[{i}]")
-                                  for i, v in enumerate(raw)])
-        if cols["extension"].size != cols["force"].size:
-            raise SpecError(source, "bias.force", f"{cols['force'].size} values for {cols['extension'].size} "
-                            "extensions; give one force per extension")
-        if np.any(np.diff(cols["extension"]) <= 0):
-            raise SpecError(source, "bias.extension", "must increase strictly")
-        return CurveBias(cols["extension"], cols["force"])
-    if value.get("kind") not in (*BIAS_KINDS, "curve"):
-        raise SpecError(source, "bias.kind", f"{show(value.get('kind'))}; allowed: {', '.join(BIAS_KINDS)}, curve")
-    try:
-        return bias_from_mapping(value, "bias")
-    except SpecError as err:
-        raise err.with_source(source) from None
+def _first(exc: ValidationError, source: str) -> SpecError:
+    """The `SpecError` a study's check raised (its field is the file's, not pydantic's location)."""
+    err = exc.errors(include_url=False)[0]
+    inner = (err.get("ctx") or {}).get("error")
+    return inner if isinstance(inner, SpecError) else spec_error_from_validation(exc, source=source, model=_StudyFile)
 
 
 def study_from_mapping(mapping: Any, source: str = "<mapping>", folder: str | os.PathLike = ".") -> Study:
-    """Validate a study given as a mapping (paths relative to ``folder``)."""
-    if not isinstance(mapping, Mapping):
-        raise SpecError(source, DOCUMENT, f"expected a mapping of keys, got {show(mapping)}")
-    data = {str(k): v for k, v in mapping.items()}
-    unknown = sorted(set(data) - set(_KEYS))
-    if unknown:
-        raise SpecError(source, unknown[0], f"unknown key; allowed: {', '.join(_KEYS)}")
-    folder = Path(folder)
-    for key in ("name", "params", "specimen", "variables", "objectives"):
-        if key not in data:
-            raise SpecError(source, key, "missing")
-    name = data["name"]
-    if not isinstance(name, str) or not name.replace("-", "").replace("_", "").replace(".", "").isalnum():
-        raise SpecError(source, "name", f"{show(name)}; give letters, digits, '-', '_' or '.'")
-    model = data.get("model", "su")
-    if model not in DESIGN_MODELS:
-        raise SpecError(source, "model", f"{show(model)}; allowed: {', '.join(DESIGN_MODELS)} (the models a study "
-                        "maps over designs; 3R and CR see the ring radii themselves)")
-    params, _ = _resolve(folder, data["params"], source, "params", load_params)
-    card, _ = _resolve(folder, data["specimen"], source, "specimen", load_specimen)
-    if getattr(card, "membrane", None) is None:
-        raise SpecError(source, "specimen", "the card gives no membrane; a study varies the unwound membrane "
-                        "(give a card with membrane: L1, L2, L3, L1e, Lp1, L2e)")
-    variables = _mapping(data["variables"], source, "variables")
-    if not variables:
-        raise SpecError(source, "variables", "empty; give at least one, e.g. L1: [20 mm, 60 mm]")
-    var = tuple(_variable(k, v, source) for k, v in variables.items())
-    names = {v.name for v in var}
-    if names & {"C10", "C20", "C30"} and model != "su":
-        raise SpecError(source, "variables", f"{sorted(names & {'C10', 'C20', 'C30'})[0]}: the 1R branch solver "
-                        "takes one material; vary Yeoh coefficients with model: su")
-    if {"L2", "L2e", "Lp1", "Lp2"} <= names:
-        raise SpecError(source, "variables", "L2, L2e, Lp1 and Lp2: L2 = Lp1 + L2e + Lp2; vary three of them")
-    sampling = _mapping(data.get("sampling", {}), source, "sampling")
-    extra = set(sampling) - {"method", "n", "seed"}
-    if extra:
-        raise SpecError(source, f"sampling.{sorted(extra)[0]}", "unknown key; allowed: method, n, seed")
-    method = sampling.get("method", "sobol")
-    if method not in SAMPLINGS:
-        raise SpecError(source, "sampling.method", f"{show(method)}; allowed: {', '.join(SAMPLINGS)}")
-    if method == "grid":
-        if "n" in sampling:
-            raise SpecError(source, "sampling.n", "a grid's size is the product of its variables' levels; "
-                            "give levels per variable instead")
-        n = int(np.prod([v.levels for v in var]))
-        if n > 10**7:
-            raise SpecError(source, "variables", f"a grid of {n} designs; at most 1e7")
-    else:
-        n = _int(sampling.get("n", 256), source, "sampling.n", 2)
-    seed = _int(sampling.get("seed", 0), source, "sampling.seed", 0, 2**32 - 1)
-    voltage = 0.0
-    if "voltage" in data:
-        voltage = parse_quantity(data["voltage"], "voltage", source=source, field="voltage", example_unit="kV")
-        if not 0 <= voltage <= 1e5:
-            raise SpecError(source, "voltage", f"{format_quantity(voltage, 'kV')}; give 0 to 100 kV")
-    elif "voltage" not in names:
-        raise SpecError(source, "voltage", "missing; give the operating voltage, e.g. 2.6 kV (or vary it)")
-    bias = _bias(data.get("bias"), source, card.membrane.L1)
-    kind = bias.kind
-    for v in var:
-        if v.name in ("stiffness", "preload", "mass", "prestretch") and v.name not in BIAS_VARIABLES[kind]:
-            raise SpecError(source, f"variables.{v.name}", f"not a variable of a {kind} bias; allowed with it: "
-                            f"{', '.join(BIAS_VARIABLES[kind]) or 'none'}")
-    if "prestretch" in names and names & {"preload", "mass"}:
-        raise SpecError(source, "variables.prestretch", "sets the preload (or mass) itself; vary one of them")
-    objectives = data["objectives"]
-    if not isinstance(objectives, (list, tuple)) or not objectives:
-        raise SpecError(source, "objectives", "give a list, e.g. [{maximize: stroke}]")
-    goals = tuple(_goal(i, g, source) for i, g in enumerate(objectives))
-    bounds = tuple(_bound(k, v, source) for k, v in _mapping(data.get("constraints", {}), source,
-                                                               "constraints").items())
-    density = None
-    if "density" in data:
-        density = parse_quantity(data["density"], "density", source=source, field="density", example_unit="kg/m^3")
-        if not 10.0 <= density <= 1e5:
-            raise SpecError(source, "density", f"{density:g} kg/m^3; give 10 to 1e5 kg/m^3, e.g. 1100 kg/m^3")
-    protocol = protocol_path = None
-    if "protocol" in data:
-        protocol, protocol_path = _resolve(folder, data["protocol"], source, "protocol", load_protocol)
-    for what, metric in [("objectives", g.metric) for g in goals] + [("constraints", b.metric) for b in bounds]:
-        if metric in PROTOCOL_METRICS and protocol is None:
-            raise SpecError(source, what, f"{metric} is a protocol's metric; give a protocol to run")
-        if metric in DENSITY_METRICS and density is None:
-            raise SpecError(source, what, f"{metric} needs the elastomer's density, e.g. density: 1100 kg/m^3")
-        if kind == "none" and metric in ("work", "energy_density", "specific_energy"):
-            raise SpecError(source, what, f"{metric}: with no bias nothing is done work on; give a bias")
-    tol = _mapping(data.get("tolerances", {}), source, "tolerances")
-    extra = set(tol) - {"radii", "samples", "seed"}
-    if extra:
-        raise SpecError(source, f"tolerances.{sorted(extra)[0]}", "unknown key; allowed: radii, samples, seed")
-    radii_tol = parse_quantity(tol.get("radii", 0), "dimensionless", source=source, field="tolerances.radii")
-    if not 0 <= radii_tol <= 0.2:
-        raise SpecError(source, "tolerances.radii", f"{radii_tol:g}; give a relative spread from 0 to 20 %")
-    mc = _int(tol.get("samples", 32 if radii_tol > 0 else 0), source, "tolerances.samples", 0, 10000)
-    if radii_tol > 0 and mc < 2:
-        raise SpecError(source, "tolerances.samples", "give at least 2 Monte Carlo samples")
-    mc_seed = _int(tol.get("seed", 0), source, "tolerances.seed", 0, 2**32 - 1)
-    sens = _mapping(data.get("sensitivity", {}), source, "sensitivity")
-    extra = set(sens) - {"n", "seed"}
-    if extra:
-        raise SpecError(source, f"sensitivity.{sorted(extra)[0]}", "unknown key; allowed: n, seed")
-    sens_n = _int(sens.get("n", 0), source, "sensitivity.n", 0, 2**20) if sens else 0
-    if sens_n and (sens_n & (sens_n - 1)):
-        raise SpecError(source, "sensitivity.n", f"{sens_n}; Saltelli's sampling needs a power of 2, e.g. 128")
-    opt = None
-    if "optimize" in data:
-        opt = _mapping(data["optimize"], source, "optimize")
-        extra = set(opt) - {"objective", "starts", "max_iter"}
-        if extra:
-            raise SpecError(source, f"optimize.{sorted(extra)[0]}", "unknown key; allowed: objective, starts, "
-                            "max_iter")
-        metric = opt.get("objective", goals[0].metric)
-        if metric not in [g.metric for g in goals]:
-            raise SpecError(source, "optimize.objective", f"{show(metric)}; allowed: one of the objectives "
-                            f"({', '.join(g.metric for g in goals)})")
-        opt = {"objective": metric, "starts": _int(opt.get("starts", 4), source, "optimize.starts", 1, 64),
-               "max_iter": _int(opt.get("max_iter", 25), source, "optimize.max_iter", 1, 10000)}
-    chunk = _int(data.get("chunk", 256), source, "chunk", 1, 10**6)
-    if method != "grid":
-        for v in var:
-            if isinstance(variables[v.name], Mapping) and "levels" in variables[v.name]:
-                raise SpecError(source, f"variables.{v.name}.levels", f"a grid's; sampling is {method} (n designs)")
-    _check_material(var, params, source)
-    study = Study(name=name, source=source, model=model, params=params, specimen=card, variables=var,
-                 method=method, n=n, seed=seed, voltage=voltage, bias=bias, objectives=goals, constraints=bounds,
-                 description=data.get("description"), radii_tolerance=radii_tol, mc_samples=mc if radii_tol else 0,
-                 mc_seed=mc_seed, sensitivity_n=sens_n, sensitivity_seed=_int(sens.get("seed", 0), source,
-                                                                              "sensitivity.seed", 0, 2**32 - 1),
-                 optimize=opt, protocol=protocol, protocol_path=protocol_path, chunk=chunk, density=density)
-    for what, metric in [(f"objectives[{i}]", g.metric) for i, g in enumerate(goals)] \
-            + [(f"constraints.{b.metric}", b.metric) for b in bounds]:
-        if metric not in study.metrics:
-            need = {"preload": "a spring bias", "bias_mass": "a mass bias"}.get(metric, "what this study lacks")
-            raise SpecError(source, what, f"{metric}: only with {need}")
-        if kind == "none" and metric in ("blocking_force", "rest_force"):
-            raise SpecError(source, what, f"{metric}: with no bias the roll rests at its own length, where it "
-                            "carries no force; give a bias")
-    return study
-
-
-#: largest I1 - 3 the equilibrium search reaches (stretch 2.5 in uniaxial tension)
-_X_MAX = 2.5**2 + 2.0 / 2.5 - 3.0
-
-
-def _check_material(var, params, source) -> None:
-    """Yeoh coefficients as variables must give a rising energy (W' > 0) everywhere in their box: W' is
-    linear in the coefficients, so the box's corners decide it (as `load_params` checks one set)."""
-    ranges = {v.name: (v.low, v.high) for v in var if v.name in ("C10", "C20", "C30")}
-    if not ranges:
-        return
-    x = np.linspace(0.0, _X_MAX, 200)
-    for corner in itertools.product(*[ranges.get(k, (getattr(params, k),) * 2) for k in ("C10", "C20", "C30")]):
-        c10, c20, c30 = corner
-        slope = c10 + 2.0 * c20 * x + 3.0 * c30 * x**2
-        if np.min(slope) <= 0:
-            name = sorted(ranges)[0]
-            raise SpecError(source, f"variables.{name}", f"at C10, C20, C30 = {c10:g}, {c20:g}, {c30:g} Pa the Yeoh "
-                            f"slope W' turns non-positive (at I1 - 3 = {x[np.argmin(slope)]:.3g}): no physical "
-                            "material; narrow the ranges")
+    """`Study.from_mapping`: a study given as a mapping (paths relative to ``folder``)."""
+    return Study.from_mapping(mapping, source, folder=folder)
 
 
 def load_study(path: str | os.PathLike) -> Study:
-    """Read and validate a study file.
+    """`Study.load`: read and validate a study file, keeping its text.
 
     Raises
     ------
@@ -498,9 +157,7 @@ def load_study(path: str | os.PathLike) -> Study:
         Naming the file, the field and what is allowed (unknown variable, empty range, inverted bounds,
         a metric that needs what the study does not give, ...).
     """
-    mapping, source = read_yaml_mapping(path, "studies")
-    study = study_from_mapping(mapping, source, Path(source).parent)
-    return study.__class__(**{**study.__dict__, "text": Path(source).read_text(encoding="utf-8")})
+    return Study.load(path)
 
 
 __all__ = ["BIAS_KINDS", "METRICS", "SAMPLINGS", "VARIABLES", "Bound", "CurveBias", "Goal", "Study", "Variable",

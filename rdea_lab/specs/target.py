@@ -27,18 +27,18 @@ import csv
 import io
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 import yaml
-from pydantic import field_validator, model_validator
+from pydantic import ConfigDict, field_validator, model_validator
 
 from ..paths import resolve
 
-from .errors import DOCUMENT, MAX_NODES, MAX_SPEC_BYTES, Identifier, SpecError, SpecModel, check_file_size
-from .errors import parse_yaml_mapping, show
+from .base import Identifier, SpecModel
+from .errors import DOCUMENT, SpecError, show
+from .yamlio import MAX_NODES, MAX_SPEC_BYTES, check_file_size
 from .protocol_segments import Duration, Limits, MAX_TABLE_VALUES, SampleRate, Stretch
 from .units import format_quantity, parse_quantity, quantity
 
@@ -171,9 +171,11 @@ class TargetSettings(SpecModel):
         return self
 
 
-@dataclass(frozen=True, eq=False)
-class Target:
+class Target(SpecModel):
     """A validated target: settings and samples (SI).
+
+    ``Target.load(path)`` reads a YAML target (samples inline or in a CSV beside it);
+    `load_target` also takes a bare CSV with the settings as options.
 
     Attributes
     ----------
@@ -188,11 +190,38 @@ class Target:
         Where the samples are (``samples.force`` or, in a CSV, ``force``), for messages.
     """
 
+    model_config = ConfigDict(frozen=True, extra="forbid", arbitrary_types_allowed=True)
+    spec_kind = "targets"
+
     settings: TargetSettings
     time: np.ndarray
     values: np.ndarray
     source: str
     field: str
+
+    #: compared and hashed as the object it is (its samples are arrays), as before
+    __eq__ = object.__eq__
+    __hash__ = object.__hash__
+
+    @classmethod
+    def _from_form(cls, mapping: dict, source: str, folder: str | os.PathLike | None = None) -> "Target":
+        """The target from its file's form; a CSV ``samples`` is read from `folder` (by default the file's)."""
+        folder = Path(source).parent if folder is None else folder
+        mapping = dict(mapping)
+        if "samples" not in mapping:
+            raise SpecError(source, "samples", "missing; give a CSV file name or {units: ..., time: [...], ...}")
+        samples = mapping.pop("samples")
+        settings = TargetSettings.from_yaml_mapping(mapping, source)
+        quantity = settings.target
+        if isinstance(samples, str):
+            csv_path = Path(folder) / samples
+            time, values, _, rows = read_csv_samples(csv_path, quantity)
+            src, where = str(csv_path), ""
+        else:
+            (time, values, rows), src, where = _inline_samples(samples, quantity, source), source, "samples."
+        _check_samples(time, values, quantity, settings, src, where, rows)
+        return cls(settings=settings, time=_from_zero(time), values=values, source=src,
+                   field=f"{where}{quantity}")
 
     @property
     def quantity(self) -> str:
@@ -343,23 +372,9 @@ def _from_zero(time):
 
 
 def target_from_mapping(mapping: Any, source: str = "<mapping>", folder: str | os.PathLike = ".") -> Target:
-    """Validate a target given as a mapping (as read from YAML); a CSV ``samples`` is read from `folder`."""
-    if not isinstance(mapping, Mapping):
-        raise SpecError(source, DOCUMENT, f"expected a mapping of keys, got {show(mapping)}")
-    mapping = dict(mapping)
-    if "samples" not in mapping:
-        raise SpecError(source, "samples", "missing; give a CSV file name or {units: ..., time: [...], ...}")
-    samples = mapping.pop("samples")
-    settings = TargetSettings.from_yaml_mapping(mapping, source)
-    quantity = settings.target
-    if isinstance(samples, str):
-        csv_path = Path(folder) / samples
-        time, values, _, rows = read_csv_samples(csv_path, quantity)
-        src, where = str(csv_path), ""
-    else:
-        (time, values, rows), src, where = _inline_samples(samples, quantity, source), source, "samples."
-    _check_samples(time, values, quantity, settings, src, where, rows)
-    return Target(settings, _from_zero(time), values, src, f"{where}{quantity}")
+    """`Target.from_mapping`: a target given as a mapping (as read from YAML); a CSV ``samples`` is read from
+    `folder`."""
+    return Target.from_mapping(mapping, source, folder=folder)
 
 
 def load_target(path: str | os.PathLike, **settings) -> Target:
@@ -398,12 +413,12 @@ def load_target(path: str | os.PathLike, **settings) -> Target:
             option = "--" + head.replace("_", "-") if head in settings else head
             raise SpecError(f"{source} (options for a CSV target)", option + dot + rest, err.message) from None
         _check_samples(time, values, quantity, opts, source, "", rows)
-        return Target(opts, _from_zero(time), values, source, quantity)
+        return Target(settings=opts, time=_from_zero(time), values=values, source=source, field=quantity)
     if settings:
         raise SpecError(source, DOCUMENT, f"the target file gives its own settings; {', '.join(settings)} "
                         "only go with a bare CSV target")
     text = _read_text(source)
-    return target_from_mapping(parse_yaml_mapping(text, source), source, Path(source).parent)
+    return Target.from_yaml(text, source)
 
 
 __all__ = ["BIASES", "BIAS_KINDS", "G", "MassBias", "NoBias", "SpringBias", "TARGETS", "Target", "TargetSettings",

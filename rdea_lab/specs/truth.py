@@ -49,14 +49,13 @@ from __future__ import annotations
 import json
 import numbers
 import os
-from collections.abc import Mapping
 from typing import Annotated, Any
 
 import yaml
 from pydantic import AfterValidator, BeforeValidator
 
-from .errors import DOCUMENT, Identifier, SpecError, SpecModel, parse_yaml_mapping, read_yaml_mapping, seed_problem
-from .errors import show
+from .base import Identifier, SpecModel
+from .errors import SpecError, seed_problem, show
 from .params import ParameterSet, _Viscoelastic, _Yeoh, dump_params, params_from_mapping
 from .names import MODEL_CHOICES, MODELS  # noqa: F401  (MODEL_CHOICES re-exported)
 from .units import format_quantity, quantity
@@ -269,6 +268,48 @@ class TruthSpec(SpecModel):
     description: str | None = None
     source: str | None = None
 
+    spec_kind = "truth"
+
+    @classmethod
+    def _from_form(cls, mapping: dict, source: str) -> "TruthSpec":
+        """The truth from its file's form (the material's keys as in a parameter file)."""
+        f = _TruthFile.from_yaml_mapping(dict(mapping), source)
+        material = params_from_mapping({k: mapping[k] for k in _MATERIAL_KEYS if k in mapping}, source)
+        try:
+            return cls(name=f.name, description=f.description, source=f.source, model=f.model,
+                             material=material, radii_factors=f.radii_factors, effects=f.effects,
+                             instrument=f.instrument, seed=f.seed)
+        except SpecError as err:
+            raise err.with_source(source) from None
+
+    def _form(self) -> dict:
+        """The YAML form (quantities as strings with units)."""
+        material = yaml.safe_load(dump_params(self.material))
+        data: dict[str, Any] = {"name": self.name}
+        for key in ("description", "source"):
+            if getattr(self, key) is not None:
+                data[key] = getattr(self, key)
+        data["model"] = self.model
+        data.update({k: material[k] for k in ("yeoh", "eps_r", "viscoelastic")})
+        data["radii_factors"] = {k: getattr(self.radii_factors, k) for k in RadiiFactors.model_fields}
+        e = self.effects
+        data["effects"] = {"passive_ends": e.passive_ends, "passive_stiffness": e.passive_stiffness,
+                           "clamp_compliance": format_quantity(e.clamp_compliance, "um/N"),
+                           "fringe_capacitance": e.fringe_capacitance}
+        if e.mullins is not None:  # omitted: none
+            data["effects"]["mullins"] = {"max_softening": e.mullins.max_softening,
+                                          "energy_scale": format_quantity(e.mullins.energy_scale, "kPa")}
+        data["instrument"] = {k: format_quantity(getattr(self.instrument, k), unit)
+                              for k, unit in _INSTRUMENT_UNITS.items()}
+        # the current monitor's settings only where they differ from the defaults: the truth of a run
+        # that does not record the current reads as it did before the current channel existed
+        for key, unit, default in (("current_noise", "nA", CURRENT_NOISE), ("leakage_resistance", "Gohm",
+                                                                             LEAKAGE_RESISTANCE)):
+            if getattr(self.instrument, key) != default:
+                data["instrument"][key] = format_quantity(getattr(self.instrument, key), unit)
+        data["seed"] = self.seed
+        return data
+
 
 # ------------------------------------------------------------- YAML form
 class _TruthFile(SpecModel):
@@ -286,42 +327,18 @@ class _TruthFile(SpecModel):
 
 
 def truth_from_mapping(mapping: Any, source: str = "<mapping>") -> TruthSpec:
-    """Validate a truth given as a mapping in the YAML form.
-
-    Raises
-    ------
-    SpecError
-        Naming `source` and the field (``instrument.force_noise``,
-        ``radii_factors.Roe``, ``yeoh.C20``, ...).
-    """
-    if not isinstance(mapping, Mapping):
-        raise SpecError(source, DOCUMENT, f"expected a mapping of keys, got {show(mapping)}")
-    f = _TruthFile.from_yaml_mapping(dict(mapping), source)
-    material = params_from_mapping({k: mapping[k] for k in _MATERIAL_KEYS if k in mapping}, source)
-    try:
-        return TruthSpec(name=f.name, description=f.description, source=f.source, model=f.model,
-                         material=material, radii_factors=f.radii_factors, effects=f.effects,
-                         instrument=f.instrument, seed=f.seed)
-    except SpecError as err:
-        raise err.with_source(source) from None
+    """`TruthSpec.from_mapping`: a truth given as a mapping in the YAML form."""
+    return TruthSpec.from_mapping(mapping, source)
 
 
 def truth_from_yaml(text: str, source: str = "<string>") -> TruthSpec:
-    """Validate a truth given as YAML text."""
-    return truth_from_mapping(parse_yaml_mapping(text, source), source)
+    """`TruthSpec.from_yaml`: a truth given as YAML text."""
+    return TruthSpec.from_yaml(text, source)
 
 
 def load_truth(path: str | os.PathLike) -> TruthSpec:
-    """Read and validate a truth YAML file.
-
-    Raises
-    ------
-    SpecError
-        The file is missing, not YAML, not a mapping, or a value is invalid;
-        the message names the file and the field.
-    """
-    mapping, source = read_yaml_mapping(path, "truth")
-    return truth_from_mapping(mapping, source)
+    """`TruthSpec.load`: read and validate a truth YAML file."""
+    return TruthSpec.load(path)
 
 
 _INSTRUMENT_UNITS = {
@@ -331,38 +348,13 @@ _INSTRUMENT_UNITS = {
 
 
 def truth_as_mapping(truth: TruthSpec) -> dict:
-    """The YAML form of a truth (quantities as strings with units);
-    `truth_from_mapping` reads it back equal."""
-    material = yaml.safe_load(dump_params(truth.material))
-    data: dict[str, Any] = {"name": truth.name}
-    for key in ("description", "source"):
-        if getattr(truth, key) is not None:
-            data[key] = getattr(truth, key)
-    data["model"] = truth.model
-    data.update({k: material[k] for k in ("yeoh", "eps_r", "viscoelastic")})
-    data["radii_factors"] = {k: getattr(truth.radii_factors, k) for k in RadiiFactors.model_fields}
-    e = truth.effects
-    data["effects"] = {"passive_ends": e.passive_ends, "passive_stiffness": e.passive_stiffness,
-                       "clamp_compliance": format_quantity(e.clamp_compliance, "um/N"),
-                       "fringe_capacitance": e.fringe_capacitance}
-    if e.mullins is not None:  # omitted: none
-        data["effects"]["mullins"] = {"max_softening": e.mullins.max_softening,
-                                      "energy_scale": format_quantity(e.mullins.energy_scale, "kPa")}
-    data["instrument"] = {k: format_quantity(getattr(truth.instrument, k), unit)
-                          for k, unit in _INSTRUMENT_UNITS.items()}
-    # the current monitor's settings only where they differ from the defaults: the truth of a run
-    # that does not record the current reads as it did before the current channel existed
-    for key, unit, default in (("current_noise", "nA", CURRENT_NOISE), ("leakage_resistance", "Gohm",
-                                                                         LEAKAGE_RESISTANCE)):
-        if getattr(truth.instrument, key) != default:
-            data["instrument"][key] = format_quantity(getattr(truth.instrument, key), unit)
-    data["seed"] = truth.seed
-    return data
+    """The YAML form of a truth (quantities as strings with units); `truth_from_mapping` reads it back equal."""
+    return truth._form()
 
 
 def dump_truth(truth: TruthSpec) -> str:
-    """Write a truth as YAML with units; `load_truth` reads it back equal."""
-    return yaml.safe_dump(truth_as_mapping(truth), sort_keys=False, allow_unicode=True, width=1000)
+    """`TruthSpec.dump`: a truth as YAML with units; `load_truth` reads it back equal."""
+    return truth.dump()
 
 
 def truth_json(truth: TruthSpec) -> str:

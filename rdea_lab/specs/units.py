@@ -16,7 +16,8 @@ from typing import Annotated, Any
 
 from pydantic import AfterValidator, BeforeValidator
 
-from .errors import SpecError, show, units_required
+from .base import units_required
+from .errors import SpecError, show
 
 
 class _LazyRegistry:
