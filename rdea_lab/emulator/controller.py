@@ -183,7 +183,8 @@ class RigController:
                                                        "to anyone)")
                     if rig.owner is None:  # the first configuring command makes this the controlling connection
                         rig.take_control(session)
-                return handler(session, arg.strip(), block)
+                with rig.answering(session):
+                    return handler(session, arg.strip(), block)
         except (RigError, FramingError) as err:
             return self._error(session, err.code, err.message)
         except CloseConnection:

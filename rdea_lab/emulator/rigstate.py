@@ -24,6 +24,7 @@ fetches).
 from __future__ import annotations
 
 import collections
+import contextlib
 import math
 import threading
 import time
@@ -83,6 +84,7 @@ class RigState:
             raise ValueError(f"heartbeat {heartbeat!r} s; allowed: 0.1 to 3600 s")
         self.heartbeat = float(heartbeat)
         self._last_heard = clock()
+        self._answering = 0  # commands of the controlling connection being answered now
         self._watchdog: threading.Thread | None = None
         self.realtime = bool(realtime)
         self.faults = check_faults(faults)
@@ -144,6 +146,21 @@ class RigState:
         """A command from `session`: a heartbeat if it controls the rig."""
         if session == self.owner:
             self._last_heard = self._clock()
+
+    @contextlib.contextmanager
+    def answering(self, session):
+        """The controlling connection's command being answered: its silence is not counted meanwhile (a
+        ``FETC?`` that computes a block: seconds without numba on a busy machine), and counts from the reply.
+        The heartbeat guards against a client that falls silent, not against the rig's own computing."""
+        mine = session == self.owner
+        if mine:
+            self._answering += 1
+        try:
+            yield
+        finally:
+            if mine:
+                self._answering -= 1
+                self._last_heard = self._clock()
 
     def take_control(self, session) -> None:
         self.owner, self._last_heard = session, self._clock()
@@ -351,6 +368,8 @@ class RigState:
                 time.sleep(min(0.2, self.heartbeat / 4))
                 if self.state != "RUNNING" or self._tripped is not None:
                     return
+                if self._answering:  # the rig is computing its controller's reply
+                    continue
                 silent = self._clock() - self._last_heard
                 if silent > self.heartbeat:
                     self.emergency_stop(f"no command from the controlling connection for {silent:.3g} s "

@@ -27,6 +27,10 @@ from ..specs import MODEL_CHOICES, SpecError
 ARGS = "arguments"
 DEFAULT_PARAMS = "params/paper2021_table3.yaml"
 DEFAULT_TRUTH = "truth/paper2021.yaml"
+#: Longest the driver waits for one reply of the built-in emulator [s]. A ``FETC?`` computes at most one
+#: block of the truth's physics (2048 samples, bit-identical whatever the chunking): milliseconds with numba,
+#: seconds without it, more on a busy machine (a 5 s timeout then cut a healthy run off as a lost connection).
+EMULATOR_REPLY_TIMEOUT = 120.0
 
 
 def project_default(given, default: str, field_name: str):
@@ -39,9 +43,9 @@ def project_default(given, default: str, field_name: str):
     return path
 
 
-def _stall_timeout(value) -> float:
+def _stall_timeout(value, field="stall_timeout") -> float:
     if not (isinstance(value, (int, float)) and not isinstance(value, bool) and 0.1 <= value <= 3600):
-        raise SpecError(ARGS, "stall_timeout", f"{value!r}; allowed: 0.1 to 3600 s")
+        raise SpecError(ARGS, field, f"{value!r}; allowed: 0.1 to 3600 s")
     return float(value)
 
 
@@ -160,7 +164,8 @@ class Emulator:
         from ..backends.rig import RigBackend
 
         with emulated_rig(setup.card, self.truth, realtime=self.realtime, faults=self.faults) as address:
-            yield RigBackend(address, setup.card, stall_timeout=self.stall_timeout, seed=setup.seed)
+            yield RigBackend(address, setup.card, timeout=EMULATOR_REPLY_TIMEOUT, stall_timeout=self.stall_timeout,
+                             seed=setup.seed)
 
     def describe(self, setup) -> str:
         faults = ", ".join(f"{k}-at={a:g}" for k, a in self.faults)
@@ -182,15 +187,18 @@ class Rig:
         ``rig_identity``); by default such a run is refused before anything moves.
     stall_timeout : float
         Seconds without a new sample before the run is aborted [s], 0.1 to 3600.
+    timeout : float
+        Longest wait for one reply [s], 0.1 to 3600; past it the connection counts as lost.
     """
 
     address: str
     token: object
     trust_card: bool
     stall_timeout: float
+    timeout: float
     name = "rig"
 
-    def __init__(self, address, token=None, trust_card=False, stall_timeout=5.0):
+    def __init__(self, address, token=None, trust_card=False, stall_timeout=5.0, timeout=5.0):
         from ..backends.rig import parse_address
 
         if not address:
@@ -203,10 +211,11 @@ class Rig:
         object.__setattr__(self, "token", token)
         object.__setattr__(self, "trust_card", bool(trust_card))
         object.__setattr__(self, "stall_timeout", _stall_timeout(stall_timeout))
+        object.__setattr__(self, "timeout", _stall_timeout(timeout, "timeout"))
 
     def __repr__(self):  # never the token
         return (f"Rig({self.address!r}, token={'...' if self.token else None}, trust_card={self.trust_card}, "
-                f"stall_timeout={self.stall_timeout})")
+                f"stall_timeout={self.stall_timeout}, timeout={self.timeout})")
 
     def check(self, geom) -> None:
         pass
@@ -215,8 +224,8 @@ class Rig:
     def opened(self, setup):
         from ..backends.rig import RigBackend
 
-        yield RigBackend(self.address, setup.card, token=self.token, stall_timeout=self.stall_timeout,
-                         seed=setup.seed, trust_card=self.trust_card)
+        yield RigBackend(self.address, setup.card, token=self.token, timeout=self.timeout,
+                         stall_timeout=self.stall_timeout, seed=setup.seed, trust_card=self.trust_card)
 
     def describe(self, setup) -> str:
         return f"rig {self.address}: not contacted (dry run)"

@@ -9,7 +9,7 @@ from ..physics.geometry import geometry_from_card
 from ..protocols import first_violation, load_plan
 from ..specs import load_params, load_specimen
 from .app import check_outputs, check_seed, execute_setup, prepare_run
-from .backend import DEFAULT_PARAMS, DEFAULT_TRUTH, Rig, Twin, emulated_rig
+from .backend import DEFAULT_PARAMS, DEFAULT_TRUTH, EMULATOR_REPLY_TIMEOUT, Rig, Twin, emulated_rig
 from .engine import RunResult, check_metadata
 
 
@@ -76,7 +76,8 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
         mine = [r for r in runs if r.card.id == card_id]
         with emulated_rig(mine[0].card, truth, realtime=realtime) as address:  # one rig per specimen
             for run in mine:
-                setup = prepare_run(run.plan, run.card, Rig(address), out=run.out, seed=seeds[id(run)])
+                rig = Rig(address, timeout=EMULATOR_REPLY_TIMEOUT)
+                setup = prepare_run(run.plan, run.card, rig, out=run.out, seed=seeds[id(run)])
                 if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
                     return results
     return results
@@ -132,5 +133,5 @@ def run_experiment(backend: str, run: Experiment, seed: int, *, truth=None, para
         setup = prepare_run(run.plan, run.card, Twin(params, model), out=run.out, seed=seed)
         return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)
     with emulated_rig(run.card, truth) as address:
-        setup = prepare_run(run.plan, run.card, Rig(address), out=run.out, seed=seed)
+        setup = prepare_run(run.plan, run.card, Rig(address, timeout=EMULATOR_REPLY_TIMEOUT), out=run.out, seed=seed)
         return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)

@@ -299,6 +299,32 @@ def test_a_silent_controlling_connection_is_aborted_after_the_heartbeat(truth, c
             c.close()
 
 
+def test_the_rigs_own_computing_is_not_the_controllers_silence(truth, card, monkeypatch):
+    """A FETC? whose block takes longer than the heartbeat to compute (the truth's physics without numba on
+    a busy machine): the run goes on, and the heartbeat counts from the reply."""
+    from rdea_lab.emulator import RigServer, rig as rig_module
+
+    real = rig_module.EmulatedRig._compute_block
+
+    def slow(self):
+        time.sleep(0.8)  # longer than the 0.3 s heartbeat
+        return real(self)
+
+    monkeypatch.setattr(rig_module.EmulatedRig, "_compute_block", slow)
+    with RigServer(card, truth, port=0, heartbeat=0.3) as srv:
+        c = Client(srv.address)
+        try:
+            c.configure()
+            c.start(*trajectory())
+            c.fetch(10)  # computes a block: 0.8 s under the lock
+            assert c.q("STAT?").split(",")[0] in ("RUNNING", "DONE")
+            time.sleep(1.0)  # then a frozen client: the heartbeat still trips, 0.3 s after the last reply
+            state = c.q("STAT?")
+            assert state.startswith("ABORTED,") and "heartbeat 0.3 s" in state, state
+        finally:
+            c.close()
+
+
 def test_rst_aborts_and_clears(server, client):
     client.configure()
     client.start(*trajectory())
