@@ -168,7 +168,7 @@ def test_specimen_id_of_10000_characters(capsys, tmp_path):
     text = re.sub(r"(?m)^id: .*$", "id: " + "a" * 10_000, GOOD_SPECIMEN.read_text())
     path = _write(tmp_path, "specimen_long_id.yaml", text)
     line = _check(capsys, ["run", GOOD_PROTOCOL, "--specimen", path, "--dry-run"], path)
-    assert "id" in line and "allowed" in line and "..." in line, line
+    assert ": id: " in line and "allowed" in line and "..." in line, line  # the field, not the file's name
     assert len(line) < 400, line  # the id is not printed whole
 
 
@@ -176,7 +176,7 @@ def test_positions_in_parsecs(capsys, tmp_path):
     path = _write(tmp_path, "parsecs.csv", "time (s),position [pc],force (N)\n0.0,0.0,0.01\n0.1,0.4,0.02\n"
                   "0.2,0.8,0.04\n")
     line = _check(capsys, _import(path, tmp_path), path)
-    assert "position" in line and "'pc'" in line and "allowed" in line, line  # the column and the unit given
+    assert "column 'position [pc]'" in line and "unit 'pc'" in line and "allowed" in line, line  # column, unit
     assert not (tmp_path / "out.nc").exists()
 
 
@@ -195,7 +195,7 @@ def test_truth_seed_of_2_to_the_64(capsys, tmp_path):
     path = _write(tmp_path, "truth_seed.yaml", re.sub(r"(?m)^seed: .*$", f"seed: {2**64}", truth.read_text()))
     line = _check(capsys, ["run", GOOD_PROTOCOL, "--specimen", GOOD_SPECIMEN, "--backend", "emulator", "--truth",
                            path, "--out", tmp_path / "run.nc"], path)
-    assert "seed" in line and "allowed" in line, line
+    assert ": seed: " in line and "allowed" in line, line  # the field, not the file's name
     assert not (tmp_path / "run.nc").exists()
 
 
@@ -204,7 +204,7 @@ def test_campaign_whose_second_run_seed_overflows_names_the_file_and_the_run(cap
                   "specimens: [specimens/specimen2.yaml]\n"
                   "protocols: [protocols/tensile_ramp_sine_0V.yaml, protocols/blocking_force.yaml]\n")
     line = _check(capsys, ["campaign", "run", path], path)
-    assert "seed" in line and "run 2" in line and "blocking_force" in line and "allowed" in line, line
+    assert ": seed: " in line and "run 2" in line and "blocking_force" in line and "allowed" in line, line
     assert not (tmp_path / "out").exists()
 
 
@@ -212,14 +212,14 @@ def test_campaign_whose_second_run_seed_overflows_names_the_file_and_the_run(cap
 def test_dataset_out_without_nc_suffix(capsys, tmp_path, name):
     out = tmp_path / name
     line = _check(capsys, ["run", GOOD_PROTOCOL, "--specimen", GOOD_SPECIMEN, "--backend", "twin", "--out", out], out)
-    assert "out" in line and ".nc" in line and "allowed" in line, line
+    assert f"{name}: out: " in line and ".nc" in line and "allowed" in line, line
     assert list(tmp_path.iterdir()) == []
 
 
 def test_import_out_with_another_suffix(capsys, tmp_path):
     out = tmp_path / "run.csv"
     line = _check(capsys, _import(IMPORT_CSV, tmp_path)[:-1] + [out], out)
-    assert "--out" in line and ".nc" in line and "allowed" in line, line
+    assert "run.csv: --out: " in line and ".nc" in line and "allowed" in line, line
     assert list(tmp_path.iterdir()) == []
 
 
@@ -264,7 +264,7 @@ def test_out_with_invalid_utf8_bytes_is_refused_before_the_run(capsys, tmp_path)
     rc = run_cli(cli, ["run", str(GOOD_PROTOCOL), "--specimen", str(GOOD_SPECIMEN), "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1, err
-    assert "out" in err[0] and "UTF-8" in err[0] and "allowed" in err[0], err[0]
+    assert ".nc: out: " in err[0] and "UTF-8" in err[0] and "allowed" in err[0], err[0]
     assert list(tmp_path.iterdir()) == []  # refused before anything was journaled
 
 
