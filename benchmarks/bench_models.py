@@ -137,7 +137,7 @@ def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
     spread of ``repeat`` runs (Nelder-Mead on VHB: one run, it takes tens of seconds)."""
     import tempfile
 
-    from rdea_lab.runs import execute
+    from rdea_lab.runs import checked_plan, execute
     from rdea_lab.runs import emulated_rig as _emulator
     from rdea_lab.backends.rig import RigBackend
     from rdea_lab.calibration import calibrate, calibrate_runs, initial_guess, load_run
@@ -146,12 +146,13 @@ def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
 
     card = load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
     truth = load_truth(ROOT / "rdea_lab" / "data" / "truth" / "paper2021.yaml")
+    geom = geometry_from_card(card)
     with tempfile.TemporaryDirectory() as tmp, _emulator(card, truth, realtime=False) as address:
         paths = []
         for name in ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV"):
             out = Path(tmp) / f"{name}.nc"
-            execute(load_plan(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml"), card,
-                    RigBackend(address, card), out)
+            plan = checked_plan(load_plan(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml"), card, geom)
+            execute(plan, card, RigBackend(address, card, geometry=geom), out)
             paths.append(out)
         runs = [load_run(p) for p in paths]
     start = initial_guess(runs, 1, 2.8)

@@ -60,18 +60,25 @@ class RigBackend:
         Seconds between polls when no sample is ready.
     seed : int
         Sent as ``CONF:SEED`` (the emulator draws its noise from it; recorded).
+    trust_card : bool
+        Run although the rig's ``*IDN?`` names another specimen than the card.
+    geometry : RollGeometry or StripGeometry, optional
+        The card's geometry, as the run's preparation made it (`rdea_lab.runs.app.RunSetup.geometry`): its
+        ``L1`` [m] and ``L3`` [m] configure the rig (``CONF:LENG``, ``CONF:THIC``); made from ``card`` at
+        the start when not given (a driver built by hand).
     """
 
     name = "rig"
     extra_variables = ()
 
     def __init__(self, address, card, *, token=None, timeout=5.0, stall_timeout=5.0, poll=0.02, seed=0,
-                 trust_card=False, clock=_time.monotonic, sleep=_time.sleep):
+                 trust_card=False, clock=_time.monotonic, sleep=_time.sleep, geometry=None):
         self.address = address
         self.host, self.port = parse_address(address)
         from ..specs import as_specimen
 
         self.card = as_specimen(card)
+        self.geom = geometry
         self.token = token
         self.trust_card = bool(trust_card)
         #: what the identity check found (recorded as the dataset's ``rig_identity``)
@@ -205,9 +212,11 @@ class RigBackend:
             raise
 
     def _start(self, plan) -> None:
-        from ..physics.geometry import geometry_from_card
+        if self.geom is None:  # a driver built by hand: its card comes in here
+            from ..physics.geometry import geometry_from_card
 
-        geom = geometry_from_card(self.card)
+            self.geom = geometry_from_card(self.card)
+        geom = self.geom
         self._open()
         self._authenticate()
         self.idn = self._query("*IDN?")

@@ -8,11 +8,10 @@ import time as _time
 import numpy as np
 
 from .._version import __version__
-from ..physics.geometry import geometry_from_card
 from ..physics.models import three_ring
 from ..physics.selection import select_model
 from ..specs import as_params, as_specimen, dump_params
-from ..twin.simulate import TwinStream
+from ..twin.simulate import TwinStream, as_geometry
 
 
 class TwinBackend:
@@ -35,16 +34,19 @@ class TwinBackend:
         with ``realtime`` (a smoother progress display).
     seed : int
         Recorded; the twin itself is deterministic.
+    geometry : RollGeometry or StripGeometry, optional
+        The card's geometry, as the run's preparation made it (`rdea_lab.runs.app.RunSetup.geometry`);
+        made from ``card`` here when not given (a twin backend built by hand).
     """
 
     name = "twin"
     extra_variables = ("model_status",)
 
     def __init__(self, card, params, model="su", tolerance=0.01, realtime=False, block_seconds=None, seed=0,
-                 clock=_time.monotonic, sleep=_time.sleep):
+                 clock=_time.monotonic, sleep=_time.sleep, geometry=None):
         self.card = as_specimen(card)
         self.params = as_params(params)
-        self.geom = geometry_from_card(self.card)
+        self.geom = as_geometry(self.card if geometry is None else geometry)  # the twin's one way in
         self.requested = model
         self.tolerance = tolerance
         self.realtime = realtime

@@ -321,7 +321,7 @@ def campaign_run(file, out_dir, overwrite, realtime, live, md, quiet):
         subs = subscribers(live, quiet, total, spec.name, None, stack)
         quietly = bool(subs)  # a bar or a live view owns the terminal: the lines come after it
         results = api.run_campaign(spec, root, out_dir=out_dir, overwrite=overwrite, realtime=realtime,
-                                   callbacks=subs, metadata=metadata, command=_command_line(),
+                                   callbacks=subs, metadata=metadata, command=_command_line(), runs=runs,
                                    on_result=lambda r: lines.append(r) if quietly else
                                    click.echo(f"  {r.path}: {r.samples} samples, {r.status}"))
     for r in lines:

@@ -19,12 +19,13 @@ from pathlib import Path
 
 from ..backends.base import Backend
 from ..physics.geometry import geometry_from_card
-from ..protocols import as_plan, first_violation
+from ..protocols import as_plan
 from ..specs import SpecError, as_specimen
 from ..store import journal_path, open_run
 from ..store.outputs import OutputError, check_dataset_name, check_new, check_writable  # noqa: F401  (this layer's API)
 from .backend import (ARGS, BACKENDS, DEFAULT_PARAMS, DEFAULT_TRUTH, Emulator, Rig, Twin,  # noqa: F401
                       backend_from_choice, emulated_rig, project_default)
+from .checked import CheckedPlan, checked_plan
 from .engine import check_metadata, execute
 
 
@@ -96,23 +97,30 @@ class RunSetup:
 
     Attributes
     ----------
-    plan : Plan
-        The expanded protocol, its limits checked against the card.
-    card : SpecimenCard
-    geometry : RollGeometry or StripGeometry
-        The card's geometry (made once, here).
+    checked : CheckedPlan
+        The expanded protocol with the card and geometry its limits were checked for
+        (`~rdea_lab.runs.checked.checked_plan`); the engine runs nothing else.
     backend : Twin, Emulator, Rig or a Backend of one's own
     out : Path
     seed : int
         The run's noise seed (the emulator's; a rig records it).
+    plan : Plan
+        ``checked.plan`` (read-only, as are `card` and `geometry`).
+    card : SpecimenCard
+        ``checked.card``.
+    geometry : RollGeometry or StripGeometry
+        ``checked.geometry``: the card's geometry, made once, where the card came in; the backends take it
+        from here.
     """
 
-    plan: object
-    card: object
-    geometry: object
+    checked: CheckedPlan
     backend: object
     out: Path
     seed: int = 0
+
+    plan = property(lambda self: self.checked.plan, doc="The expanded protocol, its limits checked.")
+    card = property(lambda self: self.checked.card, doc="The specimen card.")
+    geometry = property(lambda self: self.checked.geometry, doc="The card's geometry (made once).")
 
     def opened(self):
         """The executor for this run, for the duration of the block (the emulator's server with it)."""
@@ -163,24 +171,49 @@ def as_backend(backend):
 
 
 def prepare_run(protocol, specimen, backend=None, *, out=None, seed=0) -> RunSetup:
-    """Check a run completely, before anything moves; see `run_protocol` for the arguments.
+    """Check a run completely, before anything moves.
 
     The card becomes geometry here, once; the plan's limits (stretch, voltage, field) are checked here for
-    every backend, and the engine runs only a plan checked so.
+    every backend (`~rdea_lab.runs.checked.checked_plan`), and the engine runs only a plan checked so.
+
+    Parameters
+    ----------
+    protocol : Plan, ProtocolSpec, path or CheckedPlan
+        As in `run_protocol`; a `CheckedPlan` already checked for ``specimen`` (a campaign's, from
+        `experiments`) is taken as it is, its geometry with it: neither is made again.
+    specimen : SpecimenCard or path
+    backend, out, seed
+        As in `run_protocol`.
+
+    Returns
+    -------
+    RunSetup
+
+    Raises
+    ------
+    SpecError
+        As `run_protocol`, before anything moves.
     """
-    plan = as_plan(protocol)
+    plan = protocol if isinstance(protocol, CheckedPlan) else as_plan(protocol)
     card = as_specimen(specimen)
+    if isinstance(plan, CheckedPlan) and plan.is_for(card):
+        checked = plan
+    else:  # stretch, voltage and field, refused here for every backend
+        checked = checked_plan(plan.plan if isinstance(plan, CheckedPlan) else plan, card, _geometry(card, specimen))
+    seed = check_seed(seed)
+    backend = as_backend(backend)
+    backend.check(checked.geometry)
+    out = Path(out) if out is not None else default_out(card.id, checked.plan.name)
+    return RunSetup(checked, backend, out, seed)
+
+
+def _geometry(card, specimen):
+    """The card's geometry; a card no roll can be built from is a `SpecError` of the card."""
     try:
-        geom = geometry_from_card(card)
+        return geometry_from_card(card)
     except ValueError as exc:
         raise SpecError(str(specimen) if isinstance(specimen, (str, os.PathLike)) else card.id, "<document>",
                         str(exc)) from None
-    first_violation(plan, L3=geom.L3)  # stretch, voltage and field: refused here for every backend
-    seed = check_seed(seed)
-    backend = as_backend(backend)
-    backend.check(geom)
-    out = Path(out) if out is not None else default_out(card.id, plan.name)
-    return RunSetup(plan, card, geom, backend, out, seed)
 
 
 def run_protocol(protocol, specimen, backend=None, *, out=None, overwrite=False, seed=0, metadata=None,
@@ -241,5 +274,5 @@ def run_protocol(protocol, specimen, backend=None, *, out=None, overwrite=False,
 def execute_setup(setup: RunSetup, *, callbacks=(), metadata=None, command=""):
     """Execute a prepared run (`prepare_run`); returns the engine's `RunResult`."""
     with setup.opened() as executor:
-        return execute(setup.plan, setup.card, executor, setup.out, seed=setup.seed, command=command,
+        return execute(setup.checked, setup.card, executor, setup.out, seed=setup.seed, command=command,
                        callbacks=callbacks, metadata=metadata)

@@ -3,7 +3,8 @@
 Each is validated where it is built (a bad model, fault, address or timeout is a `SpecError` naming the
 argument) and knows three things: what it checks once the run's geometry is known (`check`), how the dry
 run describes it (`describe`), and the executor it opens for one run (`opened`, a context manager: the
-emulator starts its loopback server there). `rdea_lab.run_protocol` takes one of them::
+emulator starts its loopback server there). The executor takes the run's card and geometry from the
+`~rdea_lab.runs.app.RunSetup` (the geometry made once, in `prepare_run`). `rdea_lab.run_protocol` takes one of them::
 
     rdea_lab.run_protocol("protocols/blocking_force.yaml", "specimens/specimen2.yaml",
                           rdea_lab.Twin(model="su"), out="demo.nc")
@@ -108,7 +109,7 @@ class Twin:
         from ..backends.twin import TwinBackend
 
         return TwinBackend(setup.card, self.params, model=self.model, tolerance=self.tolerance,
-                           realtime=self.realtime, seed=setup.seed)
+                           realtime=self.realtime, seed=setup.seed, geometry=setup.geometry)
 
     @contextlib.contextmanager
     def opened(self, setup):
@@ -165,7 +166,7 @@ class Emulator:
 
         with emulated_rig(setup.card, self.truth, realtime=self.realtime, faults=self.faults) as address:
             yield RigBackend(address, setup.card, timeout=EMULATOR_REPLY_TIMEOUT, stall_timeout=self.stall_timeout,
-                             seed=setup.seed)
+                             seed=setup.seed, geometry=setup.geometry)
 
     def describe(self, setup) -> str:
         faults = ", ".join(f"{k}-at={a:g}" for k, a in self.faults)
@@ -225,7 +226,8 @@ class Rig:
         from ..backends.rig import RigBackend
 
         yield RigBackend(self.address, setup.card, token=self.token, timeout=self.timeout,
-                         stall_timeout=self.stall_timeout, seed=setup.seed, trust_card=self.trust_card)
+                         stall_timeout=self.stall_timeout, seed=setup.seed, trust_card=self.trust_card,
+                         geometry=setup.geometry)
 
     def describe(self, setup) -> str:
         return f"rig {self.address}: not contacted (dry run)"

@@ -6,19 +6,33 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..physics.geometry import geometry_from_card
-from ..protocols import first_violation, load_plan
+from ..protocols import load_plan
 from ..specs import load_params, load_specimen
 from .app import check_outputs, check_seed, execute_setup, prepare_run
 from .backend import DEFAULT_PARAMS, DEFAULT_TRUTH, EMULATOR_REPLY_TIMEOUT, Rig, Twin, emulated_rig
+from .checked import CheckedPlan, checked_plan
 from .engine import RunResult, check_metadata
 
 
 @dataclass(frozen=True)
 class Experiment:
-    card: object
-    plan: object
+    """One run of a campaign: a plan checked for a specimen, and the dataset it writes.
+
+    Attributes
+    ----------
+    checked : CheckedPlan
+        The plan, the card and the card's geometry, its limits checked (`checked_plan`).
+    out : Path
+    entry : str
+        Where in the campaign file: ``specimens[1] (x.yaml, id ...) with protocols[0] (y.yaml)``.
+    """
+
+    checked: CheckedPlan
     out: Path
-    entry: str = ""  # where in the campaign file: "specimens[1] (x.yaml) with protocols[0] (y.yaml)"
+    entry: str = ""
+
+    card = property(lambda self: self.checked.card, doc="The specimen card.")
+    plan = property(lambda self: self.checked.plan, doc="The expanded protocol, its limits checked.")
 
     @property
     def name(self) -> str:
@@ -28,24 +42,43 @@ class Experiment:
 def experiments(spec, root: Path, out_dir: Path | None = None) -> list[Experiment]:
     """The runs of a campaign, in order (specimen by specimen), every plan checked against its limits.
 
-    Their datasets go under ``out_dir``, by default the campaign's ``out``, relative to the working
-    directory (not to the campaign file: a packaged campaign must not write into the package)."""
+    Each specimen's card becomes geometry once, here, and each plan is checked once per specimen
+    (`checked_plan`); the runs take both from here (`prepare_run` makes neither again). Their datasets go
+    under ``out_dir``, by default the campaign's ``out``, relative to the working directory (not to the
+    campaign file: a packaged campaign must not write into the package).
+
+    Parameters
+    ----------
+    spec : CampaignSpec
+    root : Path
+        The folder the campaign's relative paths start from.
+    out_dir : path, optional
+
+    Returns
+    -------
+    list of Experiment
+
+    Raises
+    ------
+    LimitError
+        The first plan beyond its limits on a specimen.
+    """
     out_dir = Path(out_dir if out_dir is not None else spec.out)  # a user's folder, never the campaign's
     plans = [load_plan(root / p) for p in spec.protocols]
     runs = []
     for i, rel in enumerate(spec.specimens):
         card = load_specimen(root / rel)
-        L3 = geometry_from_card(card).L3
+        geom = geometry_from_card(card)
         for j, plan in enumerate(plans):
-            first_violation(plan, L3=L3)
+            checked = checked_plan(plan, card, geom)
             entry = (f"specimens[{i}] ({Path(rel).name}, id {card.id}) "
                      f"with protocols[{j}] ({Path(spec.protocols[j]).name})")
-            runs.append(Experiment(card, plan, out_dir / card.id / f"{plan.name}.nc", entry))
+            runs.append(Experiment(checked, out_dir / card.id / f"{plan.name}.nc", entry))
     return runs
 
 
 def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=False, callbacks=(),
-                 on_result=None, metadata=None, command="rdea-lab campaign run") -> list[RunResult]:
+                 on_result=None, metadata=None, command="rdea-lab campaign run", runs=None) -> list[RunResult]:
     """Run every experiment of ``spec``; returns one result per run.
 
     Every plan is checked against its limits and every output (two runs on one
@@ -54,8 +87,11 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
     specimen on loopback and stops it after that specimen's runs. Each run gets
     its own noise seed, ``spec.seed + i``. A run ended by Ctrl-C (status
     ``interrupted``) ends the campaign: the results so far are returned.
+
+    ``runs``, if given, are ``experiments(spec, root, out_dir)`` made already (by a caller that
+    showed them first): their plans are not checked again.
     """
-    runs, seeds, metadata = _checked(spec, root, out_dir, overwrite, metadata)
+    runs, seeds, metadata = _checked(spec, root, out_dir, overwrite, metadata, runs)
     results = []
 
     def record(result):
@@ -67,7 +103,7 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
     if spec.backend == "twin":
         twin = Twin(load_params(root / spec.params if spec.params else DEFAULT_PARAMS), spec.model, realtime=realtime)
         for run in runs:
-            setup = prepare_run(run.plan, run.card, twin, out=run.out, seed=seeds[id(run)])
+            setup = prepare_run(run.checked, run.card, twin, out=run.out, seed=seeds[id(run)])
             if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
                 break
         return results
@@ -77,15 +113,15 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
         with emulated_rig(mine[0].card, truth, realtime=realtime) as address:  # one rig per specimen
             for run in mine:
                 rig = Rig(address, timeout=EMULATOR_REPLY_TIMEOUT)
-                setup = prepare_run(run.plan, run.card, rig, out=run.out, seed=seeds[id(run)])
+                setup = prepare_run(run.checked, run.card, rig, out=run.out, seed=seeds[id(run)])
                 if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
                     return results
     return results
 
 
-def _checked(spec, root, out_dir, overwrite, metadata):
+def _checked(spec, root, out_dir, overwrite, metadata, runs=None):
     """The experiments, each one's seed (``spec.seed + i``) and the metadata, every check done before any run."""
-    runs = experiments(spec, root, out_dir)
+    runs = experiments(spec, root, out_dir) if runs is None else list(runs)
     metadata = check_metadata(metadata)
     check_seed(spec.seed)
     spec.check_run_seeds([r.name for r in runs])
@@ -130,8 +166,8 @@ def run_experiment(backend: str, run: Experiment, seed: int, *, truth=None, para
     rig of its own (``truth``), started for this run and stopped after it. What a task of
     `submit_campaign` runs; returns the engine's `RunResult`."""
     if backend == "twin":
-        setup = prepare_run(run.plan, run.card, Twin(params, model), out=run.out, seed=seed)
+        setup = prepare_run(run.checked, run.card, Twin(params, model), out=run.out, seed=seed)
         return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)
     with emulated_rig(run.card, truth) as address:
-        setup = prepare_run(run.plan, run.card, Rig(address, timeout=EMULATOR_REPLY_TIMEOUT), out=run.out, seed=seed)
+        setup = prepare_run(run.checked, run.card, Rig(address, timeout=EMULATOR_REPLY_TIMEOUT), out=run.out, seed=seed)
         return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)

@@ -21,12 +21,11 @@ import numpy as np
 
 from .._version import __version__
 from ..backends.base import BackendFailure, RunInterrupted
-from ..physics.geometry import geometry_from_card
-from ..protocols import first_violation
 from ..specs import SpecError, dump_specimen
 from ..store.journal import DiskFull, JournalWriter, utc_now
 from ..store.schema import OPTIONAL_RUN_VARIABLES, global_attrs, portable_command, portable_path
 from .callbacks import RunBlock, subscriber_name
+from .checked import require_checked
 from ..signals import Signals, deferred
 
 #: Exit status of a run by its dataset status (the CLI's, and `RunResult.exit_code`).
@@ -141,17 +140,20 @@ class _SubscriberFailed(Exception):
 
 
 def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(), metadata=None) -> RunResult:
-    """Run ``plan`` on ``backend`` into the dataset ``out``.
+    """Run a checked plan on ``backend`` into the dataset ``out``.
 
-    The plan is checked against its limits (with the specimen's L3 for the
-    field estimate) before the backend is started, for every backend: an
-    over-limit plan raises `~rdea_lab.specs.LimitError` and nothing moves,
-    nothing is written.
+    The engine runs only a plan whose limits were checked for this specimen, in
+    preparation (`~rdea_lab.runs.checked.checked_plan`, which `prepare_run` calls):
+    it checks no limit itself, it asserts that this one was checked and is
+    unchanged since. Anything else is refused before the backend is started:
+    nothing moves, nothing is written.
 
     Parameters
     ----------
-    plan : Plan
+    plan : CheckedPlan
+        `~rdea_lab.runs.checked.checked_plan` (plan, card, geometry).
     card : SpecimenCard
+        The specimen the plan was checked for.
     backend : Backend
     out : Path
         Dataset to write; its journal ``<out>.part`` must not exist.
@@ -169,6 +171,11 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
     RunResult
         ``status`` is ``complete``, ``aborted`` (a limit or the backend
         stopped the run) or ``interrupted`` (Ctrl-C, SIGTERM).
+
+    Raises
+    ------
+    UncheckedPlan
+        ``plan`` is not a `CheckedPlan` for ``card``, or changed after its check.
     """
     subscribers = _subscribers(callbacks)
     # while the run starts and acquires, the first signal raises RunInterrupted; from then on, and from the
@@ -183,7 +190,7 @@ def _execute(plan, card, backend, out, seed, command, subscribers, metadata, sig
     started, writer = False, None
     try:
         metadata = check_metadata(metadata)
-        first_violation(plan, L3=geometry_from_card(card).L3)  # before anything moves, whoever calls
+        plan = require_checked(plan, card)  # checked in preparation, unchanged since: before anything moves
         attrs = run_attrs(plan, card, backend, seed, command, metadata)
         # the output is claimed (journal folder and lock) before anything moves: a second run on it is refused
         measured = tuple(m for m in plan.measure if m in OPTIONAL_RUN_VARIABLES)  # e.g. current

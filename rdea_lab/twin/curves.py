@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..physics.geometry import geometry_from_card
 from ..physics.models import solve
 from ..specs import SpecError, as_params, as_specimen, field_estimate, format_quantity
+from .simulate import as_geometry
 
 #: Per-curve arrays, in output order.
 CURVE_FIELDS = ("stretch", "sigma1", "force", "lambda2b", "capacitance", "converged")
@@ -47,7 +47,7 @@ def quasi_static_curves(card, params, model, stretch, voltages, max_field=CURVE_
         counts those samples).
     """
     card, params = as_specimen(card), as_params(params)
-    geom = geometry_from_card(card)
+    geom = as_geometry(card)
     stretch = np.asarray(stretch, float)
     if max_field is not None and len(voltages):
         v = np.asarray(voltages, float)

@@ -9,7 +9,8 @@ import pytest
 
 from rdea_lab.specs import LimitError
 
-from rdea_lab.runs import execute
+from rdea_lab.physics.geometry import geometry_from_card
+from rdea_lab.runs import UncheckedPlan, checked_plan, execute
 from rdea_lab.runs import run_campaign
 from rdea_lab.backends.rig import RigBackend, RigRefused
 from rdea_lab.cli.errors import run as run_cli
@@ -22,6 +23,11 @@ from rdea_lab.specs.truth import load_truth
 from rdea_lab.store import open_run
 
 ROOT = Path(__file__).resolve().parents[2]
+
+
+def checked(plan, card):
+    """``plan`` checked for ``card``, as the engine takes it (`prepare_run` does this for a run)."""
+    return checked_plan(plan, card, geometry_from_card(card))
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +76,7 @@ def test_every_preset_on_every_specimen_is_complete(tmp_path):
 
 def run_with(server, card, plan, out, **kw):
     backend = RigBackend(server.url, card, **kw)
-    result = execute(plan, card, backend, out)
+    result = execute(checked(plan, card), card, backend, out)
     return result, open_run(result.path)
 
 
@@ -108,7 +114,7 @@ def test_disconnect_mid_run_reconnects_and_drains(server, card, tmp_path):
 def test_a_client_without_the_token_is_refused(server, card, tmp_path):
     plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml")
     with pytest.raises(RigRefused, match="token"):
-        execute(plan, card, RigBackend(server.url, card), tmp_path / "x.nc")
+        execute(checked(plan, card), card, RigBackend(server.url, card), tmp_path / "x.nc")
     assert not (tmp_path / "x.nc").exists() and not (tmp_path / "x.nc.part").exists()
     assert server.controller.state == "IDLE"
     r, ds = run_with(server, card, plan, tmp_path / "ok.nc", token="s3cret-token")
@@ -118,10 +124,14 @@ def test_a_client_without_the_token_is_refused(server, card, tmp_path):
 def test_limits_refused_by_the_rig_before_anything_moves(server, card, tmp_path):
     plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "blocking_force.yaml")
     tight = dataclasses.replace(plan, limits=plan.limits.model_copy(update={"max_voltage": 2000.0}))
-    # the library refuses first, whoever calls the engine ...
+    # the library refuses first: its one check, in preparation ...
     with pytest.raises(LimitError, match="max_voltage = 2 kV"):
+        checked(tight, card)
+    # ... and an engine given the plan without it refuses it, before it connects
+    with pytest.raises(UncheckedPlan):
         execute(tight, card, RigBackend(server.url, card), tmp_path / "x.nc")
     assert not (tmp_path / "x.nc").exists() and not (tmp_path / "x.nc.part").exists()
+    assert server.connections == 0
     # ... and a client that skips the library's check is refused by the rig itself, at ARM
     backend = RigBackend(server.url, card)
     try:
@@ -161,7 +171,8 @@ def test_each_run_has_its_own_reproducible_noise(server, card, tmp_path):
     plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml")
     f = {}
     for name, seed in (("a", 1), ("b", 2), ("c", 1)):
-        r = execute(plan, card, RigBackend(server.url, card, seed=seed), tmp_path / f"{name}.nc", seed=seed)
+        r = execute(checked(plan, card), card, RigBackend(server.url, card, seed=seed), tmp_path / f"{name}.nc",
+                    seed=seed)
         ds = open_run(r.path)
         assert ds.attrs["seed"] == seed
         f[name] = ds["force"].values
@@ -185,7 +196,8 @@ def test_a_second_driver_is_refused_and_the_running_experiment_completes(server,
                      .replace("settle: 2 s", "settle: 1 s"))
     plan = load_plan(short)
     first = {}
-    t = threading.Thread(target=lambda: first.update(r=execute(plan, card, RigBackend(server.url, card, poll=0.05),
+    t = threading.Thread(target=lambda: first.update(r=execute(checked(plan, card), card,
+                                                               RigBackend(server.url, card, poll=0.05),
                                                                tmp_path / "first.nc")))
     t.start()
     try:
@@ -194,7 +206,7 @@ def test_a_second_driver_is_refused_and_the_running_experiment_completes(server,
             time.sleep(0.02)
         assert server.controller.state == "RUNNING"
         with pytest.raises(RigRefused, match="is busy: RUNNING"):
-            execute(plan, card, RigBackend(server.url, card), tmp_path / "second.nc")
+            execute(checked(plan, card), card, RigBackend(server.url, card), tmp_path / "second.nc")
         card_file = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
         rc = run_cli(cli, ["run", str(short),
                            "--specimen", str(card_file), "--backend", "rig", "--rig", server.url,
@@ -227,7 +239,7 @@ def test_a_card_the_rig_does_not_hold_is_refused_unless_trusted(other_server, ca
     idn_serial = other_server.controller.idn.split(",")[2]
     assert idn_serial != card.id  # the rig holds specimen 1, the card is specimen 2
     with pytest.raises(RigRefused) as info:
-        execute(plan, card, RigBackend(other_server.url, card), tmp_path / "x.nc")
+        execute(checked(plan, card), card, RigBackend(other_server.url, card), tmp_path / "x.nc")
     assert idn_serial in str(info.value) and card.id in str(info.value) and "--trust-card" in str(info.value)
     assert other_server.controller.state == "IDLE" and other_server.controller.acquired == 0  # before ARM
     assert not (tmp_path / "x.nc").exists()

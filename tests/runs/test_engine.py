@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rdea_lab.backends import BackendFailure, TwinBackend
-from rdea_lab.runs import execute
+from rdea_lab.runs import checked_plan, execute
 from rdea_lab.physics.geometry import geometry_from_card
 from rdea_lab.physics.models import solve
 from rdea_lab.specs import Limits, load_params, load_specimen
@@ -28,8 +28,14 @@ class FakePlan(SimpleNamespace):
         return [slice(i, min(i + n, self.time.size)) for i in range(0, self.time.size, n)]
 
 
-def plan(duration=10.0, rate=100.0, max_force=50.0, voltage=0.0):
+def plan(duration=10.0, rate=100.0, max_force=50.0, voltage=0.0, card=None):
+    """A plan, checked for ``card`` (specimen 2 by default) as the engine requires."""
+    card = card if card is not None else load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
     t = np.arange(int(round(duration * rate)) + 1) / rate
+    return checked_plan(bare(t, rate, max_force, voltage), card, geometry_from_card(card))
+
+
+def bare(t, rate, max_force, voltage):
     return FakePlan(name="p", kind="tensile", sample_rate=rate, measure=("force",), limits=Limits(max_force=max_force),
                     time=t, stretch=1 + 0.25 * (1 - np.cos(2 * np.pi * 0.1 * t)), voltage=np.full(t.size, voltage),
                     stretch_segment=np.zeros(t.size, int), voltage_segment=np.zeros(t.size, int),
@@ -119,6 +125,7 @@ def test_twin_run_complete_with_attrs_and_quasi_static_force(tmp_path, card, par
     bounded by sum(eta_j) max|dlambda/dt| area / lambda (Maxwell branches start relaxed)."""
     p = plan(duration=20.0)
     r = execute(p, card, TwinBackend(card, params, model="su"), tmp_path / "r.nc", seed=7)
+    p = p.plan
     ds = open_run(r.path)
     assert r.status == "complete" and ds.sizes["time"] == p.time.size
     assert ds.attrs["seed"] == 7 and ds.attrs["model"] == "su" and ds.attrs["backend"] == "twin"

@@ -17,7 +17,8 @@ import rdea_lab.emulator
 from rdea_lab.backends import TwinBackend
 from rdea_lab.backends.rig import RigBackend
 from rdea_lab.protocols import expand
-from rdea_lab.runs import execute
+from rdea_lab.physics.geometry import geometry_from_card
+from rdea_lab.runs import UncheckedPlan, checked_plan, execute
 from rdea_lab.specs import LimitError, load_params, load_specimen, protocol_from_yaml
 from rdea_lab.specs.truth import load_truth
 from rdea_lab.store import open_run
@@ -141,7 +142,7 @@ def test_run_protocol_refuses_before_anything_moves(case, backend, tmp_path, req
 # ----------------------------------------------------------------------- engine
 @pytest.mark.parametrize("backend", ["twin", "rig"])
 @pytest.mark.parametrize("case", list(LIMIT_CASES))
-def test_engine_refuses_before_backend_start(case, backend, tmp_path, card, params, request):
+def test_engine_refuses_an_unchecked_plan_before_backend_start(case, backend, tmp_path, card, params, request):
     spec, name = LIMIT_CASES[case]
     out = tmp_path / "x.nc"
     if backend == "rig":
@@ -149,7 +150,9 @@ def test_engine_refuses_before_backend_start(case, backend, tmp_path, card, para
         executor = RigBackend(server.url, card)
     else:
         executor = WatchedTwin(card, params)
-    with pytest.raises(LimitError, match=name):
+    with pytest.raises(LimitError, match=name):  # the one check, in preparation
+        checked_plan(expand(spec), card, geometry_from_card(card))
+    with pytest.raises(UncheckedPlan, match="only a plan checked against its limits"):  # skipped: refused
         execute(expand(spec), card, executor, out)
     assert_nothing_written(tmp_path, out)
     if backend == "rig":
@@ -218,7 +221,8 @@ def test_engine_aborts_at_max_force_with_exit_code_3(backend, tmp_path, card, pa
     else:
         executor = TwinBackend(card, params)
     plan = expand(FORCE_LIMITED)
-    result = execute(plan, card, executor, tmp_path / "x.nc", callbacks=received.append)
+    result = execute(checked_plan(plan, card, geometry_from_card(card)), card, executor, tmp_path / "x.nc",
+                     callbacks=received.append)
     assert result.status == "aborted"
     assert result.exit_code == 3
     ds = open_run(result.path)

@@ -10,7 +10,8 @@ from rdea_lab.backends import TwinBackend
 from rdea_lab.cli.errors import run as run_cli
 from rdea_lab.cli.main import cli
 from rdea_lab.protocols import expand
-from rdea_lab.runs import LiveTable, default_out, execute, run_campaign
+from rdea_lab.physics.geometry import geometry_from_card
+from rdea_lab.runs import LiveTable, checked_plan, default_out, execute, run_campaign
 from rdea_lab.specs import load_params, load_specimen, protocol_from_yaml
 from rdea_lab.specs.campaign import load_campaign
 
@@ -32,6 +33,11 @@ voltage:
 
 def short(max_force="50 N"):
     return protocol_from_yaml(SHORT % max_force)
+
+
+def checked(plan, card):
+    """``plan`` checked for ``card``, as the engine takes it (`prepare_run` does this for a run)."""
+    return checked_plan(plan, card, geometry_from_card(card))
 
 
 class Spy(TwinBackend):
@@ -58,7 +64,7 @@ def test_an_output_that_cannot_be_claimed_is_refused_before_the_backend_starts(t
     (tmp_path / "file").write_text("not a folder")
     spy = Spy(load_specimen(CARD), load_params(PARAMS))
     with pytest.raises(OSError):
-        execute(expand(short()), load_specimen(CARD), spy, tmp_path / "file" / "x.nc")
+        execute(checked(expand(short()), card := load_specimen(CARD)), card, spy, tmp_path / "file" / "x.nc")
     assert spy.calls == ["close"]  # nothing started
 
 
@@ -71,7 +77,7 @@ def test_a_journal_that_cannot_be_written_after_start_aborts_the_backend(tmp_pat
     monkeypatch.setattr(JournalWriter, "begin", full)
     spy = Spy(load_specimen(CARD), load_params(PARAMS))
     with pytest.raises(OSError):
-        execute(expand(short()), load_specimen(CARD), spy, tmp_path / "x.nc")
+        execute(checked(expand(short()), card := load_specimen(CARD)), card, spy, tmp_path / "x.nc")
     assert spy.calls == ["start", "abort", "close"]
     assert not (tmp_path / "x.nc.part").exists()  # the claim is given up
 
@@ -82,7 +88,7 @@ def test_a_second_run_on_the_same_output_is_refused_before_it_starts(tmp_path):
     claim = JournalWriter(tmp_path / "x.nc", None)  # the first run has claimed it
     spy = Spy(load_specimen(CARD), load_params(PARAMS))
     with pytest.raises(JournalInUse, match="another run is writing it"):
-        execute(expand(short()), load_specimen(CARD), spy, tmp_path / "x.nc")
+        execute(checked(expand(short()), card := load_specimen(CARD)), card, spy, tmp_path / "x.nc")
     assert spy.calls == ["close"]
     claim.abandon()
     assert not (tmp_path / "x.nc.part").exists()
