@@ -46,7 +46,7 @@ from ..specs.truth import MODELS
 from ..store import open_run
 from ..store.journal import utc_now, write_dataset
 from ..store.outputs import check_dataset_name, check_new
-from ..twin.cf import SELFSENSE_VARIABLES, variable_attrs
+from ..specs.variables import SELFSENSE_VARIABLES, variable_attrs
 from ..twin.selfsense import BLEND_VOLTAGE, capacitance_rls, capacitance_secant, stretch_from_capacitance
 
 #: The roll counts as taut where the load cell reads more than this [N] (its offset and noise are mN).
@@ -68,7 +68,7 @@ class SelfSenseResult:
     ----------
     dataset : xarray.Dataset
         The run's time, encoder stretch, voltage, current and force, and the
-        `rdea_lab.twin.cf.SELFSENSE_VARIABLES`.
+        `rdea_lab.specs.variables.SELFSENSE_VARIABLES`.
     max_error_percent, rms_error_percent : float
         Of the scored samples, |stretch error| as % of the run's stretch range.
     scored : int

@@ -5,11 +5,11 @@ from __future__ import annotations
 from pathlib import Path, PurePath
 
 from ..paths import portable
-from ..twin.cf import (FLAGS, MODEL_VARIABLES, NO_INSTITUTION, OPTIONAL_RUN_VARIABLES, REFERENCES, RUN_VARIABLES,
-                       TIME_ENCODING, TIME_LONG_NAME, global_attrs, time_attrs, variable_attrs)
+from ..specs.variables import (FLAGS, MODEL_VARIABLES, NO_INSTITUTION, OPTIONAL_RUN_VARIABLES, REFERENCES,
+                               RUN_VARIABLES, TIME_ENCODING, TIME_LONG_NAME, global_attrs, time_attrs, variable_attrs)
 
 #: Variables of every run, in journal column order after ``time``: name -> (units, long_name).
-#: The one table is `rdea_lab.twin.cf` (the twin, a layer below the store, writes datasets too).
+#: The one table is `rdea_lab.specs.variables` (below the store and the twin, which writes datasets too).
 VARIABLES: dict[str, tuple[str, str]] = RUN_VARIABLES
 
 #: Optional variables: per backend (``model_status``) or recorded when the protocol measures them

@@ -14,12 +14,12 @@ from ..physics import viscoelastic
 from ..physics.geometry import RollGeometry, StripGeometry, geometry_from_card
 from ..physics.models import solve
 from ..physics.result import OK, SLACK, VALID, is_valid
-from .cf import global_attrs, time_attrs, variable_attrs
 from ..specs import ParameterSet, ViscoBranch, as_params, as_protocol, as_specimen, check_limits, dump_params
 from ..specs.errors import SpecError
 from ..specs.protocol import Limits
+from ..specs.variables import global_attrs, time_attrs, variable_attrs
 
-#: The variables `simulate` writes, in order (CF attributes: the one table, `rdea_lab.twin.cf`).
+#: The variables `simulate` writes, in order (CF attributes: the one table, `rdea_lab.specs.variables`).
 VARIABLES = ("stretch", "voltage", "force", "capacitance", "sigma1", "sigma1_irr", "lambda2b", "converged",
              "model_status")
 

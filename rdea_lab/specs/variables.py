@@ -1,10 +1,10 @@
 """The one variable table: CF attributes of every variable and the global attributes rdea-lab writes.
 
-It lives in the twin layer, the lowest that writes datasets (`simulate`); the
-store (`rdea_lab.store.schema`) takes its schema from here, so runs, imports
-and the twin's own datasets describe each variable in the same words (CF 1.8:
-``units`` and ``long_name`` everywhere, ``flag_values`` and ``flag_meanings``
-on status codes, a ``time`` coordinate with a reference time).
+Runs (the store's journal, `rdea_lab.store.schema`), imports and the twin's own datasets (`simulate`,
+`predict`) describe each variable in the same words (CF 1.8: ``units`` and ``long_name`` everywhere,
+``flag_values`` and ``flag_meanings`` on status codes, a ``time`` coordinate with a reference time). It is
+the glossary's netCDF half (the same word for an argument, a YAML key and a variable), so it sits in the
+specs, below both the twin and the store that write datasets: each imports it from here.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import re
 import numpy as np
 
 from .._version import __version__
-from ..physics.result import STATUS_NAMES
+from .status import STATUS_NAMES
 
 #: Variables of every run, in journal column order after ``time``:
 #: name -> (units, long_name). SI units, CF ``units`` strings.
@@ -66,7 +66,7 @@ def flag_word(name: str) -> str:
     return re.sub(r"[^a-z0-9]+", "_", name.split(" (")[0].lower()).strip("_")
 
 
-#: Status variables: name -> (flag_values, flag_meanings); the codes of `rdea_lab.physics.result`.
+#: Status variables: name -> (flag_values, flag_meanings); the codes of `rdea_lab.specs.status`.
 FLAGS: dict[str, tuple[np.ndarray, str]] = {
     "model_status": (np.array(sorted(STATUS_NAMES), np.int8),
                      " ".join(flag_word(STATUS_NAMES[code]) for code in sorted(STATUS_NAMES))),
@@ -114,3 +114,8 @@ def global_attrs(source: str, metadata: dict | None = None) -> dict:
     were produced, CF's meaning) and ``references``."""
     institution = str((metadata or {}).get("institution", "") or "").strip() or NO_INSTITUTION
     return {"institution": institution, "source": source, "references": REFERENCES}
+
+
+__all__ = ["FLAGS", "MODEL_VARIABLES", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES", "REFERENCES", "RUN_VARIABLES",
+           "SELFSENSE_VARIABLES", "TIME_ENCODING", "TIME_LONG_NAME", "flag_word", "global_attrs", "time_attrs",
+           "variable_attrs"]
