@@ -137,21 +137,22 @@ def campaign_truth(spec, root: Path):
 
 
 def submit_campaign(spec, root: Path, executor, *, out_dir=None, overwrite=False, metadata=None,
-                    command="rdea-lab campaign run", first=None) -> list[tuple[Experiment, object]]:
+                    command="rdea-lab campaign run", first=None, runs=None) -> list[tuple[Experiment, object]]:
     """Submit every experiment of ``spec`` to ``executor`` (a `concurrent.futures` process pool), one task each.
 
     The checks are `run_campaign`'s, all done here before the first task starts. Each task runs
     `run_experiment`: on the twin, or on an emulated rig of its own (on loopback in the worker), with the
     run's own seed ``spec.seed + i`` as in `run_campaign`, so the datasets hold the same numbers as a
     campaign run in one process. The experiments for which ``first(experiment)`` is true are submitted
-    first (a pool starts tasks in order).
+    first (a pool starts tasks in order). ``runs`` as in `run_campaign`: experiments listed already, their
+    plans not checked again.
 
     Returns
     -------
     list of (Experiment, Future)
         In the campaign's order; each future gives the run's `RunResult`.
     """
-    runs, seeds, metadata = _checked(spec, root, out_dir, overwrite, metadata)
+    runs, seeds, metadata = _checked(spec, root, out_dir, overwrite, metadata, runs)
     options = ({"params": load_params(root / spec.params if spec.params else DEFAULT_PARAMS), "model": spec.model}
                if spec.backend == "twin" else {"truth": campaign_truth(spec, root)})
     order = sorted(runs, key=lambda r: not first(r)) if first is not None else runs
