@@ -1,4 +1,7 @@
-"""``ds.rdea``: rdea-lab's helpers on a run's xarray Dataset (registered on ``import rdea_lab``).
+"""``ds.rdea``: rdea-lab's helpers on a run's xarray Dataset (registered when this module is imported).
+
+Looking up a public name that returns a run dataset (`rdea_lab.open_run`, `rdea_lab.run_protocol`,
+`rdea_lab.predict`, ...) imports this module, so ``ds.rdea`` comes with what returns ``ds``.
 
 In the manner of xarray extensions (cf_xarray, pint-xarray)::
 
@@ -20,6 +23,11 @@ import xarray as xr
 
 @xr.register_dataset_accessor("rdea")
 class RdeaAccessor:
+    """rdea-lab's helpers on a run dataset, as ``ds.rdea``: its inputs, its figure, the twin on its history.
+
+    xarray makes one per dataset on first use of ``ds.rdea`` (`xarray.register_dataset_accessor`).
+    """
+
     def __init__(self, ds: xr.Dataset):
         self._ds = ds
 
@@ -61,6 +69,7 @@ class RdeaAccessor:
 
     @property
     def status(self) -> str:
+        """The run's ``status`` attribute (``complete``, ``aborted``, ``interrupted``), or ``"?"``."""
         return str(self._ds.attrs.get("status", "?"))
 
     def _require(self, key):
@@ -69,13 +78,66 @@ class RdeaAccessor:
         return self._ds.attrs[key]
 
     def predict(self, params=None, model="su", **kwargs) -> xr.Dataset:
-        """The twin on this run's own stretch and voltage history (:func:`rdea_lab.twin.predict`)."""
+        """The twin on this run's own stretch and voltage history (:func:`rdea_lab.twin.predict`).
+
+        Parameters
+        ----------
+        params : ParameterSet or path, optional
+            The material; default: the run's own parameters (twin runs only).
+        model : {"su", "1r", "3r", "cr", "auto"}
+            Quasi-static model (Sections 3.1-3.3 of [1]).
+        **kwargs
+            Passed to `rdea_lab.predict`: ``specimen`` (default: the run's card), ``protocol`` (check the
+            history against its limits first), ``tolerance`` [-] (for ``auto``).
+
+        Returns
+        -------
+        xarray.Dataset
+            On the run's ``time`` [s]: ``force`` [N], ``capacitance`` [F], ``sigma1``, ``sigma1_irr``
+            [Pa], ``model_status``, ... (see `rdea_lab.predict`).
+
+        Raises
+        ------
+        ValueError
+            No ``params`` for a measured run (it records none), or an unknown ``model``.
+        SpecError
+            A card or parameter file that cannot be read.
+
+        References
+        ----------
+        [1] J. Prechtl et al., "Modeling and experimental validation of thin, tightly rolled dielectric
+            elastomer actuators", Smart Mater. Struct. 31 (2022) 015008, doi:10.1088/1361-665X/ac34be.
+        """
         from ..twin import predict
 
         return predict(self._ds, params, model, **kwargs)
 
     def plot(self, path=None, *, ax=None, fig=None, prediction=None):
-        """The run's figure (:func:`rdea_lab.reports.plots.plot_run`): returns the Figure."""
+        """The run's figure (:func:`rdea_lab.reports.plots.plot_run`), as ``rdea-lab show`` draws it.
+
+        Parameters
+        ----------
+        path : str or path-like, optional
+            Save the figure there as PNG (a figure made here is then closed; it is still returned).
+        ax : matplotlib.axes.Axes, optional
+            Draw only force [N] against time [s] on this axis.
+        fig : matplotlib.figure.Figure, optional
+            Draw the full layout into this (empty) figure: time histories, and force [N] against
+            displacement [mm]. Not with ``ax``.
+        prediction : xarray.Dataset, optional
+            The twin on the same ``time`` (`predict`): its ``force`` [N] (and ``capacitance`` [F]) drawn
+            dashed over the measurement, with residual panels in the full layout.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure drawn on (``ax.figure`` when ``ax`` is given).
+
+        Raises
+        ------
+        ValueError
+            Both ``ax`` and ``fig``, or a ``prediction`` not on the run's time coordinate.
+        """
         from ..reports.plots import plot_run
 
         return plot_run(self._ds, path, ax=ax, fig=fig, prediction=prediction)

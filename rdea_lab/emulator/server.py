@@ -104,14 +104,19 @@ class RigServer:
         Seconds a block upload may go without a byte arriving [s] (a slow but
         steady upload is never cut off).
     max_upload_bytes : int
-        Block bytes held at once over all connections (a bound on memory).
+        Block bytes held at once over all connections (a bound on memory) [B].
+    line_timeout : float
+        Seconds a command line has to be whole after its first byte arrives [s].
+    send_timeout : float
+        Seconds a peer may take none of a reply before it is cut off [s].
     truth_source : str, optional
         Where `truth` came from, for messages.
 
     Raises
     ------
     ValueError
-        A non-loopback `host` without a token, an empty token, a bad fault.
+        A non-loopback `host` without a token, an empty token or one with spaces or '#', a port
+        outside 0..65535, a bad fault.
     SpecError
         The truth's radii factors do not fit the card.
     """
@@ -165,7 +170,18 @@ class RigServer:
         return host, port
 
     def start(self) -> tuple[str, int]:
-        """Listen, and serve in a background thread; returns the bound ``(host, port)``."""
+        """Listen, and serve in a background thread; returns the bound ``(host, port)``.
+
+        Returns
+        -------
+        tuple of (str, int)
+            The bound address: with ``port=0``, the free port picked.
+
+        Raises
+        ------
+        OSError
+            The address cannot be bound (in use, not this machine's).
+        """
         self._bind()
         self._serving = True  # before the thread runs: a shutdown right after start must still stop it
         self._thread = threading.Thread(target=self.serve_forever, daemon=True, name="rig-emulator-server")

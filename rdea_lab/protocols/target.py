@@ -161,13 +161,18 @@ def plan_target(target, specimen, params, model="su") -> TargetPlan:
     target : Target or path
         A target (`rdea_lab.specs.target.load_target`).
     specimen : SpecimenCard, RollGeometry or path
+        The roll.
     params : ParameterSet or path
         The twin's material (a calibrated set, for a real specimen).
     model : {"su", "1r", "3r", "cr"}
+        The twin's quasi-static model (Sections 3.1-3.3 of [1]).
 
     Returns
     -------
     TargetPlan
+        The planned protocol (``plan``, expanded: its ``voltage`` [V] in the target's ``window``), the
+        force the twin must give there (``force`` [N]), the forward twin's on the planned voltage
+        (``twin_force`` [N]) and their largest difference relative to the peak force (``twin_error`` [-]).
 
     Raises
     ------
@@ -175,6 +180,17 @@ def plan_target(target, specimen, params, model="su") -> TargetPlan:
         A bad target; a target sample out of the twin's reach between 0 V and
         the fold or the voltage and field limits (naming its time and the
         reachable range); a bias that would push; a plan beyond its limits.
+
+    Notes
+    -----
+    The voltage is the inverse of the twin's force, eqs. (43), (44) and (16) of [1], solved sample by
+    sample (`rdea_lab.twin.inverse`).
+
+    References
+    ----------
+    [1] J. Prechtl, J. Kunze, G. Moretti, D. Bruch, S. Seelecke, G. Rizzello, "Modeling and experimental
+        validation of thin, tightly rolled dielectric elastomer actuators", Smart Mater. Struct. 31 (2022)
+        015008 (2021 online), doi:10.1088/1361-665X/ac34be.
     """
     target = target if isinstance(target, Target) else load_target(target)
     geom = as_geometry(specimen)

@@ -70,7 +70,14 @@ class LiveTable:
     interval : float
         Seconds of wall time between lines [s]; the first and the last block always print.
     columns : sequence of str
-        Variables shown, with their units.
+        Variables shown, with their units (time [s], stretch [-], position [mm], voltage [kV],
+        force [N], capacitance [pF]).
+    clock : callable
+        Returns the current wall time [s] (default :func:`time.monotonic`; injectable for tests).
+
+    Examples
+    --------
+    ``run_protocol(..., callbacks=[LiveTable()])`` prints the run's latest sample once a second.
     """
 
     UNITS = {"time": ("s", 1.0), "stretch": ("-", 1.0), "position": ("mm", 1e3), "voltage": ("kV", 1e-3),
@@ -92,6 +99,14 @@ class LiveTable:
         print(text, file=self._out(), flush=True)
 
     def start(self, attrs):
+        """A new run: print its title (protocol, specimen, backend) and the column heads.
+
+        Parameters
+        ----------
+        attrs : Mapping
+            The dataset attributes known before the run starts (``protocol_name``, ``specimen_id``,
+            ``backend``, ...).
+        """
         self._last = self._block = None  # each run of a campaign prints its first block
         head = [f"{c} [{self.UNITS.get(c, ('', 1))[0]}]" for c in self.columns]
         self._line(f"{attrs.get('protocol_name', '?')} on {attrs.get('specimen_id', '?')} "
@@ -116,6 +131,13 @@ class LiveTable:
             self._block = None
 
     def stop(self, result):
+        """The run ended: print its last block if it has not been printed.
+
+        Parameters
+        ----------
+        result : RunResult
+            The run's result (any status).
+        """
         if self._block is not None:
             self._row(self._block)
         self._line(f"{result.status}" + (f": {result.reason}" if result.reason else "")

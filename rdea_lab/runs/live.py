@@ -46,6 +46,14 @@ class LivePlot:
         Draw only the last ``window_seconds`` of run time [s]; default: every
         sample kept.
 
+    Raises
+    ------
+    ValueError
+        A ``path`` that is no ``.png`` file, a negative ``interval``, a ``window_seconds`` that is not
+        above 0 s.
+    OutputError
+        ``path`` cannot be written (checked before the run, not at its first redraw).
+
     Notes
     -----
     At most :attr:`max_samples` of the latest samples are drawn; older ones
@@ -85,7 +93,14 @@ class LivePlot:
 
     # -- the subscriber interface -------------------------------------------------
     def start(self, attrs: dict) -> None:
-        """A new run: forget earlier samples, keep its attributes for the title."""
+        """A new run: forget earlier samples, keep its attributes for the title.
+
+        Parameters
+        ----------
+        attrs : dict
+            The dataset attributes known before the run starts (``protocol_name``, ``specimen_id``,
+            ``backend``, ...).
+        """
         self._reset()
         self.attrs = dict(attrs)
 
@@ -103,7 +118,13 @@ class LivePlot:
             self._last_draw = now
 
     def stop(self, result) -> None:
-        """The last redraw, with the run's final status."""
+        """The last redraw, with the run's final status.
+
+        Parameters
+        ----------
+        result : RunResult
+            The run's result: its ``status`` (and ``reason``) and ``samples`` go into the title.
+        """
         self._status = result.status + (f" ({result.reason})" if getattr(result, "reason", "") else "")
         self._samples = result.samples
         self.draw()
@@ -120,7 +141,14 @@ class LivePlot:
         return data
 
     def data(self) -> dict[str, np.ndarray]:
-        """The samples that would be drawn now: ``time`` [s] and each channel (SI units)."""
+        """The samples that would be drawn now: ``time`` [s] and each channel (SI units).
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            ``time`` [s], ``force`` [N], ``stretch`` [-], ``voltage`` [V]: the latest `max_samples`,
+            within the last ``window_seconds`` if given.
+        """
         data = self._consolidate()
         if self.window_seconds is not None and data["time"].size:
             first = np.searchsorted(data["time"], data["time"][-1] - self.window_seconds)
@@ -128,6 +156,13 @@ class LivePlot:
         return data
 
     def title(self) -> str:
+        """The figure's title: protocol, specimen, backend, status and samples so far.
+
+        Returns
+        -------
+        str
+            E.g. ``blocking_force on specimen-2 (twin): running, 1200 / 2501 samples``.
+        """
         a = self.attrs
         planned = f" / {self._planned}" if self._planned is not None else ""
         return (f"{a.get('protocol_name', '?')} on {a.get('specimen_id', '?')} ({a.get('backend', '?')}): "

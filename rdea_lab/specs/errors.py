@@ -67,7 +67,18 @@ class SpecError(UserError):
         return (type(self), (self.source, self.field, self.message))
 
     def with_source(self, source: str) -> "SpecError":
-        """The same error, attributed to another `source`."""
+        """The same error, attributed to another `source`.
+
+        Parameters
+        ----------
+        source : str
+            The new source (e.g. the file a mapping was read from).
+
+        Returns
+        -------
+        SpecError
+            Of the same type, with the same field and message.
+        """
         return type(self)(source, self.field, self.message)
 
 

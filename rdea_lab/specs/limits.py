@@ -22,7 +22,21 @@ SLACK = 1e-12
 
 
 class LimitError(SpecError):
-    """A setpoint or history beyond a safety limit, found before anything moved (exit status 2)."""
+    """A setpoint or history beyond a safety limit, found before anything moved (exit status 2).
+
+    ``str`` is one line, ``"{source}: {field}: {message}"``, e.g. ``protocols/x.yaml: voltage[1]: voltage
+    3.2 kV at t = 4 s is above the limit max_voltage = 3 kV``.
+
+    Parameters
+    ----------
+    source : str
+        Where the setpoints come from: the protocol file (or ``"<limits>"`` for bare limits).
+    field : str
+        The channel and, for a plan, the segment holding the worst sample (``stretch[0]``,
+        ``voltage[1]``); ``stretch`` or ``voltage`` for a bare history.
+    message : str
+        The worst value with its unit, its time [s], the limit and the span that exceeds it.
+    """
 
 
 def _seconds(t: float) -> str:

@@ -300,7 +300,7 @@ class ParameterSet(SpecModel):
     @classmethod
     def _from_form(cls, mapping: dict, source: str) -> "ParameterSet":
         """The set from its file's form (``yeoh``, ``viscoelastic`` sections; a ``calibration`` record is
-        read by `rdea_lab.specs.calibration_record`, not kept in the set)."""
+        read by `rdea_lab.specs.record.CalibrationRecord.of_file`, not kept in the set)."""
         f = _ParamsFile.from_yaml_mapping(dict(mapping), source)
         try:
             return cls(
@@ -364,7 +364,27 @@ def params_from_yaml(text: str, source: str = "<string>") -> ParameterSet:
 
 
 def load_params(path: str | os.PathLike) -> ParameterSet:
-    """`ParameterSet.load`: read and validate a parameter set YAML file."""
+    """`ParameterSet.load`: read and validate a parameter set YAML file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The YAML file; a path that does not exist may name a packaged reference file
+        (``"paper2021_table3"``, ``"paper2021_table3.yaml"`` or ``"params/paper2021_table3.yaml"``).
+
+    Returns
+    -------
+    ParameterSet
+        Frozen, in SI units.
+        A calibration record is a parameter set too (its ``calibration`` section is not part of the
+        set: `rdea_lab.specs.record.CalibrationRecord.of_file` reads it).
+
+    Raises
+    ------
+    SpecError
+        The file is missing, too large, not YAML, not a mapping, or a value is invalid; one line naming
+        the file, the field and what is allowed.
+    """
     return ParameterSet.load(path)
 
 

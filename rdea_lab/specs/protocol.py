@@ -304,7 +304,26 @@ def protocol_from_yaml(text: str, source: str = "<string>") -> ProtocolSpec:
 
 
 def load_protocol(path: str | os.PathLike) -> ProtocolSpec:
-    """`ProtocolSpec.load`: read and validate a protocol YAML file."""
+    """`ProtocolSpec.load`: read and validate a protocol YAML file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The YAML file; a path that does not exist may name a packaged reference file
+        (``"blocking_force"``, ``"blocking_force.yaml"`` or ``"protocols/blocking_force.yaml"``).
+
+    Returns
+    -------
+    ProtocolSpec
+        Frozen, in SI units.
+        A preset stays a preset (`rdea_lab.protocols.expand` turns it into setpoints).
+
+    Raises
+    ------
+    SpecError
+        The file is missing, too large, not YAML, not a mapping, or a value is invalid; one line naming
+        the file, the field and what is allowed.
+    """
     return ProtocolSpec.load(path)
 
 

@@ -303,7 +303,25 @@ def specimen_from_yaml(text: str, source: str = "<string>") -> SpecimenCard:
 
 
 def load_specimen(path: str | os.PathLike) -> SpecimenCard:
-    """`SpecimenCard.load`: read and validate a specimen card YAML file."""
+    """`SpecimenCard.load`: read and validate a specimen card YAML file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The YAML file; a path that does not exist may name a packaged reference file
+        (``"specimen2"``, ``"specimen2.yaml"`` or ``"specimens/specimen2.yaml"``).
+
+    Returns
+    -------
+    SpecimenCard
+        Frozen, in SI units.
+
+    Raises
+    ------
+    SpecError
+        The file is missing, too large, not YAML, not a mapping, or a value is invalid; one line naming
+        the file, the field and what is allowed.
+    """
     return SpecimenCard.load(path)
 
 

@@ -151,6 +151,17 @@ def study_from_mapping(mapping: Any, source: str = "<mapping>", folder: str | os
 def load_study(path: str | os.PathLike) -> Study:
     """`Study.load`: read and validate a study file, keeping its text.
 
+    Parameters
+    ----------
+    path : str or path-like
+        The YAML file; a path that does not exist may name a packaged study (``"stroke_spring"``).
+        The files it names (specimen, parameters, protocol) are relative to its folder.
+
+    Returns
+    -------
+    Study
+        Frozen, in SI units, with the files it names read and validated.
+
     Raises
     ------
     SpecError

@@ -55,9 +55,18 @@ def check_run(ds: xr.Dataset, source: str) -> None:
 def open_run(path: Path) -> xr.Dataset:
     """Open a run dataset (loaded into memory, file closed).
 
-    ``time`` is float seconds since the run's start, as the file stores it (its
-    ``units``, ``seconds since <start, ISO 8601 UTC>``, say when that was):
-    times are not decoded to dates, so ``ds.time.values`` arithmetic is in seconds.
+    Parameters
+    ----------
+    path : str or path-like
+        A run's netCDF file (``*.nc``), as `run_protocol`, `recover` or `import_files` write it.
+
+    Returns
+    -------
+    xarray.Dataset
+        The run: ``time`` [s] as float seconds since the run's start, as the file stores it (its
+        ``units``, ``seconds since <start, ISO 8601 UTC>``, say when that was; times are not decoded
+        to dates, so ``ds.time.values`` arithmetic is in seconds), ``stretch`` [-], ``voltage`` [V],
+        ``force`` [N], ... with ``units`` and ``long_name`` (docs/data-schema.md), and ``ds.rdea``.
 
     Raises
     ------
@@ -107,10 +116,19 @@ COLUMNS = ["file", "specimen", "protocol", "backend", "model", "status", "durati
 def catalog(folder: Path) -> pd.DataFrame:
     """One row per run below ``folder`` (datasets ``*.nc`` and unfinished journals), as a DataFrame.
 
-    Columns: ``file``, ``specimen``, ``protocol``, ``backend`` (``(emulator)``
-    marked), ``model``, ``status``, ``duration_s`` [s], ``samples``,
-    ``created``, ``metadata`` (``key=value; ...``) and one ``md.<key>``
-    column per metadata key that any run has.
+    Parameters
+    ----------
+    folder : str or path-like
+        Searched recursively; a ``*.nc`` file that cannot be read is listed with the status
+        ``unreadable (<error>)``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``file``, ``specimen``, ``protocol``, ``backend`` (``(emulator)``
+        marked), ``model``, ``status``, ``duration_s`` [s], ``samples``,
+        ``created``, ``metadata`` (``key=value; ...``) and one ``md.<key>``
+        column per metadata key that any run has: the datasets by path, then the journals by path.
     """
     rows = catalog_rows(folder)
     keys = list(dict.fromkeys(k for r in rows for k in r.get("_md", {})))

@@ -359,10 +359,33 @@ def import_files(paths, card, options: ImportOptions, out=None, overwrite=False,
     """Import every file, then write them all: a bad file stops the import
     before anything is written.
 
+    Parameters
+    ----------
+    paths : sequence of path-like
+        The foreign files (CSV, Excel, TDMS, ...: `FORMATS`).
+    card : rdea_lab.specs.SpecimenCard
+        The specimen measured; its unstretched length ``L1`` [m] turns positions into stretches.
+    options : ImportOptions
+        The format, the column of each quantity and their units (``rdea-lab import``'s options).
+    out : path-like, optional
+        A ``.nc`` file (for one input) or a folder; default ``datasets/imported/<card id>/``, one
+        ``<stem>.nc`` per input.
+    overwrite : bool
+        Replace existing datasets.
+    command : str
+        The command line, for each dataset's ``history``.
+
     Returns
     -------
     list of (Path, Path, xarray.Dataset)
         Each input, the dataset written, and the dataset.
+
+    Raises
+    ------
+    SpecError
+        Every problem of a file or the options, naming the file, column and row; an ``out`` that is
+        not a ``.nc`` name or a folder, one file for several inputs, two inputs on one output;
+        `OutputError` (a kind of it) for an existing output without ``overwrite``.
     """
     targets = output_paths(paths, card.id, out, overwrite)
     done = [(Path(p), target, import_file(p, card, options, command)) for p, target in zip(paths, targets)]

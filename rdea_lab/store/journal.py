@@ -345,11 +345,32 @@ def netcdf_attrs(attrs: dict) -> dict:
 def recover(path: Path, out: Path | None = None) -> Path:
     """Rebuild the dataset of a run that died without closing its journal.
 
-    ``path`` is the journal folder (``<out>.part``) or the dataset path whose
-    journal exists; ``out`` writes the dataset elsewhere (e.g. another disk
-    when this one is full). Returns the dataset written, marked
-    ``interrupted``, or with the status the run recorded when it could not
-    write its dataset (a full disk).
+    Parameters
+    ----------
+    path : str or path-like
+        The journal folder (``<out>.part``) or the dataset path whose journal exists.
+    out : str or path-like, optional
+        Write the dataset there instead (e.g. another disk when this one is full); default: the
+        dataset the run was writing.
+
+    Returns
+    -------
+    pathlib.Path
+        The dataset written, marked ``interrupted``, or with the status the run recorded when it
+        could not write its dataset (a full disk). The journal is removed once it is written.
+
+    Raises
+    ------
+    RunInProgress
+        The journal belongs to a run still writing it (or starting on it): left alone.
+    EmptyJournal
+        The claim of a run that never started (no samples); it is removed.
+    FileNotFoundError
+        No journal at ``path``.
+    FileExistsError
+        The dataset to write exists already.
+    OutputError
+        ``out`` is no dataset name or cannot be written.
     """
     path = Path(path)
     folder = path if path.name.endswith(".part") else journal_path(path)

@@ -76,10 +76,28 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
         ``NaN input``, counted in ``excluded_samples``); the viscoelastic
         history runs on across them.
 
+    Raises
+    ------
+    ValueError
+        An unknown ``model``; no ``specimen`` (or ``params``) given for a history that does not record
+        one; a history without ``time`` or ``stretch``.
+    TypeError
+        A ``history`` that is no Dataset, mapping or ``(t, stretch, voltage)`` tuple.
+    SpecError
+        A card or parameter file that cannot be read.
+    LimitError
+        With ``protocol``: the first limit the history exceeds.
+
     Notes
     -----
     Eqs. (43), (44) and (16) of [1] through :func:`rdea_lab.twin.compose`,
     the composition the calibration and the twin backend use too.
+
+    References
+    ----------
+    [1] J. Prechtl, J. Kunze, G. Moretti, D. Bruch, S. Seelecke, G. Rizzello, "Modeling and experimental
+        validation of thin, tightly rolled dielectric elastomer actuators", Smart Mater. Struct. 31 (2022)
+        015008 (2021 online), doi:10.1088/1361-665X/ac34be.
     """
     t, stretch, voltage, ds = _history(history)
     if model not in MODELS:

@@ -141,6 +141,26 @@ def simulate(specimen, params, t, stretch, voltage, model="su", *, protocol=None
         (see :data:`VARIABLES`); ``force = (sigma1_rev + sigma1_irr) pi
         (Ro**2 - Ri**2) / lambda1``, eq. (43) and (16) of [1]. The branch
         strains start relaxed at ``t[0]``.
+
+    Raises
+    ------
+    SpecError
+        A card or parameter file that cannot be read.
+    LimitError
+        With ``protocol``: the first limit the history exceeds.
+    ValueError
+        An unknown ``model``; a card whose radii describe no possible roll.
+
+    Notes
+    -----
+    Eqs. (43), (44) and (16) of [1] (the viscoelastic branches by eq. (44), or its finite-strain form by
+    the parameter set's ``law``), through :func:`rdea_lab.twin.compose`.
+
+    References
+    ----------
+    [1] J. Prechtl, J. Kunze, G. Moretti, D. Bruch, S. Seelecke, G. Rizzello, "Modeling and experimental
+        validation of thin, tightly rolled dielectric elastomer actuators", Smart Mater. Struct. 31 (2022)
+        015008 (2021 online), doi:10.1088/1361-665X/ac34be.
     """
     geom = as_geometry(specimen)
     params = as_params(params)

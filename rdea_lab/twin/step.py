@@ -32,8 +32,30 @@ class TwinStep:
     Parameters
     ----------
     specimen : SpecimenCard, RollGeometry or path
+        The roll (a card's path is read).
     params : ParameterSet or path
+        The material: Yeoh ``C10, C20, C30`` [Pa], ``eps_r`` [-], the Maxwell branches and ``eta_v0``.
     model : {"su", "1r", "3r", "cr"}
+        Quasi-static model, Sections 3.1-3.3 of [1].
+
+    Raises
+    ------
+    ValueError
+        An unknown ``model``, or one that does not apply to the roll.
+    SpecError
+        A card or parameter file that cannot be read.
+    rdea_lab.extras.MissingExtra
+        numba is not installed (``pip install rdea-lab[fast]``).
+
+    Notes
+    -----
+    The force of eqs. (43), (44) and (16) of [1], as `simulate` computes it.
+
+    References
+    ----------
+    [1] J. Prechtl, J. Kunze, G. Moretti, D. Bruch, S. Seelecke, G. Rizzello, "Modeling and experimental
+        validation of thin, tightly rolled dielectric elastomer actuators", Smart Mater. Struct. 31 (2022)
+        015008 (2021 online), doi:10.1088/1361-665X/ac34be.
 
     Examples
     --------
@@ -72,12 +94,26 @@ class TwinStep:
     def step(self, t, stretch, voltage) -> np.ndarray:
         """Advance to time ``t`` [s] at ``stretch`` [-] and ``voltage`` [V].
 
+        Parameters
+        ----------
+        t : float
+            Time of the sample [s], after the previous one's.
+        stretch : float
+            Axial stretch [-]; NaN gives a NaN sample (status ``NaN input``) and the branches carry on.
+        voltage : float
+            Voltage [V].
+
         Returns
         -------
         numpy.ndarray, shape (6,)
             ``force`` [N], ``capacitance`` [F], ``sigma1``, ``sigma1_irr`` [Pa],
             ``lambda2b`` [-], ``model_status`` (indices `FORCE` ... `MODEL_STATUS`);
             the same array every call, overwritten by the next.
+
+        Raises
+        ------
+        ValueError
+            ``t`` is not finite or not after the previous sample's time.
         """
         r = self._kernel(self._code, self._S, self._P, self._R, self._B, self._offsets, self._pitchfork, t, stretch,
                          voltage, self._out)
