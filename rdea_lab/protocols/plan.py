@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..specs.errors import SpecError
-from ..specs.protocol import REST, Limits, ProtocolSpec, dump_protocol, load_protocol, rate_text
+from ..specs.protocol import REST, Limits, ProtocolSpec, dump_protocol, load_protocol, rate_text, sample_count
 from ..specs.limits import SLACK as _SLACK, limit_violations
 from ..specs.units import format_quantity
 from . import segments as seg
@@ -37,7 +37,8 @@ class Plan:
         What the run records besides the setpoints (``force``, ``capacitance``).
     limits : Limits
     time : numpy.ndarray
-        ``k / sample_rate`` for ``k = 0 .. N-1``, ``N = round(duration * rate) + 1`` [s].
+        ``k / sample_rate`` for ``k = 0 .. N-1``, ``N = round(duration * rate) + 1`` [s]
+        (`rdea_lab.specs.protocol.sample_count`).
     stretch : numpy.ndarray
         Stretch setpoints [-].
     voltage : numpy.ndarray
@@ -147,6 +148,9 @@ def _seconds(t: float) -> str:
 def expand(spec: ProtocolSpec, *, source: str | None = None) -> Plan:
     """Expand a protocol (its preset first, if any) into a `Plan`.
 
+    The spec was checked whole when it was made (`ProtocolSpec`: its sample count, a preset's
+    expansion's too); expanding it only computes. Its limits are checked on the plan, by `check_plan`.
+
     Parameters
     ----------
     spec : ProtocolSpec
@@ -154,26 +158,23 @@ def expand(spec: ProtocolSpec, *, source: str | None = None) -> Plan:
         Where `spec` came from, for messages and `Plan.source`; by default
         ``spec.origin`` (the file `load_protocol` read).
 
-    Raises
-    ------
-    SpecError
-        Attributed to `source`: the expanded preset has too many samples.
+    Returns
+    -------
+    Plan
+        Read-only setpoints at ``t_k = k / sample_rate``.
     """
     source = spec.origin if source is None else source
-    try:
-        explicit = expand_preset(spec.with_origin(source))
-    except SpecError as err:
-        raise err.with_source(source) from None
+    explicit = expand_preset(spec.with_origin(source))
     duration, rate = explicit.duration, explicit.sample_rate
-    n = round(duration * rate) + 1
+    n = sample_count(duration, rate)
+    time = np.arange(n, dtype=float) / rate
     stretch, stretch_segment = seg.render("stretch", explicit.stretch, rate, n)
     voltage, voltage_segment = seg.render("voltage", explicit.voltage, rate, n)
     if explicit.probe is not None:  # on the whole channel, phase 0 at t = 0 (where the voltage rests at 0 V)
-        t = np.arange(n, dtype=float) / rate
-        voltage = voltage + explicit.probe.amplitude * np.sin(2.0 * np.pi * explicit.probe.frequency * t)
+        voltage = voltage + explicit.probe.amplitude * np.sin(2.0 * np.pi * explicit.probe.frequency * time)
     return Plan(
         name=explicit.name, kind=explicit.kind, sample_rate=rate, measure=explicit.measure,
-        limits=explicit.limits, time=_readonly(np.arange(n, dtype=float) / rate),
+        limits=explicit.limits, time=_readonly(time),
         stretch=_readonly(stretch), voltage=_readonly(voltage),
         stretch_segment=_readonly(stretch_segment), voltage_segment=_readonly(voltage_segment),
         duration=duration, source=source, spec=explicit, yaml=dump_protocol(explicit),

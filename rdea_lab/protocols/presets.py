@@ -5,10 +5,10 @@ whose amplitude grows along a ramp, at 0 V and 2.6 kV (Figs. 11-13);
 blocking force at lambda1 = 1.5 under a 0-2.6 kV sine at 1 Hz (Fig. 15);
 capacitance at 0 V over the tensile test (Fig. 16).
 
-The settings (names, defaults, checks) are declared in
-`rdea_lab.specs.protocol.PRESETS`, so a file with an unknown preset or
-setting fails when it is read; this module turns valid settings into
-segments.
+The settings (names, defaults, checks) and each preset's duration are
+declared in `rdea_lab.specs.protocol.PRESETS`, so a file with an unknown
+preset or setting, or one whose expansion would hold too many samples, fails
+when it is read; this module only turns valid settings into segments.
 
 [1] J. Prechtl et al., Smart Mater. Struct. (2021), doi:10.1088/1361-665X/ac34be.
 """
@@ -18,7 +18,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from ..specs.errors import SpecError
 from ..specs.protocol import (
     PRESETS,
     BlockingForceSettings,
@@ -74,7 +73,7 @@ def tensile_ramp_sine(s: TensileRampSineSettings) -> Channels:
 
 def capacitance_sweep(s: CapacitanceSweepSettings) -> Channels:
     """Capacitance test (Fig. 16 of [1]): the tensile ramp sine at 0 V (the LCR bridge works at 0 V only)."""
-    voltage = (VoltageHold(duration=2.0 * s.settle + s.cycles / s.frequency, value=0.0),)
+    voltage = (VoltageHold(duration=s.duration, value=0.0),)
     return _ramp_sine_stretch(s), voltage
 
 
@@ -116,24 +115,26 @@ def expand_preset(spec: ProtocolSpec) -> ProtocolSpec:
     """The same protocol with its preset replaced by explicit segments.
 
     A spec without a preset is returned as is; the expansion keeps the
-    spec's `origin`.
+    spec's `origin`. The spec was checked whole when it was made (its
+    expansion's sample count too, from the preset's declared duration).
 
-    Raises
-    ------
-    SpecError
-        Attributed to ``spec.origin``: the expanded protocol has too many samples.
+    Parameters
+    ----------
+    spec : ProtocolSpec
+
+    Returns
+    -------
+    ProtocolSpec
+        With ``stretch`` and ``voltage`` segments, no ``preset`` or ``settings``.
     """
     if spec.preset is None:
         return spec
     stretch, voltage = BUILDERS[spec.preset](spec.settings)
-    try:
-        explicit = ProtocolSpec(
-            name=spec.name, kind=spec.kind, description=spec.description, source=spec.source,
-            sample_rate=spec.sample_rate, measure=spec.measure, limits=spec.limits,
-            stretch=stretch, voltage=voltage, probe=spec.probe,
-        )
-    except SpecError as err:
-        raise err.with_source(spec.origin) from None
+    explicit = ProtocolSpec(
+        name=spec.name, kind=spec.kind, description=spec.description, source=spec.source,
+        sample_rate=spec.sample_rate, measure=spec.measure, limits=spec.limits,
+        stretch=stretch, voltage=voltage, probe=spec.probe,
+    )
     return explicit.with_origin(spec.origin)
 
 

@@ -34,7 +34,7 @@ from ..physics.models import solve
 from ..specs.errors import DOCUMENT, SpecError
 from ..specs.protocol import ProtocolSpec
 from ..specs.protocol_segments import (StretchHold, StretchRamp, StretchTable, VoltageHold, VoltageRamp,
-                                       VoltageTable)
+                                       VoltageTable, sample_count)
 from ..specs.target import Target, load_target
 from ..specs.units import format_quantity
 from ..twin.inverse import InverseResult, voltage_for_force
@@ -109,7 +109,7 @@ class TargetPlan:
 
 def _resampled(target: Target, rate: float) -> tuple[np.ndarray, np.ndarray]:
     """The target on the plan's grid ``k / rate`` over its duration (linear between its samples)."""
-    m = round(target.duration * rate) + 1
+    m = sample_count(target.duration, rate)
     tau = np.arange(m) / rate  # the last may lie up to half a period past the target's end: it holds its end
     return tau, np.interp(tau, target.time, target.values)
 

@@ -1,6 +1,7 @@
-"""Safety limits checked on setpoint or stretch/voltage arrays, before anything moves.
+"""Safety limits: the `Limits` of a protocol (or a target), and their check on setpoint or
+stretch/voltage arrays, before anything moves.
 
-One implementation for a protocol's plan (`rdea_lab.protocols.check_plan`, which
+One implementation of the check for a protocol's plan (`rdea_lab.protocols.check_plan`, which
 passes the segment each sample belongs to) and for a bare history given to the
 twin with a protocol (`rdea_lab.twin.predict`). The rig server keeps its own,
 independent check (it is the stand-in for separate hardware).
@@ -9,12 +10,100 @@ independent check (it is the stand-in for separate hardware).
 from __future__ import annotations
 
 import math
+from typing import Annotated
 
 import numpy as np
+from pydantic import AfterValidator
 
+from .base import SpecModel
 from .errors import SpecError
-from .protocol_segments import Limits
-from .units import format_quantity
+from .names import MAX_STRETCH
+from .units import format_quantity, quantity
+
+#: Ceilings of the safety limits: a limit above them is no limit of a rolled DEA on a bench rig but a unit
+#: mistake (``max_force: 1e308 N``). High-voltage amplifiers for DEAs reach 10-30 kV; the paper's roll pulls a
+#: few newtons, and a 1 kN load cell is far beyond such a rig; no elastomer holds 1000 V/um (VHB breaks
+#: near 100-400 V/um); stretch at most `MAX_STRETCH`.
+LIMIT_CEILINGS = {"max_voltage": 30e3, "max_stretch": MAX_STRETCH, "max_force": 1e3, "max_field": 1000e6}
+
+
+def _ceiling(name: str, unit: str, why: str):
+    top = LIMIT_CEILINGS[name]
+
+    def check(value: float) -> float:
+        if not value <= top:
+            bottom = "1 <=" if name == "max_stretch" else f"0 {unit} <"
+            shown = f"{value:g}" if name == "max_stretch" else format_quantity(value, unit, digits=6)
+            raise SpecError("", "", f"{shown} is above any real limit ({why}); allowed: {bottom} {name} <= "
+                            f"{f'{top:g}' if name == 'max_stretch' else format_quantity(top, unit)}")
+        return value
+
+    return AfterValidator(check)
+
+
+class Limits(SpecModel):
+    """Safety limits of a protocol (SI), each at most its `LIMIT_CEILINGS` value.
+
+    Read from a file as the ``limits:`` mapping of a protocol or a target (quantities with units,
+    ``{max_voltage: 3 kV, max_field: 80 V/um}``; the limits not given keep their defaults).
+
+    Attributes
+    ----------
+    max_voltage : float
+        Largest allowed ``|voltage|`` [V]; 3 kV by default.
+    max_stretch : float
+        Largest allowed stretch [-]; 2.0 by default.
+    max_force : float
+        Largest allowed ``|force|`` [N], enforced while running; 50 N by default.
+    max_field : float
+        Largest allowed field estimate ``|v| sqrt(stretch) / L3`` [V/m]; 80 V/um by default.
+    """
+
+    max_voltage: Annotated[quantity("voltage", "kV", gt=0.0),
+                           _ceiling("max_voltage", "kV", "DEA amplifiers reach 10-30 kV")] = 3e3
+    max_stretch: Annotated[quantity("dimensionless", "", ge=1.0),
+                           _ceiling("max_stretch", "", "no elastomer is drawn 20-fold")] = 2.0
+    max_force: Annotated[quantity("force", "N", gt=0.0),
+                         _ceiling("max_force", "N", "a rolled DEA pulls a few newtons; 1 kN is beyond the rig")] = 50.0
+    max_field: Annotated[quantity("electric_field", "V/um", gt=0.0),
+                         _ceiling("max_field", "V/um", "elastomers break down near 100-400 V/um")] = 80e6
+
+    @classmethod
+    def from_options(cls, values: dict, source: str = "command line") -> "Limits":
+        """Limits from option texts (``{"max_voltage": "3 kV", ...}``); a bad one is a `SpecError` naming
+        the option (``--max-voltage``).
+
+        Parameters
+        ----------
+        values : dict
+            Limit name -> text with its unit (or a number in SI).
+        source : str
+            Where the options came from, for the message.
+
+        Returns
+        -------
+        Limits
+
+        Raises
+        ------
+        SpecError
+            A limit that is not a quantity of its kind, not above 0 (stretch: below 1), or above its
+            `LIMIT_CEILINGS` value; the field is the option (``--max-voltage``).
+        """
+        try:
+            return cls(**values)
+        except SpecError as err:
+            raise SpecError(source, "--" + err.field.replace("_", "-"), err.message) from None
+
+    def _form(self) -> dict:
+        """The YAML form, each limit with its unit (``limits:`` of a protocol's file)."""
+        return {
+            "max_voltage": format_quantity(self.max_voltage, "kV"),
+            "max_stretch": self.max_stretch,
+            "max_force": format_quantity(self.max_force, "N"),
+            "max_field": format_quantity(self.max_field, "V/um"),
+        }
+
 
 #: relative slack of the limit checks: rounding of a ramp or sine that ends
 #: exactly on a limit (a stretch of 1 - 1e-16) is not a violation

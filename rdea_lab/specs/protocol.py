@@ -17,10 +17,12 @@ waveform segments, a sample rate, what is measured and safety limits::
 
 or, instead of the two channels, a named preset with its settings
 (``preset: tensile_ramp_sine``, ``settings: {voltage: 2.6 kV}``). This module
-knows each preset's kind, settings (with defaults and checks) and default
-``measure``; `rdea_lab.protocols` expands a preset into segments and samples
-the segments into setpoint arrays. Everything is stored in SI: seconds, hertz,
-volts, radians, V/m; stretch is dimensionless.
+knows each preset's kind, settings (with defaults and checks), duration and
+default ``measure``, and checks a file whole when it is read (the samples of
+a preset's expansion too); `rdea_lab.protocols` only expands a valid spec: a
+preset into segments, the segments into setpoint arrays (a ``Plan``).
+Everything is stored in SI: seconds, hertz, volts, radians, V/m; stretch is
+dimensionless.
 """
 
 import math
@@ -43,6 +45,7 @@ from .protocol_segments import (  # noqa: F401  (re-exported: part of the protoc
     StretchRamp, StretchRampSine, StretchSegment, StretchSine, StretchStep, StretchTable, VOLTAGE_SEGMENTS, Voltage,
     VoltageAmplitude, VoltageChirp, VoltageHold, VoltageRamp, VoltageRampSine, VoltageSegment, VoltageSine,
     VoltageStep, VoltageTable, MAX_TABLE_VALUES, channel_duration, check_sample_count, format_angle, rate_text,
+    sample_count,
     _ROUNDING, _join, _segments,
 )
 from .units import format_quantity
@@ -241,7 +244,8 @@ class ProtocolSpec(SpecModel):
 
     @model_validator(mode="after")
     def _same_duration(self) -> "ProtocolSpec":
-        if self.preset is not None:
+        if self.preset is not None:  # the samples its expansion will have
+            check_sample_count(self.settings.duration, self.sample_rate)
             return self
         d_stretch, d_voltage = channel_duration(self.stretch), channel_duration(self.voltage)
         if not math.isclose(d_stretch, d_voltage, rel_tol=_ROUNDING):
@@ -273,12 +277,7 @@ class ProtocolSpec(SpecModel):
                 data[key] = getattr(self, key)
         data["sample_rate"] = rate_text(self.sample_rate)
         data["measure"] = _FlowList(self.measure)
-        data["limits"] = {
-            "max_voltage": format_quantity(self.limits.max_voltage, "kV"),
-            "max_stretch": self.limits.max_stretch,
-            "max_force": format_quantity(self.limits.max_force, "N"),
-            "max_field": format_quantity(self.limits.max_field, "V/um"),
-        }
+        data["limits"] = self.limits._form()
         if self.probe is not None:
             data["probe"] = _Flow({"amplitude": format_quantity(self.probe.amplitude, "V"),
                                    "frequency": format_quantity(self.probe.frequency, "Hz")})
@@ -372,7 +371,7 @@ __all__ = [
     "StretchTable", "VoltageTable", "MAX_TABLE_VALUES",
     "TensileRampSineSettings", "VoltageChirp", "VoltageHold", "VoltageRamp", "VoltageRampSine", "VoltageSegment",
     "VoltageSine", "VoltageStep",
-    "channel_duration", "check_sample_count", "rate_text", "dump_protocol", "format_angle", "load_protocol",
-    "protocol_from_mapping", "protocol_from_yaml",
+    "channel_duration", "check_sample_count", "rate_text", "sample_count", "dump_protocol", "format_angle",
+    "load_protocol", "protocol_from_mapping", "protocol_from_yaml",
 ]
 

@@ -1,6 +1,8 @@
 """Preset settings of protocols: the paper's tensile, blocking-force and capacitance experiments.
 
-`rdea_lab.protocols.presets` expands them into segments.
+Each settings model declares its settings (defaults, checks) and the preset's `duration` [s], so that a
+protocol file is checked whole when it is read (its sample count too); `rdea_lab.protocols.presets`
+expands valid settings into segments (which last that duration: tests/protocols/test_presets.py).
 """
 
 from typing import NamedTuple, Union
@@ -22,6 +24,11 @@ class _StretchSweep(SpecModel):
     frequency: Frequency = 0.1
     cycles: Cycles = 5
     settle: Duration = 2.0
+
+    @property
+    def duration(self) -> float:
+        """The preset's duration [s]: ``settle``, ``cycles / frequency`` of sweep, ``settle``."""
+        return 2.0 * self.settle + self.cycles / self.frequency
 
     @model_validator(mode="after")
     def _ordered(self):
@@ -53,6 +60,11 @@ class BlockingForceSettings(SpecModel):
     cycles: Cycles = 10
     approach: Duration = 5.0
     settle: Duration = 5.0
+
+    @property
+    def duration(self) -> float:
+        """The preset's duration [s]: ``approach``, ``settle`` plus ``cycles / frequency`` of sine, ``approach``."""
+        return 2.0 * self.approach + (self.settle + self.cycles / self.frequency)
 
     @model_validator(mode="after")
     def _ordered(self):

@@ -1,4 +1,4 @@
-"""Protocol building blocks: units-aware field types, safety limits and waveform segments.
+"""Protocol building blocks: units-aware field types and waveform segments (the limits: `rdea_lab.specs.limits`).
 
 See `rdea_lab.specs.protocol` for the protocol file as a whole.
 """
@@ -13,6 +13,7 @@ from pydantic import AfterValidator, BaseModel, BeforeValidator, Field, model_va
 
 from .base import SpecModel, units_required
 from .errors import DOCUMENT, SpecError, show
+from .limits import LIMIT_CEILINGS, Limits  # noqa: F401  (re-exported: a protocol's limits)
 from .names import KINDS, MAX_STRETCH  # noqa: F401  (re-exported: a protocol's kinds)
 from .units import _NUMBER, format_quantity, parse_quantity, quantity, ureg
 
@@ -108,63 +109,6 @@ Voltage = quantity("voltage", "kV")
 VoltageAmplitude = quantity("voltage", "kV", ge=0.0)
 Angle = Annotated[float, BeforeValidator(_angle)]
 Cycles = Annotated[int, BeforeValidator(_whole_positive)]
-
-
-#: Ceilings of the safety limits: a limit above them is no limit of a rolled DEA on a bench rig but a unit
-#: mistake (``max_force: 1e308 N``). High-voltage amplifiers for DEAs reach 10-30 kV; the paper's roll pulls a
-#: few newtons, and a 1 kN load cell is far beyond such a rig; no elastomer holds 1000 V/um (VHB breaks
-#: near 100-400 V/um); stretch at most `MAX_STRETCH`.
-LIMIT_CEILINGS = {"max_voltage": 30e3, "max_stretch": MAX_STRETCH, "max_force": 1e3, "max_field": 1000e6}
-
-
-def _ceiling(name: str, unit: str, why: str):
-    top = LIMIT_CEILINGS[name]
-
-    def check(value: float) -> float:
-        if not value <= top:
-            bottom = "1 <=" if name == "max_stretch" else f"0 {unit} <"
-            shown = f"{value:g}" if name == "max_stretch" else format_quantity(value, unit, digits=6)
-            raise SpecError("", "", f"{shown} is above any real limit ({why}); allowed: {bottom} {name} <= "
-                            f"{f'{top:g}' if name == 'max_stretch' else format_quantity(top, unit)}")
-        return value
-
-    return AfterValidator(check)
-
-
-class Limits(SpecModel):
-    """Safety limits of a protocol (SI), each at most its `LIMIT_CEILINGS` value.
-
-    Attributes
-    ----------
-    max_voltage : float
-        Largest allowed ``|voltage|`` [V]; 3 kV by default.
-    max_stretch : float
-        Largest allowed stretch [-]; 2.0 by default.
-    max_force : float
-        Largest allowed ``|force|`` [N], enforced while running; 50 N by default.
-    max_field : float
-        Largest allowed field estimate ``|v| sqrt(stretch) / L3`` [V/m]; 80 V/um by default.
-    """
-
-    max_voltage: Annotated[quantity("voltage", "kV", gt=0.0),
-                           _ceiling("max_voltage", "kV", "DEA amplifiers reach 10-30 kV")] = 3e3
-    max_stretch: Annotated[quantity("dimensionless", "", ge=1.0),
-                           _ceiling("max_stretch", "", "no elastomer is drawn 20-fold")] = 2.0
-    max_force: Annotated[quantity("force", "N", gt=0.0),
-                         _ceiling("max_force", "N", "a rolled DEA pulls a few newtons; 1 kN is beyond the rig")] = 50.0
-    max_field: Annotated[quantity("electric_field", "V/um", gt=0.0),
-                         _ceiling("max_field", "V/um", "elastomers break down near 100-400 V/um")] = 80e6
-
-    @classmethod
-    def from_options(cls, values: dict, source: str = "command line") -> "Limits":
-        """Limits from option texts (``{"max_voltage": "3 kV", ...}``); a bad one is a `SpecError` naming
-        the option (``--max-voltage``)."""
-        from .errors import SpecError
-
-        try:
-            return cls(**values)
-        except SpecError as err:
-            raise SpecError(source, "--" + err.field.replace("_", "-"), err.message) from None
 
 
 #: Largest probe amplitude [V]: a probe is a small signal on the high voltage, not an actuation.
@@ -364,10 +308,52 @@ def channel_duration(segments: tuple) -> float:
     return math.fsum(s.duration for s in segments)
 
 
+def sample_count(duration: float, sample_rate: float) -> int:
+    """The number of samples of a protocol, ``N = round(duration * rate) + 1`` (``t_k = k / rate``, both ends).
+
+    Parameters
+    ----------
+    duration : float
+        The protocol's duration [s].
+    sample_rate : float
+        [Hz].
+
+    Returns
+    -------
+    int
+        N; not checked against `MAX_SAMPLES` (`check_sample_count` does that).
+    """
+    return round(duration * sample_rate) + 1
+
+
 def check_sample_count(duration: float, sample_rate: float) -> int:
-    """Number of samples ``round(duration * rate) + 1``; `SpecError` (field
-    ``sample_rate``, no source) if above `MAX_SAMPLES`."""
-    n = round(duration * sample_rate) + 1
+    """`sample_count`, or a `SpecError` (field ``sample_rate``, no source) if it is above `MAX_SAMPLES`.
+
+    Parameters
+    ----------
+    duration : float
+        The protocol's duration [s].
+    sample_rate : float
+        [Hz].
+
+    Returns
+    -------
+    int
+        The number of samples N.
+
+    Raises
+    ------
+    SpecError
+        More than `MAX_SAMPLES` samples (a duration too long to count them, too).
+    """
+    if not math.isfinite(duration * sample_rate):
+        raise SpecError(
+            "", "sample_rate",
+            f"{format_quantity(duration, 's', digits=6)} at {rate_text(sample_rate, 6)} gives more than "
+            f"{MAX_SAMPLES} samples; at most {MAX_SAMPLES} (50 million) are allowed; "
+            "lower the sample rate or shorten the protocol",
+        )
+    n = sample_count(duration, sample_rate)
     if n > MAX_SAMPLES:
         raise SpecError(
             "", "sample_rate",

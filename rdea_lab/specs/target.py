@@ -39,7 +39,8 @@ from ..paths import resolve
 from .base import Identifier, SpecModel
 from .errors import DOCUMENT, SpecError, show
 from .yamlio import MAX_NODES, MAX_SPEC_BYTES, check_file_size
-from .protocol_segments import Duration, Limits, MAX_TABLE_VALUES, SampleRate, Stretch
+from .limits import Limits
+from .protocol_segments import Duration, MAX_TABLE_VALUES, SampleRate, Stretch, sample_count
 from .units import format_quantity, parse_quantity, quantity
 
 #: standard gravity [m/s^2] (a mass bias pulls with m g)
@@ -264,7 +265,7 @@ def _check_samples(time, values, quantity, settings, source, where, rows=None):
             raise SpecError(source, name(quantity, bad[0]), f"{values[bad[0]]:g}; allowed: 1 to {lim:g} "
                             "(in tension, within limits.max_stretch)")
     duration = time[-1] - time[0]
-    m = round(duration * settings.sample_rate) + 1
+    m = sample_count(duration, settings.sample_rate)
     if m > MAX_TABLE_VALUES:
         raise SpecError(source, "sample_rate", f"{format_quantity(duration, 's', 6)} at "
                         f"{format_quantity(settings.sample_rate, 'Hz', 6)} gives {m} planned samples; "

@@ -4,10 +4,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from rdea_lab.protocols import BUILDERS, expand, expand_preset
 from rdea_lab.specs import protocol_from_mapping
-from rdea_lab.specs.protocol import PRESETS
+from rdea_lab.specs.protocol import PRESETS, channel_duration
 
 
 def preset_plan(preset, rate="100 Hz", **settings):
@@ -124,10 +125,38 @@ def test_expand_preset_gives_explicit_segments_and_keeps_the_rest():
     assert expand_preset(explicit) is explicit
 
 
-def test_expanded_preset_with_too_many_samples_names_the_file():
+def test_a_preset_whose_expansion_has_too_many_samples_is_refused_when_read_naming_the_file():
+    """The spec checks the file whole (the protocols layer only expands): 1000 cycles at 1 Hz plus 2 x 5 s
+    of approach and 5 s of settle are 1015 s, at 100 kHz 101500001 samples."""
     from rdea_lab.specs import SpecError
-    spec = protocol_from_mapping(
-        {"name": "p", "sample_rate": "100 kHz", "preset": "blocking_force", "settings": {"cycles": 1000}}, "x.yaml"
-    )
     with pytest.raises(SpecError, match=r"^x\.yaml: sample_rate: .* gives 101500001 samples"):
-        expand(spec)
+        protocol_from_mapping(
+            {"name": "p", "sample_rate": "100 kHz", "preset": "blocking_force", "settings": {"cycles": 1000}},
+            "x.yaml")
+
+
+def test_a_preset_too_long_to_count_its_samples_is_refused_when_read():
+    from rdea_lab.specs import SpecError
+    with pytest.raises(SpecError, match=r"^x\.yaml: sample_rate: inf s at 100 Hz gives more than 50000000 samples"):
+        protocol_from_mapping(
+            {"name": "p", "sample_rate": "100 Hz", "preset": "tensile_ramp_sine", "settings": {"settle": "1e308 s"}},
+            "x.yaml")
+
+
+_durations = st.floats(1e-3, 1e4, allow_nan=False)
+
+
+@settings(max_examples=60, deadline=None)
+@given(preset=st.sampled_from(sorted(PRESETS)), settle=_durations, approach=_durations,
+       frequency=st.floats(1e-3, 40.0), cycles=st.integers(1, 50))
+def test_a_preset_lasts_the_duration_its_settings_declare(preset, settle, approach, frequency, cycles):
+    """The spec counts a preset's samples from ``settings.duration`` [s]; the expansion must last exactly
+    that (the stretch channel: the duration a plan has), the voltage channel within the rounding of sums."""
+    settings_ = {"settle": f"{settle!r} s", "frequency": f"{frequency!r} Hz", "cycles": cycles}
+    if preset == "blocking_force":
+        settings_["approach"] = f"{approach!r} s"
+    spec = protocol_from_mapping({"name": "p", "sample_rate": "100 Hz", "preset": preset, "settings": settings_},
+                                 "<test>")
+    explicit = expand_preset(spec)
+    assert channel_duration(explicit.stretch) == spec.settings.duration == explicit.duration
+    assert math.isclose(channel_duration(explicit.voltage), spec.settings.duration, rel_tol=1e-12)
