@@ -182,8 +182,12 @@ def prepare_run(protocol, specimen, backend=None, *, out=None, seed=0) -> RunSet
         As in `run_protocol`; a `CheckedPlan` already checked for ``specimen`` (a campaign's, from
         `experiments`) is taken as it is, its geometry with it: neither is made again.
     specimen : SpecimenCard or path
-    backend, out, seed
-        As in `run_protocol`.
+    backend : Twin, Emulator, Rig, str or Backend, optional
+        As in `run_protocol` (default the twin with the paper's parameters).
+    out : path, optional
+        As in `run_protocol`: the dataset's file (default ``datasets/<specimen>/<protocol>-<UTC time>.nc``).
+    seed : int, optional
+        As in `run_protocol`: the noise seed of an emulated or twin run.
 
     Returns
     -------

@@ -77,6 +77,11 @@ class Twin:
         For ``auto``: the deviation from 3R allowed, relative to the peak stress [-], 0 < tolerance < 1.
     realtime : bool
         Pace the run at wall-clock speed (as a rig would).
+
+    Raises
+    ------
+    SpecError
+        An unknown model, a tolerance outside (0, 1), or a parameter file that is missing or invalid.
     """
 
     params: object
@@ -99,13 +104,36 @@ class Twin:
         object.__setattr__(self, "realtime", bool(realtime))
 
     def check(self, geom) -> None:
-        """3R and CR need a roll they apply to (a core, no strip)."""
+        """Refuse a geometry the model does not apply to: 3R and CR need a roll (a core, no strip).
+
+        Parameters
+        ----------
+        geom : RollGeometry or StripGeometry
+            The run's geometry, made once from the card in `~rdea_lab.runs.app.prepare_run`.
+
+        Raises
+        ------
+        SpecError
+            ``model`` is 3R or CR and the specimen is a strip or has no core.
+        """
         if self.model in ("3r", "cr"):
             from ..physics.models import three_ring
 
             three_ring.check_applicable(geom)
 
     def executor(self, setup):
+        """The twin's executor for one run.
+
+        Parameters
+        ----------
+        setup : RunSetup
+            The prepared run: its card, geometry and seed.
+
+        Returns
+        -------
+        TwinBackend
+            The physics model behind the executor protocol (`rdea_lab.backends.twin.TwinBackend`).
+        """
         from ..backends.twin import TwinBackend
 
         return TwinBackend(setup.card, self.params, model=self.model, tolerance=self.tolerance,
@@ -113,9 +141,33 @@ class Twin:
 
     @contextlib.contextmanager
     def opened(self, setup):
+        """The twin's executor for the run (nothing to start or stop).
+
+        Parameters
+        ----------
+        setup : RunSetup
+            The prepared run (`~rdea_lab.runs.app.prepare_run`): its checked plan, card, geometry and seed.
+
+        Yields
+        ------
+        Backend
+            The executor of the one run (`rdea_lab.backends.Backend`).
+        """
         yield self.executor(setup)
 
     def describe(self, setup) -> str:
+        """What the dry run says of the twin: the model it would use (and why, for ``auto``).
+
+        Parameters
+        ----------
+        setup : RunSetup
+            The prepared run.
+
+        Returns
+        -------
+        str
+            One line, e.g. ``twin: model su, parameters paper2021_table3``.
+        """
         twin = self.executor(setup)
         twin.start(setup.plan)
         sel = twin.choice
@@ -138,6 +190,11 @@ class Emulator:
         Pace the emulated rig at wall-clock speed.
     stall_timeout : float
         Seconds without a new sample before the run is aborted [s], 0.1 to 3600.
+
+    Raises
+    ------
+    SpecError
+        A truth file that is missing or invalid, an unknown fault, or a stall timeout outside 0.1 to 3600 s.
     """
 
     truth: object
@@ -158,10 +215,29 @@ class Emulator:
         object.__setattr__(self, "stall_timeout", _stall_timeout(stall_timeout))
 
     def check(self, geom) -> None:
-        pass
+        """Nothing to refuse here: the emulated rig checks the run on its side.
+
+        Parameters
+        ----------
+        geom : RollGeometry or StripGeometry
+            The run's geometry, made once from the card in `~rdea_lab.runs.app.prepare_run`.
+        """
+        return None
 
     @contextlib.contextmanager
     def opened(self, setup):
+        """Start the emulated rig on a free loopback port, and the driver connected to it, for the run.
+
+        Parameters
+        ----------
+        setup : RunSetup
+            The prepared run (`~rdea_lab.runs.app.prepare_run`): its checked plan, card, geometry and seed.
+
+        Yields
+        ------
+        Backend
+            The executor of the one run (`rdea_lab.backends.Backend`).
+        """
         from ..backends.rig import RigBackend
 
         with emulated_rig(setup.card, self.truth, realtime=self.realtime, faults=self.faults) as address:
@@ -169,6 +245,18 @@ class Emulator:
                              seed=setup.seed, geometry=setup.geometry)
 
     def describe(self, setup) -> str:
+        """What the dry run says of the emulator: its truth and faults.
+
+        Parameters
+        ----------
+        setup : RunSetup
+            The prepared run.
+
+        Returns
+        -------
+        str
+            One line, e.g. ``twin: model su, parameters paper2021_table3``.
+        """
         faults = ", ".join(f"{k}-at={a:g}" for k, a in self.faults)
         return f"emulator: truth {self.truth.name}" + (f", faults {faults}" if faults else "")
 
@@ -190,6 +278,11 @@ class Rig:
         Seconds without a new sample before the run is aborted [s], 0.1 to 3600.
     timeout : float
         Longest wait for one reply [s], 0.1 to 3600; past it the connection counts as lost.
+
+    Raises
+    ------
+    SpecError
+        No address, an address that is not ``tcp://HOST:PORT``, or a timeout outside 0.1 to 3600 s.
     """
 
     address: str
@@ -219,10 +312,29 @@ class Rig:
                 f"stall_timeout={self.stall_timeout}, timeout={self.timeout})")
 
     def check(self, geom) -> None:
-        pass
+        """Nothing to refuse here: the rig server checks the run against its own limits.
+
+        Parameters
+        ----------
+        geom : RollGeometry or StripGeometry
+            The run's geometry, made once from the card in `~rdea_lab.runs.app.prepare_run`.
+        """
+        return None
 
     @contextlib.contextmanager
     def opened(self, setup):
+        """Connect the driver to the rig server for the run (closed when the block ends).
+
+        Parameters
+        ----------
+        setup : RunSetup
+            The prepared run (`~rdea_lab.runs.app.prepare_run`): its checked plan, card, geometry and seed.
+
+        Yields
+        ------
+        Backend
+            The executor of the one run (`rdea_lab.backends.Backend`).
+        """
         from ..backends.rig import RigBackend
 
         yield RigBackend(self.address, setup.card, token=self.token, timeout=self.timeout,
@@ -230,6 +342,18 @@ class Rig:
                          geometry=setup.geometry)
 
     def describe(self, setup) -> str:
+        """What the dry run says of the rig: its address (it is not contacted).
+
+        Parameters
+        ----------
+        setup : RunSetup
+            The prepared run.
+
+        Returns
+        -------
+        str
+            One line, e.g. ``twin: model su, parameters paper2021_table3``.
+        """
         return f"rig {self.address}: not contacted (dry run)"
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -77,9 +78,9 @@ def experiments(spec, root: Path, out_dir: Path | None = None) -> list[Experimen
     return runs
 
 
-def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=False, callbacks=(),
+def run_campaign(spec, root: Path | None = None, *, out_dir=None, overwrite=False, realtime=False, callbacks=(),
                  on_result=None, metadata=None, command="rdea-lab campaign run", runs=None) -> list[RunResult]:
-    """Run every experiment of ``spec``; returns one result per run.
+    """Run every experiment of a campaign (each protocol on each specimen); one result per run.
 
     Every plan is checked against its limits and every output (two runs on one
     file, a journal in the way, an existing file without ``overwrite``) before
@@ -88,9 +89,50 @@ def run_campaign(spec, root: Path, *, out_dir=None, overwrite=False, realtime=Fa
     its own noise seed, ``spec.seed + i``. A run ended by Ctrl-C (status
     ``interrupted``) ends the campaign: the results so far are returned.
 
-    ``runs``, if given, are ``experiments(spec, root, out_dir)`` made already (by a caller that
-    showed them first): their plans are not checked again.
+    Parameters
+    ----------
+    spec : CampaignSpec or path
+        The campaign, or its YAML file (a packaged name such as ``campaigns/paper2021.yaml`` works too).
+    root : path, optional
+        The folder the campaign's input paths are relative to; default the campaign's own
+        (`CampaignSpec.folder`).
+    out_dir : path, optional
+        Folder of the datasets, one ``<specimen>/<protocol>.nc`` per run; default the campaign's ``out``.
+    overwrite : bool
+        Replace datasets that exist (the CLI's ``--force``); by default they are refused before any run.
+    realtime : bool
+        Pace every run at wall-clock speed.
+    callbacks : callable or sequence of callables
+        Given each block of samples of every run, as in `rdea_lab.run_protocol`.
+    on_result : callable, optional
+        ``on_result(result)`` after each run.
+    metadata : mapping, optional
+        Recorded in every dataset (``md_*`` attributes).
+    command : str
+        The command line recorded in each dataset's ``history``.
+    runs : sequence of Experiment, optional
+        ``experiments(spec, root, out_dir)`` made already (by a caller that showed them first): their plans
+        are not checked again.
+
+    Returns
+    -------
+    list of RunResult
+        One per run that started, in the campaign's order (fewer when a run was interrupted).
+
+    Raises
+    ------
+    SpecError
+        An invalid campaign or input file, a plan beyond its limits, bad metadata or seeds.
+    OutputError
+        An output that exists (without ``overwrite``), two runs on one file, or a folder that cannot be
+        written.
     """
+    if isinstance(spec, (str, os.PathLike)):  # a path or a packaged name
+        from ..specs.campaign import load_campaign
+
+        spec, folder = load_campaign(spec)
+        root = folder if root is None else root
+    root = Path(spec.folder if root is None else root)
     runs, seeds, metadata = _checked(spec, root, out_dir, overwrite, metadata, runs)
     results = []
 
