@@ -12,7 +12,7 @@
 The quick start is `rdea_lab`'s (one, run as a doctest).
 """
 
-from .app import calibrate_runs, format_result, gather_runs
+from .app import calibrate_runs, gather_runs
 from .fit import CalibrationResult, calibrate, initial_guess
 from .objective import RunData, error_measures, find_runs, goodness, load_run, predict_force
 from .envelope import Envelope, beyond, envelope, run_envelope
@@ -20,5 +20,5 @@ from .crossval import CrossValidation, Fold, cross_validate, format_cv
 
 __all__ = ["CalibrationResult", "CrossValidation", "Envelope", "Fold", "RunData", "beyond", "calibrate",
            "calibrate_runs", "cross_validate", "envelope", "error_measures", "find_runs", "format_cv",
-           "format_result", "gather_runs", "goodness", "initial_guess", "load_run", "predict_force",
+           "gather_runs", "goodness", "initial_guess", "load_run", "predict_force",
            "run_envelope"]

@@ -24,7 +24,7 @@ from .fit import CalibrationResult, calibrate, calibrate_growing, initial_guess
 from .methods import METHODS
 from .objective import find_runs, load_run
 from .parameters import names_for, values_of
-from .record import record_files, write_record
+from .record import record_files
 
 MODELS = MODEL_CHOICES
 DEFAULT_EPS_R = 2.8  # Table 1 of [1]
@@ -202,37 +202,9 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     extra = {"model_reason": why, "run_data": tuple(runs), "skipped": tuple(skipped)}
     result = dataclasses.replace(result, **extra)
     if out is not None:
-        out = Path(out)
-        result = dataclasses.replace(result, record_files=write_record(result, runs, out,
-                                                                        name=name or out.stem.replace(" ", "_")))
+        result = dataclasses.replace(result, record_files=result.write(out, name=name, overwrite=True))
     return result
 
 
-def format_result(result: CalibrationResult) -> str:
-    """The fit report: method, message, budget, each parameter with its standard error and flags, per-run fit,
-    AIC/BIC, and the evaluations of each stage when there were several."""
-    lines = [f"{result.method}: {result.message}; objective {result.objective:.4e} after {result.nfev} evaluations, "
-             f"{result.restarts} restarts, {result.wall_time:.2f} s"]
-    if len(result.stages) > 1:
-        lines.append("  stages: " + "; ".join(f"{st['label']}{'' if st['kept'] else ' (dropped)'}: {st['nfev']} "
-                                              f"evaluations, {st['objective']:.4g}" for st in result.stages))
-    for p in result.parameters:
-        v = result.values[p.name]
-        se = result.stderr.get(p.name)
-        flags = [f for f, names_ in (("at bound", result.at_bound), ("unmoved", result.unmoved),
-                                     ("not identifiable", result.unidentifiable)) if p.name in names_]
-        unit = "kPa" if p.unit == "Pa" else "kPa s"
-        lines.append(f"  {p.name:<7} {v / 1e3:12.5g} {unit:<6}" + (f" +- {se / 1e3:.3g}" if p.free and se == se else "")
-                     + ("" if p.free else "  (fixed)") + (f"  [{', '.join(flags)}]" if flags else ""))
-    for g in result.runs:
-        lines.append(f"  {g['specimen']}/{g['protocol']}: rms {g['rms_error_N']:.4g} N, R2 {g['r2']:.5f}, "
-                     f"max rel. error {100 * g['max_rel_error']:.2f} %, rms/peak "
-                     f"{100 * g.get('rms_rel_error', float('nan')):.2f} %, p99/peak "
-                     f"{100 * g.get('p99_rel_error', float('nan')):.2f} %")
-    lines.append(f"  AIC {result.aic:.1f}, BIC {result.bic:.1f}" if result.metric == "rms"
-                 else f"  standard errors, AIC and BIC: not applicable (metric {result.metric})")
-    return "\n".join(lines)
-
-
-__all__ = ["KINDS", "MODELS", "calibrate_runs", "choose_model", "format_result", "gather_runs", "parameter_names",
+__all__ = ["KINDS", "MODELS", "calibrate_runs", "choose_model", "gather_runs", "parameter_names",
            "values_of"]

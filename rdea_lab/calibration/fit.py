@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import time as _time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -78,11 +79,12 @@ class CalibrationResult:
     model_reason : str
         Why ``auto`` chose `model` (empty otherwise).
     run_data : tuple of RunData
-        The runs fitted (set by `calibrate_runs`).
+        The runs fitted (what `write` records).
     skipped : tuple of dict
         Files of the input folders left out, with why (``file``, ``reason``).
     record_files : dict
-        ``params``, ``history``, ``plot`` paths of the record, when one was written.
+        ``params``, ``history``, ``plot`` paths of the record, when one was written and kept here
+        (:func:`~rdea_lab.calibration.crossval.cross_validate` does; `write` returns them).
     """
 
     params: ParameterSet
@@ -123,6 +125,76 @@ class CalibrationResult:
     run_data: tuple = ()
     skipped: tuple = ()
     record_files: dict = dataclasses.field(default_factory=dict)
+
+    def fit_report(self) -> str:
+        """The fit report, as ``rdea-lab calibrate`` prints it.
+
+        Returns
+        -------
+        str
+            Method, message, budget; each parameter [kPa or kPa s] with its standard error and flags;
+            the per-run fit; AIC/BIC (or why they do not apply); the evaluations of each stage when
+            there were several. No trailing newline.
+        """
+        lines = [f"{self.method}: {self.message}; objective {self.objective:.4e} after {self.nfev} evaluations, "
+                 f"{self.restarts} restarts, {self.wall_time:.2f} s"]
+        if len(self.stages) > 1:
+            lines.append("  stages: " + "; ".join(f"{st['label']}{'' if st['kept'] else ' (dropped)'}: {st['nfev']} "
+                                                  f"evaluations, {st['objective']:.4g}" for st in self.stages))
+        for p in self.parameters:
+            v = self.values[p.name]
+            se = self.stderr.get(p.name)
+            flags = [f for f, names_ in (("at bound", self.at_bound), ("unmoved", self.unmoved),
+                                         ("not identifiable", self.unidentifiable)) if p.name in names_]
+            unit = "kPa" if p.unit == "Pa" else "kPa s"
+            lines.append(f"  {p.name:<7} {v / 1e3:12.5g} {unit:<6}"
+                         + (f" +- {se / 1e3:.3g}" if p.free and se == se else "")
+                         + ("" if p.free else "  (fixed)") + (f"  [{', '.join(flags)}]" if flags else ""))
+        for g in self.runs:
+            lines.append(f"  {g['specimen']}/{g['protocol']}: rms {g['rms_error_N']:.4g} N, R2 {g['r2']:.5f}, "
+                         f"max rel. error {100 * g['max_rel_error']:.2f} %, rms/peak "
+                         f"{100 * g.get('rms_rel_error', float('nan')):.2f} %, p99/peak "
+                         f"{100 * g.get('p99_rel_error', float('nan')):.2f} %")
+        lines.append(f"  AIC {self.aic:.1f}, BIC {self.bic:.1f}" if self.metric == "rms"
+                     else f"  standard errors, AIC and BIC: not applicable (metric {self.metric})")
+        return "\n".join(lines)
+
+    def write(self, out, *, name: str | None = None, overwrite: bool = False) -> dict[str, Path]:
+        """Write the calibration record: the parameter file with its ``calibration`` section, and beside it
+        ``<out stem>.history.csv`` and ``<out stem>.history.png``.
+
+        Parameters
+        ----------
+        out : path
+            The parameter file (loadable by :func:`~rdea_lab.specs.load_params`); its folder is made.
+        name : str, optional
+            Name of the calibrated set in the file; default ``out``'s stem (spaces as ``_``).
+        overwrite : bool
+            Replace existing files (the CLI's ``--force``); otherwise any of the three existing is refused
+            before anything is written.
+
+        Returns
+        -------
+        dict of Path
+            ``params``, ``history``, ``plot`` (:func:`~rdea_lab.calibration.record.record_files`).
+
+        Raises
+        ------
+        OutputError
+            A record file exists (and not ``overwrite``) or cannot be written.
+        ValueError
+            The result does not hold the runs it was fitted to (`run_data`).
+        """
+        from ..store.outputs import check_new
+        from .record import record_files, write_record
+
+        if not self.run_data:
+            raise ValueError("this result does not hold the runs it was fitted to (run_data); write the record "
+                             "with rdea_lab.calibration.record.write_record(result, runs, out)")
+        out = Path(out)
+        for path in record_files(out).values():
+            check_new(path, overwrite)
+        return write_record(self, self.run_data, out, name=name or out.stem.replace(" ", "_"))
 
 
 def versions() -> dict:
@@ -281,7 +353,7 @@ def _finish(obj, parameters, best, values, model, metric, method, restarts, nit,
         chisqr=chisqr, redchi=chisqr / max(n - k, 1), aic=aic, bic=bic, ndata=int(n), nvarys=k, nfree=int(n - k),
         nfev=obj.nfev, nit=nit, restarts=restarts, wall_time=float(wall), converged=bool(converged),
         message=message, runs=tuple(goodness(run, predict_force(run, best, model)) for run in obj.runs),
-        history=history, stages=(stage,), budgets=budgets,
+        history=history, stages=(stage,), budgets=budgets, run_data=tuple(obj.runs),
     )
 
 

@@ -160,10 +160,10 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
         for s in result.skipped:
             click.echo(f"skipped {s['file']}: {s['reason']}")
         if holdout:
-            click.echo(api.format_result(result.folds[0].result))
+            click.echo(result.folds[0].result.fit_report())
         click.echo(api.format_cv(result), nl=False)
         click.echo("wrote " + ", ".join(str(f) for f in result.files.values()))
         return
-    click.echo(api.format_result(result))
+    click.echo(result.fit_report())
     files = result.record_files
     click.echo(f"wrote {files['params']}, {files['history']}, {files['plot']}")

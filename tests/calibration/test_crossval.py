@@ -149,7 +149,7 @@ def test_cli_holdout_prints_the_fit_and_the_held_out_row(imported, tmp_path, cap
                        "--quiet", "--out", str(out)])
     stdout = capsys.readouterr().out
     assert rc == 0, stdout
-    assert "rms/peak" in stdout and "p99/peak" in stdout  # format_result's per-run line
+    assert "rms/peak" in stdout and "p99/peak" in stdout  # fit_report's per-run line
     assert "0d03_1d5_1.nc" in stdout.split("Legend:")[0].strip().splitlines()[-1]  # the last row: held out
     assert (tmp_path / "h.holdout.csv").is_file() and load_params(out).C10 > 0
 

@@ -152,6 +152,37 @@ def test_record_round_trip_and_history(clean, tmp_path):
     assert files["plot"].stat().st_size > 5000
 
 
+def test_result_writes_its_record_and_refuses_an_existing_one(clean, tmp_path):
+    from rdea_lab.store.outputs import OutputError
+
+    res = calibrate(clean, factor3_start(), model="su", free=["C10"], max_evals=50)
+    files = res.write(tmp_path / "my cal.yaml")
+    assert files == {"params": tmp_path / "my cal.yaml", "history": tmp_path / "my cal.history.csv",
+                     "plot": tmp_path / "my cal.history.png"}
+    assert load_params(files["params"]).name == "my_cal"  # the stem, as calibrate --out names it
+    again = write_record(res, clean, tmp_path / "other.yaml", name="my_cal")  # the same record, by hand
+    assert files["params"].read_text() == again["params"].read_text()
+    assert files["history"].read_text() == again["history"].read_text()
+    files["history"].unlink()
+    files["params"].write_text("kept")
+    with pytest.raises(OutputError, match="exists"):
+        res.write(files["params"])
+    assert files["params"].read_text() == "kept" and not files["history"].exists()  # refused before writing
+    assert res.write(files["params"], name="cal", overwrite=True)["history"].exists()
+    assert load_params(files["params"]).name == "cal"
+
+
+def test_fit_report_names_every_parameter_and_run(clean):
+    res = calibrate(clean, factor3_start(), model="su", free=["C10"], max_evals=50)
+    lines = res.fit_report().splitlines()
+    assert lines[0].startswith(f"nelder-mead: {res.message}; ") and f"after {res.nfev} evaluations" in lines[0]
+    named = [line.split()[0] for line in lines[1:1 + len(res.parameters)]]
+    assert named == [p.name for p in res.parameters]
+    assert [line for line in lines if "(fixed)" in line][0].split()[0] == "C20"
+    assert sum("rms/peak" in line for line in lines) == len(clean)
+    assert lines[-1].startswith("  AIC ")
+
+
 def test_cli_calibrates_twin_runs_and_refuses_bad_input(capsys, tmp_path):
     for name in ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV", "blocking_force"):
         assert run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml"), "--specimen",

@@ -7,7 +7,7 @@ import pytest
 import xarray as xr
 import yaml
 
-from rdea_lab.calibration import calibrate, calibrate_runs, format_result, gather_runs
+from rdea_lab.calibration import calibrate, calibrate_runs, gather_runs
 from rdea_lab.calibration.methods import Objective
 from rdea_lab.calibration.objective import RunData, predict_force
 from rdea_lab.calibration.parameters import fit_parameters, values_of, with_values
@@ -154,7 +154,7 @@ def test_metric_max_refuses_least_squares_and_marks_what_does_not_apply(tmp_path
     assert rec["covar"] == "not applicable (metric max)" == rec["parameters"]["C10"]["stderr"]
     assert "not applicable" in rec["notes"] and rec["method"] == "nelder-mead"
     assert rec["statistics"]["nfree"] == rec["statistics"]["ndata"] - rec["statistics"]["nvarys"]
-    text = format_result(res)
+    text = res.fit_report()
     assert text.startswith("nelder-mead: ") and "not applicable (metric max)" in text
 
 
