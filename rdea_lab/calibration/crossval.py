@@ -24,7 +24,7 @@ from __future__ import annotations
 import csv
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -207,8 +207,8 @@ def _holdout_index(items, holdout) -> list[int]:
     return out
 
 
-def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, announce_fold=None, fold_done=None,
-                   **calibrate_kwargs) -> CrossValidation:
+def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, name=None, overwrite=False,
+                   announce_fold=None, fold_done=None, **calibrate_kwargs) -> CrossValidation:
     """Fit on some runs, predict the others: k-fold (``cv``) or one split (``holdout``).
 
     Parameters
@@ -224,15 +224,19 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         With ``holdout``: the record of the fit (as `calibrate_runs` writes it); the held-out rows go
         beside it to ``<stem>.holdout.csv`` and into its ``calibration`` section as ``validation``.
         An existing output (a folder that holds files, with ``cv``) is refused before any fit unless
-        ``overwrite`` (in ``calibrate_kwargs``).
+        ``overwrite``.
+    name : str, optional
+        Name of the calibrated set in each record (default: the record's stem).
+    overwrite : bool
+        Write over existing outputs (the CLI's ``--force``).
     announce_fold : callable, optional
         ``announce_fold(index, count, label, fitted_names, predicted_names)`` before each fold's fit.
     fold_done : callable, optional
         ``fold_done(index, count, fold, rows)`` after it: the `Fold` (its fit and envelope) and its rows of
         the result's table (its fitted and predicted runs).
     **calibrate_kwargs
-        Passed to `calibrate_runs` for every fold (``model``, ``free``, ``branches``, ``max_evals``, ...;
-        ``kinds`` also selects the runs of folders here).
+        Passed to `calibrate_runs` for every fold (``model``, ``free``, ``branches``, ``budget``,
+        ``monitor``, ...; ``kinds`` also selects the runs of folders here).
 
     Returns
     -------
@@ -258,8 +262,7 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         raise SpecError(str(out), "out", "is a file; with --cv, --out names a folder")
     if out is not None and cv is None and out.is_dir():
         raise SpecError(str(out), "out", "is a folder; with --holdout, --out names the record file")
-    overwrite = calibrate_kwargs.get("overwrite", False)
-    if out is not None and cv is not None:  # before any fit, as calibrate_runs checks its record
+    if out is not None and cv is not None:  # before any fit
         check_new(out, overwrite, "out", folder=True)
     if out is not None and cv is None:
         for path in (*record_files(out).values(), _holdout_csv(out)):
@@ -277,7 +280,9 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         if announce_fold is not None:
             announce_fold(k, len(plan), label, fitted, predicted)
         record = (out / f"fold-{k}.yaml" if cv is not None else out) if out is not None else None
-        result = calibrate_runs([items[i] for i in fit_idx], out=record, **calibrate_kwargs)
+        result = calibrate_runs([items[i] for i in fit_idx], **calibrate_kwargs)
+        if record is not None:  # new: checked above, before any fit
+            result = replace(result, record_files=result.write(record, name=name, overwrite=overwrite))
         fit_runs = list(result.run_data) or [runs[i] for i in fit_idx]
         env = envelope(fit_runs)
         fold = Fold(k, label, tuple(fitted), tuple(predicted), result, env)

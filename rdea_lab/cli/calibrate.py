@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import sys
 import time
+import types
 
 import click
 
@@ -130,6 +131,9 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
     progress = FitProgress(enabled=not quiet)
 
     def announce(runs, chosen, reason, free, skipped):
+        if not cross:  # the inputs are checked, the fit not begun: refuse an existing record now
+            for path in api.record_files(out_path).values():
+                api.check_new(path, overwrite)
         progress.end_line()
         for s in skipped:
             click.echo(f"skipped {s['file']}: {s['reason']}")
@@ -147,14 +151,16 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
         ctx = click.get_current_context()
         param = next(p for p in ctx.command.params if p.name == "out_path")
         click.Path(dir_okay=False).convert(out_path, param, ctx)
-    fit = (functools.partial(api.cross_validate, cv=cv, holdout=list(holdout) or None, announce_fold=announce_fold,
-                             fold_done=progress.fold_done) if cross else api.calibrate_runs)
+    fit = (functools.partial(api.cross_validate, cv=cv, holdout=list(holdout) or None, out=out_path, name=name,
+                             overwrite=overwrite, announce_fold=announce_fold, fold_done=progress.fold_done)
+           if cross else api.calibrate_runs)
     kinds = [k.strip() for k in kinds_text.split(",") if k.strip()]
+    monitor = types.SimpleNamespace(progress=progress, stage=progress.stage, announce=announce)
     result = fit(list(inputs), model=model.lower(), init=init_path, free=free_text, branches=M,
-                 eps_r=eps_r, kinds=kinds, metric=metric, max_evals=max_evals, max_time=max_time,
-                 out=out_path, name=name, progress=progress, stage=progress.stage, announce=announce,
-                 method=method.lower(), law=law.lower() if law else None, overwrite=overwrite)
+                 eps_r=eps_r, kinds=kinds, metric=metric, budget=api.Budget(evaluations=max_evals, seconds=max_time),
+                 monitor=monitor, method=method.lower(), law=law.lower() if law else None)
     if not cross:
+        files = result.write(out_path, name=name, overwrite=overwrite)
         progress.done(result)
     if cross:
         for s in result.skipped:
@@ -165,5 +171,4 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
         click.echo("wrote " + ", ".join(str(f) for f in result.files.values()))
         return
     click.echo(result.fit_report())
-    files = result.record_files
     click.echo(f"wrote {files['params']}, {files['history']}, {files['plot']}")

@@ -13,7 +13,7 @@ import pytest
 import yaml
 from vhb_data import needs_vhb
 
-from rdea_lab.calibration import cross_validate, goodness, load_run, predict_force
+from rdea_lab.calibration import Budget, cross_validate, goodness, load_run, predict_force
 from rdea_lab.calibration.crossval import make_folds
 from rdea_lab.cli.errors import run as run_cli
 from rdea_lab.cli.main import cli
@@ -21,7 +21,7 @@ from rdea_lab.specs import SpecError, load_params
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = needs_vhb
-FAST = {"model": "1r", "max_evals": 200}
+FAST = {"model": "1r", "budget": Budget(evaluations=200)}
 
 
 #: The five loading-unloading files (``0dRR_SdS[_k]``); the folder also holds a step-and-hold test, relax_2d0.
