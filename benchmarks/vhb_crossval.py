@@ -60,9 +60,7 @@ def main(argv=None) -> int:
                                          method="least-squares", budget=Budget(evaluations=20000, seconds=900))
                     wall = time.perf_counter() - t0
                     for fold in res.folds:
-                        for r in res.rows:
-                            if r["fold"] != fold.index or r["role"] != "predicted":
-                                continue
+                        for r in res.rows(fold=fold.index, role="predicted"):
                             rows.append({"cv": cv, "law": law, "M": M, "fold": fold.index, "file": r["file"],
                                          "rms_rel_error": r["rms_rel_error"], "p99_rel_error": r["p99_rel_error"],
                                          "max_rel_error": r["max_rel_error"], "flags": list(r["flags"]),
