@@ -338,6 +338,8 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     ------
     ValueError
         An unknown method, metric or parameter; a start without a finite force prediction.
+    TypeError
+        A ``budget`` that is not a `Budget`.
 
     Notes
     -----
@@ -562,6 +564,11 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, budget: B
         ``wall_time`` count every stage and candidate, ``stages`` has one entry
         each, ``history`` all of theirs (evaluations numbered across stages, a
         stage column); ``message`` says how it grew.
+
+    Raises
+    ------
+    ValueError, TypeError
+        As `calibrate`.
     """
     from ..specs import ViscoBranch
 

@@ -15,7 +15,8 @@ from .errors import EXIT_HELP, headless
 
 
 class FitProgress:
-    """A fit's progress on stderr, fed by the library's callbacks: on a terminal one line redrawn in place
+    """A fit's progress on stderr, fed as the library's monitor (``progress``, ``stage``; the folds'
+    ``fold_done``): on a terminal one line redrawn in place
     (as often as the library reports, twice a second), otherwise a line every `every` seconds (a log
     stays short); a line per growth stage and per fold, and a final line per fit."""
 
@@ -30,7 +31,7 @@ class FitProgress:
         return f"  evaluations {evaluations:6d}  best {best:.6e}  elapsed {elapsed:6.1f} s"
 
     def __call__(self, evaluations, best, elapsed):
-        """The library's ``progress(evaluations, best, elapsed)``."""
+        """The monitor's ``progress(evaluations, best, elapsed)``."""
         if not self.enabled:
             return
         text = self.status(evaluations, best, elapsed)
@@ -58,7 +59,7 @@ class FitProgress:
             click.echo(text, err=True)
 
     def stage(self, index, count, label):
-        """The library's ``stage(index, count, label)`` (branches grown one at a time)."""
+        """The monitor's ``stage(index, count, label)`` (branches grown one at a time)."""
         self.line(f"stage {index}/{count}: {label}")
 
     def done(self, result, prefix: str = "done"):
