@@ -140,7 +140,7 @@ def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
     from rdea_lab.runs import checked_plan, execute
     from rdea_lab.runs import emulated_rig as _emulator
     from rdea_lab.backends.rig import RigBackend
-    from rdea_lab.calibration import calibrate, calibrate_runs, initial_guess, load_run
+    from rdea_lab.calibration import Budget, calibrate, calibrate_runs, initial_guess, load_run
     from rdea_lab.protocols import load_plan
     from rdea_lab.specs.truth import load_truth
 
@@ -156,7 +156,8 @@ def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
             paths.append(out)
         runs = [load_run(p) for p in paths]
     start = initial_guess(runs, 1, 2.8)
-    calibrate(runs, start, model="su", max_evals=20)  # warm-up: the compiled kernels load from their cache
+    # warm-up: the compiled kernels load from their cache
+    calibrate(runs, start, model="su", budget=Budget(evaluations=20))
 
     def timed(fn, n):
         results = [fn() for _ in range(n)]
@@ -184,7 +185,7 @@ def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
                                "time=0,position=1,force=2", "--protocol-kind", "tensile", "--specimen",
                                str(ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"), "--out", tmp])
             if rc == 0:
-                kw = dict(model="su", law="finite_strain", branches=2, max_time=900)
+                kw = dict(model="su", law="finite_strain", branches=2, budget=Budget(seconds=900))
                 _, out["vhb5_finite_strain_M2_least_squares"] = timed(
                     lambda: calibrate_runs(tmp, method="least-squares", **kw), repeat)
                 _, out["vhb5_finite_strain_M2_nelder_mead"] = timed(lambda: calibrate_runs(tmp, **kw), 1)

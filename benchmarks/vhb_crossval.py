@@ -47,6 +47,7 @@ def main(argv=None) -> int:
     ap.add_argument("--cv", default="leave-one-out,by-stretch")
     args = ap.parse_args(argv)
     from rdea_lab.api import cross_validate
+    from rdea_lab.calibration import Budget
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -56,12 +57,10 @@ def main(argv=None) -> int:
                 for M in map(int, args.M.split(",")):
                     t0 = time.perf_counter()
                     res = cross_validate(str(data), cv=cv, model="su", law=law, branches=M,
-                                         method="least-squares", max_evals=20000, max_time=900)
+                                         method="least-squares", budget=Budget(evaluations=20000, seconds=900))
                     wall = time.perf_counter() - t0
                     for fold in res.folds:
-                        for r in res.rows:
-                            if r["fold"] != fold.index or r["role"] != "predicted":
-                                continue
+                        for r in res.rows(fold=fold.index, role="predicted"):
                             rows.append({"cv": cv, "law": law, "M": M, "fold": fold.index, "file": r["file"],
                                          "rms_rel_error": r["rms_rel_error"], "p99_rel_error": r["p99_rel_error"],
                                          "max_rel_error": r["max_rel_error"], "flags": list(r["flags"]),

@@ -12,7 +12,8 @@ from . import _EXPORTS as _PUBLIC
 _EXPORTS = {
     **_PUBLIC,
     "check_figure": "rdea_lab.store.outputs",
-    "check_outputs": "rdea_lab.runs.app", "format_result": "rdea_lab.calibration.app",
+    "check_outputs": "rdea_lab.runs.app", "record_files": "rdea_lab.calibration.record",
+    "Budget": "rdea_lab.calibration.fit",
     "write_study": "rdea_lab.design.outputs", "write_protocol": "rdea_lab.protocols.target",
     "tracking_error": "rdea_lab.reports.tracking", "track_target": "rdea_lab.reports.tracking",
     "study_summary": "rdea_lab.design.outputs", "study_lines": "rdea_lab.design.outputs",

@@ -1,4 +1,4 @@
-"""`calibrate_runs`: measured runs in, a calibrated parameter set (and its record) out.
+"""`calibrate_runs`: measured runs in, a calibrated parameter set out (its record: ``result.write(out)``).
 
 Run discovery (folders give their complete runs of the chosen protocol kinds),
 the start (a parameter file, or estimated from the data), the number of
@@ -17,14 +17,12 @@ import numpy as np
 import xarray as xr
 
 from ..physics.selection import ORDER, select_model
-from ..store.outputs import check_new
 from ..specs import LAWS, MODEL_CHOICES, SpecError, ViscoBranch, as_params
 from ..specs.protocol import KINDS
-from .fit import CalibrationResult, calibrate, calibrate_growing, initial_guess
+from .fit import Budget, CalibrationResult, FitMonitor, calibrate, calibrate_growing, hook, initial_guess
 from .methods import METHODS
 from .objective import find_runs, load_run
 from .parameters import names_for, values_of
-from .record import record_files, write_record
 
 MODELS = MODEL_CHOICES
 DEFAULT_EPS_R = 2.8  # Table 1 of [1]
@@ -90,10 +88,11 @@ def choose_model(runs, start, model: str, tolerance: float = 0.01) -> tuple[str,
 
 
 def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, eps_r=None, kinds=("tensile",),
-                   metric="rms", max_evals=20000, max_time=300.0, tolerance=0.01, out=None, name=None,
-                   progress=None, announce=None, method="nelder-mead", law=None, stage=None,
-                   overwrite=False) -> CalibrationResult:
+                   metric="rms", method="nelder-mead", law=None, budget: Budget = Budget(), tolerance=0.01,
+                   monitor=None) -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters (eps_r fixed) to measured runs (Nelder-Mead or least squares).
+
+    Computes only: the record is ``result.write(out)`` (:meth:`CalibrationResult.write`).
 
     Parameters
     ----------
@@ -115,34 +114,38 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     kinds : sequence of str
         For folders: which protocol kinds.
     metric : {"rms", "max"}
-    max_evals, max_time : int, float
-        Budgets (evaluations, seconds), over all restarts and branch-growth stages.
-    out : path, optional
-        Write the record there (a parameter file with a ``calibration``
-        section, plus ``.history.csv`` / ``.history.png``); refused before the fit if any of them
-        exists, unless ``overwrite``.
-    name : str, optional
-        Name of the calibrated set in the record (default: ``out``'s stem).
-    progress : callable, optional
-        ``progress(evaluations, best, elapsed)``, at most twice a second: evaluations so far, the best
-        objective so far, seconds since the fit began (over every stage when branches are grown).
-    stage : callable, optional
-        ``stage(index, count, label)`` before each fit when branches are grown from the data
-        (:func:`~rdea_lab.calibration.fit.calibrate_growing`).
-    announce : callable, optional
-        ``announce(runs, model, reason, free, skipped)`` once everything is checked, before the fit starts.
     method : {"nelder-mead", "least-squares"}
         The minimizer (:func:`~rdea_lab.calibration.fit.calibrate`); least squares minimizes the rms only.
     law : {"linear", "finite_strain"}, optional
         Viscoelastic law of the branches; default ``init``'s, or linear (eq. (44) of [1]). An ``init`` of
         the other law starts from the same relaxation times with ``mu = k / 3`` (the small-strain map).
-    overwrite : bool
-        Replace an existing record (the CLI's ``--force``).
+    budget : Budget
+        Evaluations and seconds [s], over all restarts and branch-growth stages
+        (default 20000 evaluations, 300 s).
+    tolerance : float
+        Of ``model="auto"`` [-]: the relative force difference a simpler model may make.
+    monitor : FitMonitor or any object, optional
+        Those of its methods it has are called: ``announce(runs, model, reason, free, skipped)`` once
+        everything is checked, before the fit starts; ``progress(evaluations, best, elapsed)`` at most
+        twice a second (evaluations so far, the best objective so far, seconds since the fit began, over
+        every stage when branches are grown); ``stage(index, count, label)`` before each fit when branches
+        are grown from the data (:func:`~rdea_lab.calibration.fit.calibrate_growing`).
 
     Returns
     -------
     CalibrationResult
-        Frozen; ``files`` of the record are in ``result.record_files`` when ``out`` was given.
+        Frozen; with the runs fitted (``run_data``), the files of input folders left out (``skipped``)
+        and why ``auto`` chose its model (``model_reason``).
+
+    Raises
+    ------
+    SpecError
+        Inputs that give no runs or cannot be fitted, an option out of its range, or a fit that cannot
+        start (no finite force prediction).
+
+    References
+    ----------
+    [1] Prechtl et al. 2021 (Section 4.2: the calibration by Nelder-Mead).
     """
     skipped = []
     runs = gather_runs(inputs, kinds, skipped)
@@ -180,59 +183,27 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     unknown = [f for f in free if f not in names]
     if unknown:
         raise SpecError(ARGS, "free", f"{', '.join(unknown)} unknown; allowed: {', '.join(names)}")
+    if not isinstance(budget, Budget):
+        raise SpecError(ARGS, "budget", f"{budget!r}; allowed: a Budget(evaluations=..., seconds=...)")
     model, why = choose_model(runs, start, model, tolerance)
-    if out is not None:  # before a long fit, not after it
-        for path in record_files(out).values():
-            check_new(path, overwrite)
-    if announce is not None:
+    announce = hook(monitor, "announce")
+    if announce is not None:  # may refuse, before a long fit (the CLI checks its record files here)
         announce(runs, model, why, free, tuple(skipped))
     try:
         if init is None and (M > 1 or (M == 1 and law == "finite_strain")):
             # from the data: grow the branches one by one (they merge otherwise); finite strain: two starts
             result = calibrate_growing(runs, initial_guess(runs, 1, eps, law=law), M, model=model, free=free,
-                                       metric=metric, method=method, max_evals=max_evals, max_time=max_time,
-                                       progress=progress, stage=stage)
+                                       metric=metric, method=method, budget=budget, monitor=monitor)
         else:
-            result = calibrate(runs, start, model=model, free=free, metric=metric, method=method,
-                               max_evals=max_evals, max_time=max_time, progress=progress)
+            result = calibrate(runs, start, model=model, free=free, metric=metric, method=method, budget=budget,
+                               monitor=monitor)
     except ValueError as exc:
         raise SpecError(ARGS, "<calibration>", f"cannot fit: {exc}") from None
     import dataclasses
 
     extra = {"model_reason": why, "run_data": tuple(runs), "skipped": tuple(skipped)}
-    result = dataclasses.replace(result, **extra)
-    if out is not None:
-        out = Path(out)
-        result = dataclasses.replace(result, record_files=write_record(result, runs, out,
-                                                                        name=name or out.stem.replace(" ", "_")))
-    return result
+    return dataclasses.replace(result, **extra)
 
 
-def format_result(result: CalibrationResult) -> str:
-    """The fit report: method, message, budget, each parameter with its standard error and flags, per-run fit,
-    AIC/BIC, and the evaluations of each stage when there were several."""
-    lines = [f"{result.method}: {result.message}; objective {result.objective:.4e} after {result.nfev} evaluations, "
-             f"{result.restarts} restarts, {result.wall_time:.2f} s"]
-    if len(result.stages) > 1:
-        lines.append("  stages: " + "; ".join(f"{st['label']}{'' if st['kept'] else ' (dropped)'}: {st['nfev']} "
-                                              f"evaluations, {st['objective']:.4g}" for st in result.stages))
-    for p in result.parameters:
-        v = result.values[p.name]
-        se = result.stderr.get(p.name)
-        flags = [f for f, names_ in (("at bound", result.at_bound), ("unmoved", result.unmoved),
-                                     ("not identifiable", result.unidentifiable)) if p.name in names_]
-        unit = "kPa" if p.unit == "Pa" else "kPa s"
-        lines.append(f"  {p.name:<7} {v / 1e3:12.5g} {unit:<6}" + (f" +- {se / 1e3:.3g}" if p.free and se == se else "")
-                     + ("" if p.free else "  (fixed)") + (f"  [{', '.join(flags)}]" if flags else ""))
-    for g in result.runs:
-        lines.append(f"  {g['specimen']}/{g['protocol']}: rms {g['rms_error_N']:.4g} N, R2 {g['r2']:.5f}, "
-                     f"max rel. error {100 * g['max_rel_error']:.2f} %, rms/peak "
-                     f"{100 * g.get('rms_rel_error', float('nan')):.2f} %, p99/peak "
-                     f"{100 * g.get('p99_rel_error', float('nan')):.2f} %")
-    lines.append(f"  AIC {result.aic:.1f}, BIC {result.bic:.1f}" if result.metric == "rms"
-                 else f"  standard errors, AIC and BIC: not applicable (metric {result.metric})")
-    return "\n".join(lines)
-
-
-__all__ = ["KINDS", "MODELS", "calibrate_runs", "choose_model", "format_result", "gather_runs", "parameter_names",
-           "values_of"]
+__all__ = ["KINDS", "MODELS", "Budget", "FitMonitor", "calibrate_runs", "choose_model", "gather_runs",
+           "parameter_names", "values_of"]

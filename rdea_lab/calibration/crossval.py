@@ -24,10 +24,11 @@ from __future__ import annotations
 import csv
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import xarray as xr
 
 from ..store.outputs import check_new
@@ -86,7 +87,7 @@ class Fold:
 
 @dataclass(frozen=True)
 class CrossValidation:
-    """The folds and one row per (fold, run).
+    """What a cross-validation found: its tables, one per (fold, run) and one per fold, and the folds.
 
     Attributes
     ----------
@@ -96,9 +97,17 @@ class CrossValidation:
         Of the first fold's fit (every fold fits the same model unless ``auto`` chose otherwise).
     grouping : str
         How the folds were made, in words.
-    rows : tuple of dict
-        Keys of :data:`CSV_KEYS`; ``flags`` a tuple of str (empty inside the envelope).
+    table : pandas.DataFrame
+        One row per (fold, run), in fold order, the fitted runs first; the columns :data:`CSV_KEYS`
+        (those of ``cv.csv`` before the parameters): ``rate_per_s`` [1/s], ``max_stretch`` [-],
+        ``rms_error_N`` [N], the relative errors [-] (of the peak measured force), ``flags`` a tuple
+        of str (empty inside the fold's envelope), ``fold_wall_time_s`` [s].
+    fold_table : pandas.DataFrame
+        One row per fold: ``fold``, ``held_out``, ``fitted`` and ``predicted`` (file names, comma
+        separated), ``nfev``, ``converged``, ``wall_time_s`` [s], ``record`` (its parameter file, or
+        empty), and the fitted parameters [SI] as ``cv.csv`` names them (``C10_Pa``, ``eta_v1_Pa_s``, ...).
     folds : tuple of Fold
+        Each with its `CalibrationResult` and envelope.
     skipped : tuple of dict
         Files of input folders left out (``file``, ``reason``).
     files : dict
@@ -109,15 +118,52 @@ class CrossValidation:
     cv: str
     model: str
     grouping: str
-    rows: tuple
+    table: pd.DataFrame
+    fold_table: pd.DataFrame
     folds: tuple
     skipped: tuple = ()
     files: dict = field(default_factory=dict)
+
+    def rows(self, **where) -> list[dict]:
+        """The rows of `table` as dicts of Python values, those whose columns equal ``where``
+        (e.g. ``rows(role="predicted")``)."""
+        return [r for r in _records(self.table) if all(r[k] == v for k, v in where.items())]
 
 
 CSV_KEYS = ["fold", "held_out", "role", "file", "specimen", "protocol", "samples", "rate_per_s", "max_stretch",
             "rms_error_N", "max_rel_error", "rms_rel_error", "p99_rel_error", "flags", "fold_nfev",
             "fold_converged", "fold_wall_time_s", "model", "path", "sha256"]
+
+
+def _records(table: pd.DataFrame) -> list[dict]:
+    """The rows of a table as dicts of Python values (numpy scalars unboxed: the same numbers)."""
+    return [{k: (v.item() if isinstance(v, np.generic) else v) for k, v in r.items()}
+            for r in table.to_dict("records")]
+
+
+def _param_column(name: str) -> str:
+    return f"{name}_Pa" + ("_s" if name.startswith("eta") else "")
+
+
+def _table(rows, columns=CSV_KEYS) -> pd.DataFrame:
+    """A DataFrame of dict rows: numeric columns typed, every other column Python objects as given (a
+    missing ``sha256`` stays None, not NaN)."""
+    data = {}
+    for k in columns:
+        values = [r[k] for r in rows]
+        numeric = all(isinstance(v, (int, float)) for v in values)
+        data[k] = pd.Series(values, dtype=None if numeric else object)
+    return pd.DataFrame(data, columns=columns)
+
+
+def _fold_table(folds) -> pd.DataFrame:
+    names = list(values_of(folds[0].params)) if folds else []
+    rows = [{"fold": f.index, "held_out": f.label, "fitted": ", ".join(f.fitted), "predicted": ", ".join(f.predicted),
+             "nfev": f.nfev, "converged": f.result.converged, "wall_time_s": f.wall_time,
+             "record": str(f.result.record_files.get("params", "")),
+             **{_param_column(n): float(values_of(f.params).get(n, math.nan)) for n in names}} for f in folds]
+    return _table(rows, ["fold", "held_out", "fitted", "predicted", "nfev", "converged", "wall_time_s", "record",
+                         *(_param_column(n) for n in names)])
 
 
 def _sig(x: float, digits: int) -> float:
@@ -207,8 +253,8 @@ def _holdout_index(items, holdout) -> list[int]:
     return out
 
 
-def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, announce_fold=None, fold_done=None,
-                   **calibrate_kwargs) -> CrossValidation:
+def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, name=None, overwrite=False,
+                   announce_fold=None, fold_done=None, **calibrate_kwargs) -> CrossValidation:
     """Fit on some runs, predict the others: k-fold (``cv``) or one split (``holdout``).
 
     Parameters
@@ -224,20 +270,25 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         With ``holdout``: the record of the fit (as `calibrate_runs` writes it); the held-out rows go
         beside it to ``<stem>.holdout.csv`` and into its ``calibration`` section as ``validation``.
         An existing output (a folder that holds files, with ``cv``) is refused before any fit unless
-        ``overwrite`` (in ``calibrate_kwargs``).
+        ``overwrite``.
+    name : str, optional
+        Name of the calibrated set in each record (default: the record's stem).
+    overwrite : bool
+        Write over existing outputs (the CLI's ``--force``).
     announce_fold : callable, optional
         ``announce_fold(index, count, label, fitted_names, predicted_names)`` before each fold's fit.
     fold_done : callable, optional
         ``fold_done(index, count, fold, rows)`` after it: the `Fold` (its fit and envelope) and its rows of
         the result's table (its fitted and predicted runs).
     **calibrate_kwargs
-        Passed to `calibrate_runs` for every fold (``model``, ``free``, ``branches``, ``max_evals``, ...;
-        ``kinds`` also selects the runs of folders here).
+        Passed to `calibrate_runs` for every fold (``model``, ``free``, ``branches``, ``budget``,
+        ``monitor``, ...; ``kinds`` also selects the runs of folders here).
 
     Returns
     -------
     CrossValidation
-        Frozen: ``rows`` (one per fold and run), ``folds`` (each with its `CalibrationResult`), ``files``.
+        Frozen: ``table`` (a DataFrame, one row per fold and run), ``fold_table`` (one per fold),
+        ``folds`` (each with its `CalibrationResult`), ``files``.
 
     Raises
     ------
@@ -258,8 +309,7 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         raise SpecError(str(out), "out", "is a file; with --cv, --out names a folder")
     if out is not None and cv is None and out.is_dir():
         raise SpecError(str(out), "out", "is a folder; with --holdout, --out names the record file")
-    overwrite = calibrate_kwargs.get("overwrite", False)
-    if out is not None and cv is not None:  # before any fit, as calibrate_runs checks its record
+    if out is not None and cv is not None:  # before any fit
         check_new(out, overwrite, "out", folder=True)
     if out is not None and cv is None:
         for path in (*record_files(out).values(), _holdout_csv(out)):
@@ -277,7 +327,9 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         if announce_fold is not None:
             announce_fold(k, len(plan), label, fitted, predicted)
         record = (out / f"fold-{k}.yaml" if cv is not None else out) if out is not None else None
-        result = calibrate_runs([items[i] for i in fit_idx], out=record, **calibrate_kwargs)
+        result = calibrate_runs([items[i] for i in fit_idx], **calibrate_kwargs)
+        if record is not None:  # new: checked above, before any fit
+            result = replace(result, record_files=result.write(record, name=name, overwrite=overwrite))
         fit_runs = list(result.run_data) or [runs[i] for i in fit_idx]
         env = envelope(fit_runs)
         fold = Fold(k, label, tuple(fitted), tuple(predicted), result, env)
@@ -288,10 +340,11 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, ann
         if fold_done is not None:
             fold_done(k, len(plan), fold, tuple(mine))
     cv_name = cv or HOLDOUT
-    result = CrossValidation(cv_name, folds[0].result.model, grouping, tuple(rows), tuple(folds), tuple(skipped))
+    result = CrossValidation(cv_name, folds[0].result.model, grouping, _table(rows), _fold_table(folds),
+                             tuple(folds), tuple(skipped))
     if out is not None:
         files = write_cv(result, out) if cv is not None else write_holdout(result, out)
-        result = CrossValidation(**{**result.__dict__, "files": files})
+        result = replace(result, files=files)
     return result
 
 
@@ -353,7 +406,7 @@ def format_cv(result: CrossValidation) -> str:
     """The table, its legend and one line per fold (evaluations, wall time, parameters, record)."""
     legend = ("Legend: " + ERROR_LEGEND + ". Rate: the run's nominal stretch rate; beyond the calibration: "
               "where the run leaves the stretch, rate, voltage or hold range of its fold's fitted runs.")
-    return "\n".join([table(result.rows), legend, "", *(_fold_line(f) for f in result.folds)]) + "\n"
+    return "\n".join([table(result.rows()), legend, "", *(_fold_line(f) for f in result.folds)]) + "\n"
 
 
 def _csv_value(key, value):
@@ -367,7 +420,7 @@ def _write_csv(path: Path, rows, folds) -> Path:
     by_index = {f.index: values_of(f.params) for f in folds}
     with open(path, "w", newline="") as fh:
         w = csv.writer(fh)
-        w.writerow(CSV_KEYS + [f"{n}_Pa" + ("_s" if n.startswith("eta") else "") for n in names])
+        w.writerow(CSV_KEYS + [_param_column(n) for n in names])
         for r in rows:
             params = by_index[r["fold"]]
             w.writerow([_csv_value(k, r[k]) for k in CSV_KEYS] + [repr(float(params.get(n, math.nan))) for n in names])
@@ -381,7 +434,7 @@ def write_cv(result: CrossValidation, out: Path) -> dict:
     md = out / "cv.md"
     md.write_text(f"# Cross-validation ({result.cv}, model {result.model})\n\nFolds: {result.grouping}.\n\n"
                   + format_cv(result))
-    files = {"csv": _write_csv(out / "cv.csv", result.rows, result.folds), "markdown": md}
+    files = {"csv": _write_csv(out / "cv.csv", result.rows(), result.folds), "markdown": md}
     files.update({f"fold-{f.index}": f.result.record_files["params"] for f in result.folds})
     return files
 
@@ -392,7 +445,7 @@ def validation_mapping(result: CrossValidation) -> dict:
     keep = ("file", "specimen", "protocol", "samples", "rate_per_s", "max_stretch", "rms_error_N", "max_rel_error",
             "rms_rel_error", "p99_rel_error", "sha256")
     return {"held_out": [{**{k: r[k] for k in keep}, "beyond_calibration": list(r["flags"])}
-                         for r in result.rows if r["role"] == "predicted"],
+                         for r in result.rows(role="predicted")],
             "envelope": fold.envelope.mapping(), "measures": ERROR_LEGEND}
 
 
@@ -407,7 +460,7 @@ def write_holdout(result: CrossValidation, record: Path) -> dict:
     """
     record = Path(record)
     files = dict(result.folds[0].result.record_files)
-    rows = [r for r in result.rows if r["role"] == "predicted"]
+    rows = result.rows(role="predicted")
     files["holdout"] = _write_csv(_holdout_csv(record), rows, result.folds)
     add_to_record(record, validation_mapping(result))
     return files

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import dataclasses
+import numbers
 import time as _time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -13,6 +15,72 @@ from ..specs import ParameterSet
 from .methods import METHODS, Objective, OutOfBudget, bounded_least_squares, nelder_mead
 from .objective import goodness, predict_force, residuals
 from .parameters import fit_parameters, values_of, with_values
+
+
+@dataclass(frozen=True)
+class Budget:
+    """What a calibration may spend, over all its restarts (and branch-growth stages).
+
+    Parameters
+    ----------
+    evaluations : int
+        Objective evaluations [-], >= 0; every residual evaluation counts, a finite-difference
+        Jacobian's too.
+    seconds : float
+        Wall time [s], >= 0.
+
+    Raises
+    ------
+    SpecError
+        A count that is not a whole number >= 0, or a time that is not a number >= 0.
+    """
+
+    evaluations: int = 20000
+    seconds: float = 300.0
+
+    def __post_init__(self):
+        from ..specs import SpecError
+
+        n, t = self.evaluations, self.seconds
+        if isinstance(n, bool) or not isinstance(n, numbers.Integral) or n < 0:
+            raise SpecError("arguments", "budget.evaluations", f"{n!r}; allowed: a whole number >= 0")
+        if isinstance(t, bool) or not isinstance(t, numbers.Real) or not t >= 0:
+            raise SpecError("arguments", "budget.seconds", f"{t!r}; allowed: a number of seconds >= 0")
+
+    def left(self, evaluations: int, seconds: float) -> "Budget":
+        """What remains after ``evaluations`` spent in ``seconds`` [s] (never below zero)."""
+        return Budget(max(0, self.evaluations - evaluations), max(0.0, self.seconds - seconds))
+
+
+class FitMonitor:
+    """What a calibration tells while it runs: override any of the three methods (no-ops here).
+
+    Any object will do as a monitor: the fit calls those of these methods it has.
+    """
+
+    def progress(self, evaluations: int, best: float, elapsed: float) -> None:
+        """At most twice a second: evaluations so far, the best objective so far [-], seconds since the fit
+        began [s] (over every stage when branches are grown)."""
+
+    def stage(self, index: int, count: int, label: str) -> None:
+        """Before each fit when branches are grown one at a time: ``index`` from 1 to ``count``."""
+
+    def announce(self, runs, model: str, reason: str, free, skipped) -> None:
+        """Once the inputs are checked, before the fit starts (`~rdea_lab.calibration.app.calibrate_runs`):
+        the `RunData`, the model and why ``auto`` chose it (else empty), the free names, the files of input
+        folders left out (tuple of dict ``file``, ``reason``)."""
+
+
+def hook(monitor, name: str):
+    """The monitor's method ``name``, or None when there is no monitor or it has no such method."""
+    return None if monitor is None else getattr(monitor, name, None)
+
+
+class _Relay:
+    """A monitor that only relays progress (branch growth's, counted over its stages)."""
+
+    def __init__(self, progress):
+        self.progress = progress
 
 
 @dataclass(frozen=True)
@@ -78,11 +146,12 @@ class CalibrationResult:
     model_reason : str
         Why ``auto`` chose `model` (empty otherwise).
     run_data : tuple of RunData
-        The runs fitted (set by `calibrate_runs`).
+        The runs fitted (what `write` records).
     skipped : tuple of dict
         Files of the input folders left out, with why (``file``, ``reason``).
     record_files : dict
-        ``params``, ``history``, ``plot`` paths of the record, when one was written.
+        ``params``, ``history``, ``plot`` paths of the record, when one was written and kept here
+        (:func:`~rdea_lab.calibration.crossval.cross_validate` does; `write` returns them).
     """
 
     params: ParameterSet
@@ -124,6 +193,76 @@ class CalibrationResult:
     skipped: tuple = ()
     record_files: dict = dataclasses.field(default_factory=dict)
 
+    def fit_report(self) -> str:
+        """The fit report, as ``rdea-lab calibrate`` prints it.
+
+        Returns
+        -------
+        str
+            Method, message, budget; each parameter [kPa or kPa s] with its standard error and flags;
+            the per-run fit; AIC/BIC (or why they do not apply); the evaluations of each stage when
+            there were several. No trailing newline.
+        """
+        lines = [f"{self.method}: {self.message}; objective {self.objective:.4e} after {self.nfev} evaluations, "
+                 f"{self.restarts} restarts, {self.wall_time:.2f} s"]
+        if len(self.stages) > 1:
+            lines.append("  stages: " + "; ".join(f"{st['label']}{'' if st['kept'] else ' (dropped)'}: {st['nfev']} "
+                                                  f"evaluations, {st['objective']:.4g}" for st in self.stages))
+        for p in self.parameters:
+            v = self.values[p.name]
+            se = self.stderr.get(p.name)
+            flags = [f for f, names_ in (("at bound", self.at_bound), ("unmoved", self.unmoved),
+                                         ("not identifiable", self.unidentifiable)) if p.name in names_]
+            unit = "kPa" if p.unit == "Pa" else "kPa s"
+            lines.append(f"  {p.name:<7} {v / 1e3:12.5g} {unit:<6}"
+                         + (f" +- {se / 1e3:.3g}" if p.free and se == se else "")
+                         + ("" if p.free else "  (fixed)") + (f"  [{', '.join(flags)}]" if flags else ""))
+        for g in self.runs:
+            lines.append(f"  {g['specimen']}/{g['protocol']}: rms {g['rms_error_N']:.4g} N, R2 {g['r2']:.5f}, "
+                         f"max rel. error {100 * g['max_rel_error']:.2f} %, rms/peak "
+                         f"{100 * g.get('rms_rel_error', float('nan')):.2f} %, p99/peak "
+                         f"{100 * g.get('p99_rel_error', float('nan')):.2f} %")
+        lines.append(f"  AIC {self.aic:.1f}, BIC {self.bic:.1f}" if self.metric == "rms"
+                     else f"  standard errors, AIC and BIC: not applicable (metric {self.metric})")
+        return "\n".join(lines)
+
+    def write(self, out, *, name: str | None = None, overwrite: bool = False) -> dict[str, Path]:
+        """Write the calibration record: the parameter file with its ``calibration`` section, and beside it
+        ``<out stem>.history.csv`` and ``<out stem>.history.png``.
+
+        Parameters
+        ----------
+        out : path
+            The parameter file (loadable by :func:`~rdea_lab.specs.load_params`); its folder is made.
+        name : str, optional
+            Name of the calibrated set in the file; default ``out``'s stem (spaces as ``_``).
+        overwrite : bool
+            Replace existing files (the CLI's ``--force``); otherwise any of the three existing is refused
+            before anything is written.
+
+        Returns
+        -------
+        dict of Path
+            ``params``, ``history``, ``plot`` (:func:`~rdea_lab.calibration.record.record_files`).
+
+        Raises
+        ------
+        OutputError
+            A record file exists (and not ``overwrite``) or cannot be written.
+        ValueError
+            The result does not hold the runs it was fitted to (`run_data`).
+        """
+        from ..store.outputs import check_new
+        from .record import record_files, write_record
+
+        if not self.run_data:
+            raise ValueError("this result does not hold the runs it was fitted to (run_data); write the record "
+                             "with rdea_lab.calibration.record.write_record(result, runs, out)")
+        out = Path(out)
+        for path in record_files(out).values():
+            check_new(path, overwrite)
+        return write_record(self, self.run_data, out, name=name or out.stem.replace(" ", "_"))
+
 
 def versions() -> dict:
     """Versions of rdea-lab and the numerical libraries a calibration ran on (numba if installed)."""
@@ -153,8 +292,8 @@ def check_method(method: str, metric: str) -> None:
 
 
 def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms", method="nelder-mead",
-              max_evals=20000, max_time=300.0, max_restarts=20, step=0.1, xatol=1e-9, ftol=1e-10,
-              progress=None) -> CalibrationResult:
+              budget: Budget = Budget(), max_restarts=20, step=0.1, xatol=1e-9, ftol=1e-10,
+              monitor=None) -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters of ``start`` to measured forces.
 
     Parameters
@@ -172,8 +311,8 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     method : {"nelder-mead", "least-squares"}
         Nelder-Mead with restarts (the paper's), or bounded least squares
         (rms only).
-    max_evals, max_time : int, float
-        Budgets (evaluations, seconds of wall time) over all restarts; every
+    budget : Budget
+        Evaluations and seconds of wall time over all restarts; every
         residual evaluation counts, a finite-difference Jacobian's too.
     max_restarts : int
         Nelder-Mead restarts from the best point while they still improve.
@@ -187,8 +326,20 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
         changes the variables by less than ``xatol`` (relative) or the sum of
         squares by less than ``ftol`` (relative), or the scaled gradient is
         below ``ftol``.
-    progress : callable, optional
-        ``progress(evaluations, best, elapsed)``, called at most twice a second.
+    monitor : FitMonitor or any object, optional
+        Its ``progress(evaluations, best, elapsed)``, if it has one, is called at most twice a second.
+
+    Returns
+    -------
+    CalibrationResult
+        Frozen; ``run_data`` holds ``runs`` (what `CalibrationResult.write` records).
+
+    Raises
+    ------
+    ValueError
+        An unknown method, metric or parameter; a start without a finite force prediction.
+    TypeError
+        A ``budget`` that is not a `Budget`.
 
     Notes
     -----
@@ -204,13 +355,16 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     optimistic lower bounds; under ``metric="max"`` they do not apply.
     """
     check_method(method, metric)
+    if not isinstance(budget, Budget):
+        raise TypeError(f"budget {budget!r}; allowed: a rdea_lab.calibration.fit.Budget")
+    max_evals, max_time = budget.evaluations, budget.seconds
     names_all = [p for p in values_of(start)]
     free = set(names_all if free is None else free)
     unknown = free - set(names_all)
     if unknown:
         raise ValueError(f"unknown parameter(s) {', '.join(sorted(unknown))}; allowed: {', '.join(names_all)}")
     parameters = fit_parameters(start, free)
-    obj = Objective(runs, start, parameters, model, metric, max_evals, max_time, progress)
+    obj = Objective(runs, start, parameters, model, metric, max_evals, max_time, hook(monitor, "progress"))
     f0 = obj.score(start)
     if not np.isfinite(f0):
         raise ValueError("the start parameters give no finite force prediction on these runs "
@@ -281,7 +435,7 @@ def _finish(obj, parameters, best, values, model, metric, method, restarts, nit,
         chisqr=chisqr, redchi=chisqr / max(n - k, 1), aic=aic, bic=bic, ndata=int(n), nvarys=k, nfree=int(n - k),
         nfev=obj.nfev, nit=nit, restarts=restarts, wall_time=float(wall), converged=bool(converged),
         message=message, runs=tuple(goodness(run, predict_force(run, best, model)) for run in obj.runs),
-        history=history, stages=(stage,), budgets=budgets,
+        history=history, stages=(stage,), budgets=budgets, run_data=tuple(obj.runs),
     )
 
 
@@ -373,8 +527,8 @@ def initial_guess(runs, M: int, eps_r: float, name="start-from-data", law="linea
                         description="start values estimated from the data by rdea-lab calibrate")
 
 
-def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=None, stage=None, max_evals=20000,
-                      max_time=300.0, **kwargs) -> CalibrationResult:
+def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, budget: Budget = Budget(), monitor=None,
+                      **kwargs) -> CalibrationResult:
     """Fit M Maxwell branches one at a time, each from the previous optimum.
 
     Nelder-Mead started with M branches at once tends to merge them into one time
@@ -383,13 +537,25 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
     stiffness a tenth of the stiffest spring so far), both fitted, and the better kept; ``start`` supplies
     the first branch (finite strain: it and one a tenth as stiff, the better kept). ``free`` names
     parameters of the final set (default: all).
-    ``max_evals`` and ``max_time`` are budgets for all the fits together: each
-    gets what the ones before it left (a fit left nothing stops at its start).
-    ``progress(evaluations, best, elapsed)`` counts over every fit so far (``best``
-    the lowest objective of any of them, ``elapsed`` [s] since the growth began);
-    ``stage(index, count, label)`` is called before each fit (``index`` from 1 to
-    ``count``, the number of fits the growth makes).
-    Other keywords go to `calibrate` (``model``, ``metric``, ``method``, ...).
+    Parameters
+    ----------
+    runs : list of RunData
+    start : ParameterSet
+        Its first branch starts the growth; eps_r fixed.
+    M : int
+        Maxwell branches of the final set.
+    free : iterable of str, optional
+        Parameters of the final set to fit (default: all).
+    budget : Budget
+        For all the fits together: each gets what the ones before it left (a fit left nothing
+        stops at its start).
+    monitor : FitMonitor or any object, optional
+        Its ``progress(evaluations, best, elapsed)`` counts over every fit so far (``best`` the lowest
+        objective of any of them, ``elapsed`` [s] since the growth began); its ``stage(index, count,
+        label)`` is called before each fit (``index`` from 1 to ``count``, the number of fits the growth
+        makes).
+    **kwargs
+        Passed to `calibrate` (``model``, ``metric``, ``method``, ...).
 
     Returns
     -------
@@ -398,9 +564,18 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
         ``wall_time`` count every stage and candidate, ``stages`` has one entry
         each, ``history`` all of theirs (evaluations numbered across stages, a
         stage column); ``message`` says how it grew.
+
+    Raises
+    ------
+    ValueError, TypeError
+        As `calibrate`.
     """
     from ..specs import ViscoBranch
 
+    if not isinstance(budget, Budget):
+        raise TypeError(f"budget {budget!r}; allowed: a rdea_lab.calibration.fit.Budget")
+    max_evals, max_time = budget.evaluations, budget.seconds
+    progress, stage = hook(monitor, "progress"), hook(monitor, "stage")
     t0 = _time.monotonic()
     stages, done = [], []
     first = start.replace(branches=start.branches[:1])
@@ -415,9 +590,9 @@ def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, progress=
         report = None if progress is None else (
             lambda n, best, elapsed: progress(spent + n, min(best, best_before), _time.monotonic() - t0))
         names = [n for n in values_of(params)]
-        res = calibrate(runs, params, free=[n for n in names if free is None or n in free], progress=report,
-                        max_evals=max(0, max_evals - spent), max_time=max(0.0, max_time - (_time.monotonic() - t0)),
-                        **kwargs)
+        res = calibrate(runs, params, free=[n for n in names if free is None or n in free],
+                        monitor=None if report is None else _Relay(report),
+                        budget=budget.left(spent, _time.monotonic() - t0), **kwargs)
         stages.append({**res.stages[0], "stage": len(done), "label": label, "kept": False})
         done.append(res)
         return len(done) - 1

@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import sys
 import time
+import types
 
 import click
 
@@ -14,7 +15,8 @@ from .errors import EXIT_HELP, headless
 
 
 class FitProgress:
-    """A fit's progress on stderr, fed by the library's callbacks: on a terminal one line redrawn in place
+    """A fit's progress on stderr, fed as the library's monitor (``progress``, ``stage``; the folds'
+    ``fold_done``): on a terminal one line redrawn in place
     (as often as the library reports, twice a second), otherwise a line every `every` seconds (a log
     stays short); a line per growth stage and per fold, and a final line per fit."""
 
@@ -29,7 +31,7 @@ class FitProgress:
         return f"  evaluations {evaluations:6d}  best {best:.6e}  elapsed {elapsed:6.1f} s"
 
     def __call__(self, evaluations, best, elapsed):
-        """The library's ``progress(evaluations, best, elapsed)``."""
+        """The monitor's ``progress(evaluations, best, elapsed)``."""
         if not self.enabled:
             return
         text = self.status(evaluations, best, elapsed)
@@ -57,7 +59,7 @@ class FitProgress:
             click.echo(text, err=True)
 
     def stage(self, index, count, label):
-        """The library's ``stage(index, count, label)`` (branches grown one at a time)."""
+        """The monitor's ``stage(index, count, label)`` (branches grown one at a time)."""
         self.line(f"stage {index}/{count}: {label}")
 
     def done(self, result, prefix: str = "done"):
@@ -130,6 +132,9 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
     progress = FitProgress(enabled=not quiet)
 
     def announce(runs, chosen, reason, free, skipped):
+        if not cross:  # the inputs are checked, the fit not begun: refuse an existing record now
+            for path in api.record_files(out_path).values():
+                api.check_new(path, overwrite)
         progress.end_line()
         for s in skipped:
             click.echo(f"skipped {s['file']}: {s['reason']}")
@@ -147,23 +152,24 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
         ctx = click.get_current_context()
         param = next(p for p in ctx.command.params if p.name == "out_path")
         click.Path(dir_okay=False).convert(out_path, param, ctx)
-    fit = (functools.partial(api.cross_validate, cv=cv, holdout=list(holdout) or None, announce_fold=announce_fold,
-                             fold_done=progress.fold_done) if cross else api.calibrate_runs)
+    fit = (functools.partial(api.cross_validate, cv=cv, holdout=list(holdout) or None, out=out_path, name=name,
+                             overwrite=overwrite, announce_fold=announce_fold, fold_done=progress.fold_done)
+           if cross else api.calibrate_runs)
     kinds = [k.strip() for k in kinds_text.split(",") if k.strip()]
+    monitor = types.SimpleNamespace(progress=progress, stage=progress.stage, announce=announce)
     result = fit(list(inputs), model=model.lower(), init=init_path, free=free_text, branches=M,
-                 eps_r=eps_r, kinds=kinds, metric=metric, max_evals=max_evals, max_time=max_time,
-                 out=out_path, name=name, progress=progress, stage=progress.stage, announce=announce,
-                 method=method.lower(), law=law.lower() if law else None, overwrite=overwrite)
+                 eps_r=eps_r, kinds=kinds, metric=metric, budget=api.Budget(evaluations=max_evals, seconds=max_time),
+                 monitor=monitor, method=method.lower(), law=law.lower() if law else None)
     if not cross:
+        files = result.write(out_path, name=name, overwrite=overwrite)
         progress.done(result)
     if cross:
         for s in result.skipped:
             click.echo(f"skipped {s['file']}: {s['reason']}")
         if holdout:
-            click.echo(api.format_result(result.folds[0].result))
+            click.echo(result.folds[0].result.fit_report())
         click.echo(api.format_cv(result), nl=False)
         click.echo("wrote " + ", ".join(str(f) for f in result.files.values()))
         return
-    click.echo(api.format_result(result))
-    files = result.record_files
+    click.echo(result.fit_report())
     click.echo(f"wrote {files['params']}, {files['history']}, {files['plot']}")

@@ -48,7 +48,7 @@ with two basins, never over all samples.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -295,7 +295,36 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
     return y, status, K_crit, K_range
 
 
-def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, rtol=1e-14, max_iter=100):
+class PathResult(NamedTuple):
+    """What :func:`follow_path` finds, per sample of the series (a tuple too, in this order).
+
+    Attributes
+    ----------
+    y : numpy.ndarray
+        Equilibrium coordinate [unit of the problem's ``y``, e.g. the hoop stretch of 1R, -];
+        ``y0`` where there is none.
+    status : numpy.ndarray of int8
+        ``OK``; ``SNAPPED`` where the state jumped across a fold since the previous sample;
+        ``LIMIT_POINT`` or ``OUTSIDE_RANGE`` where the sample has no stable state; ``NOT_CONVERGED``.
+    K_crit : numpy.ndarray
+        Load parameter [unit of psi] of the fold crossed (``SNAPPED``) or of the pull-in
+        (``LIMIT_POINT``); NaN elsewhere (:meth:`Problem.voltage` gives its voltage [V]).
+    K_range : numpy.ndarray
+        The largest load [unit of psi] solved in the range where ``OUTSIDE_RANGE``; NaN elsewhere.
+    end : tuple
+        ``(y, label)``: the coordinate to continue from (``y_max`` where no state was found) and, if the
+        last sample had none, its ``(status, K_crit)`` for the next block's ``start_label``.
+    """
+
+    y: np.ndarray
+    status: np.ndarray
+    K_crit: np.ndarray
+    K_range: np.ndarray
+    end: tuple
+
+
+def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, rtol=1e-14,
+                max_iter=100) -> PathResult:
     """Per sample of a time series, the state descent of ``g`` reaches from the previous state.
 
     Parameters
@@ -313,20 +342,22 @@ def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, 
         Instead of a series: per sample, the coordinate each one descends from
         (independent samples, e.g. a state followed to another stretch).
 
+    rtol : float
+        Relative tolerance of the refined roots and folds [-].
+    max_iter : int
+        Iterations of each refinement.
+
     Returns
     -------
-    y, status, K_crit, K_range : numpy.ndarray
-        As :func:`follow_branch`, except that ``SNAPPED`` marks the samples
-        where the state jumped across a fold since the previous sample
-        (``K_crit``: the load of the first fold crossed in the direction of
-        travel), and a sample without a stable state is ``LIMIT_POINT`` where
-        the highest load beyond the previous state is at a fold (``K_crit``:
-        that pull-in load), ``OUTSIDE_RANGE`` where it is at the range's end (a
-        run of such samples keeps the label and load of its first).
-    end : tuple
-        ``(y, label)``: the coordinate to continue from (``y_max`` where no
-        state was found) and, if the last sample had none, its
-        ``(status, K_crit)`` for ``start_label``.
+    PathResult
+        ``y``, ``status``, ``K_crit``, ``K_range`` as :func:`follow_branch`, except that ``SNAPPED``
+        marks the samples where the state jumped across a fold since the previous sample
+        (``K_crit``: the load of the first fold crossed in the direction of travel), and a sample
+        without a stable state is ``LIMIT_POINT`` where the highest load beyond the previous state is
+        at a fold (``K_crit``: that pull-in load), ``OUTSIDE_RANGE`` where it is at the range's end (a
+        run of such samples keeps the label and load of its first); ``end``: ``(y, label)``, the
+        coordinate to continue from (``y_max`` where no state was found) and, if the last sample had
+        none, its ``(status, K_crit)`` for ``start_label``.
     """
     terms, y0, K = problem.terms, problem.y0, problem.K
     n = K.size
@@ -335,7 +366,7 @@ def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, 
     K_crit = np.full(n, np.nan)
     K_range = np.full(n, np.nan)
     if n == 0:
-        return y, status, K_crit, K_range, (start, start_label)
+        return PathResult(y, status, K_crit, K_range, (start, start_label))
     scan = _full_scan(problem)
     kx, kh, ext_y, ext_h, ext_max = scan
     # crossings of K between consecutive knots: up = stable root, down = unstable
@@ -450,7 +481,7 @@ def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, 
     fail = bad_root & ~lost
     status[fail] = NOT_CONVERGED
     end_label = (int(status[-1]), float(K_crit[-1])) if lost[-1] else None
-    return y, status, K_crit, K_range, (float(y[-1]), end_label)
+    return PathResult(y, status, K_crit, K_range, (float(y[-1]), end_label))
 
 
 def _h_slope(p_y, p_yy, c_y, c_yy):

@@ -8,6 +8,7 @@ import pytest
 import xarray as xr
 
 import rdea_lab
+from rdea_lab.calibration import Budget
 from rdea_lab.calibration.parameters import values_of
 from rdea_lab.runs.app import OutputInUse, check_outputs
 from rdea_lab.runs.callbacks import LiveTable, RunBlock
@@ -336,7 +337,7 @@ def test_a_protocol_given_as_the_specimen_is_a_type_error(short_file):
 def test_calibrate_runs_in_memory_equals_on_files():
     mem = open_run(MEASURED).copy(deep=True)
     mem.encoding = {}  # not backed by a file any more
-    kwargs = dict(free="C10,C20,C30", max_evals=200)
+    kwargs = dict(free="C10,C20,C30", budget=Budget(evaluations=200))
     on_files = rdea_lab.calibrate_runs([MEASURED], **kwargs)
     in_memory = rdea_lab.calibrate_runs([mem], **kwargs)
     assert on_files.free_names == in_memory.free_names == ("C10", "C20", "C30")
@@ -349,11 +350,11 @@ def test_calibrate_runs_in_memory_equals_on_files():
 
 def test_calibrate_runs_names_an_unknown_free_parameter():
     with pytest.raises(SpecError, match="C99") as info:
-        rdea_lab.calibrate_runs([MEASURED], free="C10,C99", branches=1, max_evals=10)
+        rdea_lab.calibrate_runs([MEASURED], free="C10,C99", branches=1, budget=Budget(evaluations=10))
     assert info.value.field == "free"
 
 
 def test_calibrate_runs_with_no_branches_returns_no_branches():
-    result = rdea_lab.calibrate_runs([MEASURED], free="C10,C20,C30", branches=0, max_evals=50)
+    result = rdea_lab.calibrate_runs([MEASURED], free="C10,C20,C30", branches=0, budget=Budget(evaluations=50))
     assert result.params.M == 0
     assert "k_v1" not in result.values

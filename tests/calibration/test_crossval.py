@@ -13,15 +13,15 @@ import pytest
 import yaml
 from vhb_data import needs_vhb
 
-from rdea_lab.calibration import cross_validate, goodness, load_run, predict_force
-from rdea_lab.calibration.crossval import make_folds
+from rdea_lab.calibration import Budget, cross_validate, goodness, load_run, predict_force
+from rdea_lab.calibration.crossval import CSV_KEYS, make_folds
 from rdea_lab.cli.errors import run as run_cli
 from rdea_lab.cli.main import cli
 from rdea_lab.specs import SpecError, load_params
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = needs_vhb
-FAST = {"model": "1r", "max_evals": 200}
+FAST = {"model": "1r", "budget": Budget(evaluations=200)}
 
 
 #: The five loading-unloading files (``0dRR_SdS[_k]``); the folder also holds a step-and-hold test, relax_2d0.
@@ -88,7 +88,7 @@ def test_holdout_prediction_is_predict_force_with_the_folds_parameters(imported,
     cvr = cross_validate([fit, slower, further], holdout=[slower, further], out=out, **FAST)
     (fold,) = cvr.folds
     assert fold.fitted == ("0d05_1d5_1.nc",) and fold.predicted == ("0d03_1d5_1.nc", "0d05_3d0.nc")
-    rows = {r["file"]: r for r in cvr.rows}
+    rows = {r["file"]: r for r in cvr.rows()}
     assert rows["0d05_1d5_1.nc"]["role"] == "fitted" and rows["0d05_1d5_1.nc"]["flags"] == ()
     for path in (slower, further):
         run = load_run(path)
@@ -149,7 +149,7 @@ def test_cli_holdout_prints_the_fit_and_the_held_out_row(imported, tmp_path, cap
                        "--quiet", "--out", str(out)])
     stdout = capsys.readouterr().out
     assert rc == 0, stdout
-    assert "rms/peak" in stdout and "p99/peak" in stdout  # format_result's per-run line
+    assert "rms/peak" in stdout and "p99/peak" in stdout  # fit_report's per-run line
     assert "0d03_1d5_1.nc" in stdout.split("Legend:")[0].strip().splitlines()[-1]  # the last row: held out
     assert (tmp_path / "h.holdout.csv").is_file() and load_params(out).C10 > 0
 
@@ -187,7 +187,17 @@ def test_fold_done_is_called_after_each_fold_with_its_fit_and_rows(imported):
     assert [s[:2] for s in seen] == [(k, len(cv.folds)) for k in range(1, len(cv.folds) + 1)]
     for (k, _, fold, rows), expected in zip(seen, cv.folds):
         assert fold is expected
-        assert list(rows) == [r for r in cv.rows if r["fold"] == k]
+        assert list(rows) == cv.rows(fold=k)
+        # the table gives back the Python values the fold made (a float a float, a missing sha256 None)
+        assert [[type(v) for v in r.values()] for r in rows] == [[type(v) for v in r.values()]
+                                                                  for r in cv.rows(fold=k)]
+    assert list(cv.table.columns) == CSV_KEYS
+    assert len(cv.table) == sum(len(f.fitted) + len(f.predicted) for f in cv.folds)
+    assert cv.table["rms_rel_error"].dtype == float and cv.table["fold"].dtype.kind == "i"
+    ft = cv.fold_table
+    assert list(ft["fold"]) == [f.index for f in cv.folds] and list(ft["nfev"]) == [f.nfev for f in cv.folds]
+    assert list(ft["held_out"]) == [f.label for f in cv.folds]
+    assert list(ft["C10_Pa"]) == [f.params.C10 for f in cv.folds] and list(ft["record"]) == [""] * len(cv.folds)
 
 
 def test_cli_cv_prints_each_fold_done_on_stderr(imported, tmp_path, capsys):

@@ -1,11 +1,12 @@
 """Calibration recovers known parameters from data the twin made (issue 5)."""
 
+import types
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from rdea_lab.calibration import calibrate, initial_guess
+from rdea_lab.calibration import Budget, FitMonitor, calibrate, initial_guess
 from rdea_lab.calibration.objective import RunData
 from rdea_lab.calibration.record import write_record
 from rdea_lab.cli.errors import run as run_cli
@@ -94,12 +95,13 @@ def test_a_parameter_the_data_cannot_see_is_flagged(clean):
     start = TRUE.replace(branches=TRUE.branches + (ViscoBranch(k=TRUE.branches[0].k, eta=TRUE.branches[0].eta),))
     # the fit of two identical branches does not converge within 3000 evaluations either (it uses them all,
     # and flags the same four); 300 show the flag as well
-    res = calibrate(clean, start, model="su", free=["C10", "k_v1", "eta_v1", "k_v2", "eta_v2"], max_evals=300)
+    res = calibrate(clean, start, model="su", free=["C10", "k_v1", "eta_v1", "k_v2", "eta_v2"],
+                    budget=Budget(evaluations=300))
     assert set(res.unidentifiable) & {"k_v1", "eta_v1", "k_v2", "eta_v2"}
 
 
 def test_fixed_parameters_stay_and_budgets_stop_cleanly(clean):
-    res = calibrate(clean, factor3_start(), model="su", free=["C10"], max_evals=50)
+    res = calibrate(clean, factor3_start(), model="su", free=["C10"], budget=Budget(evaluations=50))
     assert res.nfev == 50 and res.message == "stopped at the evaluation budget of 50 evaluations"
     assert not res.converged
     assert res.params.C20 == factor3_start().C20 and res.free_names == ("C10",)
@@ -113,7 +115,7 @@ def test_a_fit_its_time_budget_stopped_records_not_converged(clean, tmp_path):
     the fit ends at its start, not converged, and the record says so and why."""
     import yaml
 
-    res = calibrate(clean, factor3_start(), model="su", free=FREE, max_time=1e-9)
+    res = calibrate(clean, factor3_start(), model="su", free=FREE, budget=Budget(seconds=1e-9))
     why = "stopped at the 1e-09 s time budget after 0 evaluations"
     assert not res.converged and res.message == why and res.nfev == 0
     assert res.stages[0]["budget_reached"] == "time" and not res.stages[0]["converged"]
@@ -134,7 +136,7 @@ def test_non_physical_regions_score_infinity_and_a_hopeless_start_says_so(clean)
 
 
 def test_record_round_trip_and_history(clean, tmp_path):
-    res = calibrate(clean, factor3_start(), model="su", free=FREE, max_evals=400)
+    res = calibrate(clean, factor3_start(), model="su", free=FREE, budget=Budget(evaluations=400))
     files = write_record(res, clean, tmp_path / "cal.yaml", name="cal")
     back = load_params(files["params"])
     for k in FREE:
@@ -150,6 +152,37 @@ def test_record_round_trip_and_history(clean, tmp_path):
     best = [float(r.split(",")[1]) for r in rows[1:]]
     assert all(b2 <= b1 for b1, b2 in zip(best, best[1:]))  # the best objective never rises
     assert files["plot"].stat().st_size > 5000
+
+
+def test_result_writes_its_record_and_refuses_an_existing_one(clean, tmp_path):
+    from rdea_lab.store.outputs import OutputError
+
+    res = calibrate(clean, factor3_start(), model="su", free=["C10"], budget=Budget(evaluations=50))
+    files = res.write(tmp_path / "my cal.yaml")
+    assert files == {"params": tmp_path / "my cal.yaml", "history": tmp_path / "my cal.history.csv",
+                     "plot": tmp_path / "my cal.history.png"}
+    assert load_params(files["params"]).name == "my_cal"  # the stem, as calibrate --out names it
+    again = write_record(res, clean, tmp_path / "other.yaml", name="my_cal")  # the same record, by hand
+    assert files["params"].read_text() == again["params"].read_text()
+    assert files["history"].read_text() == again["history"].read_text()
+    files["history"].unlink()
+    files["params"].write_text("kept")
+    with pytest.raises(OutputError, match="exists"):
+        res.write(files["params"])
+    assert files["params"].read_text() == "kept" and not files["history"].exists()  # refused before writing
+    assert res.write(files["params"], name="cal", overwrite=True)["history"].exists()
+    assert load_params(files["params"]).name == "cal"
+
+
+def test_fit_report_names_every_parameter_and_run(clean):
+    res = calibrate(clean, factor3_start(), model="su", free=["C10"], budget=Budget(evaluations=50))
+    lines = res.fit_report().splitlines()
+    assert lines[0].startswith(f"nelder-mead: {res.message}; ") and f"after {res.nfev} evaluations" in lines[0]
+    named = [line.split()[0] for line in lines[1:1 + len(res.parameters)]]
+    assert named == [p.name for p in res.parameters]
+    assert [line for line in lines if "(fixed)" in line][0].split()[0] == "C20"
+    assert sum("rms/peak" in line for line in lines) == len(clean)
+    assert lines[-1].startswith("  AIC ")
 
 
 def test_cli_calibrates_twin_runs_and_refuses_bad_input(capsys, tmp_path):
@@ -188,7 +221,7 @@ def test_growing_branch_by_branch_recovers_two_time_scales():
     runs = synthetic_runs(truth)
     start = initial_guess(runs, 1, 2.8).replace(eta_v0=0.0)
     free = ["C10", "C20", "C30", "k_v1", "eta_v1", "k_v2", "eta_v2"]
-    res = calibrate_growing(runs, start, 2, model="su", free=free, max_evals=8000)
+    res = calibrate_growing(runs, start, 2, model="su", free=free, budget=Budget(evaluations=8000))
     taus = sorted(b.tau for b in res.params.branches)
     assert taus[0] == pytest.approx(0.3, rel=0.05, abs=0) and taus[1] == pytest.approx(15.0, rel=0.05, abs=0)
     assert res.objective < 1e-3 and "grown branch by branch" in res.message
@@ -220,16 +253,16 @@ def test_a_budget_that_stops_the_last_stage_of_a_growth_leaves_it_not_converged(
     runs, start = two_time_scales
     free = ["C10", "C20", "C30", "k_v1", "eta_v1", "k_v2", "eta_v2"]
     kw = dict(model="su", free=free, method="least-squares")
-    full = calibrate_growing(runs, start, 2, max_evals=8000, **kw)
+    full = calibrate_growing(runs, start, 2, budget=Budget(evaluations=8000), **kw)
     assert full.converged and [st["budget_reached"] for st in full.stages] == ["", "", ""]
     budget = full.stages[0]["nfev"] + full.stages[1]["nfev"] + 3
-    res = calibrate_growing(runs, start, 2, max_evals=budget, **kw)
+    res = calibrate_growing(runs, start, 2, budget=Budget(evaluations=budget), **kw)
     assert res.nfev == budget and [st["budget_reached"] for st in res.stages] == ["", "", "evaluations"]
     assert res.stages[1]["converged"] and res.stages[1]["kept"]  # the kept fit converged; the growth did not
     assert not res.converged
     assert res.message.startswith(f"stopped at the evaluation budget of {budget} evaluations, in stage 2 "
                                   "'M = 2, new branch faster")
-    tiny = calibrate_growing(runs, start, 2, max_time=1e-9, **kw)  # the time budget, spent at once
+    tiny = calibrate_growing(runs, start, 2, budget=Budget(seconds=1e-9), **kw)  # the time budget, spent at once
     assert not tiny.converged and tiny.message.startswith("stopped at the 1e-09 s time budget after 0 evaluations, in "
                                                         "stage 0 'M = 1'; the best fit so far kept")
 
@@ -244,8 +277,8 @@ def every_evaluation(monkeypatch):
 
 def test_progress_reports_every_evaluation_and_the_best_so_far(clean, every_evaluation):
     calls = []
-    res = calibrate(clean, factor3_start(), model="su", free=FREE, method="least-squares",
-                    progress=lambda *a: calls.append(a))
+    monitor = types.SimpleNamespace(progress=lambda *a: calls.append(a))  # any object with some of the methods
+    res = calibrate(clean, factor3_start(), model="su", free=FREE, method="least-squares", monitor=monitor)
     evaluations, best, elapsed = (np.array(c) for c in zip(*calls))
     assert list(evaluations) == list(range(1, res.nfev + 1))
     assert np.all(np.diff(best) <= 0) and best[-1] == res.objective
@@ -262,8 +295,15 @@ def test_growth_reports_each_stage_and_counts_over_all_of_them(two_time_scales, 
     runs, start = two_time_scales
     calls, stages = [], []
     free = ["C10", "C20", "C30", "k_v1", "eta_v1", "k_v2", "eta_v2"]
-    res = calibrate_growing(runs, start, 2, model="su", free=free, method="least-squares", max_evals=300,
-                            progress=lambda *a: calls.append(a), stage=lambda *a: stages.append(a))
+    class Recorder(FitMonitor):
+        def progress(self, *a):
+            calls.append(a)
+
+        def stage(self, *a):
+            stages.append(a)
+
+    res = calibrate_growing(runs, start, 2, model="su", free=free, method="least-squares",
+                            budget=Budget(evaluations=300), monitor=Recorder())
     assert stages == [(k, 3, st["label"]) for k, st in enumerate(res.stages, start=1)]
     evaluations = [c[0] for c in calls]
     assert evaluations == list(range(1, res.nfev + 1))  # numbered across the stages, as the history is
@@ -289,3 +329,12 @@ def test_cli_prints_progress_and_a_final_line_on_stderr_unless_quiet(capsys, tmp
     assert lines[-1].startswith(f"done: {nfev} evaluations, best ") and lines[-1].endswith(", converged")
     assert run_cli(cli, [*args, "--quiet", "--force"]) == 0  # the same record again: replaced with --force
     assert capsys.readouterr().err == ""
+
+
+def test_a_budget_is_whole_evaluations_and_seconds_not_below_zero():
+    assert Budget() == Budget(evaluations=20000, seconds=300.0)
+    assert Budget(10, 5.0).left(4, 2.5) == Budget(6, 2.5) and Budget(10, 5.0).left(40, 9.0) == Budget(0, 0.0)
+    for bad in (dict(evaluations=-1), dict(evaluations=1.5), dict(evaluations=True), dict(seconds=-1.0),
+                dict(seconds=float("nan")), dict(seconds="300")):
+        with pytest.raises(SpecError, match="budget"):
+            Budget(**bad)

@@ -7,7 +7,7 @@ import pytest
 import xarray as xr
 import yaml
 
-from rdea_lab.calibration import calibrate, calibrate_runs, format_result, gather_runs
+from rdea_lab.calibration import Budget, calibrate, calibrate_runs, gather_runs
 from rdea_lab.calibration.methods import Objective
 from rdea_lab.calibration.objective import RunData, predict_force
 from rdea_lab.calibration.parameters import fit_parameters, values_of, with_values
@@ -132,7 +132,8 @@ def test_the_objective_builds_the_sets_with_values_would_and_refuses_the_same():
 
 def test_least_squares_counts_jacobian_evaluations_against_the_budget():
     runs = gather_runs([SPECIMEN2])
-    res = calibrate(runs, TABLE3.replace(eta_v0=1e3), model="su", method="least-squares", max_evals=20)
+    res = calibrate(runs, TABLE3.replace(eta_v0=1e3), model="su", method="least-squares",
+                    budget=Budget(evaluations=20))
     assert res.nfev == 20 and res.message == "stopped at the evaluation budget of 20 evaluations"
     assert not res.converged
 
@@ -147,14 +148,14 @@ def test_metric_max_refuses_least_squares_and_marks_what_does_not_apply(tmp_path
                        "--out", str(tmp_path / "x.yaml")])
     err = capsys.readouterr().err
     assert rc == 2 and "--method" in err and "nelder-mead" in err and len(err.strip().splitlines()) == 1, err
-    res = calibrate_runs([SPECIMEN2], metric="max", free="C10,C20,C30", init=TABLE3, max_evals=60,
-                         out=tmp_path / "max.yaml")
+    res = calibrate_runs([SPECIMEN2], metric="max", free="C10,C20,C30", init=TABLE3, budget=Budget(evaluations=60))
+    res.write(tmp_path / "max.yaml")
     rec = yaml.safe_load((tmp_path / "max.yaml").read_text())["calibration"]
     assert rec["statistics"]["aic"] is None and rec["statistics"]["bic"] is None
     assert rec["covar"] == "not applicable (metric max)" == rec["parameters"]["C10"]["stderr"]
     assert "not applicable" in rec["notes"] and rec["method"] == "nelder-mead"
     assert rec["statistics"]["nfree"] == rec["statistics"]["ndata"] - rec["statistics"]["nvarys"]
-    text = format_result(res)
+    text = res.fit_report()
     assert text.startswith("nelder-mead: ") and "not applicable (metric max)" in text
 
 

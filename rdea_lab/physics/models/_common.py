@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..branch import follow_branch, follow_path
+from ..branch import PathResult, follow_branch, follow_path
 from ..constants import EPS0
 from .._backend import compiled
 from ..result import NOT_CONVERGED, OK, SLACK, SNAPPED, VALID, PathEnd, finish, is_valid, prepare_inputs
@@ -78,18 +78,19 @@ def evaluate_free(problem, state, *, path=False, start=None, origin=None, kernel
     """
     fast = compiled(kernel, problem.K.size) if (problem.kernel is not None and origin is None) else None
     if origin is not None:
-        y, status, K_crit, K_range, end = follow_path(problem, origin=origin)
+        found = follow_path(problem, origin=origin)
     elif path:
         y_start, label = start if start is not None else (None, None)
         if fast is not None:
-            y, status, K_crit, K_range, end = _path_certified(fast, problem, y_start, label)
+            found = _path_certified(fast, problem, y_start, label)
         else:
-            y, status, K_crit, K_range, end = follow_path(problem, y_start, start_label=label)
+            found = follow_path(problem, y_start, start_label=label)
     elif fast is not None:
-        (y, status, K_crit, K_range), end = _branch_certified(fast, problem), None
+        found = PathResult(*_branch_certified(fast, problem), None)
     else:
-        (y, status, K_crit, K_range), end = follow_branch(problem), None
-    return Evaluation(status, problem.voltage(K_crit), problem.voltage(K_range), state(y), end, y)
+        found = PathResult(*follow_branch(problem), None)
+    return Evaluation(found.status, problem.voltage(found.K_crit), problem.voltage(found.K_range),
+                      state(found.y), found.end, found.y)
 
 
 def _branch_certified(fast, problem):
@@ -113,7 +114,7 @@ def _path_certified(fast, problem, y_start, label):
     status = np.full(n, OK, dtype=np.int8)
     K_crit, K_range = np.full(n, np.nan), np.full(n, np.nan)
     if n == 0:
-        return y, status, K_crit, K_range, (y_start, label)
+        return PathResult(y, status, K_crit, K_range, (y_start, label))
     edges = np.flatnonzero(np.diff(np.r_[0, (~ok).astype(np.int8), 0]))
     runs = edges.reshape(-1, 2)
     if len(runs) > MAX_FALLBACK_RUNS:
@@ -122,11 +123,11 @@ def _path_certified(fast, problem, y_start, label):
     for a, b in runs.tolist():
         sel = np.arange(a, b)
         prev, lab = (float(y[a - 1]), None) if a else (y_start, label)
-        y[sel], status[sel], K_crit[sel], K_range[sel], sub_end = follow_path(problem.subset(sel), prev,
-                                                                              start_label=lab)
+        sub = follow_path(problem.subset(sel), prev, start_label=lab)
+        y[sel], status[sel], K_crit[sel], K_range[sel] = sub.y, sub.status, sub.K_crit, sub.K_range
         if b == n:
-            end = sub_end
-    return y, status, K_crit, K_range, end
+            end = sub.end
+    return PathResult(y, status, K_crit, K_range, end)
 
 
 def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False, start=None, slack=True,
