@@ -17,6 +17,7 @@ _EXPORTS = {
     "tracking_error": "rdea_lab.reports.tracking", "track_target": "rdea_lab.reports.tracking",
     "study_summary": "rdea_lab.design.outputs", "study_lines": "rdea_lab.design.outputs",
     "speed_study": "rdea_lab.reports.speed", "selfsense_run": "rdea_lab.reports.selfsense",
+    "figure_files": "rdea_lab.reports.validation", "check_validation_inputs": "rdea_lab.reports.validation",
     "run_card": "rdea_lab.design.outputs", "quasi_static_curves": "rdea_lab.twin",
     "project_default": "rdea_lab.runs.backend", "plot_selfsense": "rdea_lab.reports.selfsense",
     "plot_run": "rdea_lab.reports.plots", "plot_plan": "rdea_lab.reports.plots",

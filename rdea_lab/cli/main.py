@@ -105,14 +105,14 @@ def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet, 
                            overwrite=overwrite, echo=click.echo, progress_factory=bar, pdf=pdf, workers=workers)
     v = result["validation"]
     click.echo("")
-    click.echo(f"Table 4 analogue ({v['origin']})")
-    click.echo(v["markdown"], nl=False)
-    click.echo(v["legend"] + "\n")
+    click.echo(f"Table 4 analogue ({v.origin})")
+    click.echo(v.markdown, nl=False)
+    click.echo(v.legend + "\n")
     click.echo("outputs:")
     click.echo(f"  index           {result['index']} (links to everything below)")
     click.echo(f"  datasets        {result['datasets']}/<specimen>/<protocol>.nc")
     click.echo(f"  parameters      {result['calibration']['params']} (+ .history.csv, .history.png)")
-    click.echo(f"  validation      {v['files']['html']} (table4.md/.csv/.tex, figures)")
+    click.echo(f"  validation      {result['validation_files']['html']} (table4.md/.csv/.tex, figures)")
     if "speed" in result:
         click.echo(f"  speed vs error  {out / 'speed'}/speed.md, pareto.png, figure8_sweep.png")
     click.echo(f"  models          {out / 'models'}/models.md, figure5-8*.png")

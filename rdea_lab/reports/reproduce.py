@@ -147,10 +147,11 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
 
     with stage("validation"):
         echo("[3/5] validation report: the twin on every run's own stretch and voltage")
-        report = validation_report(files["params"], data, out / "validation", model="su", pdf=pdf, executor=pool,
-                                   overwrite=True)  # out: checked by check_fresh
+        report = validation_report(files["params"], data, model="su", executor=pool)
+        written = report.write(out / "validation", pdf=pdf, executor=pool, overwrite=True)  # out: by check_fresh
     result = {"campaign": [str(r.path) for r in results], "campaign_name": spec.name, "calibration": files,
-              "calibration_result": fit, "validation": report, "datasets": str(data), "workers": workers}
+              "calibration_result": fit, "validation": report, "validation_files": written, "datasets": str(data),
+              "workers": workers}
     if models is None:
         with stage("models"):
             result["models"] = reproduce_models(root, out / "models", pdf)
