@@ -21,7 +21,7 @@ from rdea_lab.calibration import goodness, load_run, predict_force
 from rdea_lab.cli.errors import run
 from rdea_lab.cli.main import cli as main_cli
 from rdea_lab.reports.tables import latex_escape
-from rdea_lab.reports.validation import COLUMNS, ReportInputError
+from rdea_lab.reports.validation import COLUMNS, ReportInputError, validation_report
 from rdea_lab.specs import dump_params, load_params
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -304,3 +304,23 @@ def test_every_rendering_has_the_new_columns_and_the_legend(same):
     assert r"rms/peak [\%]" in tex and r"p99/peak [\%]" in tex and latex_escape(same.legend) in tex
     page = Path(same.files["html"]).read_text()
     assert "<th>p99/peak [%]</th>" in page and "legend" in page and "99th percentile" in page
+
+
+def test_the_report_is_computed_apart_from_its_files(same, twin_folder, tmp_path):
+    """`validation_report` writes nothing; the frozen report's ``write`` returns every file it leaves in the
+    folder (tables, PNG and PDF figures, index.html) and refuses a folder that holds them."""
+    import dataclasses
+
+    from rdea_lab.store.outputs import OutputError
+
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        same.report.caption = ""
+    assert list(same.report.table["name"]) == [r["name"] for r in same.rows]
+    folder = Path(same.files["html"]).parent
+    assert sorted(p.name for p in same.files.values()) == sorted(p.name for p in folder.iterdir())
+    assert {p.suffix for p in same.files.values()} == {".md", ".csv", ".tex", ".png", ".pdf", ".html"}
+    with pytest.raises(OutputError, match="exists and holds files"):
+        same.report.write(folder)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    validation_report(TABLE3, twin_folder / "specimen2")
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
