@@ -97,11 +97,11 @@ def fit_and_validate(data: Path, folder: Path, model: str, law: str) -> dict:
     fit = calibrate(runs, initial_guess(runs, 1, 2.8, law=law), model=model, method="least-squares")
     seconds = time.perf_counter() - t0
     files = write_record(fit, runs, folder / f"params-{model}-{law}.yaml", name=f"ablation-{model}-{law}")
-    report = validation_report(files["params"], data, folder / f"validation-{model}-{law}", model=model,
-                               figures=False)
+    report = validation_report(files["params"], data, model=model)
+    report.write(folder / f"validation-{model}-{law}", figures=False)
     cells = {}
     for kind, volts, label in EXPERIMENTS:
-        rows = [r for r in report["rows"] if r["kind"] == kind and abs(r["voltage_V"] - volts) < 130.0]
+        rows = [r for r in report.rows if r["kind"] == kind and abs(r["voltage_V"] - volts) < 130.0]
         errs = {r["specimen"]: 100.0 * r["max_rel_error"] for r in rows}
         val = [v for s, v in errs.items() if s != "specimen-2"]
         cells[label] = {"all": (min(errs.values()), max(errs.values())), "validation": (min(val), max(val))}

@@ -51,10 +51,10 @@ def design(study_path, out, scheduler, workers, synchronous, backend, overwrite,
     except api.StudyAborted as exc:  # the cluster lost the work: ended by the environment, as a run's abort
         click.echo(f"rdea-lab: {exc}", err=True)
         sys.exit(3)
-    paths = api.write_study(result, out, overwrite, figures=not no_figures)
-    summary = api.study_summary(result)
+    paths = {name: str(path) for name, path in result.write(out, overwrite=overwrite, figures=not no_figures).items()}
+    summary = result.summary()
     summary["outputs"] = paths
-    text = api.study_lines(result)
+    text = result.lines()
     if backend:
         summary["run"] = run = api.run_card(result, paths["card.yaml"], backend, f"{out}/{backend}.nc", overwrite)
         text.append(f"{backend} run of card.yaml: {run['dataset']}, peak force {run['peak_force']:.4g} N (the "

@@ -103,24 +103,8 @@ def reproduce(out_dir, datasets_dir, campaign_path, overwrite, no_speed, quiet, 
 
     result = api.reproduce(out, datasets=datasets_dir, campaign=campaign_path, speed=not no_speed,
                            overwrite=overwrite, echo=click.echo, progress_factory=bar, pdf=pdf, workers=workers)
-    v = result["validation"]
-    click.echo("")
-    click.echo(f"Table 4 analogue ({v['origin']})")
-    click.echo(v["markdown"], nl=False)
-    click.echo(v["legend"] + "\n")
-    click.echo("outputs:")
-    click.echo(f"  index           {result['index']} (links to everything below)")
-    click.echo(f"  datasets        {result['datasets']}/<specimen>/<protocol>.nc")
-    click.echo(f"  parameters      {result['calibration']['params']} (+ .history.csv, .history.png)")
-    click.echo(f"  validation      {v['files']['html']} (table4.md/.csv/.tex, figures)")
-    if "speed" in result:
-        click.echo(f"  speed vs error  {out / 'speed'}/speed.md, pareto.png, figure8_sweep.png")
-    click.echo(f"  models          {out / 'models'}/models.md, figure5-8*.png")
-    click.echo("time by stage:" + (f" ({result['workers']} processes: the campaign, calibration and models "
-                                   "overlap)" if result["workers"] > 1 else ""))
-    for name, seconds in result["stages"]:
-        click.echo(f"  {name:<15} {seconds:6.1f} s")
-    click.echo(f"  {'total':<15} {result['seconds']:6.1f} s")
+    for line in result.lines():
+        click.echo(line)
 
 
 @click.command(epilog=EXIT_HELP)

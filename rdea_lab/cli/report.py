@@ -65,15 +65,17 @@ def validation(params_path, datasets, out_dir, model, tolerance, no_figures, ove
     """
     headless()
     click.echo(f"evaluating the twin ({model.lower()}) on the runs in {datasets} ...")
-    result = api.validation_report(params_path, datasets, out_dir, model=model.lower(), tolerance=tolerance,
-                                   figures=not no_figures, overwrite=overwrite)
-    click.echo(result["caption"])
-    click.echo(result["markdown"], nl=False)
-    click.echo(result["legend"])
-    for s in result["skipped"]:
+    api.check_validation_inputs(params_path, datasets, model.lower())  # the inputs first, then --out,
+    api.check_new(out_dir, overwrite, "out", folder=True)  # both before the work
+    report = api.validation_report(params_path, datasets, model=model.lower(), tolerance=tolerance)
+    files = report.write(out_dir, figures=not no_figures, overwrite=overwrite)
+    click.echo(report.caption)
+    click.echo(report.markdown, nl=False)
+    click.echo(report.legend)
+    for s in report.skipped:
         click.echo(f"skipped {s['file']}: {s['reason']}")
-    click.echo(f"wrote {result['files']['html']} (tables table4.md, table4.csv, table4.tex; "
-               f"{len(result['figures'])} figures) in {out_dir}")
+    click.echo(f"wrote {files['html']} (tables table4.md, table4.csv, table4.tex; "
+               f"{len(api.figure_files(files))} figures) in {out_dir}")
 
 
 @report.command(epilog=EXIT_HELP)

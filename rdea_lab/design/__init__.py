@@ -5,7 +5,7 @@ study file (`rdea_lab.specs.study`), `run_study` samples and evaluates its
 designs (`rdea_lab.design.evaluate`, vectorized over designs through
 `rdea_lab.physics.designs`) on a cluster (`rdea_lab.design.cluster`), ranks
 them (feasibility, Pareto front, Sobol indices) and refines the best
-(`optimize`), and `write_study` writes the dataset, the tables, the figures and
+(`optimize`), and `StudyResult.write` writes the dataset, the tables, the figures and
 the best design's specimen card.
 """
 

@@ -18,8 +18,10 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import os
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import xarray as xr
@@ -37,15 +39,202 @@ class StudyError(UserError):
     """A study that cannot give an answer as posed (no design meets its constraints): exit status 2."""
 
 
-@dataclass
+@dataclass(frozen=True, eq=False)
 class StudyResult:
-    """`dataset` (the sweep), `optimum` (dict or None), `card` (the best design's SpecimenCard or None)."""
+    """What `run_study` found: the sweep, the optimum, the best design's card, where the time went.
+
+    Attributes
+    ----------
+    study : Study
+        The study run.
+    dataset : xarray.Dataset
+        The sweep over ``design`` (variables, metrics, status, feasibility, Pareto front; Monte Carlo and
+        Sobol indices when the study asks for them).
+    optimum : dict or None
+        The optimizer's result (None without ``optimize``).
+    card : SpecimenCard or None
+        The best design's specimen card, cut to manufacturable dimensions (None without ``optimize``).
+    timings : dict
+        Seconds [s] of the sweep, the sensitivity and the optimization.
+    """
 
     study: Study
     dataset: xr.Dataset
     optimum: dict | None = None
     card: SpecimenCard | None = None
     timings: dict = field(default_factory=dict)
+
+    @property
+    def front(self):
+        """The Pareto front as a table (pandas DataFrame): the design's index, its variables and the metrics
+        of the objectives and constraints (SI units in the headings), best first by the first objective."""
+        import pandas as pd
+
+        ds, study = self.dataset, self.study
+        idx = np.flatnonzero(ds["pareto"].values.astype(bool))
+        first = study.objectives[0]
+        idx = idx[np.argsort(-first.sense * ds[first.metric].values[idx], kind="stable")]
+        cols = {"design": idx}
+        for v in study.variables:
+            cols[f"{v.name} [{_si(v.name)}]"] = ds[v.name].values[idx]
+        for k in dict.fromkeys([g.metric for g in study.objectives] + [b.metric for b in study.constraints]):
+            cols[f"{k} [{METRICS[k][0]}]"] = ds[k].values[idx]
+        return pd.DataFrame(cols)
+
+    @property
+    def sobol(self):
+        """The Sobol indices as a table (pandas DataFrame: objective, variable, S1, S1_conf, ST, ST_conf), or
+        None for a study without a sensitivity."""
+        import pandas as pd
+
+        ds = self.dataset
+        if "sobol_S1" not in ds:
+            return None
+        rows = []
+        for o in ds["objective"].values:
+            for v in ds["variable"].values:
+                rows.append({"objective": str(o), "variable": str(v),
+                             **{k: float(ds[f"sobol_{k}"].sel(objective=o, variable=v))
+                                for k in ("S1", "S1_conf", "ST", "ST_conf")}})
+        return pd.DataFrame(rows)
+
+    def summary(self) -> dict:
+        """The figures a user reads first: counts, the best designs, the optimum, where the time went.
+
+        Returns
+        -------
+        dict
+            ``study``, ``designs``, ``status`` (count per status), ``feasible``, ``pareto``, ``objectives``,
+            ``timings_s``, ``best_sweep``; with an optimum ``optimum`` and ``card``; with a sensitivity
+            ``sobol_ST`` (and ``sobol_missing``). What ``summary.json`` holds.
+        """
+        ds, study = self.dataset, self.study
+        status = ds["design_status"].values
+        out = {"study": study.name, "designs": int(ds.sizes["design"]),
+               "status": {STATUS[c]: int((status == c).sum()) for c in STATUS if (status == c).any()},
+               "feasible": int(ds["feasible"].values.sum()), "pareto": int(ds["pareto"].values.sum()),
+               "objectives": [g.label for g in study.objectives], "timings_s": self.timings}
+        first = study.objectives[0]
+        ok = ds["feasible"].values.astype(bool)
+        vals = ds[first.metric].values
+        best = int(np.flatnonzero(ok)[np.argmax(first.sense * vals[ok])])
+        out["best_sweep"] = {"design": best, **{v: float(ds[v].values[best]) for v in study.names},
+                             **{g.metric: float(ds[g.metric].values[best]) for g in study.objectives}}
+        if self.optimum is not None:
+            o = self.optimum
+            out["optimum"] = {"how": o["how"], "variables": o["variables"], "evaluations": o["evaluations"],
+                              **{k: o["metrics"][k] for k in [g.metric for g in study.objectives]
+                                 + [b.metric for b in study.constraints] if k in o["metrics"]}}
+            for key in ("preload", "bias_mass", "rest_stretch", "on_stretch", "field"):
+                if key in o["metrics"]:
+                    out["optimum"][key] = o["metrics"][key]
+            out["card"] = {"variables": o["card_variables"], "feasible": o["card_feasible"],
+                           **{k: o["card_metrics"][k] for k in out["optimum"] if k in o["card_metrics"]}}
+        if "sobol_missing" in ds:
+            out["sobol_missing"] = {str(o): int(ds["sobol_missing"].sel(objective=o)) for o in ds["objective"].values}
+        if "sobol_ST" in ds:
+            out["sobol_ST"] = {str(o): {str(v): float(ds["sobol_ST"].sel(objective=o, variable=v))
+                                        for v in ds["variable"].values} for o in ds["objective"].values}
+        return out
+
+    def lines(self) -> list[str]:
+        """The summary as text lines (what ``rdea-lab design`` prints).
+
+        Returns
+        -------
+        list of str
+            Counts and the sweep's time, the best design of the sweep, the optimum and the card, the Sobol
+            total indices.
+        """
+        from .outputs import _shown, _var
+
+        s, study = self.summary(), self.study
+        counts = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in s["status"].items())
+        out = [f"study {s['study']}: {s['designs']} designs ({counts}), {s['feasible']} feasible, "
+               f"{s['pareto']} on the Pareto front ({', '.join(s['objectives'])}); sweep "
+               f"{s['timings_s'].get('sweep_s', float('nan')):.1f} s"]
+        b = s["best_sweep"]
+        out.append("best of the sweep: " + ", ".join(f"{g.metric} {_shown(g.metric, b[g.metric])}"
+                                                     for g in study.objectives)
+                   + " at " + ", ".join(_var(study, v, b[v]) for v in study.names))
+        if "optimum" in s:
+            o = s["optimum"]
+            out.append("optimum: " + ", ".join(f"{k} {_shown(k, v)}" for k, v in o.items() if k in METRICS)
+                       + " at " + ", ".join(_var(study, k, v) for k, v in o["variables"].items())
+                       + f" ({o['how']}; {o['evaluations']} evaluations)")
+            c = s["card"]
+            out.append("card (cut to 0.01 mm, film to 0.1 um): " + ", ".join(
+                f"{k} {_shown(k, v)}" for k, v in c.items() if k in METRICS) + " at "
+                + ", ".join(_var(study, k, v) for k, v in c["variables"].items())
+                + ("" if c["feasible"] else " (NOT meeting the constraints once rounded)"))
+        if "sobol_ST" in s:
+            for obj, row in s["sobol_ST"].items():
+                missing = s.get("sobol_missing", {}).get(obj, 0)
+                if missing:
+                    out.append(f"Sobol indices of {obj}: undefined, {missing} of the Saltelli designs have no value "
+                               "(no roll, no equilibrium or past the protocol's limits); narrow the ranges")
+                    continue
+                out.append(f"Sobol total index of {obj}: " + ", ".join(f"{k} {v:.2f}" for k, v in row.items()))
+        return out
+
+    def write(self, out, *, overwrite: bool = False, figures: bool = True) -> dict[str, Path]:
+        """Write every output of the study into the folder ``out``: ``study.nc``, ``pareto.csv``,
+        ``sobol.csv`` (with a sensitivity), ``card.yaml`` (with an optimum), ``summary.json`` and the figures.
+
+        Parameters
+        ----------
+        out : path
+            Output folder (created).
+        overwrite : bool
+            Replace the files of an earlier study in ``out``.
+        figures : bool
+            Write ``pareto.png``, ``parallel.png`` and ``stroke_map.png``.
+
+        Returns
+        -------
+        dict of str to Path
+            Each file written, under its name, in the order written.
+
+        Raises
+        ------
+        SpecError
+            ``out`` holds a study's files (and not ``overwrite``), is a file, or cannot be written.
+        """
+        from ..specs.errors import DOCUMENT, SpecError
+        from .outputs import check_study_out
+
+        out = check_study_out(out, overwrite)
+        out.mkdir(parents=True, exist_ok=True)
+        ds, study = self.dataset, self.study
+        paths = {}
+
+        def target(name):
+            paths[name] = out / name
+            return out / name
+
+        tmp = out / ".study.nc.part"
+        try:
+            ds.to_netcdf(tmp)
+            os.replace(tmp, target("study.nc"))
+            self.front.to_csv(target("pareto.csv"), index=False)
+            if "sobol_S1" in ds:
+                self.sobol.to_csv(target("sobol.csv"), index=False)
+            if self.card is not None:
+                header = (f"# The best design of study {study.name} ({self.optimum['how']}).\n"
+                          f"# Test it: rdea-lab run PROTOCOL --specimen THIS_FILE --backend emulator\n")
+                target("card.yaml").write_text(header + dump_specimen(self.card), encoding="utf-8")
+            target("summary.json").write_text(json.dumps(self.summary(), indent=2, default=float) + "\n",
+                                              encoding="utf-8")
+            if figures:
+                from .figures import parallel_figure, pareto_figure, stroke_map
+                pareto_figure(ds, study, target("pareto.png"))
+                parallel_figure(ds, study, target("parallel.png"))
+                stroke_map(ds, study, target("stroke_map.png"))
+        except OSError as exc:
+            raise SpecError(str(out), DOCUMENT, f"cannot write: {exc.strerror or exc}") from None
+        finally:
+            tmp.unlink(missing_ok=True)
+        return paths
 
 
 # ------------------------------------------------------------------ sampling

@@ -132,23 +132,41 @@ RUN_COLUMNS = [
 ]
 
 
-def write_validation_index(path: Path, result: dict, columns) -> Path:
-    """``index.html`` of the validation report: origin of the data, the table, figures, provenance."""
-    cal = result["params"]
-    parts = [f"<p class=\"banner\">Data origin: {esc(result['origin'])}</p>\n",
-             f"<h2>Table 4 analogue</h2>\n<p>{esc(result['caption'])}</p>\n",
-             table(columns, result["rows"], numeric=("rate_per_s", "max_stretch", "samples", "max_rel_error",
-                                                     "paper_max_rel_error", "rms_rel_error", "p99_rel_error",
-                                                     "rms_text"),
+def write_validation_index(path: Path, report, columns, figure_captions: dict | None = None) -> Path:
+    """``index.html`` of the validation report: origin of the data, the table, figures, provenance.
+
+    Parameters
+    ----------
+    path : Path
+        The page to write.
+    report : ValidationReport
+        What :func:`rdea_lab.reports.validation.validation_report` computed.
+    columns : list of tuple
+        The table's columns (key, heading, format).
+    figure_captions : dict of Path to str, optional
+        The PNG figures written beside the page, each with its caption (none: no figures section).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    cal = report.params
+    figure_captions = figure_captions or {}
+    parts = [f"<p class=\"banner\">Data origin: {esc(report.origin)}</p>\n",
+             f"<h2>Table 4 analogue</h2>\n<p>{esc(report.caption)}</p>\n",
+             table(columns, list(report.rows), numeric=("rate_per_s", "max_stretch", "samples", "max_rel_error",
+                                                        "paper_max_rel_error", "rms_rel_error", "p99_rel_error",
+                                                        "rms_text"),
                    flagged=("beyond_calibration",)),
-             f"<p class=\"legend\">{esc(result.get('legend', ''))}</p>\n" if result.get("legend") else "",
+             f"<p class=\"legend\">{esc(report.legend)}</p>\n" if report.legend else "",
              "<p>Files: <a href=\"table4.md\">table4.md</a>, <a href=\"table4.csv\">table4.csv</a> (full hashes "
              "and paths), <a href=\"table4.tex\">table4.tex</a>.</p>\n"]
-    if result["figures"]:
+    if figure_captions:
         parts += ["<h2>Figures (measured in colour, twin dashed black, residual twin − measured below)</h2>\n",
-                  figures(result["figures"], result.get("figure_captions"))]
+                  figures([str(f) for f in figure_captions], {Path(f).name: c for f, c in figure_captions.items()})]
     parts.append("<h2>Parameters</h2>\n")
-    entries = [("file", cal["file"]), ("sha256", short_hash(cal["sha256"])), ("name", result["params_name"]),
+    entries = [("file", cal["file"]), ("sha256", short_hash(cal["sha256"])), ("name", report.params_name),
                ("calibration", cal["summary"])]
     if cal["record"]:
         entries += [("calibration model", cal.get("model")),
@@ -161,10 +179,10 @@ def write_validation_index(path: Path, result: dict, columns) -> Path:
                     for r in cal["runs"]]
     parts.append(entries_table(entries))
     parts.append("<h2>Runs</h2>\n")
-    parts.append(table(RUN_COLUMNS, result["runs"]))
-    if result["skipped"]:
+    parts.append(table(RUN_COLUMNS, list(report.runs)))
+    if report.skipped:
         parts.append("<h2>Skipped files</h2>\n<ul>\n" + "".join(
-            f"<li><code>{breakable(s['file'])}</code>: {esc(s['reason'])}</li>\n" for s in result["skipped"])
+            f"<li><code>{breakable(s['file'])}</code>: {esc(s['reason'])}</li>\n" for s in report.skipped)
             + "</ul>\n")
     path = Path(path)
     path.write_text(page("Validation of the twin against measured runs", "".join(parts)))
@@ -185,16 +203,28 @@ def write_reproduce_index(out: Path, result: dict, validation_columns) -> Path:
     record, the validation report, the speed study and the model-side results, with their key tables
     and figures.
 
-    ``result`` is what :func:`rdea_lab.reports.reproduce.reproduce` returns.
+    Parameters
+    ----------
+    out : Path
+        The ``reproduce`` folder.
+    result : ReproduceResult
+        What :func:`rdea_lab.reports.reproduce.reproduce` made (its ``seconds``: the time so far).
+    validation_columns : list of tuple
+        The validation table's columns (key, heading, format).
+
+    Returns
+    -------
+    Path
+        ``out/index.html``.
     """
     out = Path(out)
-    rep, fit, cal = result["validation"], result["calibration_result"], result["calibration"]
-    parts = [f"<p class=\"banner\">Data origin: {esc(rep['origin'])}</p>\n",
+    rep, fit, cal = result.validation, result.calibration_result, result.calibration
+    parts = [f"<p class=\"banner\">Data origin: {esc(rep.origin)}</p>\n",
              "<p>Contents: <a href=\"#calibration\">calibration</a>, <a href=\"#validation\">validation</a>, "
-             + ("<a href=\"#speed\">speed against error</a>, " if "speed" in result else "")
+             + ("<a href=\"#speed\">speed against error</a>, " if result.speed is not None else "")
              + "<a href=\"#models\">model-side results</a>, <a href=\"#datasets\">datasets</a>."
-             + (f" Written in {result['seconds']:.1f} s." if "seconds" in result else "") + "</p>\n"]
-    record = rep["params"]
+             + f" Written in {result.seconds:.1f} s." + "</p>\n"]
+    record = rep.params
     parts.append("<h2 id=\"calibration\">Calibration</h2>\n")
     parts.append(entries_table([
         ("record", _files(out, [cal["params"]])), ("history", _files(out, [cal["history"], cal["plot"]])),
@@ -205,19 +235,19 @@ def write_reproduce_index(out: Path, result: dict, validation_columns) -> Path:
         ("calibration envelope", f"{record.get('envelope_text') or 'none'} ({record.get('envelope_source')})")]))
     parts.append("<h2 id=\"validation\">Validation: the Table 4 analogue</h2>\n"
                  f"<p>{link('validation/index.html', 'validation/index.html')} (figures, provenance of every run), "
-                 f"{_files(out, [rep['files'][k] for k in ('markdown', 'csv', 'latex')])}.</p>\n")
+                 f"{_files(out, [result.validation_files[k] for k in ('markdown', 'csv', 'latex')])}.</p>\n")
     keep = ("experiment", "voltage", "specimen", "name", "role", "max_rel_error", "paper_max_rel_error",
             "rms_rel_error", "beyond_calibration")
-    parts.append(table([c for c in validation_columns if c[0] in keep], rep["rows"],
+    parts.append(table([c for c in validation_columns if c[0] in keep], list(rep.rows),
                        numeric=("max_rel_error", "paper_max_rel_error", "rms_rel_error"),
                        flagged=("beyond_calibration",)))
-    if "speed" in result:
-        sp = result["speed"]["files"]
+    if result.speed is not None:
+        sp = result.speed["files"]
         listed = [sp["markdown"], sp["csv"], sp["pareto"], Path(sp["pareto"]).with_suffix(".pdf")]
         parts.append("<h2 id=\"speed\">Speed against error: SU, 1R, 3R, CR and auto</h2>\n"
                      f"<p>{_files(out, listed)}</p>\n")
         parts.append(table([("scene", "scene", _text), ("model_used", "auto picks", _text),
-                            ("auto_reason", "why", _text)], result["speed"]["auto"]))
+                            ("auto_reason", "why", _text)], result.speed["auto"]))
         parts.append(figures([sp["pareto"]], {"pareto.png": "Time per sample against the largest stress error "
                                               "from CR, one panel per roll."}, base=out))
     models = out / "models"
@@ -229,10 +259,10 @@ def write_reproduce_index(out: Path, result: dict, validation_columns) -> Path:
                          if p.name[6] in "567" else "As Figure 8: Ri swept from 0.1 to 0.9 Rie at 3.5 kV, the "
                          "deviations of 1R, SU and CR from 3R.") for p in pngs}
     parts.append(figures(pngs, captions, base=out))
-    runs = result.get("campaign", [])
+    runs = result.campaign
     parts.append("<h2 id=\"datasets\">Datasets</h2>\n"
                  f"<p>{len(runs)} runs in {link('datasets/', 'datasets/')} (one netCDF file per specimen and "
                  "protocol; their origin and hashes in the validation report's Runs table).</p>\n")
     path = out / "index.html"
-    path.write_text(page(f"rdea-lab reproduce: {result.get('campaign_name', 'campaign')}", "".join(parts)))
+    path.write_text(page(f"rdea-lab reproduce: {result.campaign_name}", "".join(parts)))
     return path

@@ -24,6 +24,7 @@ import os
 import sys
 import threading
 import time
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from ..calibration import calibrate, find_runs, initial_guess, load_run
@@ -36,7 +37,7 @@ from ..specs.errors import UserError
 from .paper_models import reproduce_models
 from .speed import speed_study
 from .html import write_reproduce_index
-from .validation import COLUMNS, validation_report
+from .validation import COLUMNS, ValidationReport, validation_report
 
 CALIBRATION_SPECIMEN = "specimen-2"
 
@@ -45,8 +46,86 @@ class ReproduceInputError(UserError):
     """A campaign that reproduce cannot use (a user mistake: exit status 2)."""
 
 
+@dataclass(frozen=True, eq=False)
+class ReproduceResult:
+    """What :func:`reproduce` made, and where it wrote it.
+
+    Attributes
+    ----------
+    out : Path
+        The output folder.
+    campaign : tuple of str
+        The campaign's datasets (one netCDF file per specimen and protocol).
+    campaign_name : str
+        The campaign's name.
+    calibration : dict
+        The calibration's files (``params``: the record, ``history``, ``plot``).
+    calibration_result : CalibrationResult
+        The calibration on specimen 2's tensile runs.
+    validation : ValidationReport
+        The Table 4 analogue.
+    validation_files : dict of str to Path
+        What the validation report wrote (``markdown``, ``csv``, ``latex``, the figures, ``html``).
+    models : dict
+        Table 2 and Section 3.4 (:func:`~rdea_lab.reports.paper_models.reproduce_models`).
+    speed : dict or None
+        The speed-against-error study (None when skipped).
+    datasets : str
+        The folder of the datasets.
+    workers : int
+        Processes used.
+    stages : tuple of (str, float)
+        Each stage's name and its time [s] from its start to its end (with ``workers`` > 1 the campaign,
+        the calibration and the models overlap, so they add up to more than ``seconds``).
+    seconds : float
+        Wall time of the whole [s].
+    index : Path or None
+        The top-level ``index.html`` (None only while it is being written).
+    """
+
+    out: Path
+    campaign: tuple
+    campaign_name: str
+    calibration: dict
+    calibration_result: object
+    validation: ValidationReport
+    validation_files: dict
+    models: dict
+    speed: dict | None
+    datasets: str
+    workers: int
+    stages: tuple = ()
+    seconds: float = 0.0
+    index: Path | None = None
+
+    def lines(self) -> list[str]:
+        """The text ``rdea-lab reproduce`` prints after the run: the Table 4 analogue, the outputs and the
+        time by stage.
+
+        Returns
+        -------
+        list of str
+            The lines, without their line ends (the table's own lines included): printed one after the
+            other, each with a line end.
+        """
+        v = self.validation
+        lines = ["", f"Table 4 analogue ({v.origin})", *(v.markdown + v.legend).split("\n"), "", "outputs:",
+                 f"  index           {self.index} (links to everything below)",
+                 f"  datasets        {self.datasets}/<specimen>/<protocol>.nc",
+                 f"  parameters      {self.calibration['params']} (+ .history.csv, .history.png)",
+                 f"  validation      {self.validation_files['html']} (table4.md/.csv/.tex, figures)"]
+        if self.speed is not None:
+            lines.append(f"  speed vs error  {self.out / 'speed'}/speed.md, pareto.png, figure8_sweep.png")
+        lines.append(f"  models          {self.out / 'models'}/models.md, figure5-8*.png")
+        lines.append("time by stage:" + (f" ({self.workers} processes: the campaign, calibration and models "
+                                         "overlap)" if self.workers > 1 else ""))
+        lines += [f"  {name:<15} {seconds:6.1f} s" for name, seconds in self.stages]
+        lines.append(f"  {'total':<15} {self.seconds:6.1f} s")
+        return lines
+
+
 def reproduce(out: Path, *, datasets=None, campaign=None, speed=True, overwrite=False, echo=print,
-              progress_factory=None, pdf=False, workers=None) -> dict:
+              progress_factory=None, pdf=False, workers=None) -> ReproduceResult:
     """Run the whole campaign and write every result under ``out``.
 
     Parameters
@@ -82,11 +161,17 @@ def reproduce(out: Path, *, datasets=None, campaign=None, speed=True, overwrite=
 
     Returns
     -------
-    dict
-        ``campaign``, ``campaign_name``, ``calibration`` (files), ``calibration_result``,
-        ``validation``, ``speed`` (unless skipped), ``models``, ``stages`` (stage name, seconds: each
-        stage from its start to its end; with ``workers`` > 1 the campaign, the calibration and the
-        models overlap, so they add up to more than ``seconds``), ``seconds``, ``index``, ``workers``.
+    ReproduceResult
+        The campaign's files, the calibration's files and result, the validation report and its files,
+        the speed (unless skipped) and models results, the time by stage, the total, ``workers`` and
+        the top-level ``index.html``; its ``lines()`` are what the CLI prints after the run.
+
+    Raises
+    ------
+    OutputError
+        ``out`` (or ``datasets``) holds files and not ``overwrite``, or cannot be written.
+    ReproduceInputError
+        The campaign has no specimen 2.
     """
     out = Path(out)
     data = Path(datasets) if datasets is not None else out / "datasets"
@@ -126,9 +211,10 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
          + (f" ({workers} processes)" if pool is not None else ""))
     models = None
     if pool is None:
-        results = _campaign_here(spec, spec_root, data, progress_factory, total)
+        results = _campaign_here(spec, spec_root, data, progress_factory, total, runs)
     else:
-        submitted = submit_campaign(spec, spec_root, pool, out_dir=data, overwrite=True, first=_calibration_run)
+        submitted = submit_campaign(spec, spec_root, pool, out_dir=data, overwrite=True, first=_calibration_run,
+                                    runs=runs)
         models = pool.submit(_timed, reproduce_models, root, out / "models", pdf)  # needs nothing of the campaign
         progress = _CampaignProgress(submitted, progress_factory, total, spec.name, t0)
         with contextlib.ExitStack() as bar:
@@ -147,29 +233,29 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
 
     with stage("validation"):
         echo("[3/5] validation report: the twin on every run's own stretch and voltage")
-        report = validation_report(files["params"], data, out / "validation", model="su", pdf=pdf, executor=pool,
-                                   overwrite=True)  # out: checked by check_fresh
-    result = {"campaign": [str(r.path) for r in results], "campaign_name": spec.name, "calibration": files,
-              "calibration_result": fit, "validation": report, "datasets": str(data), "workers": workers}
+        report = validation_report(files["params"], data, model="su", executor=pool)
+        written = report.write(out / "validation", pdf=pdf, executor=pool, overwrite=True)  # out: by check_fresh
     if models is None:
         with stage("models"):
-            result["models"] = reproduce_models(root, out / "models", pdf)
+            made = reproduce_models(root, out / "models", pdf)
     else:
-        result["models"], stages["models"] = models.result()
+        made, stages["models"] = models.result()
+    studied = None
     if speed:
         with stage("speed study"):  # last, and alone: it times the models
             echo("[4/5] speed against error: SU, 1R, 3R, CR and auto on the paper's scenes and the Section 3.4 cores")
-            result["speed"] = speed_study(out / "speed", root, pdf=pdf, overwrite=True,
-                                          sweep=(result["models"]["figure8"], out / "models" / "figure8_sweep.png"))
+            studied = speed_study(out / "speed", root, pdf=pdf, overwrite=True,
+                                  sweep=(made["figure8"], out / "models" / "figure8_sweep.png"))
     else:
         echo("[4/5] speed study skipped")
     echo("[5/5] Table 2 and Section 3.4 (Figures 5-8)" + (" (made beside the campaign)" if pool is not None else ""))
+    result = ReproduceResult(out=out, campaign=tuple(str(r.path) for r in results), campaign_name=spec.name,
+                             calibration=files, calibration_result=fit, validation=report, validation_files=written,
+                             models=made, speed=studied, datasets=str(data), workers=workers)
     with stage("index"):
-        result["seconds"] = time.perf_counter() - t0
-        result["index"] = write_reproduce_index(out, result, COLUMNS)
-    result["stages"] = [(name, stages[name]) for name in STAGES if name in stages]
-    result["seconds"] = time.perf_counter() - t0
-    return result
+        index = write_reproduce_index(out, replace(result, seconds=time.perf_counter() - t0), COLUMNS)
+    return replace(result, index=index, stages=tuple((name, stages[name]) for name in STAGES if name in stages),
+                   seconds=time.perf_counter() - t0)
 
 
 #: The stages, in the order of the time table.
@@ -237,11 +323,12 @@ def _calibration_run(run) -> bool:
     return run.card.id == CALIBRATION_SPECIMEN and run.plan.kind == "tensile"
 
 
-def _campaign_here(spec, spec_root, data, progress_factory, total):
+def _campaign_here(spec, spec_root, data, progress_factory, total, runs):
     if progress_factory is None:
-        return run_campaign(spec, spec_root, out_dir=data, overwrite=True)
+        return run_campaign(spec, spec_root, out_dir=data, overwrite=True, runs=runs)
     with progress_factory(total, spec.name) as bar:
-        return run_campaign(spec, spec_root, out_dir=data, overwrite=True, callbacks=lambda b: bar.update(len(b)))
+        return run_campaign(spec, spec_root, out_dir=data, overwrite=True, callbacks=lambda b: bar.update(len(b)),
+                            runs=runs)
 
 
 class _CampaignProgress:

@@ -1,6 +1,6 @@
 """The Table 4 analogue: the twin against every measured run, with figures and provenance.
 
-``validation_report(params_path, datasets_folder, out)`` runs the twin on each
+``validation_report(params, datasets_folder)`` runs the twin on each
 complete run's own measured stretch and voltage history
 (:func:`rdea_lab.twin.predict`, viscoelastic branches included),
 and for capacitance runs also the capacitance at the samples where the LCR
@@ -11,8 +11,9 @@ run is (:mod:`~rdea_lab.reports.provenance`): its name, protocol, nominal
 stretch rate and maximum stretch, where its data come from (import, emulator,
 twin, rig), its role against the calibration record (calibration run, held out
 (same specimen), other specimen) and where it leaves the calibration envelope.
-It writes ``table4.md``, ``table4.csv``, ``table4.tex``, figures in the manner
-of Figures 11-16 (PNG and PDF, with residual panels) and ``index.html``.
+It returns a :class:`ValidationReport`, whose ``write(out)`` writes ``table4.md``,
+``table4.csv``, ``table4.tex``, figures in the manner of Figures 11-16 (PNG and PDF,
+with residual panels) and ``index.html``.
 
 [1] Prechtl et al., Smart Mater. Struct. 30 (2021), doi:10.1088/1361-665X/ac34be.
 """
@@ -21,9 +22,11 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import xarray as xr
 
 from ..calibration.crossval import nominal_rate
@@ -237,56 +240,180 @@ def _sort_key(row):
             row["quantity"], round(row["voltage_V"], -1), row["specimen"], row["protocol"], row["file"])
 
 
-def validation_report(params_path, datasets_folder, out, model: str = "su", tolerance: float = 0.01,
-                      figures: bool = True, pdf: bool = True, executor=None, overwrite: bool = False) -> dict:
-    """Write the Table 4 analogue, the figures and ``index.html`` for a parameter set and a folder of runs.
+@dataclass(frozen=True, eq=False)
+class ValidationReport:
+    """The Table 4 analogue for a parameter set and a folder of runs: computed, not yet written.
+
+    Made by :func:`validation_report`; :meth:`write` writes it (``table4.md``, ``.csv``, ``.tex``, the
+    figures, ``index.html``).
+
+    Attributes
+    ----------
+    table : pandas.DataFrame
+        One row per run (the keys of :data:`CSV_KEYS`, ``rms_text`` and ``flags``), in the table's order.
+    rows : tuple of dict
+        The same rows as dicts (what the renderers take).
+    markdown : str
+        The table as Markdown.
+    caption : str
+        The line above the table (model, parameters, calibration, data origin, envelope).
+    legend : str
+        The line under it: which error measure is which (:data:`LEGEND`).
+    model : str
+        The twin model asked for.
+    params : dict
+        The calibration summary of the parameter file (:func:`~rdea_lab.reports.provenance.calibration_summary`),
+        with ``envelope_source`` and ``envelope_text``.
+    params_name : str
+        The parameter set's name.
+    runs : tuple of dict
+        Provenance of every run evaluated (file, hash, run id, backend, origin, ...).
+    skipped : tuple of dict
+        The files left out, each with ``file`` and ``reason``.
+    origin : str
+        Where the data come from, in one sentence.
+    envelope : dict or None
+        The calibration envelope (None when none could be found).
+    """
+
+    table: pd.DataFrame
+    rows: tuple
+    markdown: str
+    caption: str
+    legend: str
+    model: str
+    params: dict
+    params_name: str
+    runs: tuple
+    skipped: tuple
+    origin: str
+    envelope: dict | None
+    _evaluated: tuple = field(repr=False, default=())  # rows with their series: what the figures draw
+
+    def write(self, out, *, figures: bool = True, pdf: bool = True, overwrite: bool = False,
+              executor=None) -> dict[str, Path]:
+        """Write ``table4.md``, ``table4.csv``, ``table4.tex``, the figures and ``index.html`` into ``out``.
+
+        Parameters
+        ----------
+        out : path
+            Output folder (created); one that holds files is refused unless ``overwrite``.
+        figures : bool
+            Write the PNG figures (the tables and ``index.html`` are always written).
+        pdf : bool
+            With the figures, a PDF beside each PNG (vector, for a paper; linked from ``index.html``).
+        overwrite : bool
+            Write into an ``out`` that holds files (the CLI's ``--force``).
+        executor : concurrent.futures.Executor, optional
+            Draw the figures as its tasks (the same files as drawn here).
+
+        Returns
+        -------
+        dict of str to Path
+            ``markdown``, ``csv``, ``latex``, each figure under its file name (PNG, and its PDF when
+            written) and ``html``, in the order written.
+
+        Raises
+        ------
+        OutputError
+            ``out`` holds files (and not ``overwrite``), is a file, or cannot be written.
+        """
+        check_new(out, overwrite, "out", folder=True)
+        out = Path(out)
+        out.mkdir(parents=True, exist_ok=True)
+        rows = list(self.rows)
+        files = {"markdown": out / "table4.md", "csv": out / "table4.csv", "latex": out / "table4.tex"}
+        left_out = "".join(f"- `{sk['file']}`: {sk['reason']}\n" for sk in self.skipped)
+        files["markdown"].write_text(f"# Table 4 analogue\n\n{self.caption}\n\n{self.markdown}\n{self.legend}\n"
+                                     + (f"\nFiles left out:\n\n{left_out}" if left_out else ""))
+        tables.write_csv(files["csv"], CSV_KEYS, rows)
+        files["latex"].write_text(f"% {tables.latex_escape(self.caption)}\n% {tables.latex_escape(self.legend)}\n"
+                                  + tables.latex_tabular(COLUMNS, rows))
+        figs = write_figures(list(self._evaluated), out, pdf, executor) if figures else {}
+        for png in figs:
+            files[png.name] = png
+            if png.with_suffix(".pdf").is_file() and pdf:
+                files[png.with_suffix(".pdf").name] = png.with_suffix(".pdf")
+        files["html"] = write_validation_index(out / "index.html", self, COLUMNS, figs)
+        return files
+
+
+def figure_files(files: dict[str, Path]) -> list[Path]:
+    """The PNG figures among the files :meth:`ValidationReport.write` returned."""
+    return [p for p in files.values() if Path(p).suffix == ".png"]
+
+
+def check_validation_inputs(params, datasets_folder, model: str = "su"):
+    """The checks :func:`validation_report` makes before any work, in its order: the model, the folder,
+    the parameters (the CLI makes them before it checks ``--out``, as the report did when it wrote).
 
     Parameters
     ----------
-    params_path : path or ParameterSet
-        Parameter file (a calibration record is one; its ``calibration`` section gives the provenance),
-        or a parameter set (then without provenance).
+    params : path or ParameterSet
+        Parameter file or parameter set.
     datasets_folder : path
-        Folder searched recursively for complete runs (``*.nc``).
-    out : path
-        Output folder (created); one that holds files is refused before the work unless ``overwrite``.
-    model : {"su", "1r", "3r", "cr", "auto"}
-        Quasi-static model of the twin; ``auto`` picks per run with :func:`select_model`.
-    tolerance : float
-        For ``auto``: allowed deviation from 3R relative to the peak stress [-].
-    figures : bool
-        Write the PNG figures (the tables and ``index.html`` are always written).
-    pdf : bool
-        With the figures, a PDF beside each PNG (vector, for a paper; linked from ``index.html``).
-    executor : concurrent.futures.Executor, optional
-        Evaluate the runs and draw the figures as its tasks (a process pool: on every core), with the
-        numbers and files of the serial report.
-    overwrite : bool
-        Write into an ``out`` that holds files (the CLI's ``--force``).
+        Folder of runs.
+    model : str
+        Quasi-static model of the twin.
 
     Returns
     -------
-    dict
-        ``rows`` (one dict per run, keys of :data:`CSV_KEYS` and ``rms_text``),
-        ``markdown`` (the table), ``legend`` (the line under it: which measure is which),
-        ``files``, ``runs`` (provenance), ``params``, ``skipped``, ``origin``, ``model``.
+    ParameterSet
+        The parameters read.
 
     Raises
     ------
+    ReportInputError
+        Unknown model or no folder.
     SpecError
         The parameter file is missing or invalid.
-    OutputError
-        ``out`` holds files (and not ``overwrite``), is a file, or cannot be written.
-    ReportInputError
-        Unknown model, no folder, or no complete runs in it.
     """
     if model not in MODELS:
         raise ReportInputError(f"--model: {model!r} is not a model; allowed: {', '.join(MODELS)}")
     folder = Path(datasets_folder)
     if not folder.is_dir():
         raise ReportInputError(f"{folder}: no such folder of datasets")
-    params = as_params(params_path)
-    check_new(out, overwrite, "out", folder=True)  # before the work, not after it
+    return as_params(params)
+
+
+def validation_report(params, datasets_folder, *, model: str = "su", tolerance: float = 0.01,
+                      executor=None) -> ValidationReport:
+    """The Table 4 analogue for a parameter set and a folder of runs, computed (write it with
+    :meth:`ValidationReport.write`).
+
+    Parameters
+    ----------
+    params : path or ParameterSet
+        Parameter file (a calibration record is one; its ``calibration`` section gives the provenance),
+        or a parameter set (then without provenance).
+    datasets_folder : path
+        Folder searched recursively for complete runs (``*.nc``).
+    model : {"su", "1r", "3r", "cr", "auto"}
+        Quasi-static model of the twin; ``auto`` picks per run with :func:`select_model`.
+    tolerance : float
+        For ``auto``: allowed deviation from 3R relative to the peak stress [-].
+    executor : concurrent.futures.Executor, optional
+        Evaluate the runs as its tasks (a process pool: on every core), with the numbers of the serial report.
+
+    Returns
+    -------
+    ValidationReport
+        The rows, the table, caption and legend, the provenance of the runs and parameters, the files
+        skipped and the series the figures draw.
+
+    Raises
+    ------
+    SpecError
+        The parameter file is missing or invalid.
+    ReportInputError
+        Unknown model, no folder, or no complete runs in it.
+
+    References
+    ----------
+    [1] Prechtl et al., Smart Mater. Struct. 30 (2021), Table 4.
+    """
+    params_path, params = params, check_validation_inputs(params, datasets_folder, model)
+    folder = Path(datasets_folder)
     paths, skipped = scan_runs(folder)
     evaluated = []
     n = len(paths)
@@ -311,29 +438,16 @@ def validation_report(params_path, datasets_folder, out, model: str = "su", tole
         r["flags"] = beyond(env, e["envelope"]) if env is not None else ()
         r["beyond_calibration"] = "; ".join(r["flags"]) or ("—" if env is not None else NOT_CHECKED)
     rows = [e["row"] for e in evaluated]
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     origin = data_origin([e["provenance"] for e in evaluated])
-    md = tables.markdown(COLUMNS, rows)
     caption = (f"Maximum relative error against the largest measured force or capacitance of each run "
                f"(Table 4 of Prechtl et al. 2021), twin model {model}, parameters {params.name}; "
                f"calibrated on: {', '.join(cal['specimens']) or NONE_RECORDED}. {origin} "
                + (f"Calibration envelope ({env_source}): {cal['envelope_text']}; "
                   f"{sum(bool(r['flags']) for r in rows)} of {len(rows)} runs beyond it."
                   if env is not None else f"Calibration envelope: {env_source}."))
-    files = {"markdown": out / "table4.md", "csv": out / "table4.csv", "latex": out / "table4.tex"}
-    left_out = "".join(f"- `{sk['file']}`: {sk['reason']}\n" for sk in skipped)
-    files["markdown"].write_text(f"# Table 4 analogue\n\n{caption}\n\n{md}\n{LEGEND}\n"
-                                 + (f"\nFiles left out:\n\n{left_out}" if left_out else ""))
-    tables.write_csv(files["csv"], CSV_KEYS, rows)
-    files["latex"].write_text(f"% {tables.latex_escape(caption)}\n% {tables.latex_escape(LEGEND)}\n"
-                              + tables.latex_tabular(COLUMNS, rows))
-    figs = write_figures(evaluated, out, pdf, executor) if figures else {}
-    result = {"rows": rows, "markdown": md, "caption": caption, "legend": LEGEND, "model": model, "params": cal,
-              "params_name": params.name, "runs": [e["provenance"] for e in evaluated], "skipped": skipped,
-              "origin": origin, "envelope": env.mapping() if env is not None else None,
-              "figures": [str(f) for f in figs],
-              "figure_captions": {Path(f).name: c for f, c in figs.items()},
-              "files": {k: str(v) for k, v in files.items()}}
-    result["files"]["html"] = str(write_validation_index(out / "index.html", result, COLUMNS))
-    return result
+    return ValidationReport(
+        table=pd.DataFrame(rows), rows=tuple(rows), markdown=tables.markdown(COLUMNS, rows), caption=caption,
+        legend=LEGEND, model=model, params=cal, params_name=params.name,
+        runs=tuple(e["provenance"] for e in evaluated), skipped=tuple(skipped), origin=origin,
+        envelope=env.mapping() if env is not None else None,
+        _evaluated=tuple({"row": e["row"], "series": e["series"]} for e in evaluated))

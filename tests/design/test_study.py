@@ -223,3 +223,40 @@ def test_malformed_scheduler_address_raises_scheduler_error(root, tmp_path):
     study = load_study(write_study(tmp_path, study_mapping(root)))
     with pytest.raises(SchedulerError, match=r"'localhost:8786' is not a scheduler address; give tcp://HOST:PORT"):
         run_study(study, scheduler="localhost:8786")
+
+
+def test_result_is_frozen_and_its_tables_and_files_come_from_its_dataset(root, tmp_path):
+    """`StudyResult`: the front table holds exactly the dataset's Pareto designs, best first, the Sobol
+    table the dataset's indices, and ``write`` returns the files that are in the folder afterwards (and
+    refuses to write over them)."""
+    import csv
+    import dataclasses
+    import json
+
+    study = load_study(write_study(tmp_path, study_mapping(
+        root, variables={"L1": ["20 mm", "60 mm"], "stiffness": ["50 N/m", "500 N/m"]},
+        sampling={"method": "sobol", "n": 16, "seed": 1}, sensitivity={"n": 8, "seed": 3})))
+    result = run_study(study, synchronous=True)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        result.card = None
+    ds = result.dataset
+    assert sorted(result.front["design"]) == list(np.flatnonzero(ds["pareto"].values))
+    first = study.objectives[0]
+    from rdea_lab.specs.study import METRICS
+
+    shown = result.front[f"{first.metric} [{METRICS[first.metric][0]}]"].to_numpy()
+    assert (np.diff(first.sense * shown) <= 0).all()  # best first by the first objective
+    sobol = result.sobol
+    assert len(sobol) == ds.sizes["objective"] * ds.sizes["variable"]
+    for row in sobol.itertuples():
+        assert row.ST == float(ds["sobol_ST"].sel(objective=row.objective, variable=row.variable))
+    out = tmp_path / "out"
+    files = result.write(out, figures=False)
+    assert sorted(files) == sorted(p.name for p in out.iterdir())
+    assert all(p == out / name for name, p in files.items())
+    assert json.loads(files["summary.json"].read_text()) == json.loads(json.dumps(result.summary(), default=float))
+    with open(files["pareto.csv"], newline="") as fh:
+        assert [int(r["design"]) for r in csv.DictReader(fh)] == list(result.front["design"])
+    with pytest.raises(SpecError, match="already holds study.nc"):
+        result.write(out)
+    assert result.lines()[0].startswith(f"study {study.name}: 16 designs")

@@ -1,5 +1,5 @@
 """What a browser would show of the reports' HTML, read with the standard library's parser (not the code
-that writes it)."""
+that writes it); the validation report computed and written, as the CLI does."""
 
 from html.parser import HTMLParser
 from pathlib import Path
@@ -68,3 +68,28 @@ def twin_folder(tmp_path_factory):
                 "--backend", "twin", "--model", "su", "--params", str(TABLE3), "--out", str(out), "--quiet"]
         assert run(cli, argv) == 0
     return folder
+
+
+class Written:
+    """A `ValidationReport` and the files its ``write`` returned: the report's attributes, ``files`` and
+    ``figures`` (the PNGs among the files)."""
+
+    def __init__(self, report, files):
+        self.report, self.files = report, files
+        self.figures = [p for p in files.values() if p.suffix == ".png"]
+
+    def __getattr__(self, name):
+        return getattr(self.report, name)
+
+
+@pytest.fixture(scope="session")
+def validate():
+    """``validate(params, folder, out, figures=, pdf=, executor=, **computing)``: compute the report, then
+    write it into ``out``."""
+    from rdea_lab.reports.validation import validation_report
+
+    def run(params, folder, out, *, figures=True, pdf=True, executor=None, overwrite=False, **computing):
+        report = validation_report(params, folder, executor=executor, **computing)
+        return Written(report, report.write(out, figures=figures, pdf=pdf, executor=executor, overwrite=overwrite))
+
+    return run

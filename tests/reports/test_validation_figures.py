@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from rdea_lab.reports.validation import evaluate_run, validation_report
+from rdea_lab.reports.validation import evaluate_run
 from rdea_lab.reports.validation_figures import blocking_figure, tensile_figure
 from rdea_lab.specs import load_params
 
@@ -65,31 +65,31 @@ def test_blocking_figure_has_a_residual_under_both_panels(twin_folder, stiffer):
     assert [ax.get_xlabel() for ax in residual_axes(fig)] == ["time [s]", "voltage [kV]"]
 
 
-def test_report_writes_png_at_200_dpi_and_a_pdf_beside(twin_folder, tmp_path):
-    result = validation_report(TABLE3, twin_folder / "specimen1", tmp_path, figures=True)
-    assert len(result["figures"]) == 4  # two tensile runs, the blocking and the capacitance figure
-    for png in map(Path, result["figures"]):
+def test_report_writes_png_at_200_dpi_and_a_pdf_beside(validate, twin_folder, tmp_path):
+    result = validate(TABLE3, twin_folder / "specimen1", tmp_path, figures=True)
+    assert len(result.figures) == 4  # two tensile runs, the blocking and the capacitance figure
+    for png in map(Path, result.figures):
         pdf = png.with_suffix(".pdf")
         assert pdf.read_bytes()[:5] == b"%PDF-", pdf
         if png.name.startswith("tensile_"):
             assert matplotlib.image.imread(png).shape[:2] == (2000, 1600)  # (10 x 8) in at 200 dpi
-    page = Path(result["files"]["html"]).read_text()
+    page = Path(result.files["html"]).read_text()
     assert page.count(">PDF</a>") == 4
 
 
-def test_report_without_pdf_writes_and_links_none(twin_folder, tmp_path):
-    result = validation_report(TABLE3, twin_folder / "specimen1", tmp_path, figures=True, pdf=False)
-    assert len(result["figures"]) == 4 and not list(tmp_path.glob("*.pdf"))
-    assert ">PDF</a>" not in Path(result["files"]["html"]).read_text()
+def test_report_without_pdf_writes_and_links_none(validate, twin_folder, tmp_path):
+    result = validate(TABLE3, twin_folder / "specimen1", tmp_path, figures=True, pdf=False)
+    assert len(result.figures) == 4 and not list(tmp_path.glob("*.pdf"))
+    assert ">PDF</a>" not in Path(result.files["html"]).read_text()
 
 
-def test_report_on_a_process_pool_writes_the_same_table_and_figures(twin_folder, tmp_path):
+def test_report_on_a_process_pool_writes_the_same_table_and_figures(validate, twin_folder, tmp_path):
     from rdea_lab.reports.reproduce import process_pool
 
-    serial = validation_report(TABLE3, twin_folder / "specimen1", tmp_path / "serial", pdf=False)
+    serial = validate(TABLE3, twin_folder / "specimen1", tmp_path / "serial", pdf=False)
     with process_pool(2) as pool:  # (forked only where that is safe: numba's threads may run in this process)
-        pooled = validation_report(TABLE3, twin_folder / "specimen1", tmp_path / "pool", pdf=False, executor=pool)
-    assert pooled["rows"] == serial["rows"]
-    assert [Path(f).name for f in pooled["figures"]] == [Path(f).name for f in serial["figures"]]
-    for a, b in zip(serial["figures"], pooled["figures"]):
+        pooled = validate(TABLE3, twin_folder / "specimen1", tmp_path / "pool", pdf=False, executor=pool)
+    assert pooled.rows == serial.rows
+    assert [Path(f).name for f in pooled.figures] == [Path(f).name for f in serial.figures]
+    for a, b in zip(serial.figures, pooled.figures):
         assert Path(a).read_bytes() == Path(b).read_bytes()
