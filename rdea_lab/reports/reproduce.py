@@ -126,9 +126,10 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
          + (f" ({workers} processes)" if pool is not None else ""))
     models = None
     if pool is None:
-        results = _campaign_here(spec, spec_root, data, progress_factory, total)
+        results = _campaign_here(spec, spec_root, data, progress_factory, total, runs)
     else:
-        submitted = submit_campaign(spec, spec_root, pool, out_dir=data, overwrite=True, first=_calibration_run)
+        submitted = submit_campaign(spec, spec_root, pool, out_dir=data, overwrite=True, first=_calibration_run,
+                                    runs=runs)
         models = pool.submit(_timed, reproduce_models, root, out / "models", pdf)  # needs nothing of the campaign
         progress = _CampaignProgress(submitted, progress_factory, total, spec.name, t0)
         with contextlib.ExitStack() as bar:
@@ -237,11 +238,13 @@ def _calibration_run(run) -> bool:
     return run.card.id == CALIBRATION_SPECIMEN and run.plan.kind == "tensile"
 
 
-def _campaign_here(spec, spec_root, data, progress_factory, total):
+def _campaign_here(spec, spec_root, data, progress_factory, total, runs):
+    """The campaign in this process; ``runs``: its experiments as listed (and checked) already."""
     if progress_factory is None:
-        return run_campaign(spec, spec_root, out_dir=data, overwrite=True)
+        return run_campaign(spec, spec_root, out_dir=data, overwrite=True, runs=runs)
     with progress_factory(total, spec.name) as bar:
-        return run_campaign(spec, spec_root, out_dir=data, overwrite=True, callbacks=lambda b: bar.update(len(b)))
+        return run_campaign(spec, spec_root, out_dir=data, overwrite=True, runs=runs,
+                            callbacks=lambda b: bar.update(len(b)))
 
 
 class _CampaignProgress:
