@@ -324,11 +324,12 @@ def _calibration_run(run) -> bool:
 
 
 def _campaign_here(spec, spec_root, data, progress_factory, total, runs):
+    """The campaign in this process; ``runs``: its experiments as listed (and checked) already."""
     if progress_factory is None:
         return run_campaign(spec, spec_root, out_dir=data, overwrite=True, runs=runs)
     with progress_factory(total, spec.name) as bar:
-        return run_campaign(spec, spec_root, out_dir=data, overwrite=True, callbacks=lambda b: bar.update(len(b)),
-                            runs=runs)
+        return run_campaign(spec, spec_root, out_dir=data, overwrite=True, runs=runs,
+                            callbacks=lambda b: bar.update(len(b)))
 
 
 class _CampaignProgress:

@@ -63,8 +63,52 @@ def emulated_rig(card, truth, *, realtime=False, faults=()):
         server.shutdown()
 
 
+class _Backend:
+    """What every backend object does for `rdea_lab.run_protocol` (the documentation of its methods)."""
+
+    def check(self, geom) -> None:
+        """Refuse a geometry this backend cannot run; by default none (a rig checks the run on its side).
+
+        Parameters
+        ----------
+        geom : RollGeometry or StripGeometry
+            The run's geometry, made once from the card in `~rdea_lab.runs.app.prepare_run`.
+        """
+        return None
+
+    def opened(self, setup):
+        """The executor of one run, as a context manager (the emulator starts its rig here, a rig connects).
+
+        Parameters
+        ----------
+        setup : RunSetup
+            The prepared run (`~rdea_lab.runs.app.prepare_run`): its checked plan, card, geometry and seed.
+
+        Yields
+        ------
+        Backend
+            The executor of the one run (`rdea_lab.backends.Backend`).
+        """
+        raise NotImplementedError
+
+    def describe(self, setup) -> str:
+        """What the dry run says of this backend, in one line (a rig is not contacted).
+
+        Parameters
+        ----------
+        setup : RunSetup
+            The prepared run.
+
+        Returns
+        -------
+        str
+            One line, e.g. ``twin: model su, parameters paper2021_table3``.
+        """
+        raise NotImplementedError
+
+
 @dataclass(frozen=True, init=False)
-class Twin:
+class Twin(_Backend):
     """The physics model as the backend.
 
     Parameters
@@ -141,33 +185,9 @@ class Twin:
 
     @contextlib.contextmanager
     def opened(self, setup):
-        """The twin's executor for the run (nothing to start or stop).
-
-        Parameters
-        ----------
-        setup : RunSetup
-            The prepared run (`~rdea_lab.runs.app.prepare_run`): its checked plan, card, geometry and seed.
-
-        Yields
-        ------
-        Backend
-            The executor of the one run (`rdea_lab.backends.Backend`).
-        """
         yield self.executor(setup)
 
     def describe(self, setup) -> str:
-        """What the dry run says of the twin: the model it would use (and why, for ``auto``).
-
-        Parameters
-        ----------
-        setup : RunSetup
-            The prepared run.
-
-        Returns
-        -------
-        str
-            One line, e.g. ``twin: model su, parameters paper2021_table3``.
-        """
         twin = self.executor(setup)
         twin.start(setup.plan)
         sel = twin.choice
@@ -176,7 +196,7 @@ class Twin:
 
 
 @dataclass(frozen=True, init=False)
-class Emulator:
+class Emulator(_Backend):
     """A built-in emulated rig on a free loopback port, for the one run: the rig protocol end to end, with
     the truth's physics (which no model has) and its instruments.
 
@@ -214,30 +234,8 @@ class Emulator:
         object.__setattr__(self, "realtime", bool(realtime))
         object.__setattr__(self, "stall_timeout", _stall_timeout(stall_timeout))
 
-    def check(self, geom) -> None:
-        """Nothing to refuse here: the emulated rig checks the run on its side.
-
-        Parameters
-        ----------
-        geom : RollGeometry or StripGeometry
-            The run's geometry, made once from the card in `~rdea_lab.runs.app.prepare_run`.
-        """
-        return None
-
     @contextlib.contextmanager
     def opened(self, setup):
-        """Start the emulated rig on a free loopback port, and the driver connected to it, for the run.
-
-        Parameters
-        ----------
-        setup : RunSetup
-            The prepared run (`~rdea_lab.runs.app.prepare_run`): its checked plan, card, geometry and seed.
-
-        Yields
-        ------
-        Backend
-            The executor of the one run (`rdea_lab.backends.Backend`).
-        """
         from ..backends.rig import RigBackend
 
         with emulated_rig(setup.card, self.truth, realtime=self.realtime, faults=self.faults) as address:
@@ -245,24 +243,12 @@ class Emulator:
                              seed=setup.seed, geometry=setup.geometry)
 
     def describe(self, setup) -> str:
-        """What the dry run says of the emulator: its truth and faults.
-
-        Parameters
-        ----------
-        setup : RunSetup
-            The prepared run.
-
-        Returns
-        -------
-        str
-            One line, e.g. ``twin: model su, parameters paper2021_table3``.
-        """
         faults = ", ".join(f"{k}-at={a:g}" for k, a in self.faults)
         return f"emulator: truth {self.truth.name}" + (f", faults {faults}" if faults else "")
 
 
 @dataclass(frozen=True, init=False)
-class Rig:
+class Rig(_Backend):
     """A rig server at ``address`` (the physical rig, or `rdea-lab rig serve`), through the rig protocol.
 
     Parameters
@@ -311,30 +297,8 @@ class Rig:
         return (f"Rig({self.address!r}, token={'...' if self.token else None}, trust_card={self.trust_card}, "
                 f"stall_timeout={self.stall_timeout}, timeout={self.timeout})")
 
-    def check(self, geom) -> None:
-        """Nothing to refuse here: the rig server checks the run against its own limits.
-
-        Parameters
-        ----------
-        geom : RollGeometry or StripGeometry
-            The run's geometry, made once from the card in `~rdea_lab.runs.app.prepare_run`.
-        """
-        return None
-
     @contextlib.contextmanager
     def opened(self, setup):
-        """Connect the driver to the rig server for the run (closed when the block ends).
-
-        Parameters
-        ----------
-        setup : RunSetup
-            The prepared run (`~rdea_lab.runs.app.prepare_run`): its checked plan, card, geometry and seed.
-
-        Yields
-        ------
-        Backend
-            The executor of the one run (`rdea_lab.backends.Backend`).
-        """
         from ..backends.rig import RigBackend
 
         yield RigBackend(self.address, setup.card, token=self.token, timeout=self.timeout,
@@ -342,18 +306,6 @@ class Rig:
                          geometry=setup.geometry)
 
     def describe(self, setup) -> str:
-        """What the dry run says of the rig: its address (it is not contacted).
-
-        Parameters
-        ----------
-        setup : RunSetup
-            The prepared run.
-
-        Returns
-        -------
-        str
-            One line, e.g. ``twin: model su, parameters paper2021_table3``.
-        """
         return f"rig {self.address}: not contacted (dry run)"
 
 
