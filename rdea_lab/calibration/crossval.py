@@ -35,6 +35,7 @@ from ..store.outputs import check_new
 from ..specs import SpecError
 from ..specs.record import add_record_section
 from .app import ARGS, calibrate_runs, gather_runs
+from .fit import hook
 from .record import record_files
 from .envelope import Envelope, beyond, envelope, moving_rates, run_envelope, stretch_text
 from .objective import ERROR_LEGEND, find_runs, goodness, predict_force
@@ -254,7 +255,7 @@ def _holdout_index(items, holdout) -> list[int]:
 
 
 def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, name=None, overwrite=False,
-                   announce_fold=None, fold_done=None, **calibrate_kwargs) -> CrossValidation:
+                   monitor=None, **calibrate_kwargs) -> CrossValidation:
     """Fit on some runs, predict the others: k-fold (``cv``) or one split (``holdout``).
 
     Parameters
@@ -275,14 +276,14 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, nam
         Name of the calibrated set in each record (default: the record's stem).
     overwrite : bool
         Write over existing outputs (the CLI's ``--force``).
-    announce_fold : callable, optional
-        ``announce_fold(index, count, label, fitted_names, predicted_names)`` before each fold's fit.
-    fold_done : callable, optional
-        ``fold_done(index, count, fold, rows)`` after it: the `Fold` (its fit and envelope) and its rows of
-        the result's table (its fitted and predicted runs).
+    monitor : FitMonitor or any object, optional
+        Passed to `calibrate_runs` for every fold (its ``announce``, ``progress``, ``stage``); here its
+        ``announce_fold(index, count, label, fitted_names, predicted_names)`` is called before each fold's
+        fit and its ``fold_done(index, count, fold, rows)`` after it: the `Fold` (its fit and envelope)
+        and its rows of the result's table (its fitted and predicted runs). Those it has.
     **calibrate_kwargs
-        Passed to `calibrate_runs` for every fold (``model``, ``free``, ``branches``, ``budget``,
-        ``monitor``, ...; ``kinds`` also selects the runs of folders here).
+        Passed to `calibrate_runs` for every fold (``model``, ``free``, ``branches``, ``budget``, ...;
+        ``kinds`` also selects the runs of folders here).
 
     Returns
     -------
@@ -321,13 +322,14 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, nam
     held = _holdout_index(items, holdout) if cv is None else ()
     plan = make_folds(runs, cv, held)
     grouping = _grouping(cv)
+    announce_fold, fold_done = hook(monitor, "announce_fold"), hook(monitor, "fold_done")
     folds, rows = [], []
     for k, (label, fit_idx, pred_idx) in enumerate(plan, start=1):
         fitted, predicted = [_name(runs[i]) for i in fit_idx], [_name(runs[i]) for i in pred_idx]
         if announce_fold is not None:
             announce_fold(k, len(plan), label, fitted, predicted)
         record = (out / f"fold-{k}.yaml" if cv is not None else out) if out is not None else None
-        result = calibrate_runs([items[i] for i in fit_idx], **calibrate_kwargs)
+        result = calibrate_runs([items[i] for i in fit_idx], monitor=monitor, **calibrate_kwargs)
         if record is not None:  # new: checked above, before any fit
             result = replace(result, record_files=result.write(record, name=name, overwrite=overwrite))
         fit_runs = list(result.run_data) or [runs[i] for i in fit_idx]

@@ -53,9 +53,12 @@ class Budget:
 
 
 class FitMonitor:
-    """What a calibration tells while it runs: override any of the three methods (no-ops here).
+    """What a calibration tells while it runs: override any of the methods (no-ops here).
 
-    Any object will do as a monitor: the fit calls those of these methods it has.
+    Any object will do as a monitor: the fit calls those of these methods it has (`calibrate` its
+    ``progress``, `calibrate_growing` also ``stage``, `~rdea_lab.calibration.app.calibrate_runs` also
+    ``announce``, `~rdea_lab.calibration.crossval.cross_validate` also ``announce_fold`` and ``fold_done``).
+    A method that raises stops the calibration there.
     """
 
     def progress(self, evaluations: int, best: float, elapsed: float) -> None:
@@ -69,6 +72,14 @@ class FitMonitor:
         """Once the inputs are checked, before the fit starts (`~rdea_lab.calibration.app.calibrate_runs`):
         the `RunData`, the model and why ``auto`` chose it (else empty), the free names, the files of input
         folders left out (tuple of dict ``file``, ``reason``)."""
+
+    def announce_fold(self, index: int, count: int, label: str, fitted, predicted) -> None:
+        """Before each fold of a cross-validation (``index`` from 1 to ``count``): what it holds out, the
+        file names it fits and those it predicts."""
+
+    def fold_done(self, index: int, count: int, fold, rows) -> None:
+        """After each fold: the `~rdea_lab.calibration.crossval.Fold` (its fit and envelope) and its rows of
+        the result's table (its fitted and predicted runs, as dicts)."""
 
 
 def hook(monitor, name: str):

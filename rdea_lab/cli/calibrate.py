@@ -153,10 +153,10 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
         param = next(p for p in ctx.command.params if p.name == "out_path")
         click.Path(dir_okay=False).convert(out_path, param, ctx)
     fit = (functools.partial(api.cross_validate, cv=cv, holdout=list(holdout) or None, out=out_path, name=name,
-                             overwrite=overwrite, announce_fold=announce_fold, fold_done=progress.fold_done)
-           if cross else api.calibrate_runs)
+                             overwrite=overwrite) if cross else api.calibrate_runs)
     kinds = [k.strip() for k in kinds_text.split(",") if k.strip()]
-    monitor = types.SimpleNamespace(progress=progress, stage=progress.stage, announce=announce)
+    monitor = types.SimpleNamespace(progress=progress, stage=progress.stage, announce=announce,
+                                    announce_fold=announce_fold, fold_done=progress.fold_done)
     result = fit(list(inputs), model=model.lower(), init=init_path, free=free_text, branches=M,
                  eps_r=eps_r, kinds=kinds, metric=metric, budget=api.Budget(evaluations=max_evals, seconds=max_time),
                  monitor=monitor, method=method.lower(), law=law.lower() if law else None)

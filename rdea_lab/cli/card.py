@@ -146,26 +146,26 @@ def curve(card, params_path, model, stretch_text, voltage_text, as_json, as_csv,
     result = api.quasi_static_curves(load_specimen(card), load_params(params_path), model.lower(), stretch, voltages,
                                      max_field=None if no_field_check else api.CURVE_MAX_FIELD)
     if as_json:
-        out = {"model": result["model"], "specimen": result["specimen"], "parameters": result["parameters"],
-               "curves": [{k: c[k] for k in ("voltage", *api.CURVE_FIELDS, "summary")} for c in result["curves"]]}
+        out = {"model": result.model, "specimen": result.specimen, "parameters": result.parameters,
+               "curves": [{k: getattr(c, k) for k in ("voltage", *api.CURVE_FIELDS, "summary")} for c in result.curves]}
         click.echo(json.dumps(_jsonable(out)))
         return
     if as_csv:
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
         w.writerow(["voltage_V", "stretch", "sigma1_Pa", "force_N", "lambda2b", "capacitance_F", "converged"])
-        for c in result["curves"]:
+        for c in result.curves:
             for i in range(stretch.size):
-                w.writerow([c["voltage"], repr(float(c["stretch"][i])), repr(float(c["sigma1"][i])),
-                            repr(float(c["force"][i])), repr(float(c["lambda2b"][i])),
-                            repr(float(c["capacitance"][i])), int(c["converged"][i])])
+                w.writerow([c.voltage, repr(float(c.stretch[i])), repr(float(c.sigma1[i])),
+                            repr(float(c.force[i])), repr(float(c.lambda2b[i])),
+                            repr(float(c.capacitance[i])), int(c.converged[i])])
         click.echo(buf.getvalue(), nl=False)
         return
-    click.echo(f"{result['specimen']}, {result['parameters']}, model {model.lower()}")
-    for c in result["curves"]:
-        click.echo(f"voltage {c['voltage']:g} V: {c['summary']}")
+    click.echo(f"{result.specimen}, {result.parameters}, model {model.lower()}")
+    for c in result.curves:
+        click.echo(f"voltage {c.voltage:g} V: {c.summary}")
         click.echo(f"  {'stretch':>8} {'sigma1/MPa':>11} {'force/N':>9} {'lambda2b':>9} {'C/pF':>9}")
         step = max(1, stretch.size // 10)
         for i in list(range(0, stretch.size, step)) + ([stretch.size - 1] if (stretch.size - 1) % step else []):
-            click.echo(f"  {c['stretch'][i]:8.4f} {c['sigma1'][i] / 1e6:11.5f} {c['force'][i]:9.4f} "
-                       f"{c['lambda2b'][i]:9.5f} {c['capacitance'][i] * 1e12:9.2f}")
+            click.echo(f"  {c.stretch[i]:8.4f} {c.sigma1[i] / 1e6:11.5f} {c.force[i]:9.4f} "
+                       f"{c.lambda2b[i]:9.5f} {c.capacitance[i] * 1e12:9.2f}")

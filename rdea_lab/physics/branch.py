@@ -162,13 +162,14 @@ def scan_nodes(problem: Problem) -> np.ndarray:
     return Y
 
 
-def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
-    """Per sample, the stable equilibrium a voltage ramp reaches from ``y0`` (no history).
+class BranchResult(NamedTuple):
+    """What :func:`follow_branch` finds, per sample (a tuple too, in this order).
 
-    Returns
-    -------
+    Attributes
+    ----------
     y : numpy.ndarray
-        Equilibrium coordinate (``y0`` where there is none).
+        Equilibrium coordinate [unit of the problem's ``y``, e.g. the hoop stretch of 1R, -];
+        ``y0`` where there is none.
     status : numpy.ndarray of int8
         ``OK``; ``SNAPPED`` where the branch folded on the way and the
         equilibrium is the next stable state (the first minimum of ``g``
@@ -176,11 +177,36 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
         of the range never reaches the fold's load again; ``OUTSIDE_RANGE``
         where no state lies in the range otherwise; ``NOT_CONVERGED``.
     K_crit : numpy.ndarray
-        Load parameter at the first fold where ``status`` is ``SNAPPED`` or
-        ``LIMIT_POINT``; NaN elsewhere.
+        Load parameter [unit of psi] at the first fold where ``status`` is
+        ``SNAPPED`` or ``LIMIT_POINT``; NaN elsewhere (:meth:`Problem.voltage`
+        gives its voltage [V]).
     K_range : numpy.ndarray
-        The largest load solved in the range where ``status`` is
+        The largest load [unit of psi] solved in the range where ``status`` is
         ``OUTSIDE_RANGE``; NaN elsewhere.
+    """
+
+    y: np.ndarray
+    status: np.ndarray
+    K_crit: np.ndarray
+    K_range: np.ndarray
+
+
+def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100) -> BranchResult:
+    """Per sample, the stable equilibrium a voltage ramp reaches from ``y0`` (no history).
+
+    Parameters
+    ----------
+    problem : Problem
+        The samples (independent of each other).
+    rtol : float
+        Relative tolerance of the refined roots and folds [-].
+    max_iter : int
+        Iterations of each refinement.
+
+    Returns
+    -------
+    BranchResult
+        ``y``, ``status``, ``K_crit``, ``K_range`` per sample (see `BranchResult`).
 
     Notes
     -----
@@ -199,7 +225,7 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
     h_start = problem.h_start(np.arange(n))
     idx = np.flatnonzero(K > h_start)
     if idx.size == 0:
-        return y, status, K_crit, K_range
+        return BranchResult(y, status, K_crit, K_range)
 
     Y = scan_nodes(problem)
     lo = np.empty(n)
@@ -292,7 +318,7 @@ def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100):
     y[todo] = y_new
     status[todo[folded[todo]]] = SNAPPED
     status[todo[~ok]] = NOT_CONVERGED
-    return y, status, K_crit, K_range
+    return BranchResult(y, status, K_crit, K_range)
 
 
 class PathResult(NamedTuple):

@@ -23,6 +23,7 @@ What is left is a per-sample inversion of the quasi-static stress in ``v**2``:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -65,15 +66,44 @@ class InverseResult:
     fold: np.ndarray
 
 
-def required_stress(geom, params, t, stretch, force):
-    """``(sigma_rev, sigma_irr)`` [Pa]: the quasi-static stress a force history needs, and the overstress.
+class RequiredStress(NamedTuple):
+    """What :func:`required_stress` returns (a tuple too, in this order).
 
-    ``sigma_rev = F lambda1 / A - sigma_irr`` (eqs. (43), (16) of [1]); the branches start relaxed at
-    ``t[0]``, as in `simulate`.
+    Attributes
+    ----------
+    sigma_rev : numpy.ndarray, shape (n,)
+        The quasi-static (reversible) axial stress the force history needs [Pa].
+    sigma_irr : numpy.ndarray, shape (n,)
+        The viscoelastic overstress along the stretch history [Pa].
+    """
+
+    sigma_rev: np.ndarray
+    sigma_irr: np.ndarray
+
+
+def required_stress(geom, params, t, stretch, force) -> RequiredStress:
+    """The quasi-static stress a force history needs, and the overstress along its stretch history.
+
+    Parameters
+    ----------
+    geom : RollGeometry or StripGeometry
+    params : ParameterSet
+    t : numpy.ndarray, shape (n,)
+        Sample times [s], strictly increasing.
+    stretch : numpy.ndarray, shape (n,)
+        Axial stretch [-].
+    force : numpy.ndarray, shape (n,)
+        Force [N].
+
+    Returns
+    -------
+    RequiredStress
+        ``sigma_rev = F lambda1 / A - sigma_irr`` [Pa] (eqs. (43), (16) of [1]) and ``sigma_irr`` [Pa]
+        (eq. (44) of [1], or its finite-strain form); the branches start relaxed at ``t[0]``, as in `simulate`.
     """
     k, eta, eta_v0, law = viscous(params)
     sigma_irr, _ = viscoelastic.overstress_step(t, stretch, k, eta, eta_v0, law=law)
-    return force * stretch / geom.area - sigma_irr, sigma_irr
+    return RequiredStress(force * stretch / geom.area - sigma_irr, sigma_irr)
 
 
 def _force(geom, params, t, stretch, tension):
@@ -173,4 +203,4 @@ def _bisect(model, geom, params, t, stretch, need, umax, target):
     return u, ok, fmax, fmin, full(top, 0.0) + np.where(target, 0.0, umax), full(fold & (top < cap), False)
 
 
-__all__ = ["BISECTION_STEPS", "InverseResult", "required_stress", "voltage_for_force"]
+__all__ = ["BISECTION_STEPS", "InverseResult", "RequiredStress", "required_stress", "voltage_for_force"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from datetime import datetime, timezone
+from typing import NamedTuple
 
 import numpy as np
 import xarray as xr
@@ -31,14 +32,66 @@ def as_geometry(specimen):
     return geometry_from_card(as_specimen(specimen))
 
 
-def viscous(params) -> tuple[np.ndarray, np.ndarray, float, str]:
-    """``(modulus [Pa], eta [Pa s], eta_v0 [Pa s], law)`` of a parameter set's Maxwell branches and damper.
+class Viscous(NamedTuple):
+    """A parameter set's Maxwell branches and parallel damper as arrays (:func:`viscous`; a tuple too, in
+    this order).
 
-    ``modulus`` is each branch's ``k`` (law linear) or ``mu`` (law finite_strain).
+    Attributes
+    ----------
+    modulus : numpy.ndarray, shape (M,)
+        Each branch's spring [Pa]: ``k`` (law linear, eq. (44) of [1]) or ``mu`` (law finite_strain).
+    eta : numpy.ndarray, shape (M,)
+        Each branch's dashpot viscosity [Pa s].
+    eta_v0 : float
+        The parallel damper's viscosity [Pa s].
+    law : str
+        ``linear`` or ``finite_strain``.
+    """
+
+    modulus: np.ndarray
+    eta: np.ndarray
+    eta_v0: float
+    law: str
+
+
+class Composition(NamedTuple):
+    """What :func:`compose` returns (a tuple too, in this order).
+
+    Attributes
+    ----------
+    sigma1 : numpy.ndarray, shape (n,)
+        Total axial stress ``sigma_rev + sigma_irr`` [Pa], eq. (43) of [1]; 0 where the specimen is slack.
+    sigma1_irr : numpy.ndarray, shape (n,)
+        Viscoelastic overstress [Pa], eq. (44) of [1] (or its finite-strain form).
+    force : numpy.ndarray, shape (n,)
+        Force [N], eq. (16) of [1]; 0 where it would be compressive (slack).
+    state : ViscoState or None
+        The branches' state after the last sample (for the next block).
+    """
+
+    sigma1: np.ndarray
+    sigma1_irr: np.ndarray
+    force: np.ndarray
+    state: object
+
+
+def viscous(params) -> Viscous:
+    """The Maxwell branches and damper of a parameter set, as arrays.
+
+    Parameters
+    ----------
+    params : ParameterSet
+        Its ``branches`` (none: empty arrays), ``eta_v0`` [Pa s] (none: 0) and ``law`` (none: linear).
+
+    Returns
+    -------
+    Viscous
+        ``modulus`` [Pa] (each branch's ``k``, law linear, or ``mu``, law finite_strain), ``eta`` [Pa s],
+        ``eta_v0`` [Pa s], ``law``.
     """
     branches = tuple(getattr(params, "branches", ()) or ())
-    return (np.array([b.modulus for b in branches], float), np.array([b.eta for b in branches], float),
-            float(getattr(params, "eta_v0", 0.0) or 0.0), str(getattr(params, "law", "linear")))
+    return Viscous(np.array([b.modulus for b in branches], float), np.array([b.eta for b in branches], float),
+                   float(getattr(params, "eta_v0", 0.0) or 0.0), str(getattr(params, "law", "linear")))
 
 
 def compose(geom, visco, t, stretch, sigma_rev, state=None, history=None):
@@ -53,7 +106,7 @@ def compose(geom, visco, t, stretch, sigma_rev, state=None, history=None):
     Parameters
     ----------
     geom : RollGeometry or StripGeometry
-    visco : tuple
+    visco : Viscous
         ``(modulus, eta, eta_v0, law)`` of :func:`viscous`.
     t : numpy.ndarray, shape (n,)
         Sample times [s].
@@ -70,14 +123,13 @@ def compose(geom, visco, t, stretch, sigma_rev, state=None, history=None):
 
     Returns
     -------
-    sigma1, sigma1_irr, force : numpy.ndarray
-        ``sigma1 = sigma_rev + sigma_irr`` [Pa] (43), the overstress (44) [Pa], and
-        the force ``sigma1 pi (Ro**2 - Ri**2) / lambda1`` [N] (16); where that would
-        be compressive the specimen is slack (a roll buckles, a membrane wrinkles):
-        force and ``sigma1`` are 0. The overstress follows the clamps' stretch
-        throughout (a slack specimen's own, larger stretch is not tracked: an
-        approximation while it is slack).
-    state : ViscoState or None
+    Composition
+        ``sigma1 = sigma_rev + sigma_irr`` [Pa] (43), the overstress ``sigma1_irr`` (44) [Pa],
+        the ``force`` ``sigma1 pi (Ro**2 - Ri**2) / lambda1`` [N] (16), and the branches' ``state``
+        after the last sample. Where the force would be compressive the specimen is slack (a roll
+        buckles, a membrane wrinkles): force and ``sigma1`` are 0. The overstress follows the clamps'
+        stretch throughout (a slack specimen's own, larger stretch is not tracked: an approximation
+        while it is slack).
     """
     k, eta, eta_v0, law = visco
     if history is not None and history.t.shape != np.shape(stretch):
@@ -88,7 +140,7 @@ def compose(geom, visco, t, stretch, sigma_rev, state=None, history=None):
     force = geom.carried_force(sigma * geom.area / stretch)
     with np.errstate(invalid="ignore"):
         sigma = np.where(force == 0.0, 0.0, sigma)
-    return sigma, sigma_irr, force, state
+    return Composition(sigma, sigma_irr, force, state)
 
 
 def slack_status(status, pushes, force):

@@ -61,8 +61,8 @@ def test_twin_functions_accept_paths():
     a = quasi_static_curves(card, params, "su", [1.0, 1.2], [0.0, 2600.0])
     b = quasi_static_curves(rdea_lab.load_specimen(card), rdea_lab.load_params(params), "su",
                                      [1.0, 1.2], [0.0, 2600.0])
-    for ca, cb in zip(a["curves"], b["curves"]):
-        np.testing.assert_array_equal(ca["force"], cb["force"])
+    for ca, cb in zip(a.curves, b.curves):
+        np.testing.assert_array_equal(ca.force, cb.force)
     assert TwinBackend(card, params).card == rdea_lab.load_specimen(card)
 
 

@@ -8,6 +8,7 @@ cheap) with a small evaluation budget: they test the plumbing, not the quality o
 import csv
 import re
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 import yaml
@@ -183,7 +184,8 @@ def test_out_folder_without_cv_is_refused(imported, tmp_path, capsys):
 
 def test_fold_done_is_called_after_each_fold_with_its_fit_and_rows(imported):
     seen = []
-    cv = cross_validate(imported, cv="by-stretch", **FAST, fold_done=lambda *a: seen.append(a))
+    cv = cross_validate(imported, cv="by-stretch", **FAST,
+                        monitor=SimpleNamespace(fold_done=lambda *a: seen.append(a)))  # its one method
     assert [s[:2] for s in seen] == [(k, len(cv.folds)) for k in range(1, len(cv.folds) + 1)]
     for (k, _, fold, rows), expected in zip(seen, cv.folds):
         assert fold is expected

@@ -135,9 +135,9 @@ def test_without_branches_force_is_quasi_static(card, table3):
     elastic = table3.replace(branches=())
     ds = simulate(card, elastic, t, lam, 0.0, model="su")
     np.testing.assert_array_equal(ds["sigma1_irr"], 0.0)
-    curve = quasi_static_curves(card, elastic, "su", lam, [0.0])["curves"][0]
+    curve = quasi_static_curves(card, elastic, "su", lam, [0.0]).curves[0]
     # same stress and the same arithmetic: exactly equal
-    np.testing.assert_array_equal(ds["force"], curve["force"])
+    np.testing.assert_array_equal(ds["force"], curve.force)
     # and equal to the hand formula up to float rounding (1e-14 relative; abs 1e-12 N at lambda1 = 1)
     np.testing.assert_allclose(ds["force"], su_stress_hand(lam) * AREA / lam, rtol=1e-10, atol=1e-12)
 
@@ -212,15 +212,20 @@ def test_quasi_static_curves_shape(card, table3, model):
     stretch = np.linspace(1.0, 1.5, 7)
     voltages = [0.0, 1000.0, 2600.0]
     out = quasi_static_curves(card, table3, model, stretch, voltages)
-    assert out["model"] == model
-    assert out["specimen"] == "specimen-2"
-    assert [c["voltage"] for c in out["curves"]] == voltages
-    for c in out["curves"]:
+    assert out.model == model
+    assert out.specimen == "specimen-2" and out.parameters == table3.name
+    assert [c.voltage for c in out.curves] == voltages
+    for c in out.curves:
         for k in ("stretch", "sigma1", "force", "lambda2b", "capacitance", "converged"):
-            assert np.shape(c[k]) == stretch.shape, k
+            assert np.shape(getattr(c, k)) == stretch.shape, k
     # at 0 V every model is on the uniaxial state: the hand SU stress;
     # 1e-8 covers the iterative solvers' stopping tolerance, abs for lambda1 = 1
-    np.testing.assert_allclose(out["curves"][0]["sigma1"], su_stress_hand(stretch), rtol=1e-8, atol=1e-3)
+    np.testing.assert_allclose(out.curves[0].sigma1, su_stress_hand(stretch), rtol=1e-8, atol=1e-3)
+    # the same numbers as one table, a row per (voltage, stretch) in the order given
+    table = out.table
+    assert list(table.columns) == ["voltage", "stretch", "sigma1", "force", "lambda2b", "capacitance", "converged"]
+    assert list(table["voltage"]) == [v for v in voltages for _ in stretch]
+    np.testing.assert_array_equal(table["force"], np.concatenate([c.force for c in out.curves]))
 
 
 @pytest.mark.parametrize("branches", [True, False])

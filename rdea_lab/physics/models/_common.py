@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..branch import PathResult, follow_branch, follow_path
+from ..branch import BranchResult, PathResult, follow_branch, follow_path
 from ..constants import EPS0
 from .._backend import compiled
 from ..result import NOT_CONVERGED, OK, SLACK, SNAPPED, VALID, PathEnd, finish, is_valid, prepare_inputs
@@ -102,7 +102,7 @@ def _branch_certified(fast, problem):
     bad = np.flatnonzero(~ok)
     if bad.size:
         y[bad], status[bad], K_crit[bad], K_range[bad] = follow_branch(problem.subset(bad))
-    return y, status, K_crit, K_range
+    return BranchResult(y, status, K_crit, K_range)
 
 
 def _path_certified(fast, problem, y_start, label):
