@@ -498,10 +498,22 @@ def run_study(study: Study, *, scheduler: str | None = None, workers: int | None
     scheduler : str, optional
         ``tcp://HOST:PORT`` of a running dask scheduler (default ``DASK_SCHEDULER_ADDRESS``, else a new
         local cluster of ``workers`` processes).
+    workers : int, optional
+        Processes of the local cluster started when no scheduler is given (default: one per core).
     synchronous : bool
         Every task in this process (dask's synchronous scheduler), no cluster.
     client : distributed.Client, optional
         An open client to use as it is.
+    progress : bool
+        Show dask's progress bar while the sweep runs.
+    quiet : bool
+        Keep the local cluster's log lines off the terminal.
+
+    Returns
+    -------
+    StudyResult
+        The frozen result: the sweep's table, the Pareto front and the Sobol indices as DataFrames,
+        the optimum and the timings; write it with :meth:`StudyResult.write`.
 
     Raises
     ------

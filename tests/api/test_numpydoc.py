@@ -32,11 +32,6 @@ from rdea_lab.specs.errors import SpecError, UserError
 
 #: Names being rewritten by the other parts of issue 26 (backends as objects and typed results: runs/*,
 #: calibration/*, reports/*, design/*); the lead empties this set when that work is merged.
-PENDING = {
-    "validation_report", "reproduce",  # reports/*
-    "run_study",  # design/*
-}
-PENDING_REASON = "rewritten by issue 26's typed results; the lead empties this set after the merge"
 
 #: Parameter (and return) names that are physical quantities: their descriptions carry a unit in brackets.
 PHYSICAL = {
@@ -184,14 +179,8 @@ def problems_of(obj, where: str) -> list[str]:
 
 
 # ------------------------------------------------------------------ the tests
-def test_pending_names_are_public_names():
-    assert PENDING <= set(NAMES)
-
-
 @pytest.mark.parametrize("name", NAMES)
 def test_public_name_has_a_complete_numpydoc_docstring(name):
-    if name in PENDING:
-        pytest.skip(f"{name}: {PENDING_REASON}")
     problems = problems_of(getattr(rdea_lab, name), name)
     if name in PAPER:
         references = " ".join(" ".join(filter(None, e)) for e in parse(inspect.getdoc(getattr(rdea_lab, name)))[1]
@@ -273,8 +262,6 @@ def test_the_api_reference_table_gives_each_name_its_docstring_summary():
     for name, (anchor, summary) in shown.items():
         assert anchor in entries, f"{name}: its row links to {anchor}, which has no ::: entry"
         assert anchor.rsplit(".", 1)[1] == (name if name != "ds.rdea" else "RdeaAccessor"), name
-        if name in PENDING:
-            continue  # their docstrings are being rewritten; the lead checks these rows after the merge
         module, attr = anchor.rsplit(".", 1)
         doc = inspect.cleandoc(getattr(importlib.import_module(module), attr).__doc__ or "")
         first = " ".join(line.strip() for line in doc.split("\n\n")[0].splitlines())
