@@ -52,6 +52,7 @@ def test_a_missing_extra_is_exit_2_with_the_pip_command(tmp_path, argv, extra):
     assert len(lines) == 1 and f"python3 -m pip install 'rdea-lab[{extra}]'" in lines[0], proc.stderr
 
 
+@pytest.mark.slow
 def test_the_base_install_runs_the_twin(tmp_path):
     """No numba: a twin run of 3R over a whole protocol runs on the numpy reference."""
     out = tmp_path / "run.nc"

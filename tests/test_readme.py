@@ -30,8 +30,8 @@ SETUP = ['python3 -m pip install -e ".[test]" && rdea-lab reproduce       # inst
          'python3 -m pip install -e ".[test]" && python3 -m pytest -q     # install, then the tests']
 #: Examples that run alone, each in a folder of its own (first words after ``rdea-lab``) ...
 ALONE = {("campaign", "run"), ("report", "speed"), ("design",), ("bench",)}
-#: ... and those of them over ~15 s here (marked slow).
-SLOW = {("design",), ("bench",)}
+#: ... and those of them over ~10 s here (marked slow).
+SLOW = {("design",), ("bench",), ("campaign", "run"), ("report", "speed")}
 NOT_RUN = {("reproduce",)}
 
 

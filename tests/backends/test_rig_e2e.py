@@ -98,6 +98,7 @@ def test_stall_mid_run(server, card, tmp_path):
     assert server.controller.state == "ABORTED"  # the client's ABOR reached the rig: voltage off
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("server", [{"faults": [("disconnect", 2.0)], "realtime": True}], indirect=True)
 def test_disconnect_mid_run_reconnects_and_drains(server, card, tmp_path):
     """Realtime, so the rig holds samples the client has not fetched when the line drops;
@@ -182,6 +183,7 @@ def test_each_run_has_its_own_reproducible_noise(server, card, tmp_path):
     np.testing.assert_array_equal(f["a"], f["c"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("server", [{"realtime": True}], indirect=True)
 def test_a_second_driver_is_refused_and_the_running_experiment_completes(server, card, tmp_path, capsys):
     """The audit: a second `rdea-lab run` against a rig already running sent *RST and ended the first run.

@@ -53,6 +53,7 @@ def factor3_start():
                         branches=(ViscoBranch(k=TRUE.branches[0].k / 3, eta=3 * TRUE.branches[0].eta),))
 
 
+@pytest.mark.slow
 def test_noise_free_data_give_the_parameters_back_from_a_start_off_by_a_factor_3(clean):
     res = calibrate(clean, factor3_start(), model="su", free=FREE)
     got, true = values(res.params), values(TRUE)
@@ -70,6 +71,7 @@ def test_noise_free_recovery_from_a_start_estimated_from_the_data(clean):
         assert values(res.params)[k] == pytest.approx(values(TRUE)[k], rel=1e-3, abs=0), k
 
 
+@pytest.mark.slow
 def test_noisy_data_give_the_parameters_back_within_their_standard_errors():
     """5 mN white load-cell noise (peak force ~4.7 N). With white noise the Jacobian
     standard errors are the right scale: every estimate within 4 of them (a 4-sigma
@@ -185,6 +187,7 @@ def test_fit_report_names_every_parameter_and_run(clean):
     assert lines[-1].startswith("  AIC ")
 
 
+@pytest.mark.slow
 def test_cli_calibrates_twin_runs_and_refuses_bad_input(capsys, tmp_path):
     for name in ("tensile_ramp_sine_0V", "tensile_ramp_sine_2.6kV", "blocking_force"):
         assert run_cli(cli, ["run", str(ROOT / "rdea_lab" / "data" / "protocols" / f"{name}.yaml"), "--specimen",
@@ -244,6 +247,7 @@ def two_time_scales():
     return runs, initial_guess(runs, 1, 2.8).replace(eta_v0=0.0)
 
 
+@pytest.mark.slow
 def test_a_budget_that_stops_the_last_stage_of_a_growth_leaves_it_not_converged(two_time_scales):
     """Growing M = 2 (least squares: fast). Given the evaluations the first two stages took plus three, the
     third (the faster second branch) stops on the budget: the growth did not finish, even though the fit kept
@@ -289,6 +293,7 @@ def test_progress_reports_every_evaluation_and_the_best_so_far(clean, every_eval
     assert np.all(np.diff(elapsed) >= 0) and elapsed[-1] <= res.wall_time
 
 
+@pytest.mark.slow
 def test_growth_reports_each_stage_and_counts_over_all_of_them(two_time_scales, every_evaluation):
     from rdea_lab.calibration.fit import calibrate_growing
 

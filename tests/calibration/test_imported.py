@@ -3,6 +3,7 @@
 from pathlib import Path
 
 import numpy as np
+import pytest
 from vhb_data import needs_vhb
 
 from rdea_lab.calibration import load_run
@@ -27,6 +28,7 @@ def test_noise_below_stretch_1_is_left_out_and_counted(imported):
     assert np.all(run.stretch >= 1.0)
 
 
+@pytest.mark.slow
 def test_calibrate_on_one_rate_of_real_data(capsys, imported, tmp_path):
     out = tmp_path / "vhb.yaml"
     rc = run_cli(cli, ["calibrate", str(imported / "0d01_1d5.nc"), "--model", "1r", "--quiet", "--out", str(out)])

@@ -76,6 +76,7 @@ def both():
                   for m in ("nelder-mead", "least-squares")}
 
 
+@pytest.mark.slow
 def test_nelder_mead_and_least_squares_agree_on_specimen_2(both):
     _, res = both
     nm, ls = res["nelder-mead"], res["least-squares"]

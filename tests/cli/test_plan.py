@@ -29,6 +29,7 @@ def cli(*args, cwd=None):
                           cwd=cwd, env=env, timeout=300)
 
 
+@pytest.mark.slow
 def test_plan_run_on_the_emulator_within_the_stated_error(tmp_path):
     (tmp_path / "short.yaml").write_text(SHORT)
     r = cli("plan", "--target", str(tmp_path / "short.yaml"), "--specimen", CARD, "--params", PARAMS,
@@ -46,6 +47,7 @@ def test_plan_run_on_the_emulator_within_the_stated_error(tmp_path):
     assert t["stretch_error_max"] < 0.008
 
 
+@pytest.mark.slow
 def test_plan_then_run_then_check(tmp_path, capsys):
     """The README's path: plan, `rdea-lab run` the protocol file (twin backend here), check the run. The two
     plans run in process (the CLI's own `run`, as the console script calls it), the run as a real process."""

@@ -114,6 +114,7 @@ def test_ls_show_and_protocol_show(capsys, campaign, tmp_path):
     assert rc == 0 and "ramp_sine" in out and (tmp_path / "p.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_auto_records_its_choice_and_explicit_models_run(capsys, tmp_path):
     for model in ("su", "1r", "3r", "auto"):
         rc, out, err = rdea(capsys, "run", ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_2.6kV.yaml",

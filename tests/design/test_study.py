@@ -54,6 +54,7 @@ def write_study(tmp_path, mapping, name="study.yaml"):
 
 
 # ------------------------------------------------------------------ the required test
+@pytest.mark.slow
 def test_synchronous_and_two_workers_give_identical_datasets(root, tmp_path, monkeypatch):
     monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)  # a local cluster, not someone's scheduler
     # 32 designs in 4 chunks of 8, 3 Monte Carlo rolls each, and Saltelli's 8 (2 + 2) = 32 for the indices:

@@ -119,7 +119,7 @@ def stop(proc):
     proc.stderr.close()
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.parametrize("sig", [signal.SIGTERM, pytest.param(signal.SIGINT, marks=pytest.mark.slow)])
 def test_serve_until_a_signal_then_exit_0(sig):
     proc, address = serve()
     try:

@@ -129,6 +129,7 @@ def cli_here(capsys, monkeypatch, *args, cwd):
     return subprocess.CompletedProcess(args, code, out, err)
 
 
+@pytest.mark.slow
 def test_cli_prints_one_line_and_writes_the_dataset(run, tmp_path, capsys, monkeypatch):
     out = cli("selfsense", run, "--params", PARAMS, "--tare", "none", "--out", tmp_path / "o.nc", cwd=tmp_path)
     assert out.returncode == 0 and out.stdout.count("\n") == 1 and "% (max)" in out.stdout

@@ -98,6 +98,7 @@ def test_files_and_figure8(study):
     assert "CR, the continuum roll model" in md and "auto picks" in md
 
 
+@pytest.mark.slow
 def test_cli_speed(tmp_path, capsys):
     group = cli
     assert run(group, ["report", "speed", "--out", str(tmp_path), "--repeats", "1"]) == 0

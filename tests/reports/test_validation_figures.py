@@ -65,6 +65,7 @@ def test_blocking_figure_has_a_residual_under_both_panels(twin_folder, stiffer):
     assert [ax.get_xlabel() for ax in residual_axes(fig)] == ["time [s]", "voltage [kV]"]
 
 
+@pytest.mark.slow
 def test_report_writes_png_at_200_dpi_and_a_pdf_beside(validate, twin_folder, tmp_path):
     result = validate(TABLE3, twin_folder / "specimen1", tmp_path, figures=True)
     assert len(result.figures) == 4  # two tensile runs, the blocking and the capacitance figure
@@ -77,12 +78,14 @@ def test_report_writes_png_at_200_dpi_and_a_pdf_beside(validate, twin_folder, tm
     assert page.count(">PDF</a>") == 4
 
 
+@pytest.mark.slow
 def test_report_without_pdf_writes_and_links_none(validate, twin_folder, tmp_path):
     result = validate(TABLE3, twin_folder / "specimen1", tmp_path, figures=True, pdf=False)
     assert len(result.figures) == 4 and not list(tmp_path.glob("*.pdf"))
     assert ">PDF</a>" not in Path(result.files["html"]).read_text()
 
 
+@pytest.mark.slow
 def test_report_on_a_process_pool_writes_the_same_table_and_figures(validate, twin_folder, tmp_path):
     from rdea_lab.reports.reproduce import process_pool
 

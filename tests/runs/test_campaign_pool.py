@@ -1,6 +1,7 @@
 """`submit_campaign`: the campaign's runs as process-pool tasks give run_campaign's datasets."""
 
 import numpy as np
+import pytest
 
 from rdea_lab.paths import data_dir
 from rdea_lab.runs import run_campaign, submit_campaign
@@ -8,6 +9,7 @@ from rdea_lab.specs.campaign import load_campaign
 from rdea_lab.store import open_run
 
 
+@pytest.mark.slow
 def test_pool_tasks_give_the_serial_campaigns_data(tmp_path):
     root = data_dir()
     campaign = tmp_path / "c.yaml"

@@ -14,13 +14,14 @@ import pytest
 
 import rdea_lab.physics.geometry as geometry_module
 import rdea_lab.protocols.plan as plan_module
-from rdea_lab.backends import TwinBackend
 from rdea_lab.physics.geometry import geometry_from_card
 from rdea_lab.protocols import load_plan
 from rdea_lab.runs import (CheckedPlan, UncheckedPlan, checked_plan, execute, execute_setup, experiments,
                            prepare_run, run_campaign, run_protocol)
 from rdea_lab.specs import LimitError, load_params, load_specimen
 from rdea_lab.specs.campaign import load_campaign
+
+from .helpers import RecordingTwin
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "rdea_lab" / "data"
@@ -66,26 +67,6 @@ def card():
 @pytest.fixture(scope="module")
 def params():
     return load_params(DATA / "params" / "paper2021_table3.yaml")
-
-
-class Watched(TwinBackend):
-    """The twin, recording every call of the engine (a setpoint reaches it only through `start`)."""
-
-    def __init__(self, *a, **k):
-        super().__init__(*a, **k)
-        self.calls = []
-
-    def start(self, plan):
-        self.calls.append("start")
-        super().start(plan)
-
-    def read_block(self):
-        self.calls.append("read_block")
-        return super().read_block()
-
-    def close(self):
-        self.calls.append("close")
-        super().close()
 
 
 # ------------------------------------------------------------------ geometry once
@@ -143,7 +124,7 @@ def test_experiments_hold_checked_plans_for_their_own_cards(tmp_path):
 
 # ------------------------------------------------------------------ the engine's assertion
 def test_a_bare_plan_is_refused_before_the_backend_starts(card, params, tmp_path):
-    backend = Watched(card, params)
+    backend = RecordingTwin(card, params)
     with pytest.raises(UncheckedPlan, match="only a plan checked against its limits, not a Plan"):
         execute(load_plan(PROTOCOL), card, backend, tmp_path / "x.nc")
     assert backend.calls == ["close"]  # never started: no setpoint reached it
@@ -155,7 +136,7 @@ def test_a_plan_edited_after_its_check_is_refused(card, params, tmp_path):
     voltage = checked.plan.voltage
     voltage.setflags(write=True)  # read-only arrays can be made writable: the fingerprint sees it
     voltage[voltage.size // 2] = 1e6
-    backend = Watched(card, params)
+    backend = RecordingTwin(card, params)
     with pytest.raises(UncheckedPlan, match="changed after its limits were checked"):
         execute(checked, card, backend, tmp_path / "x.nc")
     assert backend.calls == ["close"]
@@ -176,7 +157,7 @@ def test_a_checked_plan_with_a_part_replaced_is_refused(change, card, params, tm
     else:  # a thicker membrane would lower the field estimate
         geom = checked.geometry
         replaced = dataclasses.replace(checked, geometry=dataclasses.replace(geom, L3=2 * geom.L3))
-    backend = Watched(card, params)
+    backend = RecordingTwin(card, params)
     with pytest.raises(UncheckedPlan, match="changed after its limits were checked"):
         execute(replaced, card, backend, tmp_path / "x.nc")
     assert backend.calls == ["close"]
@@ -185,7 +166,7 @@ def test_a_checked_plan_with_a_part_replaced_is_refused(change, card, params, tm
 def test_a_plan_checked_for_another_specimen_is_refused(card, params, tmp_path):
     other = load_specimen(DATA / "specimens" / "specimen1.yaml")
     checked = checked_plan(load_plan(PROTOCOL), other, geometry_from_card(other))
-    backend = Watched(card, params)
+    backend = RecordingTwin(card, params)
     with pytest.raises(UncheckedPlan, match=f"checked for specimen {other.id!r}, the run is on {card.id!r}"):
         execute(checked, card, backend, tmp_path / "x.nc")
     assert backend.calls == ["close"]

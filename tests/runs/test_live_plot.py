@@ -122,6 +122,7 @@ def test_drawn_data_are_the_samples(live):
     np.testing.assert_array_equal(lines[2].get_ydata(), voltage / 1e3)  # drawn in kV
 
 
+@pytest.mark.slow
 def test_memory_and_window_are_capped(tmp_path):
     plot = LivePlot(tmp_path / "live.png", interval=0.0, clock=Clock(), window_seconds=2.0)
     plot.max_samples = 250

@@ -6,7 +6,6 @@ from pathlib import Path
 import pytest
 
 import rdea_lab
-from rdea_lab.backends import TwinBackend
 from rdea_lab.cli.errors import run as run_cli
 from rdea_lab.cli.main import cli
 from rdea_lab.protocols import expand
@@ -14,6 +13,8 @@ from rdea_lab.physics.geometry import geometry_from_card
 from rdea_lab.runs import LiveTable, checked_plan, default_out, execute, run_campaign
 from rdea_lab.specs import load_params, load_specimen, protocol_from_yaml
 from rdea_lab.specs.campaign import load_campaign
+
+from .helpers import RecordingTwin
 
 ROOT = Path(__file__).resolve().parents[2]
 CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
@@ -40,29 +41,9 @@ def checked(plan, card):
     return checked_plan(plan, card, geometry_from_card(card))
 
 
-class Spy(TwinBackend):
-    """The twin, recording the engine's calls to it."""
-
-    def __init__(self, *a, **k):
-        super().__init__(*a, **k)
-        self.calls = []
-
-    def start(self, plan):
-        self.calls.append("start")
-        super().start(plan)
-
-    def abort(self, reason):
-        self.calls.append("abort")
-        super().abort(reason)
-
-    def close(self):
-        self.calls.append("close")
-        super().close()
-
-
 def test_an_output_that_cannot_be_claimed_is_refused_before_the_backend_starts(tmp_path):
     (tmp_path / "file").write_text("not a folder")
-    spy = Spy(load_specimen(CARD), load_params(PARAMS))
+    spy = RecordingTwin(load_specimen(CARD), load_params(PARAMS))
     with pytest.raises(OSError):
         execute(checked(expand(short()), card := load_specimen(CARD)), card, spy, tmp_path / "file" / "x.nc")
     assert spy.calls == ["close"]  # nothing started
@@ -75,7 +56,7 @@ def test_a_journal_that_cannot_be_written_after_start_aborts_the_backend(tmp_pat
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(JournalWriter, "begin", full)
-    spy = Spy(load_specimen(CARD), load_params(PARAMS))
+    spy = RecordingTwin(load_specimen(CARD), load_params(PARAMS))
     with pytest.raises(OSError):
         execute(checked(expand(short()), card := load_specimen(CARD)), card, spy, tmp_path / "x.nc")
     assert spy.calls == ["start", "abort", "close"]
@@ -86,7 +67,7 @@ def test_a_second_run_on_the_same_output_is_refused_before_it_starts(tmp_path):
     from rdea_lab.store.journal import JournalInUse, JournalWriter
 
     claim = JournalWriter(tmp_path / "x.nc", None)  # the first run has claimed it
-    spy = Spy(load_specimen(CARD), load_params(PARAMS))
+    spy = RecordingTwin(load_specimen(CARD), load_params(PARAMS))
     with pytest.raises(JournalInUse, match="another run is writing it"):
         execute(checked(expand(short()), card := load_specimen(CARD)), card, spy, tmp_path / "x.nc")
     assert spy.calls == ["close"]

@@ -69,7 +69,7 @@ def test_stepped_equals_block_finite_strain_and_damper(model):
     assert_equal_to_block(CARD, FINITE, model, t, lam, v, first=1)
 
 
-@pytest.mark.parametrize("model", ["1r", "3r", "cr"])
+@pytest.mark.parametrize("model", ["1r", pytest.param("3r", marks=pytest.mark.slow), "cr"])
 def test_stepped_equals_block_across_folds_and_slack(model):
     """The hollow core: voltage loops to 15 kV and back at two stretches (snaps, states beyond the solved
     range, hysteresis, slack): the reference's samples inside a stepped run."""
