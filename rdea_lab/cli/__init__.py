@@ -28,9 +28,12 @@ def entry(argv=None):
     try:
         from .errors import run
         from .main import cli
-    except KeyboardInterrupt as exc:
+
+        # run() installs its own handlers over these (no moment without one: a restore here left a window in
+        # which a signal was a traceback) and, as the whole process, blocks both signals once it is done.
+        code = run(cli, argv, process=True)
+    except KeyboardInterrupt as exc:  # before run() took over
         signals.hold()
         print(f"rdea-lab: interrupted ({exc})", file=sys.stderr)
         sys.exit(130)
-    signals.restore()  # run() installs its own
-    sys.exit(run(cli, argv, process=True))
+    sys.exit(code)
