@@ -12,7 +12,8 @@ Folds (``cv``):
 
 - ``leave-one-out``: one run held out per fold;
 - ``by-rate``: runs grouped by their nominal stretch rate, the median
-  |d stretch/dt| over their moving samples (:data:`~rdea_lab.calibration.envelope.HOLD_RATE`)
+  |d stretch/dt| over their moving loading and unloading samples
+  (:func:`~rdea_lab.calibration.envelope.moving_rates`)
   rounded to 2 significant figures (0.0100625 -> 0.01 /s); one group held out per fold;
 - ``by-stretch``: grouped by the maximum stretch rounded to 0.01 (3.00025 -> 3.0).
 
@@ -407,7 +408,8 @@ def _fold_line(f: Fold) -> str:
 def format_cv(result: CrossValidation) -> str:
     """The table, its legend and one line per fold (evaluations, wall time, parameters, record)."""
     legend = ("Legend: " + ERROR_LEGEND + ". Rate: the run's nominal stretch rate; beyond the calibration: "
-              "where the run leaves the stretch, rate, voltage or hold range of its fold's fitted runs.")
+              "where the run leaves the stretch, rate, voltage or hold range of its fold's fitted runs, or a "
+              "combination of them that no fitted run covered.")
     return "\n".join([table(result.rows()), legend, "", *(_fold_line(f) for f in result.folds)]) + "\n"
 
 

@@ -72,6 +72,8 @@ def validation(params_path, datasets, out_dir, model, tolerance, no_figures, ove
     click.echo(report.caption)
     click.echo(report.markdown, nl=False)
     click.echo(report.legend)
+    for line in report.repeat_lines:
+        click.echo(f"Repeats: {line}")
     for s in report.skipped:
         click.echo(f"skipped {s['file']}: {s['reason']}")
     click.echo(f"wrote {files['html']} (tables table4.md, table4.csv, table4.tex; "

@@ -160,6 +160,7 @@ def write_validation_index(path: Path, report, columns, figure_captions: dict | 
                                                         "rms_text"),
                    flagged=("beyond_calibration",)),
              f"<p class=\"legend\">{esc(report.legend)}</p>\n" if report.legend else "",
+             _repeats(report),
              "<p>Files: <a href=\"table4.md\">table4.md</a>, <a href=\"table4.csv\">table4.csv</a> (full hashes "
              "and paths), <a href=\"table4.tex\">table4.tex</a>.</p>\n"]
     if figure_captions:
@@ -187,6 +188,15 @@ def write_validation_index(path: Path, report, columns, figure_captions: dict | 
     path = Path(path)
     path.write_text(page("Validation of the twin against measured runs", "".join(parts)))
     return path
+
+
+def _repeats(report) -> str:
+    """The repeat section of the validation page: one item per repeated test (none: nothing)."""
+    lines = getattr(report, "repeat_lines", ())
+    if not lines:
+        return ""
+    return ("<h3>Repeats: the measurement's own spread</h3>\n<ul>\n"
+            + "".join(f"<li>{esc(line)}</li>\n" for line in lines) + "</ul>\n")
 
 
 def _rel(path, base) -> str:

@@ -38,6 +38,7 @@ from ..store.outputs import check_new
 from ..twin import predict
 from . import tables
 from .html import write_validation_index
+from .repeats import REPEAT_KEYS, REPEAT_LEGEND, add_repeats, columns_for, repeat_key, repeat_lines
 from .provenance import (NONE_RECORDED, NOT_CHECKED, calibration_envelope, calibration_summary, data_origin, role,
                          run_origin)
 from .validation_figures import write_figures
@@ -80,6 +81,7 @@ CSV_KEYS = ["experiment", "kind", "quantity", "voltage", "voltage_V", "specimen"
             "calibrated_on", "model", "model_reason", "samples", "excluded", "peak", "unit", "max_rel_error",
             "rms_error", "paper_max_rel_error", "rms_rel_error", "p99_rel_error", "beyond_calibration", "window",
             "notes"]
+CSV_KEYS += REPEAT_KEYS  # where runs repeat a test (rdea_lab.reports.repeats)
 #: The line under every rendering of the table that says which error measure is which.
 LEGEND = ("Errors relative to the run's largest measured force or capacitance (peak): max. rel. error = "
           "max |predicted - measured| / peak (Table 4's metric); rms/peak = rms(predicted - measured) / peak; "
@@ -88,7 +90,7 @@ LEGEND = ("Errors relative to the run's largest measured force or capacitance (p
           "samples; data: where the file says its data come from (import, emulator, twin, rig); role: calibration "
           "run (fitted: its sha256 is in the calibration record), held out (same specimen) or other specimen; "
           "beyond the calibration: where the run leaves the stretch, rate, voltage or hold range of the fitted "
-          "runs (the calibration envelope).")
+          "runs, or a combination of them that no fitted run covered (the calibration envelope).")
 
 
 class ReportInputError(UserError):
@@ -229,6 +231,7 @@ def evaluate_run(path: Path, params, model: str, tolerance: float) -> tuple[dict
     notes = [window, f"{err['excluded']} samples without equilibrium left out" if err["excluded"] else "",
              f"auto: {reason}" if reason else ""]
     row["notes"] = "; ".join(n for n in notes if n)
+    row["test"] = repeat_key(a, run, exp["voltage"], exp["quantity"])
     prov = {"file": str(path), "name": row["name"], "sha256": run.sha256, "run_id": a.get("run_id", "?"),
             "backend": a.get("backend", "?"), "created": a.get("created", "?"), "protocol": run.protocol,
             "kind": run.kind, "specimen": run.specimen, **origin}
@@ -274,6 +277,9 @@ class ValidationReport:
         Where the data come from, in one sentence.
     envelope : dict or None
         The calibration envelope (None when none could be found).
+    repeats : tuple of dict
+        One per test that runs repeat (:func:`~rdea_lab.reports.repeats.add_repeats`): ``test``, ``runs``,
+        ``spread`` and ``ratio`` per run [-], ``within``; empty when no run repeats another.
     """
 
     table: pd.DataFrame
@@ -288,7 +294,13 @@ class ValidationReport:
     skipped: tuple
     origin: str
     envelope: dict | None
+    repeats: tuple = ()
     _evaluated: tuple = field(repr=False, default=())  # rows with their series: what the figures draw
+
+    @property
+    def repeat_lines(self) -> list[str]:
+        """One sentence per repeated test (:func:`~rdea_lab.reports.repeats.repeat_lines`)."""
+        return repeat_lines(self.repeats)
 
     def write(self, out, *, figures: bool = True, pdf: bool = True, overwrite: bool = False,
               executor=None) -> dict[str, Path]:
@@ -324,17 +336,20 @@ class ValidationReport:
         rows = list(self.rows)
         files = {"markdown": out / "table4.md", "csv": out / "table4.csv", "latex": out / "table4.tex"}
         left_out = "".join(f"- `{sk['file']}`: {sk['reason']}\n" for sk in self.skipped)
+        repeated = "".join(f"- {line}\n" for line in self.repeat_lines)
         files["markdown"].write_text(f"# Table 4 analogue\n\n{self.caption}\n\n{self.markdown}\n{self.legend}\n"
+                                     + (f"\nRepeats:\n\n{repeated}" if repeated else "")
                                      + (f"\nFiles left out:\n\n{left_out}" if left_out else ""))
+        columns = columns_for(COLUMNS, rows)
         tables.write_csv(files["csv"], CSV_KEYS, rows)
         files["latex"].write_text(f"% {tables.latex_escape(self.caption)}\n% {tables.latex_escape(self.legend)}\n"
-                                  + tables.latex_tabular(COLUMNS, rows))
+                                  + tables.latex_tabular(columns, rows))
         figs = write_figures(list(self._evaluated), out, pdf, executor) if figures else {}
         for png in figs:
             files[png.name] = png
             if png.with_suffix(".pdf").is_file() and pdf:
                 files[png.with_suffix(".pdf").name] = png.with_suffix(".pdf")
-        files["html"] = write_validation_index(out / "index.html", self, COLUMNS, figs)
+        files["html"] = write_validation_index(out / "index.html", self, columns, figs)
         return files
 
 
@@ -437,6 +452,7 @@ def validation_report(params, datasets_folder, *, model: str = "su", tolerance: 
         r["calibrated_on"] = ", ".join(cal["specimens"]) or NONE_RECORDED
         r["flags"] = beyond(env, e["envelope"]) if env is not None else ()
         r["beyond_calibration"] = "; ".join(r["flags"]) or ("—" if env is not None else NOT_CHECKED)
+    repeats = add_repeats(evaluated)
     rows = [e["row"] for e in evaluated]
     origin = data_origin([e["provenance"] for e in evaluated])
     caption = (f"Maximum relative error against the largest measured force or capacitance of each run "
@@ -446,8 +462,9 @@ def validation_report(params, datasets_folder, *, model: str = "su", tolerance: 
                   f"{sum(bool(r['flags']) for r in rows)} of {len(rows)} runs beyond it."
                   if env is not None else f"Calibration envelope: {env_source}."))
     return ValidationReport(
-        table=pd.DataFrame(rows), rows=tuple(rows), markdown=tables.markdown(COLUMNS, rows), caption=caption,
-        legend=LEGEND, model=model, params=cal, params_name=params.name,
+        table=pd.DataFrame(rows), rows=tuple(rows), markdown=tables.markdown(columns_for(COLUMNS, rows), rows),
+        caption=caption, legend=LEGEND + (" " + REPEAT_LEGEND if repeats else ""), model=model, params=cal,
+        params_name=params.name,
         runs=tuple(e["provenance"] for e in evaluated), skipped=tuple(skipped), origin=origin,
-        envelope=env.mapping() if env is not None else None,
+        envelope=env.mapping() if env is not None else None, repeats=repeats,
         _evaluated=tuple({"row": e["row"], "series": e["series"]} for e in evaluated))
