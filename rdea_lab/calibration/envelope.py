@@ -468,13 +468,33 @@ def uncovered(calibrated: Envelope, points) -> np.ndarray:
     return out
 
 
-def _r2(x: float) -> str:
-    return f"{float(f'{x:.2g}'):g}"
+def _rates_text(rates) -> str:
+    """Span rates [1/s] at 2 significant figures: up to three listed (``0.01, 0.05 /s``), more as a range."""
+    r = sorted({float(f"{x:.2g}") for x in rates})
+    return (", ".join(f"{x:g}" for x in r) if len(r) <= 3 else f"{r[0]:g}-{r[-1]:g}") + " /s"
 
 
 def _stretch_span(lam) -> str:
     lo, hi = stretch_text(float(np.min(lam))), stretch_text(float(np.max(lam)))
     return lo if lo == hi else f"{lo}-{hi}"
+
+
+def _volt_text(v) -> str:
+    """Voltages [V] as labels: up to three listed (``0 V, 2.6 kV``), more as a range."""
+    labels = sorted({_volts(x) for x in v}, key=lambda u: float(np.min([x for x in v if _volts(x) == u])))
+    return ", ".join(labels) if len(labels) <= 3 else f"{_volts(np.min(v))} to {_volts(np.max(v))}"
+
+
+def _fitted_text(q: np.ndarray, volts: bool, what) -> str:
+    """``what(rows)`` of fitted rows ``q`` ([stretch, x, voltage]), per voltage where voltages matter
+    (up to three; more: over all, with their range)."""
+    if not volts:
+        return what(q)
+    labels = np.array([_volts(x) for x in q[:, 2]])
+    if len(set(labels)) > 3:
+        return f"{what(q)} ({_volt_text(q[:, 2])})"
+    order = sorted(set(labels), key=lambda u: float(np.min(q[labels == u, 2])))
+    return ", ".join(f"{what(q[labels == u])} ({u})" for u in order)
 
 
 def joint_flags(calibrated: Envelope, run: Envelope) -> tuple[str, ...]:
@@ -488,11 +508,11 @@ def joint_flags(calibrated: Envelope, run: Envelope) -> tuple[str, ...]:
     Returns
     -------
     tuple of str
-        One per (span rate, voltage) of uncovered loading and unloading points, e.g. ``"stretch 1.81-3.0
-        at 0.01 /s (loading, unloading): fitted only at 0.05 /s"`` (the rates, and voltages where any is
-        not 0 V, of the fitted points at those stretches; ``no fitted loading at that stretch`` if none),
-        and one per stretch of uncovered hold points, e.g. ``"hold at stretch 3.0 to 1.8e+03 s: fitted
-        holds only at stretch 2.0 (to 1.8e+03 s)"``.
+        For uncovered loading and unloading points one flag, e.g. ``"stretch 1.81-3.0 at 0.01 /s
+        (loading, unloading): fitted only at 0.05 /s"``: their stretches and span rates, then the rates
+        of the fitted points of those phases at those stretches (``no fitted loading at that stretch`` if
+        none); voltages are named where any is not 0 V. One per stretch of uncovered hold points, e.g.
+        ``"hold at stretch 3.0 to 300 s: fitted holds only at stretch 2.0 (to 300 s)"``.
     """
     new = uncovered(calibrated, run.points)
     if not new.any():
@@ -503,28 +523,28 @@ def joint_flags(calibrated: Envelope, run: Envelope) -> tuple[str, ...]:
     volts = bool(np.any(np.abs(cp[:, 2]) >= VOLTAGE_TOL[1]) or np.any(np.abs(p[:, 2]) >= VOLTAGE_TOL[1]))
     flags = []
     ramp = code != HOLD
-    keys = sorted({(_r2(x), _volts(v)) for x, v in p[ramp][:, 1:]}, key=lambda k: (float(k[0]), k[1]))
-    for rate, v in keys:
-        sel = ramp & (np.array([_r2(x) for x in p[:, 1]]) == rate) & (np.array([_volts(u) for u in p[:, 2]]) == v)
-        phs = [ph for ph in (LOADING, UNLOADING) if (code[sel] == ph).any()]
-        lo, hi = p[sel, 0].min(), p[sel, 0].max()
+    if ramp.any():
+        phs = [ph for ph in (LOADING, UNLOADING) if (code[ramp] == ph).any()]
+        lo, hi = p[ramp, 0].min(), p[ramp, 0].max()
         near = np.isin(ccode, phs) & (cp[:, 0] >= lo - CELL * STRETCH_SCALE) & (cp[:, 0] <= hi + CELL * STRETCH_SCALE)
-        seen = sorted({(float(_r2(x)), _volts(u)) for x, u in cp[near][:, 1:]})
         names = ", ".join(PHASE_NAMES[ph] for ph in phs)
-        what = (f"fitted only at {', '.join(f'{r:g} /s' + (f' ({u})' if volts else '') for r, u in seen)}" if seen
+        what = ("fitted only at " + _fitted_text(cp[near], volts, lambda q: _rates_text(q[:, 1])) if near.any()
                 else f"no fitted {names} at that stretch")
-        flags.append(f"stretch {_stretch_span(p[sel, 0])} at {rate} /s{f' ({v})' if volts else ''} ({names}): {what}")
-    held = ~ramp
-    fitted_holds = ccode == HOLD
-    for s in sorted({stretch_text(x) for x in p[held, 0]}, key=float):
-        sel = held & (np.array([stretch_text(x) for x in p[:, 0]]) == s)
+        flags.append(f"stretch {_stretch_span(p[ramp, 0])} at {_rates_text(p[ramp, 1])}"
+                     f"{', ' + _volt_text(p[ramp, 2]) if volts else ''} ({names}): {what}")
+    held, fitted_holds = ~ramp, ccode == HOLD
+    levels = np.array([stretch_text(x) for x in p[:, 0]])
+    for s in sorted(set(levels[held]), key=float):
+        sel = held & (levels == s)
         near = fitted_holds & (np.abs(cp[:, 0] - float(s)) <= STRETCH_SCALE)
         if near.any():
-            what = f"fitted holds near that stretch only to {_g(cp[near, 1].max())} s"
+            what = "fitted holds near that stretch only " + _fitted_text(cp[near], volts,
+                                                                          lambda q: f"to {_g(q[:, 1].max())} s")
         else:
-            levels = sorted({stretch_text(x) for x in cp[fitted_holds, 0]}, key=float)
-            what = (f"fitted holds only at stretch {', '.join(levels)} (to {_g(cp[fitted_holds, 1].max())} s)")
-        flags.append(f"hold at stretch {s} to {_g(p[sel, 1].max())} s: {what}")
+            fitted = sorted({stretch_text(x) for x in cp[fitted_holds, 0]}, key=float)
+            what = f"fitted holds only at stretch {', '.join(fitted)} (to {_g(cp[fitted_holds, 1].max())} s)"
+        flags.append(f"hold at stretch {s}{', ' + _volt_text(p[sel, 2]) + ',' if volts else ''} to "
+                     f"{_g(p[sel, 1].max())} s: {what}")
     return tuple(flags)
 
 

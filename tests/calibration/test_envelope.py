@@ -224,3 +224,20 @@ def test_the_vhb_step_and_hold_gives_no_slow_rate(imported, tmp_path):
     assert not [f for f in flags if "below" in f], flags
     assert any(f.startswith("rate 0.25") and "beyond" in f for f in flags) and any(f.startswith("hold 1.8e+03 s")
                                                                                     for f in flags), flags
+
+
+def test_a_ramp_at_a_voltage_only_held_before_is_a_new_combination():
+    """The shipped specimen-1 runs (datasets/paper2021): the blocking test cycles 0-2.6 kV at a held stretch
+    1.5 (its approach ramp at 0 V), the capacitance sweep and the 0 V tensile test move at 0 V. Fitted on
+    those three, the 2.6 kV tensile test (the same stretch sine, at 2.6 kV) is inside every axis but moves
+    at a voltage at which nothing fitted moved: flagged, naming 2.6 kV and the fitted 0 V."""
+    folder = ROOT / "datasets" / "paper2021" / "specimen-1"
+    fitted = envelope([load_run(folder / f"{n}.nc") for n in ("blocking_force", "capacitance_sweep",
+                                                               "tensile_ramp_sine_0V")])
+    hot = load_run(folder / "tensile_ramp_sine_2.6kV.nc")
+    axes_only = Envelope.from_mapping({k: v for k, v in fitted.mapping().items() if k != "points"})
+    assert beyond(axes_only, hot) == ()
+    ramp = beyond(fitted, hot)[0]
+    assert re.fullmatch(r"stretch 1\.\d+-1\.5 at \S+ /s, 2\.6 kV \(loading, unloading\): fitted only at \S+ /s "
+                        r"\(0 V\)", ramp), ramp
+    assert beyond(fitted, load_run(folder / "tensile_ramp_sine_0V.nc")) == ()
