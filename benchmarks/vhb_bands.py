@@ -10,7 +10,8 @@ Two kinds of split of ``../shared/data/vhb4910`` (finite-strain law, two branche
 
 Per split: rms error / peak, the band's coverage of the held-out samples (fraction inside), the median band
 half-width / peak, and the same two for the parameter term alone (the fit's covariance without the misfit),
-the band's status (bounded, widened or unbounded beyond the calibration envelope: see
+the parameter term by the 64-draw ensemble (for comparison), the band's status (bounded, widened or
+unbounded beyond the calibration envelope: see
 :mod:`rdea_lab.calibration.bands`) and the envelope flags. Nothing here is tuned to a held-out file.
 
     python3 benchmarks/vhb_bands.py [--level 0.9] [--out results.json]
@@ -51,6 +52,7 @@ def judged(unc, run, level, flags, model="su") -> dict:
 
     b = unc.band(run, level, model, flags=flags)
     p = unc.parameter_band(run, level, model)
+    e = unc.parameter_band(run, level, model, method="ensemble")
     r = b["force"] - run.force
     half = 0.5 * (b["upper"] - b["lower"])
     return {"rms_rel_error": float(np.sqrt(np.mean(r * r)) / run.peak),
@@ -58,6 +60,8 @@ def judged(unc, run, level, flags, model="su") -> dict:
             "half_width_rel": float(np.median(half) / run.peak) if np.isfinite(half).all() else float("inf"),
             "param_coverage": coverage(run.force, p["lower"], p["upper"]),
             "param_half_width_rel": float(np.median(0.5 * (p["upper"] - p["lower"])) / run.peak),
+            "ensemble_coverage": coverage(run.force, e["lower"], e["upper"]),
+            "ensemble_half_width_rel": float(np.median(0.5 * (e["upper"] - e["lower"])) / run.peak),
             "misfit_rel": b["misfit_rel"], "status": b["status"], "flags": list(b["flags"]),
             "draws": b["draws"], "refused": b["refused"]}
 
@@ -95,13 +99,16 @@ def main(argv=None) -> int:
         # for information only: the band as if the hold were inside the envelope (the inside misfit)
         rows.append({"split": "hold (as if inside)", "held_out": hold.name, **judged(unc, relax, args.level, ())})
     head = (f"{'split':20s} {'held-out file':16s} {'rms/peak':>9s} {'coverage':>9s} {'half/peak':>10s} "
-            f"{'param cov.':>10s} {'param half':>10s} {'misfit':>7s}  status; flags")
+            f"{'param cov.':>10s} {'param half':>10s} {'ens. cov.':>10s} {'ens. half':>10s} {'misfit':>7s}  "
+            "status; flags")
     print(f"\nband level {args.level:g}; rms, half-widths (median over samples) and misfit in % of the held-out "
-          "run's peak force; 'param': the parameter term alone\n" + head)
+          "run's peak force; 'param': the parameter term alone (delta method, the band's), 'ens.': the same by "
+          "the 64-draw ensemble\n" + head)
     for r in rows:
         print(f"{r['split']:20s} {r['held_out']:16s} {100 * r['rms_rel_error']:8.2f}% {_frac(r['coverage']):>9s} "
               f"{100 * r['half_width_rel']:9.2f}% {_frac(r['param_coverage']):>10s} "
-              f"{100 * r['param_half_width_rel']:9.3f}% {100 * r['misfit_rel']:6.2f}%  {r['status']}; "
+              f"{100 * r['param_half_width_rel']:9.3f}% {_frac(r['ensemble_coverage']):>10s} "
+              f"{100 * r['ensemble_half_width_rel']:9.3f}% {100 * r['misfit_rel']:6.2f}%  {r['status']}; "
               f"{'; '.join(r['flags']) or '-'}")
     if args.out:
         args.out.write_text(json.dumps(rows, indent=1))

@@ -102,7 +102,7 @@ BAND_COLUMNS = [
 BAND_CSV_KEYS = ["band_level", "band_coverage", "band_half_width_rel", "band_misfit_rel", "band_status",
                  "band_detail"]
 BAND_LEGEND = ("Band coverage: the fraction of the run's measured samples inside the {level:g} % prediction band "
-               "(rdea_lab.calibration.bands: the fit's covariance propagated by a 64-draw ensemble, combined in "
+               "(rdea_lab.calibration.bands: the fit's covariance propagated by the delta method, combined in "
                "quadrature with the cross-validated misfit of the record's validation.misfit); band half-width: "
                "its median over the samples, of the peak; band: bounded, parameter-only (no cross-validation in "
                "the record), widened (beyond the calibration: the misfit of held-out runs that were themselves "

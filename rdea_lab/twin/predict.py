@@ -66,7 +66,7 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
         For ``auto``: allowed deviation from CR relative to the peak stress [-].
     bands : float, optional
         Nominal level of a prediction band of the force [-] (0.9: the 90 % band), from ``uncertainty``
-        (:class:`rdea_lab.calibration.bands.Uncertainty`: the fit's covariance propagated by an ensemble,
+        (:class:`rdea_lab.calibration.bands.Uncertainty`: the fit's covariance propagated by the delta method,
         combined in quadrature with the cross-validated misfit; see that module for the rule beyond the
         calibration envelope). None (default): no band, the output as without it.
     uncertainty : Uncertainty, optional
