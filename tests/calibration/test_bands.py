@@ -226,3 +226,30 @@ def test_the_report_refuses_bad_band_levels_and_parameters_without_a_record(tmp_
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and said in err[0], err
         assert not (tmp_path / "r").exists()
+
+
+def _cf_checkers():
+    """tests/store/test_cf.py's two external CF checkers (IOOS compliance-checker, cfchecker)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("_cf", ROOT / "tests" / "store" / "test_cf.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.ioos, module.cfchecks
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("checker", ["ioos", "cfchecker"])
+@pytest.mark.parametrize("top", [1.5, 2.0])  # a bounded band; an unbounded one (+-inf, beyond the envelope)
+def test_a_banded_prediction_passes_the_cf_checkers(tmp_path, top, checker):
+    ioos, cfchecks = _cf_checkers()
+    t, lam = triangle(top=top, n=101)
+    ds = predict((t, lam, 0.0), TRUE, specimen=GEOM, bands=0.9,
+                 uncertainty=known(["C10"], [0.01 * TRUE.C10], ENV, misfit(0.05)))
+    assert ds.attrs["band_status"] == ("bounded" if top == 1.5 else UNBOUNDED)
+    ds.to_netcdf(tmp_path / "banded.nc")
+    if checker == "ioos":
+        assert ioos(tmp_path / "banded.nc") == {"high": [], "medium": [], "low": [], "exceptions": []}
+    else:
+        found = cfchecks(tmp_path / "banded.nc")  # skips where UDUNITS-2 is missing
+        assert not found["FATAL"] and not found["ERROR"] and not found["WARN"], found
