@@ -253,3 +253,36 @@ def test_a_banded_prediction_passes_the_cf_checkers(tmp_path, top, checker):
     else:
         found = cfchecks(tmp_path / "banded.nc")  # skips where UDUNITS-2 is missing
         assert not found["FATAL"] and not found["ERROR"] and not found["WARN"], found
+
+
+@pytest.mark.slow
+def test_the_validation_report_gives_each_runs_coverage_and_marks_the_unbounded(tmp_path):
+    """A holdout record fitted on three noisy repeats (one held out: the misfit), then the report on the
+    folder with a fourth, new realization (inside: coverage 0.9 within the binomial tolerance of the
+    coverage test above) and a run to stretch 2.0 (beyond the calibrated 1.5, no fold extrapolated:
+    unbounded, no coverage claimed)."""
+    from rdea_lab.reports.validation import validation_report
+
+    t, lam = triangle()
+    sigma = 0.01 * np.max(twin_run(t, lam)["force"].values)
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    paths = []
+    for seed, (tt, ll) in enumerate([(t, lam)] * 4 + [triangle(top=2.0)]):
+        ds = twin_run(tt, ll, sigma, seed, f"run-{seed}")
+        ds.attrs["status"] = "complete"
+        paths.append(folder / f"run-{seed}.nc")
+        ds.to_netcdf(paths[-1])
+    cv = cross_validate([str(p) for p in paths[:3]], holdout=[str(paths[2])], out=tmp_path / "cal.yaml",
+                        model="su", init=TRUE, method="least-squares", budget=Budget(2000, 60))
+    assert cv.folds[0].residuals
+    report = validation_report(tmp_path / "cal.yaml", folder, bands=0.9)
+    rows = {r["name"]: r for r in report.rows}
+    new = rows["run-3"]
+    assert new["band_status"] == "bounded" and new["band_level"] == 0.9
+    assert abs(new["band_coverage"] - 0.9) <= 3 * math.sqrt(0.09 / t.size + 0.09 / t.size), new["band_coverage"]
+    far = rows["run-4"]
+    assert far["band_status"] == UNBOUNDED and math.isnan(far["band_coverage"])
+    assert "band coverage" in report.markdown and "90 % prediction band" in report.legend
+    files = report.write(tmp_path / "out", pdf=False)
+    assert "band_coverage" in files["csv"].read_text().splitlines()[0]
