@@ -301,7 +301,12 @@ class Uncertainty:
                 du = np.zeros(len(ps))
                 du[i] = h
                 fp, fm = self._force(run, model, ps, u0 + du), self._force(run, model, ps, u0 - du)
-                cols.append(np.full_like(f0, np.nan) if fp is None or fm is None else (fp - fm) / (2 * h))
+                if fp is not None and fm is not None:
+                    cols.append((fp - fm) / (2 * h))
+                elif fp is not None or fm is not None:  # one side refused (a bound): one-sided
+                    cols.append((fp - f0) / h if fp is not None else (f0 - fm) / h)
+                else:
+                    cols.append(np.full_like(f0, np.nan))
             J = np.column_stack(cols)
             sd = np.sqrt(np.clip(np.einsum("ni,ij,nj->n", J, cu, J), 0.0, None))
             half = norm.ppf(0.5 + level / 2) * sd
