@@ -286,3 +286,25 @@ def test_the_validation_report_gives_each_runs_coverage_and_marks_the_unbounded(
     assert "band coverage" in report.markdown and "90 % prediction band" in report.legend
     files = report.write(tmp_path / "out", pdf=False)
     assert "band_coverage" in files["csv"].read_text().splitlines()[0]
+
+
+def test_the_run_figure_shades_a_band_and_says_when_it_is_unbounded():
+    from matplotlib.collections import PolyCollection
+    from matplotlib.figure import Figure
+
+    from rdea_lab.reports.plots import plot_run
+
+    t, lam = triangle(n=101)
+    run = twin_run(t, lam, 0.0)
+    run["position"] = ("time", (lam - 1.0) * GEOM.L1)
+    run["capacitance"] = ("time", np.full(t.size, np.nan))
+    for env, shaded in ((ENV, True), (Envelope((1.0, 1.2), (0.02, 0.04), (0.0, 0.0), 0.0, ("a",)), False)):
+        pred = predict(run, TRUE, bands=0.9, uncertainty=known(["C10"], [0.01 * TRUE.C10], env, misfit(0.05)))
+        ax = Figure().add_subplot()
+        plot_run(run, ax=ax, prediction=pred)
+        bands = [c for c in ax.collections if isinstance(c, PolyCollection)]
+        assert bool(bands) == shaded
+        if shaded:
+            assert bands[0].get_label() == "90 % band"
+        else:
+            assert any("band unbounded" in tx.get_text() for tx in ax.texts)
