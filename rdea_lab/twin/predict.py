@@ -97,11 +97,10 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
     TypeError
         A ``history`` that is no Dataset, mapping or ``(t, stretch, voltage)`` tuple.
     SpecError
-        A card or parameter file that cannot be read.
+        A card or parameter file that cannot be read; ``bands`` outside the levels a band has (0.05-0.99),
+        or without ``uncertainty``.
     LimitError
         With ``protocol``: the first limit the history exceeds.
-    SpecError
-        ``bands`` outside the levels a band has (0.05-0.99), or without ``uncertainty``.
 
     Notes
     -----
