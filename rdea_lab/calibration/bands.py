@@ -52,7 +52,7 @@ import xarray as xr
 from scipy.stats import norm
 
 from ..specs import ParameterSet, SpecError, as_params
-from ..specs.record import CalibrationRecord
+from ..specs.record import CalibrationRecord, add_record_section
 from ..specs.variables import variable_attrs
 from .envelope import Envelope, beyond, envelope, run_envelope
 from .objective import file_hash, load_run, predict_force
@@ -129,6 +129,29 @@ def misfit_mapping(cv, exclude=()) -> dict:
             (outside if r["flags"] else inside).append((r["file"], fold.residuals[r["file"]]))
     return {"definition": MISFIT_DEFINITION, "levels": list(LEVELS), "inside": _misfit_stats(inside),
             "beyond": _misfit_stats(outside)}
+
+
+def add_misfit(record, cv) -> None:
+    """Write a cross-validation's misfit into a calibration record's ``validation.misfit`` (kept beside what
+    the section holds), so that bands from the record (`Uncertainty.of_record`) have their misfit term.
+
+    For a record of a fit to all the runs and a cross-validation of the same runs and settings
+    (``cross_validate(..., cv="leave-one-out")``): the misfit of its held-out errors.
+
+    Parameters
+    ----------
+    record : path
+        The parameter file (written by ``rdea-lab calibrate``).
+    cv : CrossValidation
+
+    Raises
+    ------
+    ValueError
+        The file has no calibration section.
+    """
+    old = CalibrationRecord.of_file(record)
+    section = old.validation.mapping() if old is not None and old.validation is not None else {}
+    add_record_section(record, {**section, "misfit": misfit_mapping(cv)}, "validation")
 
 
 def check_level(level) -> float:
@@ -480,4 +503,5 @@ def coverage(measured, lower, upper) -> float:
 
 
 __all__ = ["BOUNDED", "DRAWS", "LEVELS", "METHODS", "PARAMETER_ONLY", "SEED", "UNBOUNDED", "Uncertainty",
-           "WIDENED", "band_attrs", "check_level", "coverage", "history_run", "misfit_mapping", "weighted_quantile"]
+           "WIDENED", "add_misfit", "band_attrs", "check_level", "coverage", "history_run", "misfit_mapping",
+           "weighted_quantile"]

@@ -308,3 +308,28 @@ def test_the_run_figure_shades_a_band_and_says_when_it_is_unbounded():
             assert bands[0].get_label() == "90 % band"
         else:
             assert any("band unbounded" in tx.get_text() for tx in ax.texts)
+
+
+@pytest.mark.slow
+def test_a_cross_validations_misfit_goes_into_a_record_of_the_full_fit(tmp_path):
+    from rdea_lab.calibration.bands import add_misfit
+
+    t, lam = triangle(n=201)
+    sigma = 0.01 * np.max(twin_run(t, lam)["force"].values)
+    folder = tmp_path / "runs"
+    folder.mkdir()
+    for seed in range(3):
+        ds = twin_run(t, lam, sigma, seed, f"run-{seed}")
+        ds.attrs["status"] = "complete"
+        ds.to_netcdf(folder / f"run-{seed}.nc")
+    kw = {"model": "su", "init": TRUE, "method": "least-squares", "budget": Budget(2000, 60)}
+    full = calibrate_runs(str(folder), **kw)
+    full.write(tmp_path / "cal.yaml")
+    assert Uncertainty.of_record(tmp_path / "cal.yaml").misfit is None
+    cv = cross_validate(str(folder), cv="leave-one-out", **kw)
+    add_misfit(tmp_path / "cal.yaml", cv)
+    unc = Uncertainty.of_record(tmp_path / "cal.yaml")
+    assert unc.misfit["inside"]["runs"] == ["run-0.nc", "run-1.nc", "run-2.nc"]
+    assert unc.envelope is not None  # from the fitted files, still there with their sha256
+    b = unc.band(load_run(folder / "run-0.nc"), 0.9)
+    assert b["status"] == "bounded" and not b["flags"]
