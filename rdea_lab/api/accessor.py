@@ -17,6 +17,7 @@ In the manner of xarray extensions (cf_xarray, pint-xarray)::
 from __future__ import annotations
 
 import json
+import os
 
 import xarray as xr
 
@@ -77,7 +78,7 @@ class RdeaAccessor:
             raise ValueError(f"this dataset has no {key!r} attribute: not an rdea-lab run")
         return self._ds.attrs[key]
 
-    def predict(self, params=None, model="su", **kwargs) -> xr.Dataset:
+    def predict(self, params=None, model="su", *, bands=None, **kwargs) -> xr.Dataset:
         """The twin on this run's own stretch and voltage history (:func:`rdea_lab.twin.predict`).
 
         Parameters
@@ -86,22 +87,28 @@ class RdeaAccessor:
             The material; default: the run's own parameters (twin runs only).
         model : {"su", "1r", "3r", "cr", "auto"}
             Quasi-static model (Sections 3.1-3.3 of [1]).
+        bands : float, optional
+            Nominal level of a prediction band of the force [-] (0.9: the 90 % band). Its ``uncertainty``
+            (`rdea_lab.calibration.bands.Uncertainty`) is read from ``params``, a calibration record,
+            unless given; the run is checked against the record's calibration envelope.
         **kwargs
             Passed to `rdea_lab.predict`: ``specimen`` (default: the run's card), ``protocol`` (check the
-            history against its limits first), ``tolerance`` [-] (for ``auto``).
+            history against its limits first), ``tolerance`` [-] (for ``auto``), ``uncertainty``.
 
         Returns
         -------
         xarray.Dataset
             On the run's ``time`` [s]: ``force`` [N], ``capacitance`` [F], ``sigma1``, ``sigma1_irr``
-            [Pa], ``model_status``, ... (see `rdea_lab.predict`).
+            [Pa], ``model_status``, ... (see `rdea_lab.predict`); with ``bands``, ``force_lower`` and
+            ``force_upper`` [N] and the ``band_*`` attributes.
 
         Raises
         ------
         ValueError
             No ``params`` for a measured run (it records none), or an unknown ``model``.
         SpecError
-            A card or parameter file that cannot be read.
+            A card or parameter file that cannot be read; ``bands`` with a ``params`` that is no calibration
+            record (and no ``uncertainty``), or a level outside 0.05-0.99.
 
         References
         ----------
@@ -110,7 +117,15 @@ class RdeaAccessor:
         """
         from ..twin import predict
 
-        return predict(self._ds, params, model, **kwargs)
+        if bands is not None and kwargs.get("uncertainty") is None:
+            from ..calibration.bands import Uncertainty
+            from ..specs import SpecError
+
+            if params is None or not isinstance(params, (str, os.PathLike)):
+                raise SpecError("arguments", "params", "a band needs the calibration record; allowed: the path of "
+                                "a parameter file 'rdea-lab calibrate' wrote (or uncertainty=...)")
+            kwargs["uncertainty"] = Uncertainty.of_record(params)
+        return predict(self._ds, params, model, bands=bands, **kwargs)
 
     def plot(self, path=None, *, ax=None, fig=None, prediction=None):
         """The run's figure (:func:`rdea_lab.reports.plots.plot_run`), as ``rdea-lab show`` draws it.

@@ -8,6 +8,9 @@
 - `calibrate`: the Nelder-Mead fit itself on `RunData`; `load_run`, `find_runs`.
 - `cross_validate` (inputs, cv= or holdout=): fit some runs, predict the others, with the
   error measures of `error_measures` and the flags of `beyond` against the fitted runs' `envelope`.
+- `rdea_lab.calibration.bands`: prediction bands (`Uncertainty.of_record(path)` or `.of_fit(result,
+  misfit_mapping(cv))`): the fit's covariance by the delta method, in quadrature with the held-out
+  misfit; widened or unbounded beyond the envelope.
 - The objective predicts the force through the twin's one composition
   (:func:`rdea_lab.twin.compose`), with a cached SU stress basis.
 

@@ -36,6 +36,7 @@ from ..store.outputs import check_new
 from ..specs import SpecError
 from ..specs.record import add_record_section
 from .app import ARGS, calibrate_runs, gather_runs
+from .bands import misfit_mapping
 from .fit import hook
 from .record import record_files
 from .envelope import Envelope, beyond, envelope, moving_rates, run_envelope, stretch_text
@@ -65,6 +66,9 @@ class Fold:
         The fold's calibration (``result.params``, ``.nfev``, ``.wall_time``, ``.record_files``).
     envelope : Envelope
         Of the fitted runs.
+    residuals : dict
+        Held-out run name -> (predicted - measured force) / its peak [-] per sample (what a band's misfit
+        term learns from: `rdea_lab.calibration.bands.misfit_mapping`).
     """
 
     index: int
@@ -73,6 +77,7 @@ class Fold:
     predicted: tuple
     result: object
     envelope: Envelope
+    residuals: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def params(self):
@@ -335,7 +340,9 @@ def cross_validate(inputs, *, cv: str | None = None, holdout=None, out=None, nam
             result = replace(result, record_files=result.write(record, name=name, overwrite=overwrite))
         fit_runs = list(result.run_data) or [runs[i] for i in fit_idx]
         env = envelope(fit_runs)
-        fold = Fold(k, label, tuple(fitted), tuple(predicted), result, env)
+        held_res = {_name(runs[i]): (predict_force(runs[i], result.params, result.model) - runs[i].force)
+                    / runs[i].peak for i in pred_idx}
+        fold = Fold(k, label, tuple(fitted), tuple(predicted), result, env, held_res)
         folds.append(fold)
         mine = [_row(fold, "fitted", r, env) for r in fit_runs] + [_row(fold, "predicted", runs[i], env)
                                                                    for i in pred_idx]
@@ -444,13 +451,14 @@ def write_cv(result: CrossValidation, out: Path) -> dict:
 
 
 def validation_mapping(result: CrossValidation) -> dict:
-    """The ``validation`` section a holdout adds to its record (YAML-ready)."""
+    """The ``validation`` section a holdout adds to its record (YAML-ready): the held-out rows, the envelope,
+    the legend and the misfit of the held-out samples (`rdea_lab.calibration.bands.misfit_mapping`)."""
     fold = result.folds[0]
     keep = ("file", "specimen", "protocol", "samples", "rate_per_s", "max_stretch", "rms_error_N", "max_rel_error",
             "rms_rel_error", "p99_rel_error", "sha256")
     return {"held_out": [{**{k: r[k] for k in keep}, "beyond_calibration": list(r["flags"])}
                          for r in result.rows(role="predicted")],
-            "envelope": fold.envelope.mapping(), "measures": ERROR_LEGEND}
+            "envelope": fold.envelope.mapping(), "measures": ERROR_LEGEND, "misfit": misfit_mapping(result)}
 
 
 def _holdout_csv(record) -> Path:

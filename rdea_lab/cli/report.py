@@ -43,9 +43,13 @@ def report():
               help="Twin model; auto = cheapest within --tolerance of CR (the continuum model), per run.")
 @click.option("--tolerance", type=click.FloatRange(min=0.0, min_open=True), default=0.01, show_default=True,
               help="For --model auto: allowed deviation from CR, relative to the peak stress.")
+@click.option("--bands", type=float, default=None, metavar="LEVEL",
+              help="Prediction bands of the force at this nominal level (0.9: 90 %), from the calibration record "
+                   "in --params (covariance and cross-validated misfit): each row gets the band's coverage of the "
+                   "measured samples, the figures shade it.")
 @click.option("--no-figures", is_flag=True, help="Tables and index.html only.")
 @click.option("--force", "overwrite", is_flag=True, help="Write into an --out that holds files.")
-def validation(params_path, datasets, out_dir, model, tolerance, no_figures, overwrite):
+def validation(params_path, datasets, out_dir, model, tolerance, bands, no_figures, overwrite):
     """The twin against measured runs: the Table 4 analogue, figures 11-16, index.html.
 
     Runs the twin on every complete run's own stretch and voltage history
@@ -54,7 +58,9 @@ def validation(params_path, datasets, out_dir, model, tolerance, no_figures, ove
     maximum stretch, where its data come from (import and its credit,
     emulator, twin, rig), its role (calibration run, held out (same
     specimen), other specimen: from the calibration record in --params) and
-    where it leaves the calibration envelope.
+    where it leaves the calibration envelope. With --bands, the band's
+    coverage, half-width and status (bounded, parameter-only, widened or
+    unbounded beyond the calibration) beside the errors.
 
     \b
     Example:
@@ -62,12 +68,13 @@ def validation(params_path, datasets, out_dir, model, tolerance, no_figures, ove
           --out reports/paper2021
       rdea-lab report validation --params params/vhb4910.yaml --datasets datasets/vhb4910 --model 1r \\
           --out reports/vhb4910
+      rdea-lab report validation --params params/vhb4910.yaml --datasets datasets/vhb4910 --bands 0.9
     """
     headless()
     click.echo(f"evaluating the twin ({model.lower()}) on the runs in {datasets} ...")
     api.check_validation_inputs(params_path, datasets, model.lower())  # the inputs first, then --out,
     api.check_new(out_dir, overwrite, "out", folder=True)  # both before the work
-    report = api.validation_report(params_path, datasets, model=model.lower(), tolerance=tolerance)
+    report = api.validation_report(params_path, datasets, model=model.lower(), tolerance=tolerance, bands=bands)
     files = report.write(out_dir, figures=not no_figures, overwrite=overwrite)
     click.echo(report.caption)
     click.echo(report.markdown, nl=False)

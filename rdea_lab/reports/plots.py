@@ -10,6 +10,7 @@ Agg by itself).
 from __future__ import annotations
 
 import io
+import math
 import os
 
 import numpy as np
@@ -117,6 +118,44 @@ def residual_panel(ax, x, measured, predicted, peak: float, unit: str = "N", sca
     return ax
 
 
+#: How a prediction band is shaded.
+BAND = {"color": "tab:gray", "alpha": 0.3, "lw": 0}
+
+
+def band_shade(ax, x, lower, upper, level: float, status: str = "", scale: float = 1.0):
+    """Shade a prediction band (`rdea_lab.calibration.bands`) between ``lower`` and ``upper`` over ``x``.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    x : array_like
+        Abscissa, increasing (time [s]).
+    lower, upper : array_like
+        Band [N] (times ``scale`` on the axis); NaN gaps left unshaded; an unbounded band (infinite) is not
+        shaded but said in a corner of the axis.
+    level : float
+        Nominal level [-], for the label.
+    status : str
+        The band's status (``widened``, ``parameter-only``, ...), in the label when not ``bounded``.
+    scale : float
+        Factor onto the axis' unit.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+    """
+    lo, hi = np.asarray(lower, float), np.asarray(upper, float)
+    note = f" ({status})" if status and status != "bounded" else ""
+    if np.isinf(lo).any() or np.isinf(hi).any():
+        ax.text(0.99, 0.03, f"{100 * level:g} % band unbounded: beyond the calibration", transform=ax.transAxes,
+                ha="right", va="bottom", fontsize=7, color="tab:gray")
+        return ax
+    ok = np.isfinite(lo) & np.isfinite(hi)
+    ax.fill_between(np.asarray(x, float), lo * scale, hi * scale, where=ok, label=f"{100 * level:g} % band{note}",
+                    **BAND)
+    return ax
+
+
 def _new_figure(figsize):
     import matplotlib.pyplot as plt
 
@@ -196,7 +235,7 @@ def _prediction(ds, prediction) -> dict:
         raise ValueError(f"prediction has no 'force' variable (it has {sorted(prediction.data_vars)})")
     n = ds["time"].size
     out = {}
-    for name in ("force", "capacitance"):
+    for name in ("force", "capacitance", "force_lower", "force_upper"):
         if name not in prediction:
             continue
         values = np.asarray(prediction[name].values, float)
@@ -272,7 +311,12 @@ def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
     t = ds["time"].values
     own = _run_label(ds)
     style = dict(PREDICTION, label=_prediction_label(prediction))
+    band = ({"lower": pred["force_lower"], "upper": pred["force_upper"],
+             "level": float(prediction.attrs.get("band_level", math.nan)),
+             "status": str(prediction.attrs.get("band_status", ""))} if "force_lower" in pred else None)
     if ax is not None:
+        if band is not None:
+            band_shade(ax, t, **band)
         ax.plot(t, ds["force"].values, lw=0.8, label=own)
         if "force" in pred:
             ax.plot(t, pred["force"], **style)
@@ -304,6 +348,8 @@ def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
             ok = np.isfinite(measured)
             residual_panel(a, t[ok], measured[ok], pred[name][ok], float(np.nanmax(np.abs(measured))), label, scale)
         else:
+            if name == "force" and band is not None:
+                band_shade(a, t, **band)
             a.plot(t, measured * scale, lw=0.8, label=own)
             if name in pred:
                 a.plot(t, pred[name] * scale, **style)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,6 +30,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
+from ..calibration.bands import Uncertainty, check_level, coverage
 from ..calibration.crossval import nominal_rate
 from ..calibration.envelope import beyond, run_envelope, stretch_text
 from ..calibration.objective import error_measures, load_run
@@ -91,6 +93,49 @@ LEGEND = ("Errors relative to the run's largest measured force or capacitance (p
           "run (fitted: its sha256 is in the calibration record), held out (same specimen) or other specimen; "
           "beyond the calibration: where the run leaves the stretch, rate, voltage or hold range of the fitted "
           "runs, or a combination of them that no fitted run covered (the calibration envelope).")
+
+
+#: With ``bands``: the columns added after the error columns, the CSV keys and the legend's sentence.
+BAND_COLUMNS = [
+    ("band_coverage", "band coverage", tables.number(".3f")),
+    ("band_half_width_rel", "band half-width/peak [%]", tables.percent),
+    ("band_status", "band", tables.text),
+]
+BAND_CSV_KEYS = ["band_level", "band_coverage", "band_half_width_rel", "band_misfit_rel", "band_status",
+                 "band_detail"]
+BAND_LEGEND = ("Band coverage: the fraction of the run's measured samples inside the {level:g} % prediction band "
+               "(rdea_lab.calibration.bands: the fit's covariance propagated by the delta method, combined in "
+               "quadrature with the cross-validated misfit of the record's validation.misfit); band half-width: "
+               "its median over the samples, of the peak; band: bounded, parameter-only (no cross-validation in "
+               "the record), widened (beyond the calibration: the misfit of held-out runs that were themselves "
+               "extrapolations) or unbounded (beyond the calibration, and no such held-out run: coverage —).")
+
+
+def report_columns(band_level):
+    """The shown columns and the CSV keys of a report with (``band_level`` a level) or without bands (None)."""
+    if band_level is None:
+        return COLUMNS, CSV_KEYS
+    i = [k for k, _, _ in COLUMNS].index("rms_text") + 1
+    return COLUMNS[:i] + BAND_COLUMNS + COLUMNS[i:], CSV_KEYS + BAND_CSV_KEYS
+
+
+def add_bands(evaluated, uncertainty: Uncertainty, level: float) -> None:
+    """Each evaluated force run's band (its ``flags`` the report's), coverage and half-width, into its row and
+    series (``force_lower``, ``force_upper`` [N]); capacitance rows get none."""
+    for e in evaluated:
+        r, s, run = e["row"], e["series"], e["run"]
+        if r["quantity"] != "force":
+            r.update(band_level=level, band_coverage=None, band_half_width_rel=None, band_misfit_rel=None,
+                     band_status="—", band_detail="no band: the band is of the force")
+            continue
+        b = uncertainty.band(run, level, r["model"], point=s["force_pred"], flags=r["flags"])
+        sel = s.get("window", np.ones(run.n, bool))
+        half = 0.5 * (b["upper"][sel] - b["lower"][sel])
+        peak = float(np.max(np.abs(run.force[sel])))
+        s.update(force_lower=b["lower"], force_upper=b["upper"], band_level=level, band_status=b["status"])
+        r.update(band_level=level, band_coverage=coverage(run.force[sel], b["lower"][sel], b["upper"][sel]),
+                 band_half_width_rel=float(np.median(half) / peak) if np.isfinite(half).all() else math.inf,
+                 band_misfit_rel=b["misfit_rel"], band_status=b["status"], band_detail=b["detail"])
 
 
 class ReportInputError(UserError):
@@ -280,6 +325,8 @@ class ValidationReport:
     repeats : tuple of dict
         One per test that runs repeat (:func:`~rdea_lab.reports.repeats.add_repeats`): ``test``, ``runs``,
         ``spread`` and ``ratio`` per run [-], ``within``; empty when no run repeats another.
+    band_level : float or None
+        The prediction bands' nominal level (None: no bands; else the rows have :data:`BAND_CSV_KEYS`).
     """
 
     table: pd.DataFrame
@@ -296,6 +343,7 @@ class ValidationReport:
     envelope: dict | None
     repeats: tuple = ()
     _evaluated: tuple = field(repr=False, default=())  # rows with their series: what the figures draw
+    band_level: float | None = None
 
     @property
     def repeat_lines(self) -> list[str]:
@@ -340,8 +388,9 @@ class ValidationReport:
         files["markdown"].write_text(f"# Table 4 analogue\n\n{self.caption}\n\n{self.markdown}\n{self.legend}\n"
                                      + (f"\nRepeats:\n\n{repeated}" if repeated else "")
                                      + (f"\nFiles left out:\n\n{left_out}" if left_out else ""))
-        columns = columns_for(COLUMNS, rows)
-        tables.write_csv(files["csv"], CSV_KEYS, rows)
+        columns, keys = report_columns(self.band_level)
+        columns = columns_for(columns, rows)
+        tables.write_csv(files["csv"], keys, rows)
         files["latex"].write_text(f"% {tables.latex_escape(self.caption)}\n% {tables.latex_escape(self.legend)}\n"
                                   + tables.latex_tabular(columns, rows))
         figs = write_figures(list(self._evaluated), out, pdf, executor) if figures else {}
@@ -392,7 +441,7 @@ def check_validation_inputs(params, datasets_folder, model: str = "su"):
 
 
 def validation_report(params, datasets_folder, *, model: str = "su", tolerance: float = 0.01,
-                      executor=None) -> ValidationReport:
+                      executor=None, bands: float | None = None) -> ValidationReport:
     """The Table 4 analogue for a parameter set and a folder of runs, computed (write it with
     :meth:`ValidationReport.write`).
 
@@ -409,6 +458,10 @@ def validation_report(params, datasets_folder, *, model: str = "su", tolerance: 
         For ``auto``: allowed deviation from 3R relative to the peak stress [-].
     executor : concurrent.futures.Executor, optional
         Evaluate the runs as its tasks (a process pool: on every core), with the numbers of the serial report.
+    bands : float, optional
+        Nominal level of a prediction band of each force run [-] (0.9), from ``params``' calibration record
+        (:class:`rdea_lab.calibration.bands.Uncertainty`): the rows get its coverage of the measured samples,
+        its median half-width and its status (:data:`BAND_COLUMNS`), the figures shade it.
 
     Returns
     -------
@@ -421,13 +474,23 @@ def validation_report(params, datasets_folder, *, model: str = "su", tolerance: 
     SpecError
         The parameter file is missing or invalid.
     ReportInputError
-        Unknown model, no folder, or no complete runs in it.
+        Unknown model, no folder, or no complete runs in it; ``bands`` with parameters that are no file.
+    SpecError
+        With ``bands``: a level outside 0.05-0.99, or a parameter file without a calibration record or
+        covariance.
 
     References
     ----------
     [1] Prechtl et al., Smart Mater. Struct. 30 (2021), Table 4.
     """
     params_path, params = params, check_validation_inputs(params, datasets_folder, model)
+    uncertainty = None
+    if bands is not None:
+        bands = check_level(bands)
+        if not isinstance(params_path, (str, os.PathLike)):
+            raise ReportInputError("--bands: needs --params to be a calibration record (a parameter file "
+                                   "'rdea-lab calibrate' wrote): its covariance and cross-validation make the band")
+        uncertainty = Uncertainty.of_record(params_path)
     folder = Path(datasets_folder)
     paths, skipped = scan_runs(folder)
     evaluated = []
@@ -453,7 +516,10 @@ def validation_report(params, datasets_folder, *, model: str = "su", tolerance: 
         r["flags"] = beyond(env, e["envelope"]) if env is not None else ()
         r["beyond_calibration"] = "; ".join(r["flags"]) or ("—" if env is not None else NOT_CHECKED)
     repeats = add_repeats(evaluated)
+    if uncertainty is not None:
+        add_bands(evaluated, uncertainty, bands)
     rows = [e["row"] for e in evaluated]
+    columns, _ = report_columns(bands)
     origin = data_origin([e["provenance"] for e in evaluated])
     caption = (f"Maximum relative error against the largest measured force or capacitance of each run "
                f"(Table 4 of Prechtl et al. 2021), twin model {model}, parameters {params.name}; "
@@ -462,9 +528,10 @@ def validation_report(params, datasets_folder, *, model: str = "su", tolerance: 
                   f"{sum(bool(r['flags']) for r in rows)} of {len(rows)} runs beyond it."
                   if env is not None else f"Calibration envelope: {env_source}."))
     return ValidationReport(
-        table=pd.DataFrame(rows), rows=tuple(rows), markdown=tables.markdown(columns_for(COLUMNS, rows), rows),
-        caption=caption, legend=LEGEND + (" " + REPEAT_LEGEND if repeats else ""), model=model, params=cal,
-        params_name=params.name,
+        table=pd.DataFrame(rows), rows=tuple(rows), markdown=tables.markdown(columns_for(columns, rows), rows),
+        caption=caption,
+        legend=LEGEND + ("" if bands is None else " " + BAND_LEGEND.format(level=100 * bands))
+        + (" " + REPEAT_LEGEND if repeats else ""), model=model, params=cal, params_name=params.name,
         runs=tuple(e["provenance"] for e in evaluated), skipped=tuple(skipped), origin=origin,
         envelope=env.mapping() if env is not None else None, repeats=repeats,
-        _evaluated=tuple({"row": e["row"], "series": e["series"]} for e in evaluated))
+        _evaluated=tuple({"row": e["row"], "series": e["series"]} for e in evaluated), band_level=bands)

@@ -3,7 +3,8 @@
 Measured in the specimen's colour (red, blue, green for specimens 1-3, as in
 the paper), the twin's prediction dashed black, and under every time history
 and loop the residual, twin − measured, in N (or pF) and in % of the run's
-peak (:func:`~rdea_lab.reports.plots.residual_panel`). PNG at `DPI` and, if
+peak (:func:`~rdea_lab.reports.plots.residual_panel`); with bands, the prediction band shaded grey
+over the force's time history (:func:`~rdea_lab.reports.plots.band_shade`). PNG at `DPI` and, if
 asked for, a PDF beside each (vector, for a paper). A run at 0 V throughout gets no
 voltage axis. A series longer than three times `BINS` is drawn through the
 samples :func:`~rdea_lab.reports.plots.minmax_index` keeps (each bin's first,
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from .plots import is_zero_voltage, minmax_index, residual_panel, save_figure
+from .plots import band_shade, is_zero_voltage, minmax_index, residual_panel, save_figure
 
 SPECIMEN_COLORS = {"specimen-1": "tab:red", "specimen-2": "tab:blue", "specimen-3": "tab:green"}
 OTHER_COLORS = ("tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
@@ -32,8 +33,19 @@ def _drawn(s: dict, keys=("position", "voltage", "force", "force_pred"), mask=No
     """The series ``s[k]`` for ``k`` in ``keys`` (and ``t``) at the samples to draw (within ``mask``)."""
     where = np.flatnonzero(mask) if mask is not None else np.arange(s["t"].size)
     ys = [s[k][where] for k in keys] + [s["force_pred"][where] - s["force"][where]]
+    keys = (*keys, *(k for k in BAND_KEYS if k in s))  # a band's bounds drawn at the same samples
     pick = where[minmax_index(where.size, ys, BINS)]
     return {k: s[k][pick] for k in ("t", *keys)}
+
+
+#: The series of a prediction band (`rdea_lab.reports.validation.add_bands`), when the report has bands.
+BAND_KEYS = ("force_lower", "force_upper")
+
+
+def _band(ax, full: dict, s: dict) -> None:
+    """Shade the run's prediction band over time, if the report has one (`band_shade`)."""
+    if "force_lower" in s:
+        band_shade(ax, s["t"], s["force_lower"], s["force_upper"], full["band_level"], full["band_status"])
 
 
 def _color(specimen: str, order: list[str]) -> str:
@@ -103,6 +115,7 @@ def tensile_figure(e: dict, color: str) -> Figure:
         ax2.plot(s["t"], s["voltage"] / 1e3, color="tab:gray", lw=0.8, ls=":")
         ax2.set_ylabel("voltage [kV] (dotted)")
     ax = axes[1]
+    _band(ax, e["series"], s)
     ax.plot(s["t"], s["force"], color=color, lw=0.9, label="measured")
     ax.plot(s["t"], s["force_pred"], **PRED, label="twin")
     ax.set_ylabel("force [N]")
@@ -136,6 +149,7 @@ def blocking_figure(items: list[dict], colors: dict) -> Figure:
         w = full.get("window", np.ones(full["t"].size, bool))
         peak = float(np.max(np.abs(full["force"][w])))  # the row's error scale: the force during the window
         s, sw = _drawn(full), _drawn(full, mask=w)
+        _band(left, full, s)
         left.plot(s["t"], s["force"], color=c, lw=0.7, label=f"{row['specimen']} measured")
         left.plot(s["t"], s["force_pred"], **PRED, label="twin")
         left.set_ylabel("force [N]")

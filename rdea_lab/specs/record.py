@@ -92,11 +92,13 @@ class Statistics(_Section):
 
 class Validation(_Section):
     """What ``rdea-lab calibrate --holdout`` adds: the held-out runs' errors, the calibration envelope
-    (`rdea_lab.calibration.envelope.Envelope.mapping`) and the legend of the error measures."""
+    (`rdea_lab.calibration.envelope.Envelope.mapping`), the legend of the error measures and the held-out
+    misfit a prediction band learns from (`rdea_lab.calibration.bands.misfit_mapping`)."""
 
     held_out: list[dict] | None = None
     envelope: dict | None = None
     measures: str | None = None
+    misfit: dict | None = None
 
 
 class CalibrationRecord(_Section):

@@ -60,6 +60,16 @@ SELFSENSE_VARIABLES: dict[str, tuple[str, str, str]] = {
 }
 
 
+#: Variables of a prediction band (`rdea_lab.twin.predict` with ``bands``; `rdea_lab.calibration.bands`):
+#: name -> (units, long_name, netCDF dtype); LEVEL is replaced by the band's nominal level.
+BAND_VARIABLES: dict[str, tuple[str, str, str]] = {
+    "force_lower": ("N", "lower bound of the LEVEL prediction band of the axial force (parameter uncertainty and "
+                         "cross-validated misfit; -inf where unbounded)", "f8"),
+    "force_upper": ("N", "upper bound of the LEVEL prediction band of the axial force (parameter uncertainty and "
+                         "cross-validated misfit; +inf where unbounded)", "f8"),
+}
+
+
 def flag_word(name: str) -> str:
     """A status name as one CF ``flag_meanings`` word: ``"past limit point"`` -> ``"past_limit_point"``
     (a parenthesis dropped, anything but letters and digits an underscore)."""
@@ -90,7 +100,8 @@ def variable_attrs(name: str) -> dict:
     if name in RUN_VARIABLES:
         units, long_name = RUN_VARIABLES[name]
     else:
-        units, long_name, _ = {**MODEL_VARIABLES, **OPTIONAL_RUN_VARIABLES, **SELFSENSE_VARIABLES}[name]
+        units, long_name, _ = {**MODEL_VARIABLES, **OPTIONAL_RUN_VARIABLES, **SELFSENSE_VARIABLES,
+                                **BAND_VARIABLES}[name]
     attrs = {"units": units, "long_name": long_name}
     if name in FLAGS:
         values, meanings = FLAGS[name]
@@ -116,6 +127,6 @@ def global_attrs(source: str, metadata: dict | None = None) -> dict:
     return {"institution": institution, "source": source, "references": REFERENCES}
 
 
-__all__ = ["FLAGS", "MODEL_VARIABLES", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES", "REFERENCES", "RUN_VARIABLES",
-           "SELFSENSE_VARIABLES", "TIME_ENCODING", "TIME_LONG_NAME", "flag_word", "global_attrs", "time_attrs",
-           "variable_attrs"]
+__all__ = ["BAND_VARIABLES", "FLAGS", "MODEL_VARIABLES", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES", "REFERENCES",
+           "RUN_VARIABLES", "SELFSENSE_VARIABLES", "TIME_ENCODING", "TIME_LONG_NAME", "flag_word", "global_attrs",
+           "time_attrs", "variable_attrs"]

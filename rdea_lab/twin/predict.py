@@ -9,7 +9,7 @@ import numpy as np
 import xarray as xr
 
 from ..physics.selection import select_model
-from ..specs import MODEL_CHOICES, as_params, params_from_yaml, specimen_from_yaml
+from ..specs import MODEL_CHOICES, SpecError, as_params, params_from_yaml, specimen_from_yaml
 from .simulate import as_geometry, simulate
 
 from ..specs.importing import MIN_STRETCH  # below it a compressed specimen; between it and 1, noise
@@ -38,7 +38,8 @@ def _history(history):
                     f"(t, stretch, voltage) tuple, got {type(history).__name__}")
 
 
-def predict(history, params=None, model="su", *, specimen=None, protocol=None, tolerance=0.01) -> xr.Dataset:
+def predict(history, params=None, model="su", *, specimen=None, protocol=None, tolerance=0.01, bands=None,
+            uncertainty=None, band_flags=None) -> xr.Dataset:
     """The twin on a stretch and voltage history: force, capacitance, stress and status.
 
     Parameters
@@ -63,6 +64,17 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
         evaluation and no limit applies.
     tolerance : float
         For ``auto``: allowed deviation from CR relative to the peak stress [-].
+    bands : float, optional
+        Nominal level of a prediction band of the force [-] (0.9: the 90 % band), from ``uncertainty``
+        (:class:`rdea_lab.calibration.bands.Uncertainty`: the fit's covariance propagated by the delta method,
+        combined in quadrature with the cross-validated misfit; see that module for the rule beyond the
+        calibration envelope). None (default): no band, the output as without it.
+    uncertainty : Uncertainty, optional
+        Required with ``bands`` (``Uncertainty.of_record("cal.yaml")``; ``ds.rdea.predict(..., bands=0.9)``
+        builds it from the parameter file).
+    band_flags : tuple of str, optional
+        The history's extrapolation flags (:func:`rdea_lab.calibration.envelope.beyond`); default: checked
+        against ``uncertainty.envelope``.
 
     Returns
     -------
@@ -71,7 +83,8 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
         ``sigma1``, ``sigma1_irr`` [Pa], ``lambda2b``, ``converged``,
         ``model_status`` and the ``stretch`` and ``voltage`` used; attributes
         ``model`` (and ``model_selection`` for auto), ``parameters``,
-        ``geometry``. Measured stretches within noise below 1
+        ``geometry``; with ``bands``, ``force_lower`` and ``force_upper`` [N] and the ``band_*`` attributes
+        (level, status, method, misfit, flags). Measured stretches within noise below 1
         (``MIN_STRETCH <= stretch < 1``) and NaN samples get NaN (status
         ``NaN input``, counted in ``excluded_samples``); the viscoelastic
         history runs on across them.
@@ -84,7 +97,8 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
     TypeError
         A ``history`` that is no Dataset, mapping or ``(t, stretch, voltage)`` tuple.
     SpecError
-        A card or parameter file that cannot be read.
+        A card or parameter file that cannot be read; ``bands`` outside the levels a band has (0.05-0.99),
+        or without ``uncertainty``.
     LimitError
         With ``protocol``: the first limit the history exceeds.
 
@@ -131,4 +145,9 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
     if choice is not None:
         out.attrs["model_requested"] = "auto"
         out.attrs["model_selection"] = json.dumps(choice.as_dict())
+    if bands is not None:
+        if uncertainty is None:
+            raise SpecError("arguments", "uncertainty", "required with bands; allowed: rdea_lab.calibration.bands."
+                            "Uncertainty.of_record(PARAMS) (or ds.rdea.predict(PARAMS, bands=...), which builds it)")
+        out = uncertainty.add_to(out, bands, specimen=geom, model=model, flags=band_flags)
     return out
