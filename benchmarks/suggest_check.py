@@ -75,6 +75,8 @@ def fit(runs, start=None):
 
 def check(seed: int = 27, verbose: bool = True) -> dict:
     """Run the whole comparison; returns the figures (see the module docstring)."""
+    from scipy.stats import spearmanr
+
     from rdea_lab.calibration.suggest import candidate_spec, candidates, suggest
     from rdea_lab.specs import as_specimen
     from rdea_lab.specs.limits import Limits
@@ -98,6 +100,7 @@ def check(seed: int = 27, verbose: bool = True) -> dict:
         ts = time.perf_counter()
         sug = suggest(record, card, scene=scene, limits=rig)
         t_suggest = time.perf_counter() - ts
+        dopt = suggest(record, card, limits=rig)  # without the scene: D-optimal
     if verbose:
         print(sug.table(), flush=True)
         print(f"suggest: {t_suggest:.1f} s", flush=True)
@@ -118,12 +121,17 @@ def check(seed: int = 27, verbose: bool = True) -> dict:
            "median_reduction": float(np.median(reductions)), "best_brute": top,
            "best_brute_reduction": float(reductions.max()),
            "suggested_brute_rank": int(1 + np.sum(reductions > brute[best]["reduction"])),
+           "d_optimal": dopt.best.name, "d_optimal_reduction": brute[dopt.best.name]["reduction"],
+           "spearman_linearized_vs_brute": float(spearmanr([r["shrink"] for r in sug.rows],
+                                                           [brute[r["name"]]["reduction"] for r in sug.rows])[0]),
            "candidates": len(brute), "ranking": [dict(r) for r in sug.rows], "brute": brute,
            "suggest_s": t_suggest, "total_s": time.perf_counter() - t0}
     if verbose:
         print(f"suggested {best}: reduction {100 * out['suggested_reduction']:.2f} points (brute-force rank "
               f"{out['suggested_brute_rank']} of {len(brute)}); median candidate {100 * out['median_reduction']:.2f}; "
-              f"best {out['best_brute']} {100 * out['best_brute_reduction']:.2f}", flush=True)
+              f"best {out['best_brute']} {100 * out['best_brute_reduction']:.2f}; D-optimal (no scene) "
+              f"{out['d_optimal']} {100 * out['d_optimal_reduction']:.2f}; Spearman (linearized shrink, brute "
+              f"reduction) {out['spearman_linearized_vs_brute']:.2f}", flush=True)
     return out
 
 

@@ -433,7 +433,7 @@ def suggest(params, card, *, scene=None, limits: Limits | None = None, stretches
     G = None
     scene_name, scene_peak = "", float("nan")
     if scene is not None:
-        spec = scene if isinstance(scene, ProtocolSpec) else _load_scene(scene)
+        spec = scene if isinstance(scene, ProtocolSpec) else load_scene(scene)
         rig = limits if limits is not None else spec.limits
         for lim, whose in ((spec.limits, "its own"), (rig, "the rig's")):
             try:
@@ -474,7 +474,14 @@ def suggest(params, card, *, scene=None, limits: Limits | None = None, stretches
                       tuple(refused))
 
 
-def _load_scene(path) -> ProtocolSpec:
+def load_scene(path) -> ProtocolSpec:
+    """The scene of `suggest`: the protocol YAML at ``path``.
+
+    Raises
+    ------
+    SpecError
+        No such file, or not a protocol.
+    """
     if not Path(path).is_file():
         raise SpecError(os.fspath(path), "<document>", "no such file; allowed: a protocol YAML (the scene)")
     return load_protocol(path)
@@ -501,4 +508,4 @@ def write_suggestion(suggestion: Suggestion, out, overwrite: bool = False) -> Pa
 
 
 __all__ = ["Calibrated", "Candidate", "Suggestion", "candidate_spec", "candidates", "from_record",
-           "information_from_covariance", "plan_run", "sensitivity", "suggest", "write_suggestion"]
+           "information_from_covariance", "load_scene", "plan_run", "sensitivity", "suggest", "write_suggestion"]

@@ -54,8 +54,6 @@ def suggest(params_path, card, scene, out, overwrite, stretches, rates, holds, s
       rdea-lab suggest --params vhb.yaml --specimen specimens/vhb4910_strip.yaml \\
           --target hold_2.5.yaml --max-stretch 3 --out next.yaml
     """
-    from ..calibration.suggest import suggest as rank, write_suggestion
-    from ..specs import load_protocol  # noqa: F401  (the scene is read by the library)
     from ..specs.limits import Limits
 
     if out is not None:
@@ -64,9 +62,9 @@ def suggest(params_path, card, scene, out, overwrite, stretches, rates, holds, s
                                 ("max_field", max_field)) if v is not None}
     limits = None
     if given:
-        base = Limits() if scene is None else _scene_limits(scene)
+        base = Limits() if scene is None else api.load_scene(scene).limits
         limits = Limits.from_options({**base.model_dump(), **given})
-    result = rank(params_path, card, scene=scene, limits=limits, stretches=_numbers(stretches, "--stretches"),
+    result = api.suggest(params_path, card, scene=scene, limits=limits, stretches=_numbers(stretches, "--stretches"),
                   rates=_numbers(rates, "--rates"), holds=_numbers(holds, "--holds"), sample_rate=sample_rate)
     click.echo(result.table(top))
     best = result.rows[0]
@@ -79,10 +77,4 @@ def suggest(params_path, card, scene, out, overwrite, stretches, rates, holds, s
     if result.refused:
         click.echo(f"outside the limits: {len(result.refused)} candidates (e.g. {result.refused[0]})")
     if out is not None:
-        click.echo(f"wrote {write_suggestion(result, out, overwrite)}")
-
-
-def _scene_limits(path):
-    from ..calibration.suggest import _load_scene
-
-    return _load_scene(path).limits
+        click.echo(f"wrote {api.write_suggestion(result, out, overwrite)}")
