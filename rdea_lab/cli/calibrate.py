@@ -144,7 +144,8 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
             click.echo(f"skipped {s['file']}: {s['reason']}")
         if reason:
             click.echo(f"model auto: {chosen} ({reason})")
-        click.echo(f"calibrating {', '.join(free)} ({chosen}, {metric}) on {len(runs)} runs: "
+        shape = "" if hyperelastic.lower() == "yeoh" else f", {hyperelastic.lower()}"
+        click.echo(f"calibrating {', '.join(free)} ({chosen}, {metric}{shape}) on {len(runs)} runs: "
                    + ", ".join(f"{r.specimen}/{r.protocol}" for r in runs))
 
     def announce_fold(k, count, label, fitted, predicted):

@@ -124,3 +124,32 @@ def test_the_monotone_fit_recovers_a_monotone_truth():
 def test_neo_hookean_refuses_a_free_c20():
     with pytest.raises(SpecError, match=r"free: C20 unknown \(hyperelastic neo-hookean holds C20 = C30 = 0\)"):
         calibrate_runs(runs_of(material(0.0, 0.0)), free="C10,C20", hyperelastic="neo-hookean")
+
+
+@pytest.fixture
+def data(tmp_path):
+    path = tmp_path / "r.nc"
+    runs_of(material(0.0, 0.0))[0].to_netcdf(path)
+    return path
+
+
+def test_cli_neo_hookean_with_a_free_c20_exits_2(data, tmp_path, capsys):
+    from rdea_lab.cli.errors import run as run_cli
+    from rdea_lab.cli.main import cli
+
+    assert run_cli(cli, ["calibrate", str(data), "--hyperelastic", "neo-hookean", "--free", "C10,C20",
+                         "--out", str(tmp_path / "o.yaml")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.splitlines() == [err] and "--free: C20 unknown (hyperelastic neo-hookean holds C20 = C30 = 0)" in err
+
+
+@pytest.mark.slow
+def test_cli_records_the_choice(data, tmp_path, capsys):
+    from rdea_lab.cli.errors import run as run_cli
+    from rdea_lab.cli.main import cli
+
+    out = tmp_path / "o.yaml"
+    assert run_cli(cli, ["calibrate", str(data), "--hyperelastic", "yeoh-monotone", "--method", "least-squares",
+                         "--quiet", "--out", str(out)]) == 0
+    assert "(su, rms, yeoh-monotone)" in capsys.readouterr().out
+    assert CalibrationRecord.of_file(out).hyperelastic == "yeoh-monotone"
