@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..paths import resolve
 from ..physics.geometry import geometry_from_card
 from ..protocols import expand
 from ..runs.checked import checked_plan
@@ -475,13 +476,14 @@ def suggest(params, card, *, scene=None, limits: Limits | None = None, stretches
 
 
 def load_scene(path) -> ProtocolSpec:
-    """The scene of `suggest`: the protocol YAML at ``path``.
+    """The scene of `suggest`: the protocol YAML at ``path`` (or the packaged protocol it names).
 
     Raises
     ------
     SpecError
         No such file, or not a protocol.
     """
+    path = resolve(path, "protocols")
     if not Path(path).is_file():
         raise SpecError(os.fspath(path), "<document>", "no such file; allowed: a protocol YAML (the scene)")
     return load_protocol(path)
