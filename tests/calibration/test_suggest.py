@@ -122,13 +122,16 @@ def test_cli_ranks_and_writes(record, scene, tmp_path, capsys):
 @pytest.mark.parametrize("args, message", [
     (["--max-stretch", "1.2", "--stretches", "1.5"], "--stretches/--rates/--holds/--max-stretch: no candidate inside"),
     (["--target", "SCENE", "--max-stretch", "2"], "the scene is outside the rig's limits"),
+    (["--target", "BEYOND_ITS_OWN"], "stretch[0]: the scene is outside its own limits: stretch"),
     (["--params", str(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")], "no calibration record"),
     (["--params", "missing.yaml"], "missing.yaml: no such file; allowed: a calibration record"),
     (["--target", "missing.yaml"], "missing.yaml: no such file; allowed: a protocol YAML"),
     (["--rates", "0"], "--rates: 0; allowed: numbers > 0"),
 ])
 def test_bad_input_exits_2_with_one_line(record, scene, tmp_path, capsys, args, message):
-    args = [str(scene) if a == "SCENE" else a for a in args]
+    beyond = tmp_path / "beyond.yaml"  # stretch 2.5 in a protocol whose own limit is 2
+    beyond.write_text(dump_protocol(candidate_spec("hold", 2.5, 0.25, 10.0, Limits(max_stretch=2.0))))
+    args = [{"SCENE": str(scene), "BEYOND_ITS_OWN": str(beyond)}.get(a, a) for a in args]
     base = {"--params": str(record), "--specimen": str(CARD)}
     for k in list(base):
         if k in args:
