@@ -22,7 +22,7 @@ from ..specs.protocol import KINDS
 from .fit import Budget, CalibrationResult, FitMonitor, calibrate, calibrate_growing, hook, initial_guess
 from .methods import METHODS
 from .objective import find_runs, load_run
-from .parameters import names_for, values_of
+from .parameters import HYPERELASTIC, check_hyperelastic, names_for, values_of
 
 MODELS = MODEL_CHOICES
 DEFAULT_EPS_R = 2.8  # Table 1 of [1]
@@ -89,7 +89,7 @@ def choose_model(runs, start, model: str, tolerance: float = 0.01) -> tuple[str,
 
 def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, eps_r=None, kinds=("tensile",),
                    metric="rms", method="nelder-mead", law=None, budget: Budget = Budget(), tolerance=0.01,
-                   monitor=None) -> CalibrationResult:
+                   monitor=None, hyperelastic="yeoh") -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters (eps_r fixed) to measured runs (Nelder-Mead or least squares).
 
     Computes only: the record is ``result.write(out)`` (:meth:`CalibrationResult.write`).
@@ -130,6 +130,10 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         twice a second (evaluations so far, the best objective so far, seconds since the fit began, over
         every stage when branches are grown); ``stage(index, count, label)`` before each fit when branches
         are grown from the data (:func:`~rdea_lab.calibration.fit.calibrate_growing`).
+    hyperelastic : {"yeoh", "yeoh-monotone", "neo-hookean"}
+        The Yeoh coefficients the fit may reach: the paper's Yeoh (default), a Yeoh restricted to
+        monotone stiffening (C20 >= 0, C30 >= 0: ``d2W/dI1^2 >= 0`` at every stretch), or neo-Hookean
+        (C20 = C30 = 0; not free). See :func:`~rdea_lab.calibration.parameters.constrain_start`.
 
     Returns
     -------
@@ -176,13 +180,17 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
             last = padded[-1] if padded else ViscoBranch.of(law, init.C10, init.C10)
             padded.append(ViscoBranch.of(law, last.modulus, last.eta * 30))
         start = init.replace(eps_r=eps, branches=tuple(padded))
+    check_hyperelastic(hyperelastic)
     names = parameter_names(M, law)
+    if hyperelastic == "neo-hookean":  # C20 = C30 = 0, not parameters of the fit
+        names = [n for n in names if n not in ("C20", "C30")]
     if isinstance(free, str):
         free = [f.strip() for f in free.split(",") if f.strip()]
     free = list(names if free is None else free)
     unknown = [f for f in free if f not in names]
     if unknown:
-        raise SpecError(ARGS, "free", f"{', '.join(unknown)} unknown; allowed: {', '.join(names)}")
+        why = " (hyperelastic neo-hookean holds C20 = C30 = 0)" if hyperelastic == "neo-hookean" else ""
+        raise SpecError(ARGS, "free", f"{', '.join(unknown)} unknown{why}; allowed: {', '.join(names)}")
     if not isinstance(budget, Budget):
         raise SpecError(ARGS, "budget", f"{budget!r}; allowed: a Budget(evaluations=..., seconds=...)")
     model, why = choose_model(runs, start, model, tolerance)
@@ -193,10 +201,11 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         if init is None and (M > 1 or (M == 1 and law == "finite_strain")):
             # from the data: grow the branches one by one (they merge otherwise); finite strain: two starts
             result = calibrate_growing(runs, initial_guess(runs, 1, eps, law=law), M, model=model, free=free,
-                                       metric=metric, method=method, budget=budget, monitor=monitor)
+                                       metric=metric, method=method, budget=budget, monitor=monitor,
+                                       hyperelastic=hyperelastic)
         else:
             result = calibrate(runs, start, model=model, free=free, metric=metric, method=method, budget=budget,
-                               monitor=monitor)
+                               monitor=monitor, hyperelastic=hyperelastic)
     except ValueError as exc:
         raise SpecError(ARGS, "<calibration>", f"cannot fit: {exc}") from None
     import dataclasses
@@ -205,5 +214,5 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     return dataclasses.replace(result, **extra)
 
 
-__all__ = ["KINDS", "MODELS", "Budget", "FitMonitor", "calibrate_runs", "choose_model", "gather_runs",
+__all__ = ["HYPERELASTIC", "KINDS", "MODELS", "Budget", "FitMonitor", "calibrate_runs", "choose_model", "gather_runs",
            "parameter_names", "values_of"]

@@ -14,7 +14,7 @@ from .._version import __version__
 from ..specs import ParameterSet
 from .methods import METHODS, Objective, OutOfBudget, bounded_least_squares, nelder_mead
 from .objective import goodness, predict_force, residuals
-from .parameters import fit_parameters, values_of, with_values
+from .parameters import constrain_start, fit_parameters, values_of, with_values
 
 
 @dataclass(frozen=True)
@@ -163,6 +163,8 @@ class CalibrationResult:
     record_files : dict
         ``params``, ``history``, ``plot`` paths of the record, when one was written and kept here
         (:func:`~rdea_lab.calibration.crossval.cross_validate` does; `write` returns them).
+    hyperelastic : {"yeoh", "yeoh-monotone", "neo-hookean"}
+        The Yeoh coefficients the fit could reach (:func:`~rdea_lab.calibration.parameters.constrain_start`).
     """
 
     params: ParameterSet
@@ -203,6 +205,7 @@ class CalibrationResult:
     run_data: tuple = ()
     skipped: tuple = ()
     record_files: dict = dataclasses.field(default_factory=dict)
+    hyperelastic: str = "yeoh"
 
     def fit_report(self) -> str:
         """The fit report, as ``rdea-lab calibrate`` prints it.
@@ -304,7 +307,7 @@ def check_method(method: str, metric: str) -> None:
 
 def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms", method="nelder-mead",
               budget: Budget = Budget(), max_restarts=20, step=0.1, xatol=1e-9, ftol=1e-10,
-              monitor=None) -> CalibrationResult:
+              monitor=None, hyperelastic: str = "yeoh") -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters of ``start`` to measured forces.
 
     Parameters
@@ -339,6 +342,10 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
         below ``ftol``.
     monitor : FitMonitor or any object, optional
         Its ``progress(evaluations, best, elapsed)``, if it has one, is called at most twice a second.
+    hyperelastic : {"yeoh", "yeoh-monotone", "neo-hookean"}
+        The Yeoh coefficients the fit may reach (:func:`~rdea_lab.calibration.parameters.constrain_start`):
+        the paper's Yeoh (default), monotone stiffening (C20, C30 >= 0), or neo-Hookean (C20 = C30 = 0,
+        held); the start is projected onto that set.
 
     Returns
     -------
@@ -351,6 +358,8 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
         An unknown method, metric or parameter; a start without a finite force prediction.
     TypeError
         A ``budget`` that is not a `Budget`.
+    SpecError
+        An unknown ``hyperelastic``.
 
     Notes
     -----
@@ -374,7 +383,8 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     unknown = free - set(names_all)
     if unknown:
         raise ValueError(f"unknown parameter(s) {', '.join(sorted(unknown))}; allowed: {', '.join(names_all)}")
-    parameters = fit_parameters(start, free)
+    start = constrain_start(start, hyperelastic)
+    parameters = fit_parameters(start, free, hyperelastic)
     obj = Objective(runs, start, parameters, model, metric, max_evals, max_time, hook(monitor, "progress"))
     f0 = obj.score(start)
     if not np.isfinite(f0):
@@ -406,8 +416,9 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
                "step": step if method == "nelder-mead" else "not used by least-squares", "tolerances": tolerances}
     values = obj.best_values
     best = with_values(start, values, start.M)
-    return _finish(obj, parameters, best, values, model, metric, method, restarts, nit, converged, message,
-                   budgets, budget_reached)
+    result = _finish(obj, parameters, best, values, model, metric, method, restarts, nit, converged, message,
+                     budgets, budget_reached)
+    return dataclasses.replace(result, hyperelastic=hyperelastic)
 
 
 def budget_message(budget_reached: str, max_evals: int, max_time: float, nfev: int) -> str:

@@ -144,6 +144,8 @@ class Objective:
         names = [p.name for p in self.free]
         if "C20" not in names or not all(n in {p.name for p in self.parameters} for n in ("C10", "C30")):
             return None
+        if self.free[names.index("C20")].lo >= 0.0:  # C20 >= 0 (monotone Yeoh): always admissible, a plain box
+            return None
         return names.index("C20")
 
     def _margin_parameter(self):

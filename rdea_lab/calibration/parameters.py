@@ -5,6 +5,10 @@ non-negative ones (C20, C30, eta_v0) through ``asinh(x / scale)``, which is
 linear near zero and logarithmic far from it. Bounds then enter through a
 sine map of that variable onto its bounded interval (as lmfit does), so the
 unconstrained simplex can never leave them.
+
+The hyperelastic choice (`HYPERELASTIC`) restricts the Yeoh coefficients the fit may reach: the
+paper's Yeoh (admissible: ``dW/dI1 > 0`` wherever the fit goes, `~rdea_lab.specs.params.material_problems`),
+a Yeoh restricted to monotone stiffening, or neo-Hookean (:func:`constrain_start`).
 """
 
 from __future__ import annotations
@@ -71,6 +75,69 @@ class FitParameter:
         return bool(min(abs(self._u(x) - self._u(self.lo)), abs(self._u(self.hi) - self._u(x))) <= rtol * span)
 
 
+#: The hyperelastic choices of a fit: the paper's Yeoh (the default), the Yeoh restricted to monotone
+#: stiffening (C20 >= 0, C30 >= 0), neo-Hookean (C20 = C30 = 0, C10 alone).
+HYPERELASTIC = ("yeoh", "yeoh-monotone", "neo-hookean")
+
+
+def check_hyperelastic(choice: str) -> str:
+    """``choice`` if it is one of `HYPERELASTIC`.
+
+    Raises
+    ------
+    SpecError
+        Another value (field ``hyperelastic``).
+    """
+    if choice not in HYPERELASTIC:
+        raise SpecError("arguments", "hyperelastic", f"{choice!r}; allowed: {', '.join(HYPERELASTIC)}")
+    return choice
+
+
+def constrain_start(start: ParameterSet, choice: str = "yeoh") -> ParameterSet:
+    """The start of a fit under the hyperelastic ``choice``: ``start`` projected onto what the choice allows.
+
+    Parameters
+    ----------
+    start : ParameterSet
+        Start values [SI].
+    choice : {"yeoh", "yeoh-monotone", "neo-hookean"}
+        ``yeoh``: the paper's Yeoh, ``W = C10 x + C20 x^2 + C30 x^3`` with ``x = I1 - 3``, any
+        coefficients the physics admits (``dW/dI1 > 0`` on the stretches reached; ``C30 >= 0``);
+        ``start`` unchanged. ``yeoh-monotone``: ``C20 >= 0`` and ``C30 >= 0`` (and ``C10 > 0``); a
+        negative start C20 (or C30) starts at 0. ``neo-hookean``: ``C20 = C30 = 0``, held there.
+
+    Returns
+    -------
+    ParameterSet
+        ``start``, or a copy with C20, C30 projected (the record's ``init_value`` shows the start used).
+
+    Raises
+    ------
+    SpecError
+        An unknown ``choice``.
+
+    Notes
+    -----
+    Why ``C20 >= 0, C30 >= 0`` is exactly monotone stiffening: ``d2W/dI1^2 = 2 C20 + 6 C30 x`` is affine
+    in ``x = I1 - 3``, so it is >= 0 for every ``x >= 0`` if and only if it is at ``x = 0``
+    (``C20 >= 0``) and its slope is (``C30 >= 0``; were ``C30 < 0`` it would turn negative for
+    ``x > -C20 / (3 C30)``). The stiffness ``dW/dI1 = C10 + 2 C20 x + 3 C30 x^2`` is then >= C10 > 0
+    for every ``x >= 0``: the material stiffens, never softens, at any stretch however far beyond the
+    data, which is what a fit to small stretches may extrapolate. The paper's Yeoh allows ``C20 < 0``
+    (an S-shaped curve), which a fit to stretch 1.5 can choose with a C30 that says nothing about 3.0.
+    """
+    check_hyperelastic(choice)
+    if choice == "yeoh":
+        return start
+    if choice == "neo-hookean":
+        C20 = C30 = 0.0
+    else:
+        C20, C30 = max(start.C20, 0.0), max(start.C30, 0.0)
+    if (C20, C30) == (start.C20, start.C30):
+        return start
+    return start.replace(C20=C20, C30=C30)
+
+
 def names_for(M: int, law: str = "linear") -> list[str]:
     """Parameter names of a Yeoh material with ``M`` Maxwell branches of ``law`` and the parallel damper."""
     spring = MODULUS[law]
@@ -94,8 +161,17 @@ def with_values(base: ParameterSet, values: dict[str, float], M: int, name: str 
                         eta_v0=values["eta_v0"], **({"name": name} if name else {}))
 
 
-def fit_parameters(start: ParameterSet, free: set[str]) -> list[FitParameter]:
-    """The fit parameters of ``start`` (all of its Yeoh and viscoelastic parameters)."""
+def fit_parameters(start: ParameterSet, free: set[str], hyperelastic: str = "yeoh") -> list[FitParameter]:
+    """The fit parameters of ``start`` (all of its Yeoh and viscoelastic parameters).
+
+    ``hyperelastic`` (`HYPERELASTIC`, see :func:`constrain_start`) sets the bounds of C20: ``yeoh``
+    [-1e9, 1e9] Pa (the admissibility limit is the fit's, not a box), ``yeoh-monotone`` [0, 1e9] Pa;
+    ``neo-hookean`` holds C20 and C30 (at the start's, which must be 0) whatever ``free`` says.
+    C30 is in [0, 1e9] Pa under each.
+    """
+    check_hyperelastic(hyperelastic)
+    if hyperelastic == "neo-hookean":
+        free = set(free) - {"C20", "C30"}
     values = values_of(start)
     c_scale = max(0.1 * start.C10, 1.0)
     out = []
@@ -104,7 +180,7 @@ def fit_parameters(start: ParameterSet, free: set[str]) -> list[FitParameter]:
         if name == "C10":
             p = FitParameter(name, x, 1e2, 1e9, "log", 1.0, name in free, UNITS["C"])
         elif name in ("C20", "C30"):
-            lo = -1e9 if name == "C20" else 0.0
+            lo = -1e9 if name == "C20" and hyperelastic == "yeoh" else 0.0
             p = FitParameter(name, x, lo, 1e9, "asinh", c_scale, name in free, UNITS["C"])
         elif name == "eta_v0":
             p = FitParameter(name, x, 0.0, 1e10, "asinh", 1e3, name in free, UNITS["eta"])

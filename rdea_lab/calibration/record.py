@@ -60,7 +60,8 @@ def calibration_record(result, runs) -> CalibrationRecord:
         notes = [f"stderr, covar, correlation, aic and bic: {na}: they describe a least-squares (rms) estimate"]
     stages = [{k: (round(v, 3) if k == "wall_time_s" else v) for k, v in st.items()} for st in result.stages]
     return CalibrationRecord(
-        model=result.model, viscoelastic_law=result.params.law, metric=result.metric, method=result.method,
+        model=result.model, viscoelastic_law=result.params.law,
+        hyperelastic=getattr(result, "hyperelastic", "yeoh"), metric=result.metric, method=result.method,
         objective=float(result.objective), converged=result.converged, message=result.message,
         parameters=params, correlation=corr, covar=covar,
         runs=[FitRun(**{**g, "sha256": r.sha256}) for g, r in zip(result.runs, runs)],

@@ -99,6 +99,10 @@ class FitProgress:
 @click.option("--law", type=click.Choice(["linear", "finite_strain"], case_sensitive=False), default=None,
               help="Viscoelastic law of the branches: eq. (44) of the paper, or neo-Hookean springs with "
                    "Newtonian dashpots (fit names mu_v<j>, eta_v<j>) [default: --init's, or linear].")
+@click.option("--hyperelastic", type=click.Choice(["yeoh", "yeoh-monotone", "neo-hookean"], case_sensitive=False),
+              default="yeoh", show_default=True,
+              help="Yeoh coefficients the fit may reach: the paper's Yeoh; a Yeoh restricted to monotone stiffening "
+                   "(C20, C30 >= 0), which extrapolates in stretch without softening; neo-Hookean (C20 = C30 = 0).")
 @click.option("--max-evals", type=click.IntRange(10, 10**7), default=20000, show_default=True)
 @click.option("--max-time", type=click.FloatRange(0.1, 86400), default=300.0, show_default=True,
               help="Wall-time budget [s].")
@@ -115,8 +119,8 @@ class FitProgress:
               help="Cross-validate: one run per fold, or the runs grouped by nominal stretch rate or by maximum "
                    "stretch; each fold fits the others and predicts its own. --out is then a folder: cv.csv, "
                    "cv.md, fold-<k>.yaml.")
-def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric, method, law, max_evals, max_time, name,
-              out_path, overwrite, quiet, holdout, cv):
+def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric, method, law, hyperelastic, max_evals,
+              max_time, name, out_path, overwrite, quiet, holdout, cv):
     """Fit the Yeoh and viscoelastic parameters to measured runs (Nelder-Mead, or least squares).
 
     INPUTS are datasets or folders of datasets (a folder gives its complete
@@ -140,7 +144,8 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
             click.echo(f"skipped {s['file']}: {s['reason']}")
         if reason:
             click.echo(f"model auto: {chosen} ({reason})")
-        click.echo(f"calibrating {', '.join(free)} ({chosen}, {metric}) on {len(runs)} runs: "
+        shape = "" if hyperelastic.lower() == "yeoh" else f", {hyperelastic.lower()}"
+        click.echo(f"calibrating {', '.join(free)} ({chosen}, {metric}{shape}) on {len(runs)} runs: "
                    + ", ".join(f"{r.specimen}/{r.protocol}" for r in runs))
 
     def announce_fold(k, count, label, fitted, predicted):
@@ -159,7 +164,8 @@ def calibrate(inputs, model, init_path, free_text, M, eps_r, kinds_text, metric,
                                     announce_fold=announce_fold, fold_done=progress.fold_done)
     result = fit(list(inputs), model=model.lower(), init=init_path, free=free_text, branches=M,
                  eps_r=eps_r, kinds=kinds, metric=metric, budget=api.Budget(evaluations=max_evals, seconds=max_time),
-                 monitor=monitor, method=method.lower(), law=law.lower() if law else None)
+                 monitor=monitor, method=method.lower(), law=law.lower() if law else None,
+                 hyperelastic=hyperelastic.lower())
     if not cross:
         files = result.write(out_path, name=name, overwrite=overwrite)
         progress.done(result)

@@ -26,7 +26,8 @@ OPTIONS = {"address": "--rig", "token": "--token-file", "address/token": "--rig/
            "protocol_kind": "--protocol-kind", "free": "--free", "eps_r": "--eps-r", "branches": "--viscous-branches",
            "metric": "--metric", "init": "--init", "cv": "--cv", "holdout": "--holdout",
            "method": "--method", "tare": "--tare", "estimator": "--estimator", "tau": "--tau",
-           "reference": "--reference"}
+           "reference": "--reference", "hyperelastic": "--hyperelastic", "stretches": "--stretches",
+           "rates": "--rates", "holds": "--holds", "candidates": "--stretches/--rates/--holds/--max-stretch"}
 
 
 #: Options a user reaches for by another name (other tools', or rdea-lab's before): the name -> ours.

@@ -44,6 +44,8 @@ COMMANDS = {
     "run": ("rdea_lab.cli.runs", "run", "Run a protocol on a specimen and store the run as one netCDF file."),
     "selfsense": ("rdea_lab.cli.selfsense", "selfsense",
                   "Self-sensing: the stretch estimated from the amplifier current, beside the encoder's."),
+    "suggest": ("rdea_lab.cli.suggest", "suggest", "Propose the next experiment: the candidate protocol that would "
+                "shrink a target's prediction band most."),
     "show": ("rdea_lab.cli.runs", "show", "Summary of one run (with the user's metadata), and optionally a plot."),
 }
 

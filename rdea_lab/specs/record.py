@@ -7,6 +7,8 @@ the holdout's ``validation`` to a record written before, and the reports read a 
 `CalibrationRecord.of_file`. Statistics keep lmfit's names (``chisqr``, ``redchi``, ``aic``, ``bic``,
 ``nfev``, ``nvarys``, ``nfree`` = ``ndata - nvarys``). Quantities are text with units (``"239.132 kPa"``)
 as the fit's report gives them; ``null`` where a value is not finite or does not apply.
+``hyperelastic`` is the fit's choice of Yeoh coefficients (``yeoh``, ``yeoh-monotone``, ``neo-hookean``;
+a record written before it was recorded has none: the paper's Yeoh).
 
 The section is written in the order its fields are declared here (the order of the files committed so
 far); keys not declared are kept, after them. Only what was given is written (``None`` included).
@@ -106,6 +108,7 @@ class CalibrationRecord(_Section):
 
     model: str | None = None
     viscoelastic_law: str | None = None
+    hyperelastic: str | None = None
     metric: str | None = None
     method: str | None = None
     objective: float | None = None
