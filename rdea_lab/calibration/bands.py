@@ -35,7 +35,9 @@ it counts that twice (conservative).
 
 **Beyond the calibration envelope** (:func:`~rdea_lab.calibration.envelope.beyond` flags the run): the
 misfit term comes from the held-out runs of the folds that were themselves beyond their fold's envelope
-(extrapolations), status ``widened``; where the cross-validation has no such fold (or there is no
+along every kind the run is (stretch, rate, voltage, hold, or a new stretch-rate or hold-stretch
+combination: :func:`~rdea_lab.calibration.envelope.flag_axis`; the largest quantile of those), status
+``widened``; where the cross-validation has no such fold (or there is no
 cross-validation), the data cannot bound the error: the band is **unbounded** (``force_lower = -inf``,
 ``force_upper = +inf``), status ``unbounded``. Without cross-validation, inside the envelope, the band is
 the parameter term alone, status ``parameter-only``.
@@ -54,7 +56,7 @@ from scipy.stats import norm
 from ..specs import ParameterSet, SpecError, as_params
 from ..specs.record import CalibrationRecord, add_record_section
 from ..specs.variables import variable_attrs
-from .envelope import Envelope, beyond, envelope, run_envelope
+from .envelope import Envelope, beyond, envelope, flag_axis, run_envelope
 from .objective import file_hash, load_run, predict_force
 from .parameters import fit_parameters, values_of, with_values
 
@@ -118,17 +120,23 @@ def misfit_mapping(cv, exclude=()) -> dict:
     -------
     dict
         ``definition`` (`MISFIT_DEFINITION`), ``levels`` (`LEVELS`), ``inside`` and ``beyond``: each None or
-        ``runs`` (names), ``samples`` and ``quantiles`` of ``|predicted - measured| / peak`` [-] at the levels.
+        ``runs`` (names), ``samples`` and ``quantiles`` of ``|predicted - measured| / peak`` [-] at the levels;
+        ``beyond_by_axes``: the same per set of extrapolation kinds of the held-out runs beyond their fold's
+        envelope (``axes``, :func:`~rdea_lab.calibration.envelope.flag_axis` of their flags).
     """
     exclude = set(exclude)
-    inside, outside = [], []
+    inside, outside, by_axes = [], [], {}
     for fold in cv.folds:
         for r in cv.rows(fold=fold.index, role="predicted"):
             if r["file"] in exclude or r["file"] not in fold.residuals:
                 continue
-            (outside if r["flags"] else inside).append((r["file"], fold.residuals[r["file"]]))
+            item = (r["file"], fold.residuals[r["file"]])
+            (outside if r["flags"] else inside).append(item)
+            if r["flags"]:
+                by_axes.setdefault(tuple(sorted({flag_axis(f) for f in r["flags"]})), []).append(item)
     return {"definition": MISFIT_DEFINITION, "levels": list(LEVELS), "inside": _misfit_stats(inside),
-            "beyond": _misfit_stats(outside)}
+            "beyond": _misfit_stats(outside),
+            "beyond_by_axes": [{"axes": list(axes), **_misfit_stats(items)} for axes, items in sorted(by_axes.items())]}
 
 
 def add_misfit(record, cv) -> None:
@@ -350,8 +358,13 @@ class Uncertainty:
                 "refused": draws - len(forces)}
 
     # -------------------------------------------------------------- the misfit term and the rule
-    def misfit_rel(self, level: float, extrapolating: bool) -> tuple[float | None, str, str]:
+    def misfit_rel(self, level: float, extrapolating, axes=None) -> tuple[float | None, str, str]:
         """The misfit half-width [-] (of the predicted peak), the band status and why.
+
+        ``axes`` (the run's kinds of extrapolation, :func:`~rdea_lab.calibration.envelope.flag_axis`): a run
+        beyond the envelope learns only from the held-out runs that extrapolated along every one of them
+        (the largest quantile of those groups of ``beyond_by_axes``); none: unbounded. Without ``axes`` (or
+        a record written before ``beyond_by_axes``) every extrapolating held-out run counts.
 
         Returns
         -------
@@ -369,14 +382,20 @@ class Uncertainty:
             return q, BOUNDED, (f"parameter uncertainty and the misfit of {len(stats['runs'])} held-out run(s) "
                                 f"({which} their fold's envelope): {100 * q:.3g} % of the peak at level {level:g}")
         stats = (m or {}).get("beyond")
-        if stats is None:
-            why = "no cross-validation" if m is None else "no cross-validation fold extrapolated"
+        groups = [stats] if stats is not None else []
+        if axes and stats is not None and "beyond_by_axes" in m:
+            groups = [g for g in m["beyond_by_axes"] if set(axes) <= set(g["axes"])]
+        if not groups:
+            why = ("no cross-validation" if m is None else "no cross-validation fold extrapolated" if stats is None
+                   else f"no cross-validation fold extrapolated along {' and '.join(sorted(axes))}")
             return math.inf, UNBOUNDED, (f"unbounded: the run is beyond the calibration and {why}, so the data "
                                          "cannot bound its error")
-        q = float(np.interp(level, m["levels"], stats["quantiles"]))
-        return q, WIDENED, (f"widened: beyond the calibration; misfit of the {len(stats['runs'])} held-out run(s) "
-                            f"that were themselves beyond their fold's envelope: {100 * q:.3g} % of the peak at "
-                            f"level {level:g}")
+        q = max(float(np.interp(level, m["levels"], g["quantiles"])) for g in groups)
+        runs = sorted({r for g in groups for r in g["runs"]})
+        return q, WIDENED, (f"widened: beyond the calibration; misfit of the {len(runs)} held-out run(s) "
+                            f"that were themselves beyond their fold's envelope"
+                            + (f" along {' and '.join(sorted(axes))}" if axes else "")
+                            + f": {100 * q:.3g} % of the peak at level {level:g}")
 
     def flags(self, run) -> tuple[str, ...] | None:
         """`beyond` flags of ``run`` against the envelope (None when the envelope is not known)."""
@@ -413,7 +432,7 @@ class Uncertainty:
         f = pb["force"] if point is None else np.asarray(point, float)
         if flags is None:
             flags = self.flags(run)
-        q, status, detail = self.misfit_rel(level, bool(flags))
+        q, status, detail = self.misfit_rel(level, bool(flags), {flag_axis(f) for f in flags or ()})
         if flags is None:
             detail += "; extrapolation not checked (no calibration envelope known)"
         if self.missing:

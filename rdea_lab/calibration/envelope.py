@@ -413,6 +413,16 @@ def beyond(calibrated: Envelope, run) -> tuple[str, ...]:
     return tuple(flags) + joint_flags(c, e)
 
 
+def flag_axis(flag: str) -> str:
+    """The kind of extrapolation a `beyond` flag names: ``stretch``, ``rate``, ``voltage`` or ``hold`` for a
+    flag of one axis (``"... beyond the calibrated ..."``, ``"... below the calibrated ..."``), and
+    ``stretch-rate`` or ``hold-stretch`` for a new combination (`joint_flags`, ``"...: fitted ..."``)."""
+    first = flag.split(" ", 1)[0]
+    if " the calibrated " in flag:
+        return first
+    return "hold-stretch" if first == "hold" else "stretch-rate"
+
+
 def _inside_axes(c: Envelope, code: np.ndarray, p: np.ndarray) -> np.ndarray:
     """Which points lie inside every axis of ``c`` (its ranges and their tolerances)."""
     lam, x, v = p.T

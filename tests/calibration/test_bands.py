@@ -1,6 +1,7 @@
 """Prediction bands (issue 27): coverage on a known truth, the ensemble against the delta method, the rule
 beyond the calibration envelope, and predict's output without bands."""
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -12,7 +13,7 @@ from scipy.stats import norm
 from rdea_lab.calibration import Budget, calibrate_runs, cross_validate, load_run, predict_force
 from rdea_lab.calibration.bands import (LEVELS, PARAMETER_ONLY, UNBOUNDED, WIDENED, Uncertainty, coverage,
                                         history_run, misfit_mapping, weighted_quantile)
-from rdea_lab.calibration.envelope import Envelope
+from rdea_lab.calibration.envelope import Envelope, beyond, flag_axis
 from rdea_lab.physics.geometry import geometry_from_card
 from rdea_lab.specs import SpecError, load_params, load_specimen
 import rdea_lab.api.accessor  # noqa: F401  (ds.rdea)
@@ -148,6 +149,35 @@ def test_beyond_the_envelope_the_band_widens_or_is_unbounded():
     ds = predict((t, lam, 0.0), TRUE, specimen=GEOM, bands=0.9, uncertainty=known(["C10"], [1e3], ENV, None))
     assert np.isneginf(ds["force_lower"].values).all() and np.isposinf(ds["force_upper"].values).all()
     assert ds.attrs["band_status"] == UNBOUNDED and "stretch 2.0" in ds.attrs["band_beyond_calibration"]
+
+
+def test_a_run_beyond_learns_only_from_folds_that_extrapolated_the_same_way():
+    """Stretch 2.0 beyond the calibrated 1.5: a held-out run that extrapolated only in hold time says
+    nothing of it (unbounded); one that extrapolated in stretch (and rate) does (widened, its quantile)."""
+    t, lam = triangle(top=2.0, n=201)
+    run = history_run(t, lam, 0.0, GEOM)
+    m = misfit(0.05, beyond=0.3)
+    group = lambda axes, f: {"axes": axes, **misfit(0.05, beyond=f)["beyond"]}  # noqa: E731
+    m["beyond_by_axes"] = [group(["hold"], 0.3)]
+    b = known(["C10"], [0.01 * TRUE.C10], ENV, m).band(run, 0.9)
+    assert b["status"] == UNBOUNDED and "along stretch" in b["detail"]
+    m["beyond_by_axes"] = [group(["hold"], 0.3), group(["rate", "stretch"], 0.1)]
+    b = known(["C10"], [0.01 * TRUE.C10], ENV, m).band(run, 0.9)
+    assert b["status"] == WIDENED and b["misfit_rel"] == pytest.approx(0.09)
+
+
+def test_each_kind_of_flag_names_its_axis():
+    """Envelopes made by hand, each left along one axis or in one combination only."""
+    pts = ((("loading", 1.4, 0.05, 0.0),))
+    c = Envelope(stretch=(1.0, 3.0), rate=(0.01, 0.05), voltage=(0.0, 0.0), hold=10.0, runs=("a",), points=pts)
+    cases = {"stretch": dataclasses.replace(c, stretch=(1.0, 4.0), points=()),
+             "rate": dataclasses.replace(c, rate=(0.01, 0.5), points=()),
+             "voltage": dataclasses.replace(c, voltage=(0.0, 2600.0), points=()),
+             "hold": dataclasses.replace(c, hold=600.0, points=()),
+             "stretch-rate": dataclasses.replace(c, points=(("loading", 2.9, 0.01, 0.0),))}
+    for axis, run in cases.items():
+        flags = beyond(c, run)
+        assert flags and {flag_axis(f) for f in flags} == {axis}, (axis, flags)
 
 
 def test_without_cross_validation_inside_the_band_is_parameter_only():
