@@ -22,6 +22,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from vhb_crossval import imported  # noqa: E402
 
 
+def by_time_scale(values: dict) -> dict:
+    """``values`` with the branches renumbered from the fastest (tau = eta / modulus) to the slowest."""
+    spring = "mu" if any(k.startswith("mu_v") for k in values) else "k"
+    M = sum(k.startswith(f"{spring}_v") for k in values)
+    order = sorted(range(1, M + 1), key=lambda j: values[f"eta_v{j}"] / values[f"{spring}_v{j}"])
+    out = {k: v for k, v in values.items() if not k.startswith((f"{spring}_v", "eta_v")) or k == "eta_v0"}
+    for new, j in enumerate(order, start=1):
+        out[f"{spring}_v{new}"], out[f"eta_v{new}"] = values[f"{spring}_v{j}"], values[f"eta_v{j}"]
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--M", type=int, default=2)
@@ -29,6 +40,7 @@ def main(argv=None) -> int:
     ap.add_argument("--methods", default="nelder-mead,least-squares")
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--seconds", type=float, default=300.0)
+    ap.add_argument("--warm-start", default="auto", help="Nelder-Mead's start: auto, least-squares or none")
     ap.add_argument("--out", type=Path, help="JSON results")
     args = ap.parse_args(argv)
     from rdea_lab.calibration import Budget, calibrate_runs
@@ -39,7 +51,8 @@ def main(argv=None) -> int:
         for method in args.methods.split(","):
             for k in range(args.repeat):
                 res = calibrate_runs(str(data), model="su", law=args.law, branches=args.M, method=method,
-                                     budget=Budget(evaluations=20000, seconds=args.seconds))
+                                     budget=Budget(evaluations=20000, seconds=args.seconds),
+                                     **({"warm_start": args.warm_start} if method == "nelder-mead" else {}))
                 rows.append({"method": method, "repeat": k, "wall_time_s": res.wall_time, "nfev": res.nfev,
                              "objective": res.objective, "converged": res.converged, "message": res.message,
                              "values": res.values})
@@ -53,9 +66,10 @@ def main(argv=None) -> int:
         nm, ls = best["nelder-mead"], best["least-squares"]
         print(f"objective: NM {nm.objective:.8e}, LSQ {ls.objective:.8e}, rel. diff "
               f"{(nm.objective - ls.objective) / ls.objective:+.2e}")
-        for name, v in ls.values.items():
-            print(f"  {name:8s} NM {nm.values[name]:12.6g}  LSQ {v:12.6g}  rel. diff "
-                  f"{(nm.values[name] - v) / v if v else float('nan'):+.2e}")
+        a, b = by_time_scale(nm.values), by_time_scale(ls.values)  # the branches' order is no property of the fit
+        for name, v in b.items():
+            rel = (a[name] - v) / v if v else float("nan")
+            print(f"  {name:8s} NM {a[name]:12.6g}  LSQ {v:12.6g}  rel. diff {rel:+.2e}")
     if args.out:
         args.out.write_text(json.dumps(rows, indent=1))
     return 0

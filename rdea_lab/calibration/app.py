@@ -21,7 +21,7 @@ from ..specs import LAWS, MODEL_CHOICES, SpecError, ViscoBranch, as_params
 from ..specs.protocol import KINDS
 from .fit import Budget, CalibrationResult, FitMonitor, calibrate, calibrate_growing, hook, initial_guess
 from .branches import AUTO_MAX_BRANCHES, calibrate_auto
-from .methods import METHODS
+from .methods import METHODS, WARM_STARTS
 from .objective import find_runs, load_run
 from .parameters import names_for, values_of
 
@@ -90,7 +90,7 @@ def choose_model(runs, start, model: str, tolerance: float = 0.01) -> tuple[str,
 
 def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, eps_r=None, kinds=("tensile",),
                    metric="rms", method="nelder-mead", law=None, budget: Budget = Budget(), tolerance=0.01,
-                   monitor=None) -> CalibrationResult:
+                   monitor=None, warm_start="auto") -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters (eps_r fixed) to measured runs (Nelder-Mead or least squares).
 
     Computes only: the record is ``result.write(out)`` (:meth:`CalibrationResult.write`).
@@ -131,6 +131,9 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         (default 20000 evaluations, 300 s).
     tolerance : float
         Of ``model="auto"`` [-]: the relative force difference a simpler model may make.
+    warm_start : {"auto", "least-squares", "none"}
+        Nelder-Mead's start (:func:`~rdea_lab.calibration.fit.calibrate`): ``auto`` is a least-squares
+        optimum that it polishes under metric rms, the start itself under max.
     monitor : FitMonitor or any object, optional
         Those of its methods it has are called: ``announce(runs, model, reason, free, skipped)`` once
         everything is checked, before the fit starts; ``progress(evaluations, best, elapsed)`` at most
@@ -171,6 +174,10 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
                                           f"{metric}; allowed with metric max: an integer from 0 to 6")
     if method not in METHODS:
         raise SpecError(ARGS, "method", f"{method!r}; allowed: {', '.join(METHODS)}")
+    if warm_start not in WARM_STARTS or (warm_start == "least-squares" and metric != "rms"):
+        raise SpecError(ARGS, "warm_start", f"{warm_start!r}" + (f" under metric {metric}" if warm_start in WARM_STARTS
+                                                                  else "") + "; allowed: "
+                        + (", ".join(WARM_STARTS) if metric == "rms" else "auto, none"))
     if method == "least-squares" and metric != "rms":
         raise SpecError(ARGS, "method", f"least-squares minimizes the rms error only, not metric {metric}; "
                                         "allowed with metric max: nelder-mead")
@@ -205,14 +212,16 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
             first = start if init is not None and init.branches else initial_guess(runs, 1, eps, law=law)
             result = calibrate_auto(runs, first.replace(C10=start.C10, C20=start.C20, C30=start.C30,
                                                         eta_v0=start.eta_v0), M, model=model, free=free,
-                                    metric=metric, method=method, budget=budget, monitor=monitor)
+                                    metric=metric, method=method, budget=budget, monitor=monitor,
+                                    warm_start=warm_start)
         elif init is None and (M > 1 or (M == 1 and law == "finite_strain")):
             # from the data: grow the branches one by one (they merge otherwise); finite strain: two starts
             result = calibrate_growing(runs, initial_guess(runs, 1, eps, law=law), M, model=model, free=free,
-                                       metric=metric, method=method, budget=budget, monitor=monitor)
+                                       metric=metric, method=method, budget=budget, monitor=monitor,
+                                       warm_start=warm_start)
         else:
             result = calibrate(runs, start, model=model, free=free, metric=metric, method=method, budget=budget,
-                               monitor=monitor)
+                               monitor=monitor, warm_start=warm_start)
     except ValueError as exc:
         raise SpecError(ARGS, "<calibration>", f"cannot fit: {exc}") from None
     import dataclasses
