@@ -102,7 +102,8 @@ class Branches(click.ParamType):
 @click.option("--viscous-branches", "M", type=Branches(),
               help="Maxwell branches M [default: those of --init, or 1]; without --init they are fitted "
                    "one at a time, each from the previous optimum. auto: M from 0 to 4, grown while an "
-                   "information criterion improves (BIC with an effective sample count from the residuals' autocorrelation; --metric rms).")
+                   "information criterion improves (BIC with an effective sample count from the residuals' "
+                   "autocorrelation; --metric rms).")
 @click.option("--eps-r", type=float, default=None, help="Relative permittivity, fixed [default: --init's, or 2.8].")
 @click.option("--protocol-kind", "kinds_text", default="tensile", show_default=True,
               help="For folders: which runs, comma-separated from tensile, blocking, capacitance, custom.")
