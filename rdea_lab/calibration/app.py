@@ -20,7 +20,8 @@ from ..physics.selection import ORDER, select_model
 from ..specs import LAWS, MODEL_CHOICES, SpecError, ViscoBranch, as_params
 from ..specs.protocol import KINDS
 from .fit import Budget, CalibrationResult, FitMonitor, calibrate, calibrate_growing, hook, initial_guess
-from .methods import METHODS
+from .branches import AUTO_MAX_BRANCHES, calibrate_auto
+from .methods import METHODS, WARM_STARTS
 from .objective import find_runs, load_run
 from .parameters import HYPERELASTIC, check_hyperelastic, names_for, values_of
 
@@ -89,7 +90,7 @@ def choose_model(runs, start, model: str, tolerance: float = 0.01) -> tuple[str,
 
 def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, eps_r=None, kinds=("tensile",),
                    metric="rms", method="nelder-mead", law=None, budget: Budget = Budget(), tolerance=0.01,
-                   monitor=None, hyperelastic="yeoh") -> CalibrationResult:
+                   monitor=None, hyperelastic="yeoh", warm_start="auto") -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters (eps_r fixed) to measured runs (Nelder-Mead or least squares).
 
     Computes only: the record is ``result.write(out)`` (:meth:`CalibrationResult.write`).
@@ -105,10 +106,16 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         Start values; default: estimated from the data (:func:`initial_guess`).
     free : sequence of str or str, optional
         Parameters to fit (e.g. ``"C10,C20,C30"``); default: every Yeoh and viscoelastic one.
-    branches : int, optional
+    branches : int or "auto", optional
         Maxwell branches M (0-6); default those of ``init``, or 1. From the
         data, M > 1 are fitted one at a time (they merge otherwise); with
         ``init``, branches beyond its own start 30 times slower than its last.
+        ``"auto"``: M from 0 up to :data:`~rdea_lab.calibration.branches.AUTO_MAX_BRANCHES`, grown one
+        at a time until the information criterion of
+        :func:`~rdea_lab.calibration.branches.calibrate_auto` stops improving (BIC with an effective
+        sample count from the residuals' lag-1 autocorrelation; metric rms only); ``branch_choice`` of
+        the result says what was tried and why M was chosen. ``init`` then supplies the Yeoh start and
+        the first branch (else the data).
     eps_r : float, optional
         Relative permittivity (fixed) [-]; default ``init``'s, or 2.8 (Table 1).
     kinds : sequence of str
@@ -124,6 +131,9 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         (default 20000 evaluations, 300 s).
     tolerance : float
         Of ``model="auto"`` [-]: the relative force difference a simpler model may make.
+    warm_start : {"auto", "least-squares", "none"}
+        Nelder-Mead's start (:func:`~rdea_lab.calibration.fit.calibrate`): ``auto`` is a least-squares
+        optimum that it polishes under metric rms, the start itself under max.
     monitor : FitMonitor or any object, optional
         Those of its methods it has are called: ``announce(runs, model, reason, free, skipped)`` once
         everything is checked, before the fit starts; ``progress(evaluations, best, elapsed)`` at most
@@ -157,13 +167,21 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     eps = eps_r if eps_r is not None else (init.eps_r if init else DEFAULT_EPS_R)
     if not (isinstance(eps, (int, float)) and np.isfinite(eps) and eps >= 1.0):
         raise SpecError(ARGS, "eps_r", f"{eps!r} is not a relative permittivity; allowed: a finite number >= 1")
-    M = branches if branches is not None else (init.M if init else 1)
+    auto = branches == "auto"
+    M = AUTO_MAX_BRANCHES if auto else branches if branches is not None else (init.M if init else 1)
     if isinstance(M, bool) or not isinstance(M, int) or not 0 <= M <= 6:
-        raise SpecError(ARGS, "branches", f"{M!r}; allowed: an integer from 0 to 6")
+        raise SpecError(ARGS, "branches", f"{M!r}; allowed: an integer from 0 to 6, or auto")
     if metric not in ("rms", "max"):
         raise SpecError(ARGS, "metric", f"{metric!r}; allowed: rms, max")
+    if auto and metric != "rms":
+        raise SpecError(ARGS, "branches", f"auto chooses by an information criterion of the rms fit, not metric "
+                                          f"{metric}; allowed with metric max: an integer from 0 to 6")
     if method not in METHODS:
         raise SpecError(ARGS, "method", f"{method!r}; allowed: {', '.join(METHODS)}")
+    if warm_start not in WARM_STARTS or (warm_start == "least-squares" and metric != "rms"):
+        raise SpecError(ARGS, "warm_start", f"{warm_start!r}" + (f" under metric {metric}" if warm_start in WARM_STARTS
+                                                                  else "") + "; allowed: "
+                        + (", ".join(WARM_STARTS) if metric == "rms" else "auto, none"))
     if method == "least-squares" and metric != "rms":
         raise SpecError(ARGS, "method", f"least-squares minimizes the rms error only, not metric {metric}; "
                                         "allowed with metric max: nelder-mead")
@@ -198,14 +216,20 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     if announce is not None:  # may refuse, before a long fit (the CLI checks its record files here)
         announce(runs, model, why, free, tuple(skipped))
     try:
-        if init is None and (M > 1 or (M == 1 and law == "finite_strain")):
+        if auto:
+            first = start if init is not None and init.branches else initial_guess(runs, 1, eps, law=law)
+            result = calibrate_auto(runs, first.replace(C10=start.C10, C20=start.C20, C30=start.C30,
+                                                        eta_v0=start.eta_v0), M, model=model, free=free,
+                                    metric=metric, method=method, budget=budget, monitor=monitor,
+                                    hyperelastic=hyperelastic, warm_start=warm_start)
+        elif init is None and (M > 1 or (M == 1 and law == "finite_strain")):
             # from the data: grow the branches one by one (they merge otherwise); finite strain: two starts
             result = calibrate_growing(runs, initial_guess(runs, 1, eps, law=law), M, model=model, free=free,
                                        metric=metric, method=method, budget=budget, monitor=monitor,
-                                       hyperelastic=hyperelastic)
+                                       hyperelastic=hyperelastic, warm_start=warm_start)
         else:
             result = calibrate(runs, start, model=model, free=free, metric=metric, method=method, budget=budget,
-                               monitor=monitor, hyperelastic=hyperelastic)
+                               monitor=monitor, hyperelastic=hyperelastic, warm_start=warm_start)
     except ValueError as exc:
         raise SpecError(ARGS, "<calibration>", f"cannot fit: {exc}") from None
     import dataclasses

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import numbers
-import time as _time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -12,7 +11,8 @@ import numpy as np
 
 from .._version import __version__
 from ..specs import ParameterSet
-from .methods import METHODS, Objective, OutOfBudget, bounded_least_squares, nelder_mead
+from .methods import (METHODS, POLISH_STEP, WARM_STARTS, Objective, OutOfBudget, at_yeoh_limit, bounded_least_squares,
+                      nelder_mead)
 from .objective import goodness, predict_force, residuals
 from .parameters import constrain_start, fit_parameters, values_of, with_values
 
@@ -117,7 +117,8 @@ class CalibrationResult:
         `free_names` order (NaN where not identifiable, all NaN under ``metric="max"``).
     free_names : tuple of str
     at_bound, unmoved, unidentifiable : tuple of str
-        Flags: ended within 1e-6 of a bound; never moved from the start
+        Flags: ended within 1e-6 of a bound (C20 also on the Yeoh admissibility limit
+        ``C20 = -sqrt(3 C10 C30)``, within 1e-6 of C20); never moved from the start
         (relative change < 1e-9); a Jacobian column that is zero, correlation
         beyond 0.999 with another parameter, or (``metric="rms"``) a standard
         error above half the value.
@@ -165,6 +166,13 @@ class CalibrationResult:
         (:func:`~rdea_lab.calibration.crossval.cross_validate` does; `write` returns them).
     hyperelastic : {"yeoh", "yeoh-monotone", "neo-hookean"}
         The Yeoh coefficients the fit could reach (:func:`~rdea_lab.calibration.parameters.constrain_start`).
+    warm_start : str
+        How Nelder-Mead got its start when not from ``start`` directly (empty otherwise): the
+        least-squares start and the Nelder-Mead polish, with the evaluations of each.
+    branch_choice : dict
+        Empty unless the number of branches was chosen from the data
+        (:func:`~rdea_lab.calibration.branches.calibrate_auto`): the criterion, what was tried and why
+        the count was chosen.
     """
 
     params: ParameterSet
@@ -206,6 +214,8 @@ class CalibrationResult:
     skipped: tuple = ()
     record_files: dict = dataclasses.field(default_factory=dict)
     hyperelastic: str = "yeoh"
+    warm_start: str = ""
+    branch_choice: dict = dataclasses.field(default_factory=dict)
 
     def fit_report(self) -> str:
         """The fit report, as ``rdea-lab calibrate`` prints it.
@@ -214,7 +224,8 @@ class CalibrationResult:
         -------
         str
             Method, message, budget; each parameter [kPa or kPa s] with its standard error and flags;
-            the per-run fit; AIC/BIC (or why they do not apply); the evaluations of each stage when
+            the per-run fit; how Nelder-Mead got its start and how the branch count was chosen (where
+            either applies); AIC/BIC (or why they do not apply); the evaluations of each stage when
             there were several. No trailing newline.
         """
         lines = [f"{self.method}: {self.message}; objective {self.objective:.4e} after {self.nfev} evaluations, "
@@ -236,6 +247,10 @@ class CalibrationResult:
                          f"max rel. error {100 * g['max_rel_error']:.2f} %, rms/peak "
                          f"{100 * g.get('rms_rel_error', float('nan')):.2f} %, p99/peak "
                          f"{100 * g.get('p99_rel_error', float('nan')):.2f} %")
+        if self.warm_start:
+            lines.append(f"  start: {self.warm_start}")
+        if self.branch_choice:
+            lines.append(f"  branches: {self.branch_choice['reason']}")
         lines.append(f"  AIC {self.aic:.1f}, BIC {self.bic:.1f}" if self.metric == "rms"
                      else f"  standard errors, AIC and BIC: not applicable (metric {self.metric})")
         return "\n".join(lines)
@@ -294,8 +309,12 @@ def versions() -> dict:
     return out
 
 
-def check_method(method: str, metric: str) -> None:
-    """Raise ValueError unless ``method`` is known and can minimize ``metric``."""
+def check_method(method: str, metric: str, warm_start: str = "auto") -> bool:
+    """Raise ValueError unless ``method`` is known and can minimize ``metric`` (with ``warm_start``).
+
+    Returns whether Nelder-Mead starts from a least-squares optimum (``warm_start`` ``auto`` under rms, or
+    ``least-squares``).
+    """
     if method not in METHODS:
         raise ValueError(f"method {method!r}; allowed: {', '.join(METHODS)}")
     if metric not in ("rms", "max"):
@@ -303,11 +322,17 @@ def check_method(method: str, metric: str) -> None:
     if method == "least-squares" and metric != "rms":
         raise ValueError(f"least-squares minimizes the rms error only, not metric {metric!r}; "
                          "allowed with metric max: nelder-mead")
+    if warm_start not in WARM_STARTS:
+        raise ValueError(f"warm_start {warm_start!r}; allowed: {', '.join(WARM_STARTS)}")
+    if warm_start == "least-squares" and metric != "rms":
+        raise ValueError(f"a least-squares start has the rms optimum, not that of metric {metric!r}; "
+                         "allowed with metric max: warm_start auto or none")
+    return method == "nelder-mead" and metric == "rms" and warm_start != "none"
 
 
 def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms", method="nelder-mead",
               budget: Budget = Budget(), max_restarts=20, step=0.1, xatol=1e-9, ftol=1e-10,
-              monitor=None, hyperelastic: str = "yeoh") -> CalibrationResult:
+              monitor=None, hyperelastic: str = "yeoh", warm_start="auto") -> CalibrationResult:
     """Fit the Yeoh and viscoelastic parameters of ``start`` to measured forces.
 
     Parameters
@@ -346,6 +371,15 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
         The Yeoh coefficients the fit may reach (:func:`~rdea_lab.calibration.parameters.constrain_start`):
         the paper's Yeoh (default), monotone stiffening (C20, C30 >= 0), or neo-Hookean (C20 = C30 = 0,
         held); the start is projected onto that set.
+    warm_start : {"auto", "least-squares", "none"}
+        Nelder-Mead's start. ``least-squares`` (what ``auto`` is under metric rms): bounded least squares
+        from ``start`` first, then Nelder-Mead polishes its optimum (initial simplex step
+        :data:`~rdea_lab.calibration.methods.POLISH_STEP` instead of ``step``; restarts and
+        tolerances as given). The rms and the sum of squares have the same minimizer, so this is
+        Nelder-Mead's own optimum, reached in a tenth of the evaluations (five VHB files, finite
+        strain: benchmarks/vhb_fit_speed.py). ``none`` (what ``auto`` is under max, where least squares
+        would minimize another objective): Nelder-Mead from ``start`` with ``step``, as in [1].
+        Not used by least squares. ``warm_start`` of the result says what was done.
 
     Returns
     -------
@@ -374,7 +408,7 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     ``s^2 = redchi``; residuals of a time series are correlated, so they are
     optimistic lower bounds; under ``metric="max"`` they do not apply.
     """
-    check_method(method, metric)
+    warm = check_method(method, metric, warm_start)
     if not isinstance(budget, Budget):
         raise TypeError(f"budget {budget!r}; allowed: a rdea_lab.calibration.fit.Budget")
     max_evals, max_time = budget.evaluations, budget.seconds
@@ -394,9 +428,17 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
     obj.best_f, obj.best_values, obj.best_x = f0, obj.values(z0), z0
     obj.history = [(0, f0)]
     restarts, nit, converged, message, budget_reached = 0, 0, False, "", ""
+    warm_note, n_warm = "", None
     if obj.free:
         try:
-            if method == "nelder-mead":
+            if method == "nelder-mead" and warm:
+                _, nit, _, warm_message = bounded_least_squares(obj, xtol=xatol, ftol=ftol, gtol=ftol)
+                n_warm = obj.nfev
+                obj.best_x = obj.internal_of(obj.best_values)  # least squares kept its own variables
+                restarts, nit_nm, converged, message = nelder_mead(obj, obj.best_f, max_restarts=max_restarts,
+                                                                   step=POLISH_STEP, xatol=xatol, ftol=ftol)
+                nit += nit_nm
+            elif method == "nelder-mead":
                 restarts, nit, converged, message = nelder_mead(obj, f0, max_restarts=max_restarts, step=step,
                                                                 xatol=xatol, ftol=ftol)
             else:
@@ -404,21 +446,39 @@ def calibrate(runs, start: ParameterSet, *, model="su", free=None, metric="rms",
         except OutOfBudget:
             budget_reached = "evaluations" if obj.nfev >= max_evals else "time"
             message = budget_message(budget_reached, max_evals, max_time, obj.nfev)
+        if method == "nelder-mead" and warm:
+            warm_note = polish_note(n_warm, obj.nfev, warm_message if n_warm is not None else "")
     else:
         converged, message = True, "no free parameters"
     if method == "nelder-mead":
         tolerances = {"xatol": xatol, "fatol": f"{ftol:g} x the objective at each restart's start"}
+        if warm:
+            tolerances.update({"least-squares start": {"xtol": xatol, "ftol": ftol, "gtol": ftol}})
         restart_budget = max_restarts
     else:
         tolerances = {"xtol": xatol, "ftol": ftol, "gtol": ftol}
         restart_budget = "not used by least-squares"
     budgets = {"max_evals": int(max_evals), "max_time_s": float(max_time), "max_restarts": restart_budget,
-               "step": step if method == "nelder-mead" else "not used by least-squares", "tolerances": tolerances}
+               "step": (f"{POLISH_STEP:g} (the polish of a least-squares start)" if warm else step)
+               if method == "nelder-mead" else "not used by least-squares", "tolerances": tolerances}
     values = obj.best_values
     best = with_values(start, values, start.M)
     result = _finish(obj, parameters, best, values, model, metric, method, restarts, nit, converged, message,
                      budgets, budget_reached)
-    return dataclasses.replace(result, hyperelastic=hyperelastic)
+    result = dataclasses.replace(result, hyperelastic=hyperelastic)
+    if not warm_note:
+        return result
+    return dataclasses.replace(result, warm_start=warm_note, stages=({**result.stages[0], "warm_start": warm_note},))
+
+
+def polish_note(n_start, n_total, start_message: str = "") -> str:
+    """What `CalibrationResult.warm_start` says: ``"least-squares start, 655 evaluations (ftol termination
+    condition is satisfied); Nelder-Mead polish, 1004 evaluations"`` (``n_start`` None: least squares
+    did not finish)."""
+    if n_start is None:
+        return f"least-squares start, stopped after {n_total} evaluations; no Nelder-Mead polish"
+    why = f" ({start_message})" if start_message else ""
+    return f"least-squares start, {n_start} evaluations{why}; Nelder-Mead polish, {n_total - n_start} evaluations"
 
 
 def budget_message(budget_reached: str, max_evals: int, max_time: float, nfev: int) -> str:
@@ -450,7 +510,8 @@ def _finish(obj, parameters, best, values, model, metric, method, restarts, nit,
     return CalibrationResult(
         params=best, start=obj.start, parameters=tuple(parameters), values=values, stderr=stderr,
         correlation=corr, covar=covar, free_names=tuple(p.name for p in free),
-        at_bound=tuple(p.name for p in free if p.at_bound(values[p.name])),
+        at_bound=tuple(p.name for p in free if p.at_bound(values[p.name])
+                       or (p.name == "C20" and at_yeoh_limit(values))),
         unmoved=tuple(p.name for p in free
                       if abs(values[p.name] - start_values[p.name]) <= 1e-9 * max(abs(start_values[p.name]), 1e-300)),
         unidentifiable=tuple(unident), model=model, metric=metric, method=method, objective=float(obj.best_f),
@@ -549,123 +610,4 @@ def initial_guess(runs, M: int, eps_r: float, name="start-from-data", law="linea
                         description="start values estimated from the data by rdea-lab calibrate")
 
 
-def calibrate_growing(runs, start: ParameterSet, M: int, *, free=None, budget: Budget = Budget(), monitor=None,
-                      **kwargs) -> CalibrationResult:
-    """Fit M Maxwell branches one at a time, each from the previous optimum.
-
-    Nelder-Mead started with M branches at once tends to merge them into one time
-    scale. Here the fit with m - 1 branches is extended by a branch 10 times slower
-    than the slowest and, separately, 10 times faster than the fastest (its
-    stiffness a tenth of the stiffest spring so far), both fitted, and the better kept; ``start`` supplies
-    the first branch (finite strain: it and one a tenth as stiff, the better kept). ``free`` names
-    parameters of the final set (default: all).
-    Parameters
-    ----------
-    runs : list of RunData
-    start : ParameterSet
-        Its first branch starts the growth; eps_r fixed.
-    M : int
-        Maxwell branches of the final set.
-    free : iterable of str, optional
-        Parameters of the final set to fit (default: all).
-    budget : Budget
-        For all the fits together: each gets what the ones before it left (a fit left nothing
-        stops at its start).
-    monitor : FitMonitor or any object, optional
-        Its ``progress(evaluations, best, elapsed)`` counts over every fit so far (``best`` the lowest
-        objective of any of them, ``elapsed`` [s] since the growth began); its ``stage(index, count,
-        label)`` is called before each fit (``index`` from 1 to ``count``, the number of fits the growth
-        makes).
-    **kwargs
-        Passed to `calibrate` (``model``, ``metric``, ``method``, ...).
-
-    Returns
-    -------
-    CalibrationResult
-        The final fit with M branches; ``nfev``, ``nit``, ``restarts`` and
-        ``wall_time`` count every stage and candidate, ``stages`` has one entry
-        each, ``history`` all of theirs (evaluations numbered across stages, a
-        stage column); ``message`` says how it grew.
-
-    Raises
-    ------
-    ValueError, TypeError
-        As `calibrate`.
-    """
-    from ..specs import ViscoBranch
-
-    if not isinstance(budget, Budget):
-        raise TypeError(f"budget {budget!r}; allowed: a rdea_lab.calibration.fit.Budget")
-    max_evals, max_time = budget.evaluations, budget.seconds
-    progress, stage = hook(monitor, "progress"), hook(monitor, "stage")
-    t0 = _time.monotonic()
-    stages, done = [], []
-    first = start.replace(branches=start.branches[:1])
-    two_starts = first.law == "finite_strain" and bool(first.branches)
-    count = (2 if two_starts else 1) + 2 * max(M - 1, 0)
-
-    def fit(params, label):
-        spent = sum(r.nfev for r in done)
-        best_before = min((r.objective for r in done), default=np.inf)
-        if stage is not None:
-            stage(len(done) + 1, count, label)
-        report = None if progress is None else (
-            lambda n, best, elapsed: progress(spent + n, min(best, best_before), _time.monotonic() - t0))
-        names = [n for n in values_of(params)]
-        res = calibrate(runs, params, free=[n for n in names if free is None or n in free],
-                        monitor=None if report is None else _Relay(report),
-                        budget=budget.left(spent, _time.monotonic() - t0), **kwargs)
-        stages.append({**res.stages[0], "stage": len(done), "label": label, "kept": False})
-        done.append(res)
-        return len(done) - 1
-
-    if two_starts:
-        # a neo-Hookean branch's stress grows like lambda_e**2: started at the small-strain estimate, a
-        # local fit on large stretches can switch it off (tau to its bound) instead of softening it; a
-        # second start a tenth as stiff (same tau), the better fit of the runs kept
-        b0 = first.branches[0]
-        soft = first.replace(branches=(ViscoBranch.of(first.law, max(b0.modulus / 10, 1e3), b0.eta / 10),))
-        pair = [fit(first, "M = 1"), fit(soft, "M = 1, spring a tenth as stiff")]
-        kept = [min(pair, key=lambda i: done[i].objective)]
-    else:
-        kept = [fit(first, "M = 1")]
-    for m in range(2, M + 1):
-        prev = done[kept[-1]].params
-        taus = [b.tau for b in prev.branches]
-        # a tenth of the stiffest spring so far (C10, or a branch that took over the elasticity), in bounds
-        k_new = 0.1 * max(prev.C10 if prev.law == "linear" else prev.C10 / 3, *(b.modulus for b in prev.branches))
-        k_new = min(max(k_new, 1e3), 1e10)
-        # the new time scale within what the runs resolve: a tenth of a sample interval to ten run lengths
-        dt = min(float(np.median(np.diff(r.t))) for r in runs)
-        T = max(float(r.t[-1] - r.t[0]) for r in runs)
-        scales = [(side, min(max(tau, 0.1 * dt), 10 * T)) for side, tau in
-                  (("slower", 10 * max(taus)), ("faster", 0.1 * min(taus)))]
-        candidates = [fit(prev.replace(branches=prev.branches + (ViscoBranch.of(prev.law, k_new, k_new * tau),)),
-                          f"M = {m}, new branch {side} (tau {tau:.3g} s)")
-                      for side, tau in scales]
-        kept.append(min(candidates, key=lambda i: done[i].objective))
-    for i in kept:
-        stages[i]["kept"] = True
-    best = done[kept[-1]]
-    offset, history = 0, []
-    for i, res in enumerate(done):
-        h = res.history[:, :2].copy()
-        h[:, 0] += offset
-        history.append(np.column_stack([h, np.full(len(h), i)]))
-        offset += res.nfev
-    path = "; ".join(f"M = {m}: {done[i].objective:.4g}" for m, i in enumerate(kept, start=1))
-    budgets = {**best.budgets, "max_evals": int(max_evals), "max_time_s": float(max_time),
-               "scope": "max_evals and max_time cover every stage and candidate together"}
-    grown = f"grown branch by branch: {path}; {len(done)} fits"
-    # a stage a budget stopped leaves the growth unfinished, even where the fit kept had converged
-    stopped = next((st for st in stages if st["budget_reached"]), None)
-    if stopped is None:
-        converged, message = best.converged, f"{best.message} ({grown})"
-    else:
-        spent = budget_message(stopped["budget_reached"], max_evals, max_time, sum(r.nfev for r in done))
-        converged, message = False, (f"{spent}, in stage {stopped['stage']} '{stopped['label']}'; "
-                                     f"the best fit so far kept ({grown})")
-    return dataclasses.replace(
-        best, nfev=sum(r.nfev for r in done), nit=sum(r.nit for r in done), restarts=sum(r.restarts for r in done),
-        wall_time=float(_time.monotonic() - t0), history=np.vstack(history), stages=tuple(stages), budgets=budgets,
-        converged=converged, message=message)
+from .growth import calibrate_growing  # noqa: E402,F401  (the growth calls calibrate: defined above)

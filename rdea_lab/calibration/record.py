@@ -59,6 +59,8 @@ def calibration_record(result, runs) -> CalibrationRecord:
     if na:
         notes = [f"stderr, covar, correlation, aic and bic: {na}: they describe a least-squares (rms) estimate"]
     stages = [{k: (round(v, 3) if k == "wall_time_s" else v) for k, v in st.items()} for st in result.stages]
+    optional = {k: v for k, v in (("warm_start", getattr(result, "warm_start", "")),
+                                  ("branch_choice", dict(getattr(result, "branch_choice", {})))) if v}
     return CalibrationRecord(
         model=result.model, viscoelastic_law=result.params.law,
         hyperelastic=getattr(result, "hyperelastic", "yeoh"), metric=result.metric, method=result.method,
@@ -67,7 +69,7 @@ def calibration_record(result, runs) -> CalibrationRecord:
         runs=[FitRun(**{**g, "sha256": r.sha256}) for g, r in zip(result.runs, runs)],
         skipped=[dict(s) for s in getattr(result, "skipped", ())], statistics=stats, stages=stages,
         budgets=dict(result.budgets), notes="; ".join(notes), software=f"rdea-lab {result.software}",
-        versions=dict(result.versions),
+        versions=dict(result.versions), **optional,
     )
 
 

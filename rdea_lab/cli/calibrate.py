@@ -77,6 +77,20 @@ class FitProgress:
             self.line(f"  held out: {held}")
 
 
+class Branches(click.ParamType):
+    """``--viscous-branches``: an integer from 0 to 6, or ``auto`` (the library chooses)."""
+
+    name = "0-6|auto"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, int) or str(value).strip().lower() == "auto":
+            return value if isinstance(value, int) else "auto"
+        try:
+            return click.IntRange(0, 6).convert(value, param, ctx)
+        except click.BadParameter:
+            self.fail(f"{value!r}; allowed: an integer from 0 to 6, or auto", param, ctx)
+
+
 @click.command(epilog=EXIT_HELP)
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=False))
 @click.option("--model", type=click.Choice(MODEL_CHOICES, case_sensitive=False), default="su",
@@ -85,9 +99,11 @@ class FitProgress:
               help="Start values (a parameter file); default: estimated from the data.")
 @click.option("--free", "free_text", help="Parameters to fit, e.g. C10,C20,C30,k_v1,eta_v1 "
                                           "[default: every Yeoh and viscoelastic parameter].")
-@click.option("--viscous-branches", "M", type=click.IntRange(0, 6),
+@click.option("--viscous-branches", "M", type=Branches(),
               help="Maxwell branches M [default: those of --init, or 1]; without --init they are fitted "
-                   "one at a time, each from the previous optimum.")
+                   "one at a time, each from the previous optimum. auto: M from 0 to 4, grown while an "
+                   "information criterion improves (BIC with an effective sample count from the residuals' "
+                   "autocorrelation; --metric rms).")
 @click.option("--eps-r", type=float, default=None, help="Relative permittivity, fixed [default: --init's, or 2.8].")
 @click.option("--protocol-kind", "kinds_text", default="tensile", show_default=True,
               help="For folders: which runs, comma-separated from tensile, blocking, capacitance, custom.")

@@ -104,13 +104,20 @@ class Validation(_Section):
 
 
 class CalibrationRecord(_Section):
-    """The ``calibration:`` section of a parameter file (see the module docstring)."""
+    """The ``calibration:`` section of a parameter file (see the module docstring).
+
+    ``warm_start`` (only where Nelder-Mead started from a least-squares optimum) says how it got
+    there, with the evaluations of each; ``branch_choice`` (only where the number of Maxwell branches
+    was chosen from the data) the criterion, each count tried with its objective and criterion, and
+    why the count was chosen.
+    """
 
     model: str | None = None
     viscoelastic_law: str | None = None
     hyperelastic: str | None = None
     metric: str | None = None
     method: str | None = None
+    warm_start: str | None = None
     objective: float | None = None
     converged: bool | None = None
     message: str | None = None
@@ -121,6 +128,7 @@ class CalibrationRecord(_Section):
     skipped: list[dict] | None = None
     statistics: Statistics | None = None
     stages: list[dict] | None = None
+    branch_choice: dict | None = None
     budgets: dict | None = None
     notes: str | None = None
     software: str | None = None

@@ -103,9 +103,14 @@ def test_a_parameter_the_data_cannot_see_is_flagged(clean):
 
 
 def test_fixed_parameters_stay_and_budgets_stop_cleanly(clean):
-    res = calibrate(clean, factor3_start(), model="su", free=["C10"], budget=Budget(evaluations=50))
+    res = calibrate(clean, factor3_start(), model="su", free=["C10"], budget=Budget(evaluations=50),
+                    warm_start="none")
     assert res.nfev == 50 and res.message == "stopped at the evaluation budget of 50 evaluations"
-    assert not res.converged
+    assert not res.converged and res.warm_start == ""
+    # with a least-squares start (the default under rms) the budget may stop the start itself
+    res = calibrate(clean, factor3_start(), model="su", free=["C10"], budget=Budget(evaluations=3))
+    assert res.nfev == 3 and not res.converged and res.message == "stopped at the evaluation budget of 3 evaluations"
+    assert res.warm_start == "least-squares start, stopped after 3 evaluations; no Nelder-Mead polish"
     assert res.params.C20 == factor3_start().C20 and res.free_names == ("C10",)
     res = calibrate(clean, TRUE, model="su", free=[])
     assert res.message == "no free parameters" and res.nfev == 0
@@ -228,12 +233,15 @@ def test_growing_branch_by_branch_recovers_two_time_scales():
     taus = sorted(b.tau for b in res.params.branches)
     assert taus[0] == pytest.approx(0.3, rel=0.05, abs=0) and taus[1] == pytest.approx(15.0, rel=0.05, abs=0)
     assert res.objective < 1e-3 and "grown branch by branch" in res.message
-    # every stage and candidate counts: M = 1, then the slower and the faster second branch
-    assert len(res.stages) == 3 and sum(st["kept"] for st in res.stages) == 2
+    # every stage and candidate counts: M = 1, then the slower and the faster second branch (least squares,
+    # Nelder-Mead's warm start), then Nelder-Mead's polish of the better
+    assert len(res.stages) == 4 and sum(st["kept"] for st in res.stages) == 3
+    assert [st["method"] for st in res.stages] == ["least-squares"] * 3 + ["nelder-mead"]
+    assert res.method == "nelder-mead" and "Nelder-Mead polish" in res.warm_start
     assert res.nfev == sum(st["nfev"] for st in res.stages) <= 8000  # one budget for all of them
     assert res.wall_time >= sum(st["wall_time_s"] for st in res.stages)
     stage_of = res.history[:, 2]
-    assert set(stage_of) == {0, 1, 2} and np.all(np.diff(res.history[:, 0]) >= 0)  # numbered across stages
+    assert set(stage_of) == {0, 1, 2, 3} and np.all(np.diff(res.history[:, 0]) >= 0)  # numbered across stages
     for st in res.stages:  # a stage's evaluations lie in its own range
         ev = res.history[stage_of == st["stage"], 0]
         before = sum(s["nfev"] for s in res.stages[:st["stage"]])
