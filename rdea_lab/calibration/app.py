@@ -113,7 +113,7 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         ``"auto"``: M from 0 up to :data:`~rdea_lab.calibration.branches.AUTO_MAX_BRANCHES`, grown one
         at a time until the information criterion of
         :func:`~rdea_lab.calibration.branches.calibrate_auto` stops improving (BIC with an effective
-        sample count from the residuals' lag-1 autocorrelation; metric rms only); ``branch_choice`` of
+        sample count from the residuals' integrated autocorrelation time; metric rms only); ``branch_choice`` of
         the result says what was tried and why M was chosen. ``init`` then supplies the Yeoh start and
         the first branch (else the data).
     eps_r : float, optional
