@@ -163,6 +163,10 @@ class CalibrationResult:
     record_files : dict
         ``params``, ``history``, ``plot`` paths of the record, when one was written and kept here
         (:func:`~rdea_lab.calibration.crossval.cross_validate` does; `write` returns them).
+    spectrum : dict
+        How a relaxation spectrum was chosen (:func:`~rdea_lab.calibration.spectrum.fit_spectrum`: its
+        grid ``tau_s``, every ``modulus_Pa`` on it, the rules, the regularization ``strength``); empty
+        for the other fits.
     """
 
     params: ParameterSet
@@ -203,6 +207,7 @@ class CalibrationResult:
     run_data: tuple = ()
     skipped: tuple = ()
     record_files: dict = dataclasses.field(default_factory=dict)
+    spectrum: dict = dataclasses.field(default_factory=dict)
 
     def fit_report(self) -> str:
         """The fit report, as ``rdea-lab calibrate`` prints it.

@@ -77,6 +77,23 @@ class FitProgress:
             self.line(f"  held out: {held}")
 
 
+class _Branches(click.ParamType):
+    """``--viscous-branches``: an integer from 0 to 6, or ``spectrum``."""
+
+    name = "0-6|spectrum"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and value.strip().lower() == "spectrum":
+            return "spectrum"
+        try:
+            M = int(value)
+        except (TypeError, ValueError):
+            M = None
+        if M is None or not 0 <= M <= 6 or str(value).strip() not in (str(M), f"+{M}"):
+            self.fail(f"{value!r}; allowed: an integer from 0 to 6, or spectrum", param, ctx)
+        return M
+
+
 @click.command(epilog=EXIT_HELP)
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(exists=False))
 @click.option("--model", type=click.Choice(MODEL_CHOICES, case_sensitive=False), default="su",
@@ -85,9 +102,10 @@ class FitProgress:
               help="Start values (a parameter file); default: estimated from the data.")
 @click.option("--free", "free_text", help="Parameters to fit, e.g. C10,C20,C30,k_v1,eta_v1 "
                                           "[default: every Yeoh and viscoelastic parameter].")
-@click.option("--viscous-branches", "M", type=click.IntRange(0, 6),
+@click.option("--viscous-branches", "M", type=_Branches(),
               help="Maxwell branches M [default: those of --init, or 1]; without --init they are fitted "
-                   "one at a time, each from the previous optimum.")
+                   "one at a time, each from the previous optimum. spectrum: time scales log-spaced over the "
+                   "data's span, moduli by smoothed non-negative least squares (docs/guide/calibrate.md).")
 @click.option("--eps-r", type=float, default=None, help="Relative permittivity, fixed [default: --init's, or 2.8].")
 @click.option("--protocol-kind", "kinds_text", default="tensile", show_default=True,
               help="For folders: which runs, comma-separated from tensile, blocking, capacitance, custom.")
