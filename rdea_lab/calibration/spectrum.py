@@ -10,7 +10,7 @@ modulus times a function of that strain
 (:func:`rdea_lab.physics.viscoelastic.stress_of`). The fit is then
 
     minimize  sum_i r_i(x)**2 + lam ndata sum_j ((D2 m)_j / m_ref)**2
-    over      x = (C10, C20, C30, m_1 .. m_M),  C10 > 0, C30 >= 0, m_j >= 0,
+    over      x = (C10, C20, C30, m_1 .. m_M, eta_v0),  C10 > 0, C30 >= 0, m_j >= 0, eta_v0 >= 0,
 
 with ``r`` the calibration's weighted, peak-normalized residuals
 (:func:`~rdea_lab.calibration.objective.residuals`), ``D2`` the second
@@ -19,9 +19,10 @@ differences of the moduli over ``ln tau`` (the grid is uniform in it),
 C10) and ``lam`` (dimensionless, relative to the mean squared residual) chosen
 by leave-one-run-out cross-validation (`choose_strength`). Where the solution
 breaks the Yeoh admissibility ``C20 > -sqrt(3 C10 C30)`` (not linear), the
-same objective is minimized under that constraint (SLSQP). A slack sample (the
-model clips a compressive force to 0) is treated as linear; the reported
-goodness of fit comes from the twin itself.
+same objective is minimized under that constraint (SLSQP). Where the twin
+predicts a compressive force it clips it to 0 (slack) and the residual there
+does not depend on the parameters: an active set of the samples in tension
+is iterated (`_System`), so the fit minimizes the objective of the twin itself.
 
 The grid (`tau_grid`): from ``TAU_MIN_SAMPLES`` times the shortest median
 sample interval of the runs (faster branches are elastic springs or a damper
@@ -51,6 +52,8 @@ PER_DECADE = 2
 #: Regularization strengths ``lam`` tried by the cross-validation (one per decade).
 STRENGTHS = tuple(10.0 ** k for k in range(-9, 3))
 _YEOH = ("C10", "C20", "C30")
+#: Most active-set passes of a solve (the samples the twin predicts slack; see `_System`).
+_SLACK_ITERATIONS = 8
 
 
 def tau_grid(runs, per_decade: float = PER_DECADE) -> np.ndarray:
@@ -83,11 +86,13 @@ def tau_grid(runs, per_decade: float = PER_DECADE) -> np.ndarray:
 
 
 def design(run, taus, law: str, eps_r: float):
-    """``(A, f0)``: the run's force [N] is ``A @ x + f0`` for ``x = (C10, C20, C30, m_1 .. m_M)`` [Pa].
+    """``(A, f0)``: the run's force [N] is ``A @ x + f0`` for ``x = (C10, C20, C30, m_1 .. m_M, eta_v0)``
+    [Pa, Pa s].
 
     The columns come from the twin's own functions with unit parameters (SU stress of
     :func:`rdea_lab.physics.models.su.stress_from_basis`, branch strains and stresses of
-    :mod:`rdea_lab.physics.viscoelastic`); ``f0`` is the electrostatic part at the run's voltage. Force
+    :mod:`rdea_lab.physics.viscoelastic`, the damper's rate of its `History`); ``f0`` is the electrostatic
+    part at the run's voltage. Force
     is stress times ``area / stretch`` (eq. (16)), before the slack clip.
     """
     basis, geom = run.su_basis(), run.geom
@@ -102,6 +107,7 @@ def design(run, taus, law: str, eps_r: float):
     if taus.size:
         q = viscoelastic.branch_strains(run.visco_history(), None, taus, law=law)
         cols += list(viscoelastic.stress_of(law, np.ones(taus.size), q))
+    cols.append(run.visco_history().rate)
     return np.column_stack(cols) * to_force[:, None], s0 * to_force
 
 
@@ -110,42 +116,66 @@ def _second_differences(M: int) -> np.ndarray:
 
 
 class _System:
-    """The weighted linear system of every run, reduced by QR to one small triangle per run."""
+    """The weighted linear system of every run, with the twin's slack clip handled by an active set.
+
+    Per run ``i`` the weighted residual is ``A_i z - b_i`` (``z = x * norm``, columns scaled to unit norm
+    over all runs) where the model force is >= 0, and ``-s_i F_i`` where the twin clips a compressive
+    force to 0 (slack): there it does not depend on ``z``. `solve` alternates a bounded linear least
+    squares on the samples the last iterate predicts in tension with recomputing that set (at most
+    `_SLACK_ITERATIONS` times), keeping the iterate of least penalized objective.
+    """
 
     def __init__(self, runs, taus, law, eps_r, m_ref):
         self.taus, self.m_ref = np.asarray(taus, float), float(m_ref)
         self.counts = [r.n for r in runs]
-        scales = residual_scale(runs)
-        blocks = []
-        for run, s in zip(runs, scales):
+        self.blocks = []
+        for run, s in zip(runs, residual_scale(runs)):
             A, f0 = design(run, taus, law, eps_r)
-            blocks.append((A * s[:, None], (run.force - f0) * s))
-        self.norm = np.sqrt(sum(np.sum(A * A, axis=0) for A, _ in blocks))
+            self.blocks.append((A * s[:, None], (run.force - f0) * s, f0 * s, run.force * s))
+        self.norm = np.sqrt(sum(np.sum(A * A, axis=0) for A, _, _, _ in self.blocks))
         self.norm[self.norm == 0] = 1.0
-        self.parts = []
-        for A, b in blocks:
-            Q, R = np.linalg.qr(A / self.norm)
-            c = Q.T @ b
-            self.parts.append((R, c, float(b @ b - c @ c)))
+        self.blocks = [(A / self.norm, b, g0, y) for A, b, g0, y in self.blocks]
         M = self.taus.size
         D = _second_differences(M)
-        self.penalty = np.zeros((D.shape[0], 3 + M))
-        self.penalty[:, 3:] = D / self.m_ref
+        self.penalty = np.zeros((D.shape[0], 4 + M))
+        self.penalty[:, 3:3 + M] = D / self.m_ref
         self.penalty /= self.norm  # in the scaled variables z = x * norm
-        lo = np.r_[1e2, -np.inf, 0.0, np.zeros(M)] * self.norm
-        self.bounds = (lo, np.full(3 + M, np.inf))
+        lo = np.r_[1e2, -np.inf, 0.0, np.zeros(M + 1)] * self.norm
+        self.bounds = (lo, np.full(4 + M, np.inf))
+        self._qr = {}
+
+    def _reduced(self, i, mask):
+        """``(R, c)`` with ``||A z - b||^2 = ||R z - c||^2 + const`` over the rows ``mask`` of run ``i`` (cached:
+        the active set of a run seldom changes, and never where it carries force throughout, as in a hold)."""
+        key = (i, np.packbits(mask).tobytes())
+        if key not in self._qr:
+            A, b = self.blocks[i][0][mask], self.blocks[i][1][mask]
+            Q, R = np.linalg.qr(A)
+            self._qr[key] = (R, Q.T @ b)
+        return self._qr[key]
 
     def solve(self, lam, use=None):
         """Scaled solution ``z`` (``x = z / norm``) over the runs ``use`` (default all) at strength ``lam``."""
-        use = range(len(self.parts)) if use is None else use
-        parts = [self.parts[i] for i in use]
+        use = list(range(len(self.blocks))) if use is None else list(use)
         n = sum(self.counts[i] for i in use)  # ndata of the runs fitted
-        R = np.vstack([p[0] for p in parts] + [math.sqrt(lam * n) * self.penalty])
-        c = np.concatenate([p[1] for p in parts] + [np.zeros(self.penalty.shape[0])])
-        z = lsq_linear(R, c, bounds=self.bounds, method="bvls", tol=1e-12).x
-        if not _admissible(z / self.norm):
-            z = self._constrained(R, c, z)
-        return z
+        P = math.sqrt(lam * n) * self.penalty
+        masks = {i: np.ones(self.counts[i], bool) for i in use}
+        best, best_f = None, np.inf
+        for _ in range(_SLACK_ITERATIONS):
+            parts = [self._reduced(i, masks[i]) for i in use]
+            R = np.vstack([p[0] for p in parts] + [P])
+            c = np.concatenate([p[1] for p in parts] + [np.zeros(P.shape[0])])
+            z = lsq_linear(R, c, bounds=self.bounds, method="bvls", tol=1e-12).x
+            if not _admissible(z / self.norm):
+                z = self._constrained(R, c, z)
+            f = sum(self.error(z, i) for i in use) + float(np.sum((P @ z) ** 2))
+            if f < best_f:
+                best, best_f = z, f
+            new = {i: self.blocks[i][0] @ z + self.blocks[i][2] >= 0.0 for i in use}
+            if all(np.array_equal(new[i], masks[i]) for i in use):
+                break
+            masks = new
+        return best
 
     def _constrained(self, R, c, z0):
         """The same least squares under the Yeoh admissibility ``C20 + sqrt(3 C10 C30) >= 0`` (SLSQP)."""
@@ -167,10 +197,11 @@ class _System:
         return res.x if _admissible(res.x / norm) else start
 
     def error(self, z, i) -> float:
-        """Weighted sum of squared residuals of run ``i`` at ``z``."""
-        R, c, rest = self.parts[i]
-        r = R @ z - c
-        return float(r @ r + rest)
+        """Weighted sum of squared residuals of run ``i`` at ``z``, the slack clip included (as `residuals`)."""
+        A, b, g0, y = self.blocks[i]
+        p = A @ z
+        r = np.where(p + g0 < 0.0, -y, p - b)
+        return float(r @ r)
 
 
 def _admissible(x) -> bool:
@@ -186,7 +217,7 @@ def choose_strength(system: _System, strengths=STRENGTHS):
     squared residuals added up (every run counts equally, as in the fit). With a single run there is
     nothing to leave out: the smallest strength is taken.
     """
-    k = len(system.parts)
+    k = len(system.blocks)
     if k < 2:
         return float(strengths[0]), {float(strengths[0]): float("nan")}
     scores = {}
@@ -205,8 +236,8 @@ def fit_spectrum(runs, start: ParameterSet, *, model="su", per_decade: float = P
     ----------
     runs : list of RunData
     start : ParameterSet
-        Its ``law``, ``eps_r`` and ``eta_v0`` (held fixed) are kept; its C10 is the modulus scale
-        ``m_ref`` of the smoothness penalty [Pa].
+        Its ``law`` and ``eps_r`` are kept; its C10 is the modulus scale ``m_ref`` of the smoothness
+        penalty [Pa].
     model : str
         Quasi-static model; the force must be linear in the parameters: ``su``, or runs all at 0 V.
     per_decade : float
@@ -225,8 +256,7 @@ def fit_spectrum(runs, start: ParameterSet, *, model="su", per_decade: float = P
     Raises
     ------
     SpecError
-        A model and voltage where the force is not linear in the parameters, or a start with a
-        parallel damper (``eta_v0`` is not part of the spectrum).
+        A model and voltage where the force is not linear in the parameters.
     """
     from .fit import CalibrationResult, start_branches
     from .parameters import fit_parameters, values_of
@@ -242,18 +272,20 @@ def fit_spectrum(runs, start: ParameterSet, *, model="su", per_decade: float = P
         lam, scores = choose_strength(system)
         rule = "leave-one-run-out cross-validation over the strengths tried" if len(runs) > 1 else \
             "a single run: nothing to cross-validate, the smallest strength"
+        if len(runs) > 1 and lam in (min(scores), max(scores)):
+            rule += f" (at the edge of the strengths tried, {min(scores):.0e}-{max(scores):.0e})"
     else:
         lam, scores, rule = float(strength), {}, "given"
     x = system.solve(lam) / system.norm
-    moduli = x[3:]
+    moduli, eta_v0 = x[3:-1], float(x[-1])
     keep = moduli > 0
-    best = start.replace(C10=float(x[0]), C20=float(x[1]), C30=float(x[2]),
+    best = start.replace(C10=float(x[0]), C20=float(x[1]), C30=float(x[2]), eta_v0=eta_v0,
                          branches=tuple(ViscoBranch.of(law, float(m), float(m * tau))
                                         for m, tau in zip(moduli[keep], grid[keep])))
     r = residuals(runs, best, model)
     n = r.size
     chisqr = float(r @ r)
-    free = set(_YEOH) | {name for name in values_of(best) if name.startswith(("k_v", "mu_v"))}
+    free = set(_YEOH) | {"eta_v0"} | {name for name in values_of(best) if name.startswith(("k_v", "mu_v"))}
     parameters = fit_parameters(best, free)
     names = tuple(p.name for p in parameters if p.free)
     k = len(names)
@@ -275,8 +307,9 @@ def fit_spectrum(runs, start: ParameterSet, *, model="su", per_decade: float = P
              "converged": True, "kept": True, "message": message, "budget_reached": ""}
     return CalibrationResult(
         params=best, start=start, parameters=tuple(parameters), values=values, stderr=stderr, correlation=corr,
-        covar=covar, free_names=names, at_bound=(), unmoved=(), unidentifiable=tuple(
-            n_ for n_ in names if not stderr[n_] == stderr[n_] or stderr[n_] > 0.5 * abs(values[n_])),
+        covar=covar, free_names=names,
+        at_bound=tuple(p.name for p in parameters if p.free and p.at_bound(values[p.name])), unmoved=(),
+        unidentifiable=tuple(n_ for n_ in names if not stderr[n_] == stderr[n_] or stderr[n_] > 0.5 * abs(values[n_])),
         model=model, metric="rms", method="least-squares", objective=math.sqrt(chisqr / n), chisqr=chisqr,
         redchi=chisqr / max(n - k, 1), aic=float(n * np.log(chisqr / n) + 2 * k),
         bic=float(n * np.log(chisqr / n) + k * np.log(n)), ndata=n, nvarys=k, nfree=n - k, nfev=nsolves, nit=0,
@@ -291,8 +324,10 @@ def fit_spectrum(runs, start: ParameterSet, *, model="su", per_decade: float = P
 
 def _covariance(system, x, keep, s2, names):
     """Standard errors [SI] from the data's exact Jacobian at fixed time scales (the penalty left out)."""
-    cols = np.r_[np.ones(3, bool), keep]
-    R = np.vstack([p[0] for p in system.parts])[:, cols] * system.norm[cols]  # d r / d x = (d r / d z) norm
+    cols = np.r_[np.ones(3, bool), keep, True]
+    z = x * system.norm
+    J = np.vstack([A[A @ z + g0 >= 0.0] for A, _, g0, _ in system.blocks])  # slack samples do not depend on x
+    R = np.linalg.qr(J[:, cols] * system.norm[cols], mode="r")  # d r / d x = (d r / d z) norm
     cov = s2 * np.linalg.pinv(R.T @ R)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     with np.errstate(invalid="ignore", divide="ignore"):
