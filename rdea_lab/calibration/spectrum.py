@@ -28,7 +28,8 @@ The grid (`tau_grid`): from ``TAU_MIN_SAMPLES`` times the shortest median
 sample interval of the runs (faster branches are elastic springs or a damper
 to the data) to the longest run's duration, ``per_decade`` time scales per
 decade (default 2), log-spaced, both ends included. Branches whose modulus
-ends at 0 are left out of the parameter set (the record lists the whole grid).
+ends below `MIN_MODULUS` (100 Pa, in practice 0) are left out of the parameter set (the record lists
+the whole grid).
 """
 
 from __future__ import annotations
@@ -49,6 +50,8 @@ from .objective import goodness, predict_force, residual_scale, residuals
 TAU_MIN_SAMPLES = 10
 #: Time scales per decade of the grid by default.
 PER_DECADE = 2
+#: Moduli [Pa] below this (the fit bounds' lowest modulus) leave their branch out of the parameter set.
+MIN_MODULUS = 1e2
 #: Regularization strengths ``lam`` tried by the cross-validation (one per decade).
 STRENGTHS = tuple(10.0 ** k for k in range(-9, 3))
 _YEOH = ("C10", "C20", "C30")
@@ -278,7 +281,7 @@ def fit_spectrum(runs, start: ParameterSet, *, model="su", per_decade: float = P
         lam, scores, rule = float(strength), {}, "given"
     x = system.solve(lam) / system.norm
     moduli, eta_v0 = x[3:-1], float(x[-1])
-    keep = moduli > 0
+    keep = moduli >= MIN_MODULUS
     best = start.replace(C10=float(x[0]), C20=float(x[1]), C30=float(x[2]), eta_v0=eta_v0,
                          branches=tuple(ViscoBranch.of(law, float(m), float(m * tau))
                                         for m, tau in zip(moduli[keep], grid[keep])))
@@ -294,7 +297,7 @@ def fit_spectrum(runs, start: ParameterSet, *, model="su", per_decade: float = P
     wall = _time.monotonic() - t0
     nsolves = len(runs) * len(scores) + 1
     message = (f"relaxation spectrum: {grid.size} time scales {grid[0]:.3g}-{grid[-1]:.3g} s, "
-               f"{int(keep.sum())} with a modulus > 0; strength {lam:.3g} ({rule})")
+               f"{int(keep.sum())} with a modulus >= {MIN_MODULUS:g} Pa; strength {lam:.3g} ({rule})")
     spectrum = {"tau_s": [float(t) for t in grid], "modulus_Pa": [float(m) for m in moduli],
                 "grid_rule": f"log-spaced, {per_decade:g} per decade, from {TAU_MIN_SAMPLES} x the shortest median "
                              "sample interval to the longest run's duration" if taus is None else "given",
