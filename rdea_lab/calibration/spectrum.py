@@ -93,8 +93,8 @@ def design(run, taus, law: str, eps_r: float):
     [Pa, Pa s].
 
     The columns come from the twin's own functions with unit parameters (SU stress of
-    :func:`rdea_lab.physics.models.su.stress_from_basis`, branch strains and stresses of
-    :mod:`rdea_lab.physics.viscoelastic`, the damper's rate of its `History`); ``f0`` is the electrostatic
+    :func:`rdea_lab.physics.models.su.stress_from_basis`, the branches' of
+    :func:`rdea_lab.physics.viscoelastic.stress_basis`, the damper's rate of the run's `History`); ``f0`` is the electrostatic
     part at the run's voltage. Force
     is stress times ``area / stretch`` (eq. (16)), before the slack clip.
     """
@@ -108,8 +108,7 @@ def design(run, taus, law: str, eps_r: float):
     cols = [yeoh(*np.eye(3)[i]) - s0 for i in range(3)]
     taus = np.asarray(taus, float)
     if taus.size:
-        q = viscoelastic.branch_strains(run.visco_history(), None, taus, law=law)
-        cols += list(viscoelastic.stress_of(law, np.ones(taus.size), q))
+        cols += list(viscoelastic.stress_basis(run.visco_history(), taus, law))
     cols.append(run.visco_history().rate)
     return np.column_stack(cols) * to_force[:, None], s0 * to_force
 
