@@ -94,9 +94,9 @@ def design(run, taus, law: str, eps_r: float):
 
     The columns come from the twin's own functions with unit parameters (SU stress of
     :func:`rdea_lab.physics.models.su.stress_from_basis`, the branches' of
-    :func:`rdea_lab.physics.viscoelastic.stress_basis`, the damper's rate of the run's `History`); ``f0`` is the electrostatic
-    part at the run's voltage. Force
-    is stress times ``area / stretch`` (eq. (16)), before the slack clip.
+    :func:`rdea_lab.physics.viscoelastic.stress_basis`, the damper's rate of the run's `History`);
+    ``f0`` is the electrostatic part at the run's voltage. Force is stress times ``area / stretch``
+    (eq. (16)), before the slack clip.
     """
     basis, geom = run.su_basis(), run.geom
     to_force = geom.area / run.stretch
