@@ -93,12 +93,14 @@ def test_a_run_without_a_hold_keeps_the_old_normalization():
 
 
 def test_tau_grid_spans_the_data_at_the_stated_density():
-    """10 sample intervals (0.1 s) to the longest run (tau_max), 2 per decade: log-even, both ends."""
+    """10 sample intervals (0.1 s) to one decade past the longest run, 2 per decade: log-even, both ends;
+    beyond=0 ends at the run."""
     p = truth("linear")
     t, lam = step_hold(hold=50.0, n_hold=100)
     r = run_of(p, np.arange(0.0, t[-1], 0.01), np.interp(np.arange(0.0, t[-1], 0.01), t, lam), "hold")
     g = tau_grid([r])
-    assert g[0] == pytest.approx(0.1, rel=1e-9) and g[-1] == pytest.approx(r.t[-1] - r.t[0], rel=1e-12)
+    assert g[0] == pytest.approx(0.1, rel=1e-9) and g[-1] == pytest.approx(10 * (r.t[-1] - r.t[0]), rel=1e-12)
+    assert tau_grid([r], beyond=0)[-1] == pytest.approx(r.t[-1] - r.t[0], rel=1e-12)
     ratios = g[1:] / g[:-1]
     np.testing.assert_allclose(ratios, ratios[0], rtol=1e-9)
     assert ratios[0] <= 10 ** 0.5 * (1 + 1e-9) and len(g) == int(np.ceil(2 * np.log10(g[-1] / g[0]))) + 1
