@@ -14,8 +14,9 @@ split holds out; starts come from the fitted runs, `initial_guess`):
 - ``E``: as ``D`` without ``relax_2d0``.
 
 Configurations: ``2`` and ``3`` Maxwell branches (least squares, grown one at a
-time), and ``spectrum`` (`rdea_lab.calibration.spectrum`), each under the
-``linear`` and ``finite_strain`` laws. Every fit weighs phases as
+time), ``spectrum`` (`rdea_lab.calibration.spectrum`, its grid one decade past
+the longest run) and ``spectrum0`` (the grid ending at the longest run), each
+under the ``linear`` and ``finite_strain`` laws. Every fit weighs phases as
 `rdea_lab.calibration.phases.PHASE_RULE` says. Errors: rms of (predicted -
 measured) over the phase's samples, divided by the whole run's peak force (the
 run is always predicted whole, from its start; only the error is taken per
@@ -43,7 +44,8 @@ CARD = ROOT / "rdea_lab" / "data" / "specimens" / "vhb4910_strip.yaml"
 RELAX = "relax_2d0"
 #: The part of the hold split A fits [s of the run's time].
 SPLIT_AT = 600.0
-CONFIGS = ("spectrum:linear,spectrum:finite_strain,2:finite_strain,2:linear,3:finite_strain,3:linear")
+CONFIGS = ("spectrum:finite_strain,spectrum:linear,spectrum0:finite_strain,spectrum0:linear,2:finite_strain,2:linear,"
+           "3:finite_strain,3:linear")
 
 
 def _import(files, folder: Path, *extra) -> None:
@@ -95,9 +97,15 @@ def phase_errors(path: Path, params) -> dict:
 
 
 def fit(inputs, config: str):
-    from rdea_lab.calibration import Budget, calibrate_runs
+    """``M:law``: M Maxwell branches (least squares, grown), ``spectrum`` (its default grid, one decade past the
+    longest run) or ``spectrum0`` (the grid ending at the longest run: ``beyond=0``)."""
+    from rdea_lab.calibration import Budget, calibrate_runs, gather_runs, initial_guess
+    from rdea_lab.calibration.spectrum import fit_spectrum
 
     M, law = config.split(":")
+    if M == "spectrum0":
+        runs = gather_runs(inputs)
+        return fit_spectrum(runs, initial_guess(runs, 1, 2.8, law=law), beyond=0)
     branches = "spectrum" if M == "spectrum" else int(M)
     return calibrate_runs(inputs, model="su", law=law, branches=branches, method="least-squares",
                           budget=Budget(evaluations=20000, seconds=300))
