@@ -106,6 +106,16 @@ def test_tau_grid_spans_the_data_at_the_stated_density():
     assert ratios[0] <= 10 ** 0.5 * (1 + 1e-9) and len(g) == int(np.ceil(2 * np.log10(g[-1] / g[0]))) + 1
 
 
+def test_bad_grid_arguments_are_refused_naming_them():
+    from rdea_lab.specs import SpecError
+
+    r = run_of(truth("linear"), *loading_unloading(0.05), "lu")
+    with pytest.raises(SpecError, match="per_decade.*time scales > 0"):
+        tau_grid([r], per_decade=0)
+    with pytest.raises(SpecError, match="beyond.*decades >= 0"):
+        tau_grid([r], beyond=-1)
+
+
 @pytest.mark.parametrize("law", ["linear", "finite_strain"])
 def test_force_is_linear_in_yeoh_and_moduli_by_finite_differences(law):
     """The design matrix (the spectrum's premise) against central differences of the twin's force, and
