@@ -106,7 +106,7 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         Start values; default: estimated from the data (:func:`initial_guess`).
     free : sequence of str or str, optional
         Parameters to fit (e.g. ``"C10,C20,C30"``); default: every Yeoh and viscoelastic one.
-    branches : int or "auto", optional
+    branches : int, "auto" or "spectrum", optional
         Maxwell branches M (0-6); default those of ``init``, or 1. From the
         data, M > 1 are fitted one at a time (they merge otherwise); with
         ``init``, branches beyond its own start 30 times slower than its last.
@@ -116,6 +116,10 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
         sample count from the residuals' integrated autocorrelation time; metric rms only); ``branch_choice`` of
         the result says what was tried and why M was chosen. ``init`` then supplies the Yeoh start and
         the first branch (else the data).
+        ``"spectrum"``: a relaxation spectrum, time scales log-spaced over the
+        data's span and moduli by regularized non-negative least squares
+        (:func:`~rdea_lab.calibration.spectrum.fit_spectrum`; model su or runs at 0 V, metric rms;
+        ``method``, ``free`` and ``budget`` do not apply: it is a linear problem, every parameter is fitted).
     eps_r : float, optional
         Relative permittivity (fixed) [-]; default ``init``'s, or 2.8 (Table 1).
     kinds : sequence of str
@@ -168,9 +172,10 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     if not (isinstance(eps, (int, float)) and np.isfinite(eps) and eps >= 1.0):
         raise SpecError(ARGS, "eps_r", f"{eps!r} is not a relative permittivity; allowed: a finite number >= 1")
     auto = branches == "auto"
-    M = AUTO_MAX_BRANCHES if auto else branches if branches is not None else (init.M if init else 1)
+    spectrum = isinstance(branches, str) and branches.lower() == "spectrum"
+    M = AUTO_MAX_BRANCHES if auto else 1 if spectrum else branches if branches is not None else (init.M if init else 1)
     if isinstance(M, bool) or not isinstance(M, int) or not 0 <= M <= 6:
-        raise SpecError(ARGS, "branches", f"{M!r}; allowed: an integer from 0 to 6, or auto")
+        raise SpecError(ARGS, "branches", f"{M!r}; allowed: an integer from 0 to 6, auto or spectrum")
     if metric not in ("rms", "max"):
         raise SpecError(ARGS, "metric", f"{metric!r}; allowed: rms, max")
     if auto and metric != "rms":
@@ -212,11 +217,22 @@ def calibrate_runs(inputs, *, model="su", init=None, free=None, branches=None, e
     if not isinstance(budget, Budget):
         raise SpecError(ARGS, "budget", f"{budget!r}; allowed: a Budget(evaluations=..., seconds=...)")
     model, why = choose_model(runs, start, model, tolerance)
+    if spectrum:  # every parameter of a spectrum is fitted: the Yeoh coefficients and the moduli on its grid
+        free = ["C10", "C20", "C30", f"{'k' if law == 'linear' else 'mu'}_v<j> on the spectrum's grid"]
+    if spectrum and metric != "rms":
+        raise SpecError(ARGS, "metric", f"{metric}: a spectrum is fitted by least squares; allowed: rms")
+    if spectrum and hyperelastic != "yeoh":
+        raise SpecError(ARGS, "hyperelastic", f"{hyperelastic} with branches spectrum: the spectrum's linear fit "
+                                              "keeps the paper's Yeoh only; allowed: yeoh")
     announce = hook(monitor, "announce")
     if announce is not None:  # may refuse, before a long fit (the CLI checks its record files here)
         announce(runs, model, why, free, tuple(skipped))
     try:
-        if auto:
+        if spectrum:
+            from .spectrum import fit_spectrum
+
+            result = fit_spectrum(runs, start, model=model)
+        elif auto:
             first = start if init is not None and init.branches else initial_guess(runs, 1, eps, law=law)
             result = calibrate_auto(runs, first.replace(C10=start.C10, C20=start.C20, C30=start.C30,
                                                         eta_v0=start.eta_v0), M, model=model, free=free,

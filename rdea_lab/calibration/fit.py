@@ -173,6 +173,10 @@ class CalibrationResult:
         Empty unless the number of branches was chosen from the data
         (:func:`~rdea_lab.calibration.branches.calibrate_auto`): the criterion, what was tried and why
         the count was chosen.
+    spectrum : dict
+        How a relaxation spectrum was chosen (:func:`~rdea_lab.calibration.spectrum.fit_spectrum`: its
+        grid ``tau_s``, every ``modulus_Pa`` on it, the rules, the regularization ``strength``); empty
+        for the other fits.
     """
 
     params: ParameterSet
@@ -216,6 +220,7 @@ class CalibrationResult:
     hyperelastic: str = "yeoh"
     warm_start: str = ""
     branch_choice: dict = dataclasses.field(default_factory=dict)
+    spectrum: dict = dataclasses.field(default_factory=dict)
 
     def fit_report(self) -> str:
         """The fit report, as ``rdea-lab calibrate`` prints it.

@@ -14,6 +14,7 @@ from ..physics.geometry import geometry_from_card
 from ..physics.models import solve, su
 from ..twin import MIN_STRETCH, compose, viscous
 from ..specs import specimen_from_yaml
+from .phases import sample_weights
 from ..store import open_run
 
 
@@ -53,6 +54,7 @@ class RunData:
     index: np.ndarray = field(default=None, repr=False)
     _basis: tuple = field(default=None, repr=False)
     _visco_history: object = field(default=None, repr=False)
+    _weights: np.ndarray = field(default=None, repr=False)
 
     @property
     def n(self) -> int:
@@ -67,6 +69,14 @@ class RunData:
         if self._basis is None:
             self._basis = su.stress_basis(self.stretch, self.voltage)
         return self._basis
+
+    def weights(self) -> np.ndarray:
+        """Each sample's weight in the fit (:func:`rdea_lab.calibration.phases.sample_weights`: a hold longer
+        than the ramps weighs as much as they do, its samples per decade of hold time; ``1 / n`` each
+        otherwise), summing to 1; cached."""
+        if self._weights is None:
+            self._weights = sample_weights(self.t, self.stretch)
+        return self._weights
 
     def visco_history(self):
         """The run's time and stretch for the overstress (:class:`rdea_lab.physics.viscoelastic.History`), cached."""
@@ -212,8 +222,22 @@ def goodness(run: RunData, predicted: np.ndarray) -> dict:
             **error_measures(r, run.peak)}
 
 
-def residuals(runs, params, model) -> np.ndarray:
-    """Normalized residuals, each run weighted to count equally: e_rt sqrt(n_mean / n_r), e = (F_model - F) / peak."""
+def residual_scale(runs) -> list[np.ndarray]:
+    """Per run, what `residuals` multiplies its force error [N] by: ``sqrt(n_mean w_rt) / peak_r``.
+
+    ``w_rt`` are the run's sample weights (`RunData.weights`, summing to 1: each run counts equally;
+    within it the phases weigh by :data:`rdea_lab.calibration.phases.PHASE_RULE`), ``n_mean`` the mean
+    number of samples per run, so that a run without a hold has ``sqrt(n_mean / n_r)`` as before.
+    """
     n_mean = np.mean([r.n for r in runs])
-    return np.concatenate([(predict_force(r, params, model) - r.force) / r.peak * np.sqrt(n_mean / r.n)
-                           for r in runs])
+    return [np.sqrt(n_mean * r.weights()) / r.peak for r in runs]
+
+
+def residuals(runs, params, model) -> np.ndarray:
+    """Normalized, weighted residuals: ``e_rt sqrt(n_mean w_rt)`` with ``e = (F_model - F) / peak`` (`residual_scale`).
+
+    Every run counts equally; within a run a hold longer than its ramps weighs as much as they do, its samples
+    per decade of hold time (:mod:`rdea_lab.calibration.phases`); otherwise its samples weigh alike.
+    """
+    return np.concatenate([(predict_force(r, params, model) - r.force) * s
+                           for r, s in zip(runs, residual_scale(runs))])

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 from ..specs import dump_params, format_quantity
+from .phases import PHASE_RULE, hold_spans
 from ..specs.record import CalibrationRecord, FitParameter, FitRun, Matrix, Statistics
 
 _UNIT = {"Pa": "kPa", "Pa s": "kPa s"}
@@ -58,6 +59,7 @@ def calibration_record(result, runs) -> CalibrationRecord:
              "of a time series are correlated, so they are lower bounds"]
     if na:
         notes = [f"stderr, covar, correlation, aic and bic: {na}: they describe a least-squares (rms) estimate"]
+    holds = {f"{r.specimen}/{r.protocol}": len(hold_spans(r.t, r.stretch)) for r in runs}
     stages = [{k: (round(v, 3) if k == "wall_time_s" else v) for k, v in st.items()} for st in result.stages]
     optional = {k: v for k, v in (("warm_start", getattr(result, "warm_start", "")),
                                   ("branch_choice", dict(getattr(result, "branch_choice", {})))) if v}
@@ -69,7 +71,8 @@ def calibration_record(result, runs) -> CalibrationRecord:
         runs=[FitRun(**{**g, "sha256": r.sha256}) for g, r in zip(result.runs, runs)],
         skipped=[dict(s) for s in getattr(result, "skipped", ())], statistics=stats, stages=stages,
         budgets=dict(result.budgets), notes="; ".join(notes), software=f"rdea-lab {result.software}",
-        versions=dict(result.versions), **optional,
+        versions=dict(result.versions), weighting={"rule": PHASE_RULE, "holds": holds}, **optional,
+        **({"spectrum": dict(result.spectrum)} if getattr(result, "spectrum", None) else {}),
     )
 
 

@@ -19,11 +19,13 @@ Linearization (every symbol in the fit's internal variables ``u``: ``log x`` for
   their variance (``redchi``). A parameter the record leaves without a variance (not identifiable) gets
   no information, and every direction a weak prior ``F_prior = I / 10^2`` (a standard deviation of 10 in
   ``u``, a factor e^10 for a log parameter), so that the variance there is large and finite;
-- a candidate ``c`` adds ``F_c = w_c J_c^T J_c / s^2``: ``J_c`` the Jacobian (central differences through
+- a candidate ``c`` adds ``F_c = J_c^T W_c J_c / s^2``: ``J_c`` the Jacobian (central differences through
   the twin, :func:`~rdea_lab.calibration.objective.predict_force`) of its predicted force over its
-  predicted peak, as the objective normalizes each run, and ``w_c = n_fit / n_c`` (``n_fit`` the fitted
-  runs' mean sample count, ``n_c`` the candidate's): the objective counts each run equally, so a
-  candidate counts as one more run, whatever its sample rate;
+  predicted peak, as the objective normalizes each run, each sample weighted as the objective weighs it,
+  ``n_fit w_t`` (``n_fit`` the fitted runs' mean sample count, ``w_t`` the sample's weight in its run,
+  :func:`~rdea_lab.calibration.phases.sample_weights`: ``1 / n_c`` each without a hold longer than the
+  ramps): the objective counts each run equally, so a candidate counts as one more run, whatever its
+  sample rate;
 - the scene's variance ``V(F) = mean_t g_t^T F^-1 g_t`` over its samples ``t``, ``g_t`` the derivative of
   its predicted force [N] in ``u``; the band shrink of candidate ``c`` is ``1 - sqrt(V(F0 + F_c) / V(F0))``;
 - without a scene (D-optimal): the shrink is ``1 - (det F0 / det(F0 + F_c))^(1 / 2k)``, the geometric mean
@@ -344,8 +346,8 @@ def candidate_information(cal: Calibrated, run: RunData) -> tuple[np.ndarray, fl
     if not (np.isfinite(peak) and peak > 0):
         return np.zeros_like(cal.information), peak
     J = sensitivity(run, cal.params, cal.model, cal.parameters) / peak
-    w = cal.samples_per_run / run.n
-    return w * (J.T @ J) / cal.s2, peak
+    w = cal.samples_per_run * run.weights()  # the objective's sample weights (1 / n each without a long hold)
+    return (J.T * w) @ J / cal.s2, peak
 
 
 def scene_variance(G: np.ndarray, F: np.ndarray) -> float:

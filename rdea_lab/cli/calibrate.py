@@ -78,17 +78,21 @@ class FitProgress:
 
 
 class Branches(click.ParamType):
-    """``--viscous-branches``: an integer from 0 to 6, or ``auto`` (the library chooses)."""
+    """``--viscous-branches``: an integer from 0 to 6, ``auto`` (the library chooses M) or ``spectrum``."""
 
-    name = "0-6|auto"
+    name = "0-6|auto|spectrum"
 
     def convert(self, value, param, ctx):
-        if isinstance(value, int) or str(value).strip().lower() == "auto":
-            return value if isinstance(value, int) else "auto"
+        word = str(value).strip().lower()
+        if word in ("auto", "spectrum"):
+            return word
         try:
-            return click.IntRange(0, 6).convert(value, param, ctx)
-        except click.BadParameter:
-            self.fail(f"{value!r}; allowed: an integer from 0 to 6, or auto", param, ctx)
+            M = int(value)
+        except (TypeError, ValueError):
+            M = None
+        if M is None or not 0 <= M <= 6 or str(value).strip() not in (str(M), f"+{M}"):
+            self.fail(f"{value!r}; allowed: an integer from 0 to 6, auto or spectrum", param, ctx)
+        return M
 
 
 @click.command(epilog=EXIT_HELP)
@@ -103,7 +107,8 @@ class Branches(click.ParamType):
               help="Maxwell branches M [default: those of --init, or 1]; without --init they are fitted "
                    "one at a time, each from the previous optimum. auto: M from 0 to 4, grown while an "
                    "information criterion improves (BIC with an effective sample count from the residuals' "
-                   "autocorrelation; --metric rms).")
+                   "autocorrelation; --metric rms). spectrum: time scales log-spaced over the data's span, "
+                   "moduli by smoothed non-negative least squares (docs/guide/calibrate.md).")
 @click.option("--eps-r", type=float, default=None, help="Relative permittivity, fixed [default: --init's, or 2.8].")
 @click.option("--protocol-kind", "kinds_text", default="tensile", show_default=True,
               help="For folders: which runs, comma-separated from tensile, blocking, capacitance, custom.")

@@ -33,11 +33,14 @@ from .errors import EXIT_HELP
 @click.option("--credit", help="Where the data come from (attribute source_credit).")
 @click.option("--min-stretch", type=click.FloatRange(0.5, 1.0), default=MIN_STRETCH, show_default=True,
               help="Lowest stretch taken as noise at zero load; a lower one is an error.")
+@click.option("--skip-start", type=click.FloatRange(0.0, None), default=0.0, show_default=True, metavar="SECONDS",
+              help="Leave out the first SECONDS of every file (e.g. a machine's start-up spike); the rest keeps "
+                   "its times, the dataset records what was left out.")
 @click.option("--out", "out_path", type=click.Path(),
               help="A .nc file (one input) or a folder [default: datasets/imported/<specimen>/<stem>.nc].")
 @click.option("--force", "overwrite", is_flag=True, help="Overwrite existing datasets.")
 def import_(files, fmt, map_text, units_text, card_path, kind, protocol_name, encoding, credit, min_stretch,
-            out_path, overwrite):
+            skip_start, out_path, overwrite):
     """Import measurements (CSV, TDMS, MATLAB .mat) as datasets of the rdea-lab schema.
 
     Positions are converted to SI and to the stretch 1 + position / L1;
@@ -67,7 +70,7 @@ def import_(files, fmt, map_text, units_text, card_path, kind, protocol_name, en
     units = api.parse_units(units_text, mapping)
     card = load_specimen(card_path)
     api.geometry(card_path)
-    options = api.ImportOptions(fmt, mapping, units, kind, protocol_name, encoding, credit, min_stretch)
+    options = api.ImportOptions(fmt, mapping, units, kind, protocol_name, encoding, credit, min_stretch, skip_start)
     command = "rdea-lab " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     for source, target, ds in api.import_files(files, card, options, out_path, overwrite, command):
         t = ds["time"].values

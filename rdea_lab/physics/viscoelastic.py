@@ -303,6 +303,33 @@ def branch_strains(t, stretch, tau, q0=None, law="linear"):
     return q
 
 
+def stress_basis(history: History, tau, law="linear") -> np.ndarray:
+    """Stress [Pa per Pa of modulus] of each branch with a unit spring modulus, at every finite sample.
+
+    With fixed relaxation times the overstress is linear in the moduli: ``sum_j m_j basis[j]`` (plus the
+    damper's ``eta_v0`` times ``history.rate``), since each branch's strain depends on its ``tau_j`` alone
+    (:func:`branch_strains`) and its stress is the modulus times a function of that strain (:func:`stress_of`).
+    A relaxation spectrum is fitted on this basis (:mod:`rdea_lab.calibration.spectrum`).
+
+    Parameters
+    ----------
+    history : History
+        The run's times and stretch (:meth:`History.of`).
+    tau : array_like, shape (M,)
+        Relaxation times [s], > 0.
+    law : {"linear", "finite_strain"}
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, m)
+        ``q_j`` (linear) or ``exp(2 u_j) - exp(-u_j)`` (finite strain) at the history's samples (NaN where
+        the stretch is not finite), as `overstress_step` composes them for a branch ``k = 1``, ``eta = tau``.
+    """
+    tau = np.atleast_1d(np.asarray(tau, float))
+    # branch by branch through the one composition (a branch of modulus 1 and viscosity tau)
+    return np.array([overstress_step(history, None, [1.0], [t], law=law)[0] for t in tau]).reshape(tau.size, -1)
+
+
 def stretch_rate(t, stretch):
     """``d lambda1 / dt`` [1/s] at each sample: the slope of the interval that ends there.
 

@@ -133,6 +133,8 @@ class CalibrationRecord(_Section):
     notes: str | None = None
     software: str | None = None
     versions: dict | None = None
+    weighting: dict | None = None
+    spectrum: dict | None = None
     validation: Validation | None = None
 
     @classmethod

@@ -142,6 +142,10 @@ class ImportOptions:
         Where the data come from (``source_credit``).
     min_stretch : float
         Lowest stretch accepted as noise [-].
+    skip_start : float
+        Seconds [s] at the start of the file left out (samples with ``time - time[0] < skip_start``), e.g. a
+        machine's start-up spike; the rest keeps its times. Recorded as ``skipped_start_s`` and
+        ``skipped_start_samples``.
     """
 
     fmt: str
@@ -152,6 +156,7 @@ class ImportOptions:
     encoding: str | None = None
     credit: str | None = None
     min_stretch: float = MIN_STRETCH
+    skip_start: float = 0.0
 
 
 def check_format(fmt: str, source) -> None:
@@ -255,6 +260,16 @@ def import_file(path, card, options: ImportOptions, command: str = "") -> xr.Dat
         si[key] = _column(table, key, j, units[key], origins[key])
     t = si["time"]
     _check_time(table, cols["time"], t)
+    dropped = 0
+    if options.skip_start > 0:
+        keep = t - t[0] >= options.skip_start
+        dropped = int(np.count_nonzero(~keep))
+        if keep.sum() < 2:
+            raise SpecError("command line", "--skip-start", f"{options.skip_start:g} s leaves {int(keep.sum())} "
+                                                             f"sample(s) of {table.source}; allowed: less than "
+                                                             f"{t[-2] - t[0]:g} s")
+        si = {k: v[keep] for k, v in si.items()}
+        t = si["time"]
     L1 = geometry_from_card(card).L1
     stretch = 1.0 + si["position"] / L1
     low = stretch < options.min_stretch
@@ -278,14 +293,15 @@ def import_file(path, card, options: ImportOptions, command: str = "") -> xr.Dat
             "force": si["force"], "capacitance": si.get("capacitance", np.full(n, np.nan)),
             "stretch_setpoint": np.full(n, np.nan), "voltage_setpoint": np.full(n, np.nan)}
     data_vars = {k: ("time", np.asarray(data[k], np.float64), variable_attrs(k)) for k in VARIABLES}
-    attrs = _attrs(path, raw, card, options, table, units, origins, float(np.min(si["position"])), t, command)
+    attrs = _attrs(path, raw, card, options, table, units, origins, float(np.min(si["position"])), t, command,
+                   dropped)
     time = {**time_attrs(attrs["created"]),
             "comment": f"times as {path.name} gives them; the file does not say when it was measured, so the "
                        "reference time in units is the time of the import"}
     return xr.Dataset(data_vars, coords={"time": ("time", t, time)}, attrs=attrs)
 
 
-def _attrs(path, raw, card, options, table, units, origins, min_position, t, command) -> dict:
+def _attrs(path, raw, card, options, table, units, origins, min_position, t, command, dropped=0) -> dict:
     created = utc_now()
     sha = hashlib.sha256(raw).hexdigest()
     name = options.protocol_name or path.stem
@@ -322,6 +338,9 @@ def _attrs(path, raw, card, options, table, units, origins, min_position, t, com
     }
     if options.credit:
         attrs["source_credit"] = options.credit
+    if options.skip_start > 0:
+        attrs["skipped_start_s"] = float(options.skip_start)
+        attrs["skipped_start_samples"] = int(dropped)
     return attrs
 
 

@@ -122,6 +122,24 @@ def test_the_step_and_hold_file_imports_as_its_readme_says(cli, capsys, tmp_path
     assert 0.98 / ramp == pytest.approx(0.25, rel=0.2)  # "about 0.25 1/s"
 
 
+@pytest.mark.slow
+@pytest.mark.skipif(not RELAX.is_file(), reason=f"{RELAX} is absent (see tests/vhb_data.py)")
+def test_skip_start_leaves_out_the_start_up_spike_and_says_so(tmp_path):
+    """--skip-start 0.1 on relax_2d0 (its first 0.1 s a start-up spike, README): the data lines with time
+    < 0.1 s (counted from the text) are gone, the rest unchanged with their own times; the attrs say it.
+    A skip that leaves fewer than two samples is refused, naming the option."""
+    cells = vhb_text(RELAX)
+    times = np.array([float(c[0]) for c in cells])
+    gone = int(np.count_nonzero(times - times[0] < 0.1))
+    options = ImportOptions("csv", parse_map("time=0,position=1,force=2"), protocol_kind="tensile", skip_start=0.1)
+    ds = import_file(RELAX, load_specimen(STRIP), options)
+    assert gone == 5 and ds.sizes["time"] == len(cells) - gone
+    np.testing.assert_array_equal(ds["force"].values, [float(c[2]) for c in cells[gone:]])
+    assert ds.attrs["skipped_start_s"] == 0.1 and ds.attrs["skipped_start_samples"] == gone
+    with pytest.raises(SpecError, match="--skip-start"):
+        import_file(RELAX, load_specimen(STRIP), ImportOptions("csv", options.mapping, skip_start=1e4))
+
+
 @needs_vhb
 def test_vhb_dataset_has_the_run_schema(tmp_path):
     options = ImportOptions("csv", parse_map("time=0,position=1,force=2"), protocol_kind="tensile", credit=CREDIT)
