@@ -58,7 +58,7 @@ from ..specs.record import CalibrationRecord, add_record_section
 from ..specs.variables import variable_attrs
 from .envelope import Envelope, beyond, envelope, flag_axis, run_envelope
 from .objective import file_hash, load_run, predict_force
-from .parameters import fit_parameters, values_of, with_values
+from .parameters import fit_parameters, keep_relaxation_times, values_of, with_values
 
 #: Levels [-] at which the misfit's quantiles are stored; a band's level must lie within them.
 LEVELS = (0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.68, 0.7, 0.8, 0.9, 0.95, 0.975, 0.99)
@@ -202,6 +202,10 @@ class Uncertainty:
         The calibration envelope (None: not known, extrapolation not checked).
     source : str
         Where it comes from, in words.
+    hyperelastic : str
+        The fit's hyperelastic choice (its parameters' bounds: `fit_parameters`).
+    fixed_taus : bool
+        A relaxation spectrum's: its moduli vary at fixed relaxation times (`keep_relaxation_times`).
     """
 
     params: ParameterSet
@@ -211,6 +215,8 @@ class Uncertainty:
     misfit: dict | None = None
     envelope: Envelope | None = None
     source: str = ""
+    hyperelastic: str = "yeoh"
+    fixed_taus: bool = False
 
     @classmethod
     def of_fit(cls, result, misfit: dict | None = None, calibrated: Envelope | None = None) -> "Uncertainty":
@@ -227,7 +233,8 @@ class Uncertainty:
         names = tuple(result.free_names)
         cov = np.asarray(result.covar, float).reshape(len(names), len(names))
         env = calibrated if calibrated is not None else (envelope(result.run_data) if result.run_data else None)
-        return cls._of(result.params, names, cov, misfit, env, "the fit's covariance")
+        return cls._of(result.params, names, cov, misfit, env, "the fit's covariance",
+                       getattr(result, "hyperelastic", "yeoh"), bool(getattr(result, "spectrum", None)))
 
     @classmethod
     def of_record(cls, path) -> "Uncertainty":
@@ -265,19 +272,21 @@ class Uncertainty:
                       and file_hash(r.file) == r.sha256]
             if fitted and len(fitted) == len(record.runs):
                 env = envelope([load_run(f) for f in fitted])
-        return cls._of(as_params(path), names, cov, misfit, env, f"the calibration record {Path(path).name}")
+        return cls._of(as_params(path), names, cov, misfit, env, f"the calibration record {Path(path).name}",
+                       record.hyperelastic or "yeoh", bool(record.spectrum))
 
     @classmethod
-    def _of(cls, params, names, cov, misfit, env, source):
+    def _of(cls, params, names, cov, misfit, env, source, hyperelastic="yeoh", fixed_taus=False):
         finite = np.isfinite(np.diag(cov)) if cov.size else np.zeros(0, bool)
         keep = [i for i, ok in enumerate(finite) if ok and np.all(np.isfinite(cov[i, finite]))]
         missing = tuple(n for i, n in enumerate(names) if i not in keep)
-        return cls(params, tuple(names[i] for i in keep), cov[np.ix_(keep, keep)], missing, misfit, env, source)
+        return cls(params, tuple(names[i] for i in keep), cov[np.ix_(keep, keep)], missing, misfit, env, source,
+                   hyperelastic, fixed_taus)
 
     # -------------------------------------------------------------- the parameter term
     def _internal(self):
         """The fit parameters of `names`, the best ``u``, and the covariance in ``u`` (``du/dx C du/dx``)."""
-        fp = {p.name: p for p in fit_parameters(self.params, set(self.names))}
+        fp = {p.name: p for p in fit_parameters(self.params, set(self.names), self.hyperelastic)}
         ps = [fp[n] for n in self.names]
         x = np.array([values_of(self.params)[n] for n in self.names])
         u = np.array([p._u(v) for p, v in zip(ps, x)])
@@ -286,9 +295,12 @@ class Uncertainty:
 
     def _force(self, run, model, ps, u):
         """Force [N] on ``run`` for internal values ``u`` (None where the physics refuses the set)."""
-        values = dict(values_of(self.params))
+        base = values_of(self.params)
+        values = dict(base)
         for p, ui in zip(ps, u):
             values[p.name] = float(np.clip(p._x(ui), p.lo, p.hi))
+        if self.fixed_taus:
+            values = keep_relaxation_times(values, base)
         try:
             params = with_values(self.params, values, self.params.M)
         except (SpecError, ValueError):

@@ -50,6 +50,8 @@ class Growth:
         report = None if self.progress is None else (
             lambda n, best, elapsed: self.progress(spent + n, min(best, best_before), _time.monotonic() - self.t0))
         method = options.pop("method", "least-squares" if self.warm else self.method)
+        if method == "nelder-mead":  # a stage's own Nelder-Mead starts where it is told (the polish, or no warm start)
+            options.setdefault("warm_start", "none")
         res = calibrate(self.runs, params, free=[n for n in values_of(params) if self.free is None or n in self.free],
                         monitor=None if report is None else _Relay(report), method=method,
                         budget=self.budget.left(spent, _time.monotonic() - self.t0), **{**self.kwargs, **options})

@@ -152,6 +152,21 @@ def values_of(params: ParameterSet) -> dict[str, float]:
     return out
 
 
+def keep_relaxation_times(values: dict, base: dict) -> dict:
+    """``values`` with each branch's relaxation time that of ``base``: where a modulus (``k_vj`` or ``mu_vj``)
+    differs from ``base`` and its viscosity ``eta_vj`` does not, ``eta_vj = tau_j * modulus`` with
+    ``tau_j = eta_vj / modulus`` of ``base``. A relaxation spectrum's covariance is of its moduli on a fixed
+    grid of time scales (:mod:`~rdea_lab.calibration.spectrum`): a band or a sensitivity through it varies the
+    moduli at fixed ``tau``."""
+    out = dict(values)
+    for name, x in values.items():
+        head, _, j = name.partition("_v")
+        if head in ("k", "mu") and j.isdigit() and f"eta_v{j}" in base and x != base[name] \
+                and values.get(f"eta_v{j}") == base[f"eta_v{j}"] and base[name]:
+            out[f"eta_v{j}"] = base[f"eta_v{j}"] * x / base[name]
+    return out
+
+
 def with_values(base: ParameterSet, values: dict[str, float], M: int, name: str | None = None) -> ParameterSet:
     """A new parameter set (of ``base``'s law); raises SpecError if it is not physical."""
     spring = MODULUS[base.law]

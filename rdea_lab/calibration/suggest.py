@@ -54,7 +54,7 @@ from ..specs.limits import Limits
 from ..specs.protocol import ProtocolSpec, dump_protocol, load_protocol
 from ..specs.record import CalibrationRecord, Matrix
 from .objective import RunData, predict_force
-from .parameters import fit_parameters, values_of, with_values
+from .parameters import fit_parameters, keep_relaxation_times, values_of, with_values
 
 ARGS = "arguments"
 #: Default candidate levels: peak stretches [-], ramp rates [1/s], hold durations [s].
@@ -97,7 +97,8 @@ class Candidate:
 
 
 def _name(x: float) -> str:
-    return f"{x:g}"
+    """A number as a protocol name may hold it: ``0.25``, ``1200``, ``1e9`` (no ``+``)."""
+    return f"{x:g}".replace("+", "")
 
 
 def candidate_spec(kind: str, stretch: float, rate: float, hold: float, limits: Limits,
@@ -205,7 +206,8 @@ def plan_run(spec: ProtocolSpec, card) -> RunData:
                    np.zeros_like(t), 1.0)
 
 
-def sensitivity(run: RunData, params, model: str, parameters, step: float = STEP) -> np.ndarray:
+def sensitivity(run: RunData, params, model: str, parameters, step: float = STEP,
+                fixed_taus: bool = False) -> np.ndarray:
     """Derivative of the predicted force [N] in each free parameter's internal variable (central differences).
 
     Parameters
@@ -218,6 +220,9 @@ def sensitivity(run: RunData, params, model: str, parameters, step: float = STEP
     step : float
         Step in the internal variable (one-sided where the physics refuses the other side; a column
         both sides refuse is 0).
+    fixed_taus : bool
+        Vary a branch modulus at its fixed relaxation time (a spectrum's:
+        :func:`~rdea_lab.calibration.parameters.keep_relaxation_times`), not at its fixed viscosity.
 
     Returns
     -------
@@ -233,6 +238,8 @@ def sensitivity(run: RunData, params, model: str, parameters, step: float = STEP
         for sign in (1.0, -1.0):
             v = dict(values)
             v[p.name] = float(p._x(u + sign * step))
+            if fixed_taus:  # a spectrum's moduli vary on its fixed grid of time scales
+                v = keep_relaxation_times(v, values)
             try:
                 ps = with_values(params, v, params.M)
             except SpecError:
@@ -264,6 +271,8 @@ class Calibrated:
         Residual variance of the fit (``redchi``) [-].
     samples_per_run : float
         The fitted runs' mean sample count ``n_fit``.
+    fixed_taus : bool
+        A relaxation spectrum's record: its moduli vary at fixed relaxation times.
     """
 
     params: object
@@ -272,6 +281,7 @@ class Calibrated:
     information: np.ndarray
     s2: float
     samples_per_run: float
+    fixed_taus: bool = False
 
 
 def information_from_covariance(parameters, values: dict, covar: np.ndarray) -> np.ndarray:
@@ -322,7 +332,7 @@ def from_record(path) -> Calibrated:
         raise SpecError(path, "calibration.covar", f"{record.covar or 'missing'}: suggest needs the covariance of "
                         "a least-squares (metric rms) fit")
     free = set(record.covar.names)
-    parameters = [p for p in fit_parameters(params, free) if p.free]
+    parameters = [p for p in fit_parameters(params, free, record.hyperelastic or "yeoh") if p.free]
     missing = free - {p.name for p in parameters}
     if missing:
         raise SpecError(path, "calibration.covar.names", f"{', '.join(sorted(missing))} not parameters of the set")
@@ -336,7 +346,7 @@ def from_record(path) -> Calibrated:
         raise SpecError(path, "calibration.statistics", "no redchi, ndata or runs: not a complete calibration record")
     return Calibrated(params, record.model or "su", tuple(parameters),
                       information_from_covariance(parameters, values_of(params), covar), float(redchi),
-                      float(ndata) / len(record.runs))
+                      float(ndata) / len(record.runs), bool(record.spectrum))
 
 
 def candidate_information(cal: Calibrated, run: RunData) -> tuple[np.ndarray, float]:
@@ -345,7 +355,7 @@ def candidate_information(cal: Calibrated, run: RunData) -> tuple[np.ndarray, fl
     peak = float(np.max(np.abs(f)))
     if not (np.isfinite(peak) and peak > 0):
         return np.zeros_like(cal.information), peak
-    J = sensitivity(run, cal.params, cal.model, cal.parameters) / peak
+    J = sensitivity(run, cal.params, cal.model, cal.parameters, fixed_taus=cal.fixed_taus) / peak
     w = cal.samples_per_run * run.weights()  # the objective's sample weights (1 / n each without a long hold)
     return (J.T * w) @ J / cal.s2, peak
 
@@ -445,7 +455,7 @@ def suggest(params, card, *, scene=None, limits: Limits | None = None, stretches
                 raise SpecError(err.source, err.field, f"the scene is outside {whose} limits: {err.message}") from None
         limits = rig
         run = plan_run(spec, card)
-        G = sensitivity(run, cal.params, cal.model, cal.parameters)
+        G = sensitivity(run, cal.params, cal.model, cal.parameters, fixed_taus=cal.fixed_taus)
         scene_name, scene_peak = spec.name, float(np.max(np.abs(predict_force(run, cal.params, cal.model))))
     limits = limits if limits is not None else Limits()
     kept, refused = candidates(card, limits, stretches=stretches, rates=rates, holds=holds, hold_rate=hold_rate,

@@ -27,7 +27,8 @@ OPTIONS = {"address": "--rig", "token": "--token-file", "address/token": "--rig/
            "metric": "--metric", "init": "--init", "cv": "--cv", "holdout": "--holdout",
            "method": "--method", "tare": "--tare", "estimator": "--estimator", "tau": "--tau",
            "reference": "--reference", "hyperelastic": "--hyperelastic", "stretches": "--stretches",
-           "rates": "--rates", "holds": "--holds", "candidates": "--stretches/--rates/--holds/--max-stretch"}
+           "rates": "--rates", "holds": "--holds", "bands": "--bands",
+           "candidates": "--stretches/--rates/--holds/--max-stretch"}
 
 
 #: Options a user reaches for by another name (other tools', or rdea-lab's before): the name -> ours.

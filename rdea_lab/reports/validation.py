@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from ..calibration.bands import Uncertainty, check_level, coverage
+from ..calibration.bands import UNBOUNDED, Uncertainty, check_level, coverage
 from ..calibration.crossval import nominal_rate
 from ..calibration.envelope import beyond, run_envelope, stretch_text
 from ..calibration.objective import error_measures, load_run
@@ -108,7 +108,8 @@ BAND_LEGEND = ("Band coverage: the fraction of the run's measured samples inside
                "quadrature with the cross-validated misfit of the record's validation.misfit); band half-width: "
                "its median over the samples, of the peak; band: bounded, parameter-only (no cross-validation in "
                "the record), widened (beyond the calibration: the misfit of held-out runs that were themselves "
-               "extrapolations) or unbounded (beyond the calibration, and no such held-out run: coverage —).")
+               "extrapolations) or unbounded (beyond the calibration, and no such held-out run: coverage —); "
+               "in-sample: the run's own held-out error is in the misfit, so its coverage does not test the band.")
 
 
 def report_columns(band_level):
@@ -133,9 +134,15 @@ def add_bands(evaluated, uncertainty: Uncertainty, level: float) -> None:
         half = 0.5 * (b["upper"][sel] - b["lower"][sel])
         peak = float(np.max(np.abs(run.force[sel])))
         s.update(force_lower=b["lower"], force_upper=b["upper"], band_level=level, band_status=b["status"])
+        learnt = {Path(name).name for g in (uncertainty.misfit or {}).values() if isinstance(g, dict)
+                  for name in g.get("runs", ())}
+        learnt |= {Path(name).name for g in (uncertainty.misfit or {}).get("beyond_by_axes", ()) for name in g["runs"]}
+        own = Path(r["file"]).name in learnt  # its own held-out error is in the misfit: not a test of the band
         r.update(band_level=level, band_coverage=coverage(run.force[sel], b["lower"][sel], b["upper"][sel]),
-                 band_half_width_rel=float(np.median(half) / peak) if np.isfinite(half).all() else math.inf,
-                 band_misfit_rel=b["misfit_rel"], band_status=b["status"], band_detail=b["detail"])
+                 band_half_width_rel=(math.inf if b["status"] == UNBOUNDED else float(np.nanmedian(half) / peak)),
+                 band_misfit_rel=b["misfit_rel"], band_status=b["status"] + (" (in-sample)" if own else ""),
+                 band_detail=b["detail"] + ("; in-sample: this run's own held-out error is in the misfit, so its "
+                                            "coverage does not test the band" if own else ""))
 
 
 class ReportInputError(UserError):

@@ -351,3 +351,14 @@ def test_a_budget_is_whole_evaluations_and_seconds_not_below_zero():
                 dict(seconds=float("nan")), dict(seconds="300")):
         with pytest.raises(SpecError, match="budget"):
             Budget(**bad)
+
+
+def test_no_warm_start_is_kept_through_a_growth(two_time_scales):
+    """warm_start="none" under Nelder-Mead: every stage is Nelder-Mead from its own start (no least-squares
+    start, no polish stage), as before warm starts existed; a small budget (the path, not the optimum)."""
+    from rdea_lab.calibration.fit import calibrate_growing
+
+    runs, start = two_time_scales
+    res = calibrate_growing(runs, start, 2, model="su", budget=Budget(evaluations=300), warm_start="none")
+    assert [st["method"] for st in res.stages] == ["nelder-mead"] * 3
+    assert not any("warm_start" in st for st in res.stages) and res.warm_start == ""

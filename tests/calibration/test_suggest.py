@@ -73,6 +73,26 @@ def test_sensitivity_in_log_and_asinh_variables_matches_the_linear_yeoh_force():
     assert np.allclose(J[:, 1], np.hypot(params[1].scale, ps.C30) * dF_dC30, rtol=1e-6, atol=1e-9)
 
 
+def test_a_spectrums_moduli_vary_at_fixed_relaxation_times():
+    """At fixed time scales the force is linear in a branch's modulus (the spectrum's premise), so with
+    ``fixed_taus`` the sensitivity in u = log mu is mu times the exact difference quotient of the force at
+    fixed tau; at fixed viscosity (the default) tau moves with mu and the column differs."""
+    ps = TRUTH
+    run = plan_run(candidate_spec("hold", 2.0, 0.25, 60.0, RIG, sample_rate=5.0), CARD)
+    params = [p for p in fit_parameters(ps, {"mu_v1"}) if p.free]
+    b = ps.branches[0]
+    at_tau = lambda mu: predict_force(run, ps.replace(branches=(ViscoBranch.of(ps.law, mu, b.tau * mu),  # noqa: E731
+                                                               *ps.branches[1:])), "su")
+    full, half = at_tau(b.modulus), at_tau(b.modulus / 2)
+    taut = (full > 1e-3 * full.max()) & (half > 1e-3 * full.max())  # linear where the roll is not slack
+    assert taut.sum() > run.n / 2
+    exact = (b.modulus * (full - half) / (b.modulus / 2))[taut]
+    fixed = sensitivity(run, ps, "su", params, fixed_taus=True)[taut, 0]
+    assert np.allclose(fixed, exact, rtol=1e-5, atol=1e-9 * np.abs(exact).max())
+    moving = sensitivity(run, ps, "su", params)[taut, 0]
+    assert not np.allclose(moving, exact, rtol=1e-2, atol=1e-3 * np.abs(exact).max())
+
+
 def test_a_candidates_information_is_what_a_fit_to_it_alone_would_know():
     spec = candidate_spec("hold", 2.0, 0.25, 60.0, RIG, sample_rate=5.0)
     run = emulated(spec, TRUTH, 3)
