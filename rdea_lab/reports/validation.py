@@ -123,6 +123,9 @@ def report_columns(band_level):
 def add_bands(evaluated, uncertainty: Uncertainty, level: float) -> None:
     """Each evaluated force run's band (its ``flags`` the report's), coverage and half-width, into its row and
     series (``force_lower``, ``force_upper`` [N]); capacitance rows get none."""
+    misfit = uncertainty.misfit or {}
+    groups = [misfit.get("inside"), misfit.get("beyond"), *misfit.get("beyond_by_axes", ())]
+    learnt = {Path(name).name for g in groups if g for name in g["runs"]}  # the runs the misfit was learnt from
     for e in evaluated:
         r, s, run = e["row"], e["series"], e["run"]
         if r["quantity"] != "force":
@@ -134,9 +137,6 @@ def add_bands(evaluated, uncertainty: Uncertainty, level: float) -> None:
         half = 0.5 * (b["upper"][sel] - b["lower"][sel])
         peak = float(np.max(np.abs(run.force[sel])))
         s.update(force_lower=b["lower"], force_upper=b["upper"], band_level=level, band_status=b["status"])
-        learnt = {Path(name).name for g in (uncertainty.misfit or {}).values() if isinstance(g, dict)
-                  for name in g.get("runs", ())}
-        learnt |= {Path(name).name for g in (uncertainty.misfit or {}).get("beyond_by_axes", ()) for name in g["runs"]}
         own = Path(r["file"]).name in learnt  # its own held-out error is in the misfit: not a test of the band
         r.update(band_level=level, band_coverage=coverage(run.force[sel], b["lower"][sel], b["upper"][sel]),
                  band_half_width_rel=(math.inf if b["status"] == UNBOUNDED else float(np.nanmedian(half) / peak)),
