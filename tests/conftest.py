@@ -3,10 +3,12 @@
 No backend is chosen here: without a DISPLAY matplotlib picks Agg by itself.
 """
 
+import os
 import sys
 from pathlib import Path
 
 import pytest
+import pg_server
 from vhb_data import LOADING_UNLOADING, MISSING
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -35,3 +37,26 @@ def imported(tmp_path_factory):
                        "Chongran-Zhao/VHB4910_data (GitHub)", "--out", str(out)])
     assert rc == 0
     return out
+
+
+@pytest.fixture(scope="session")
+def postgresql_server():
+    """A PostgreSQL server for this session (or xdist worker): `RDEA_LAB_TEST_POSTGRESQL`'s, else a throwaway one
+    started on first use and stopped at the end (tests/pg_server.py); skips, saying why in one line, without one."""
+    if url := os.environ.get(pg_server.ENV):
+        server = pg_server.Server(url)
+    else:
+        if reason := pg_server.unavailable():
+            pytest.skip(reason)
+        try:
+            server = pg_server.Server.start()
+        except (OSError, RuntimeError) as exc:
+            pytest.skip(f"PostgreSQL tests skipped: the throwaway server did not start ({exc})")
+    yield server
+    server.stop()
+
+
+@pytest.fixture
+def postgresql_url(postgresql_server):
+    """A fresh, empty PostgreSQL database: ``postgresql://postgres@127.0.0.1:PORT/NAME``."""
+    return postgresql_server.new_database()
