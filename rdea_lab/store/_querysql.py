@@ -82,7 +82,7 @@ def _kind(expr) -> str | None:
     t = getattr(expr, "type", None)
     if isinstance(t, T.Boolean):
         return "bool"
-    if isinstance(t, (T.Integer, T.Numeric)):
+    if isinstance(t, (T.Integer, T.Numeric, T.Float)):  # (Float is no Numeric in SQLAlchemy 2.1)
         return "number"
     if isinstance(t, T.String):
         return "text"
