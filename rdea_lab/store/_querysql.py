@@ -94,6 +94,7 @@ def _kind(expr) -> str | None:
 _WHAT = {"str": "text", "int": "a number", "float": "a number", "bool": "a boolean", "null": "null"}
 _ALLOWED = {"text": "a quoted string", "number": "a number", "bool": "true or false",
             "time": "an ISO 8601 date or date-time in quotes"}
+_NUMBER_TYPES = {"int": T.BigInteger, "float": T.Float}
 _HOLDS = {"text": "text", "number": "numbers", "bool": "booleans", "time": "times"}
 _FITS = {"text": ("str",), "number": ("int", "float"), "bool": ("bool",), "time": ("str",)}
 
@@ -111,6 +112,10 @@ def _literal(source, name, kind, v: Value, aware=False):
             raise QueryError(source, f"position {v.pos + 1}", f"{show(v.value)} for {name}; allowed: "
                              f"{_ALLOWED['time']}") from None
         return when if aware else when.replace(tzinfo=None)
+    if v.kind in _NUMBER_TYPES:
+        # typed as written, not as the column: SQLAlchemy would bind 2.5 against an integer column (or a list that
+        # starts with an integer) as ::INTEGER on PostgreSQL, i.e. 3
+        return literal(v.value, _NUMBER_TYPES[v.kind]())
     return v.value
 
 

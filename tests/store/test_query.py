@@ -126,6 +126,11 @@ VALID = [
     ("peak_force > -4 and peak_force < 0", lambda r: r["peak_force"] is not None and -4 < r["peak_force"] < 0),
     ("peak_force == 2.5", lambda r: r["peak_force"] == 2.5),
     ("samples == 86400000", lambda r: r["samples"] == 86_400_000),
+    # a float against an integer column, a list starting with an integer against a float column (bound as written)
+    ("samples > 2.5", lambda r: gt(r["samples"], 2.5)),
+    ("samples < 3.5 and samples >= 2.0", lambda r: r["samples"] is not None and 2 <= r["samples"] < 3.5),
+    ("peak_force in [0, 0.5]", lambda r: r["peak_force"] in (0.0, 0.5)),
+    ("samples in [2, 3.0, 3.5]", lambda r: r["samples"] in (2, 3)),
     ("peak_force == null", lambda r: r["peak_force"] is None),
     ("samples != null and created == NULL", lambda r: r["samples"] is not None and r["created"] is None),
     ("md.batch == null", lambda r: md(r, "batch") is None),
