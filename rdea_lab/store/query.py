@@ -14,16 +14,17 @@ Grammar (keywords in any case; ``not`` binds tighter than ``and``, ``and`` tight
 A field is a catalogue column (letters, digits, ``_``) or ``md.<key>``, a run's metadata value (a key is a
 letter, then letters, digits, ``_``, ``.``, ``-``). Strings are single- or double-quoted with the escapes
 ``\\\\ \\' \\" \\n \\t \\r \\uXXXX``; numbers are integers or floats (``2.6``, ``1e3``, ``-4``). Dates and times
-are text (``created >= '2026-03-01'``): the catalogue writes them as ISO 8601 UTC, whose text order is their
-time order. ``== null`` / ``!= null`` ask whether a field is empty (a run without that metadata key, a peak
-not measured).
+are quoted ISO 8601 text (``created >= '2026-03-01'``): against a date-time column they are read as a time (UTC
+unless an offset is given, `parse_since`), against a text column compared as text (ISO 8601 UTC text orders as
+time). ``== null`` / ``!= null`` ask whether a field is empty (a run without that metadata key, a peak not
+measured).
 
 Every predicate is true or false, never unknown: a comparison, ``in``, ``contains`` or ``like`` on an empty
 field is false and its negation (``!=``, ``not in``, ``not contains``, ``not like``, ``not (...)``) true, so
 ``not (md.batch == 'B7')`` includes the runs without a batch. ``contains`` is a case-sensitive substring test,
 ``like`` a case-sensitive match of the whole text where ``%`` is any text and ``_`` any one character; text
-orders by code point. The SQL is the same on SQLite and PostgreSQL (`where_clause`), so both give the same
-answers.
+orders by code point. `where_clause` gives one SQLAlchemy expression for both engines (text order and pattern
+matching render per dialect, `rdea_lab.store._querysql`), so SQLite and PostgreSQL give the same answers.
 """
 
 from __future__ import annotations
@@ -439,7 +440,8 @@ def where_clause(node: Node, field: Callable[[str], object]):
     Returns
     -------
     sqlalchemy.sql.ColumnElement
-        A boolean expression, never NULL (module docstring: empty fields).
+        A boolean expression, never NULL (the module docstring: empty fields). Numbers are bound typed as
+        written (``2.5`` as a float against an integer column).
 
     Raises
     ------
