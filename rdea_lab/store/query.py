@@ -44,6 +44,9 @@ __all__ = ["And", "Compare", "Field", "Match", "Member", "Not", "Or", "QueryErro
 MD_KEY = re.compile(r"[A-Za-z][A-Za-z0-9_.\-]{0,63}\Z")
 COMPARISONS = ("==", "!=", "<=", ">=", "<", ">")
 KEYWORDS = ("and", "or", "not", "in", "contains", "like", "true", "false", "null")
+#: The most conditions (predicates) in one query, and the deepest nesting of parentheses and ``not``: the tree,
+#: its SQL and their compilers recurse, and a query of a lab's catalogue needs far fewer.
+MAX_CONDITIONS, MAX_DEPTH = 200, 50
 #: The literals an integer may take (a signed 64-bit integer, as both databases store one).
 MAX_INT = 2**63 - 1
 _ESCAPES = {"\\": "\\", "'": "'", '"': '"', "n": "\n", "t": "\t", "r": "\r"}
@@ -240,6 +243,7 @@ class _Parser:
         self.source = source
         self.tokens = _tokens(text, source)
         self.i = 0
+        self.depth = self.conditions = 0
 
     @property
     def tok(self) -> _Token:
@@ -273,19 +277,28 @@ class _Parser:
         return node
 
     def not_expr(self):
-        if self.keyword("not"):
-            self.take()
-            return Not(self.not_expr())
-        if self.tok.text == "(" and self.tok.kind == "punct":
-            self.take()
+        if self.keyword("not") or (self.tok.text == "(" and self.tok.kind == "punct"):
+            self.depth += 1
+            if self.depth > MAX_DEPTH:
+                self.fail(f"at most {MAX_DEPTH} levels of parentheses and 'not' (this is level {self.depth})")
+            node = self.nested()
+            self.depth -= 1
+            return node
+        if self.tok.kind != "field":
+            self.fail(_ALLOWED_START)
+        self.conditions += 1
+        if self.conditions > MAX_CONDITIONS:
+            self.fail(f"at most {MAX_CONDITIONS} conditions in a query (this is condition {self.conditions})")
+        return self.predicate(Field(self.tok.text, self.take().pos))
+
+    def nested(self):
+        if self.take().text == "(":
             node = self.query()
             if self.tok.text != ")":
                 self.fail("')' or and/or")
             self.take()
             return node
-        if self.tok.kind != "field":
-            self.fail(_ALLOWED_START)
-        return self.predicate(Field(self.tok.text, self.take().pos))
+        return Not(self.not_expr())
 
     def predicate(self, fld):
         src = self.source

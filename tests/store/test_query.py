@@ -234,6 +234,10 @@ BAD = [
     ("__import__('os') == 1", 11, "'('"),
     ("specimen == 'a' && samples > 1", 17, "unexpected character '&'"),
     ("specimen == true_ish", 13, "'true_ish'; allowed: a value"),
+    # limits: 200 conditions (the 201st starts at 1 + 200 * len("samples == 1 or ")), 50 levels of nesting
+    ("samples == 1 or " * 200 + "samples == 2", 1 + 200 * 16, "at most 200 conditions"),
+    ("(" * 50 + "not samples == 1" + ")" * 50, 51, "at most 50 levels of parentheses and 'not' (this is level 51)"),
+    ("not " * 51 + "samples == 1", 201, "at most 50 levels"),
     # compile-time: fields and types
     ("speciman == 'a'", 1, "unknown field 'speciman'; allowed: run_id, specimen,"),
     ("status == 'complete' and peak == 1", 26, "unknown field 'peak'"),
@@ -248,7 +252,7 @@ BAD = [
 ]
 
 
-@pytest.mark.parametrize("text,position,says", BAD, ids=[b[0][:40] for b in BAD])
+@pytest.mark.parametrize("text,position,says", BAD, ids=[b[0][:40] + str(len(b[0])) for b in BAD])
 def test_a_bad_query_names_its_position_in_one_line(text, position, says):
     with pytest.raises(QueryError) as caught:
         where_clause(parse_where(text), Resolver())
@@ -257,6 +261,15 @@ def test_a_bad_query_names_its_position_in_one_line(text, position, says):
     assert message.startswith(f"--where: position {position}: ") and "\n" not in message
     assert says in message and "allowed: " in message
     assert isinstance(caught.value, SpecError)
+
+
+def test_queries_at_the_limits_compile():
+    many = " or ".join(f"samples == {i}" for i in range(200))  # 200 conditions, left-nested 199 deep
+    deep = "(" * 25 + "not " * 25 + "samples < 5" + ")" * 25
+    for text in (many, deep):
+        str(sa.select(RUNS.c.run_id).where(where_clause(parse_where(text), Resolver())).compile(
+            dialect=sqlite.dialect()))
+    assert format_where(parse_where(deep)) == "not " * 25 + "samples < 5"
 
 
 def test_an_unknown_field_without_a_list_of_fields_and_another_source():
