@@ -91,9 +91,9 @@ def metadata_text(metadata: dict) -> str:
 
 
 def catalog(folder=".", where=None, since=None, columns=None, catalog=None, limit=None) -> pd.DataFrame:
-    """One row per run below ``folder`` (datasets and unfinished journals), from the catalogue index.
+    """One row per run below ``folder`` (datasets ``*.nc`` and unfinished journals), as a DataFrame.
 
-    The index (`rdea_lab.store.index`) answers; a dataset below ``folder`` that it does not hold yet (a
+    The catalogue index (`rdea_lab.store.index`) answers; a dataset below ``folder`` that it does not hold yet (a
     folder never listed, a file copied in) is indexed first, the others are only stat-ed: one whose size
     or mtime differs from the indexed ones is marked ``changed since indexed``, one gone ``missing``
     (column ``file_state``; ``rdea-lab catalog rebuild`` re-reads them). Unfinished journals are found by

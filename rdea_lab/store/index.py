@@ -197,7 +197,6 @@ class Catalog:
 
     def __init__(self, url: str):
         from sqlalchemy import create_engine, event
-        from sqlalchemy.pool import NullPool
 
         self.url = url
         self.meta, self.runs, self.md = _tables()
@@ -210,12 +209,13 @@ class Catalog:
 
             self.engine = create_engine(url, poolclass=StaticPool)
         elif self.sqlite:
-            # NullPool: every use opens and closes its connection, so no -wal/-shm file outlives a command
-            self.engine = create_engine(url, poolclass=NullPool)
+            # connections are pooled for the life of this object; `close` closes them, and with the last one
+            # SQLite folds the -wal file back in and removes it (none outlives a command)
+            self.engine = create_engine(url)
             event.listen(self.engine, "connect", _sqlite_connect)
             event.listen(self.engine, "begin", _sqlite_begin)
         else:
-            self.engine = create_engine(url, poolclass=NullPool, connect_args={"connect_timeout": CONNECT_TIMEOUT})
+            self.engine = create_engine(url, connect_args={"connect_timeout": CONNECT_TIMEOUT})
         self._create()
 
     def _create(self):
@@ -224,12 +224,13 @@ class Catalog:
         try:
             if self.root is not None:
                 self.root.mkdir(parents=True, exist_ok=True)
-            for attempt in (0, 1):  # two processes creating the tables at once: the second finds them made
-                try:
-                    self.meta.create_all(self.engine, checkfirst=True)
+            for attempt in range(3):  # two processes creating the tables at once: the second finds them made
+                try:  # under the write lock (SQLite's BEGIN IMMEDIATE): the check and the creation are one step
+                    with self.engine.connect().execution_options(sqlite_write=True) as conn, conn.begin():
+                        self.meta.create_all(conn, checkfirst=True)
                     break
                 except SQLAlchemyError:
-                    if attempt:
+                    if attempt == 2:
                         raise
         except (SQLAlchemyError, OSError) as exc:
             self.engine.dispose()
@@ -282,36 +283,43 @@ class Catalog:
         CatalogUnavailable
             The transaction failed (rolled back: nothing of it is written).
         """
-        from sqlalchemy import and_, delete
         from sqlalchemy.exc import SQLAlchemyError
 
         if not rows:
             return
-        if self.sqlite:
-            from sqlalchemy.dialects.sqlite import insert
-        else:
-            from sqlalchemy.dialects.postgresql import insert
-        runs, md = self.runs, self.md
-        stmt = insert(runs)
-        stmt = stmt.on_conflict_do_update(index_elements=[runs.c.run_id],
-                                          set_={c: stmt.excluded[c] for c in RUN_COLUMNS if c != "run_id"})
+        upsert, stale_md, stale_runs, drop_md = self._statements()
         try:
             with self.engine.connect().execution_options(sqlite_write=True) as conn:
                 with conn.begin():
-                    conn.execute(stmt, [r for r, _ in rows])
-                    ids = [r["run_id"] for r, _ in rows]
-                    for r, _ in rows:  # another run's row on this file: that run's file was replaced
-                        gone = [x for x, in conn.execute(runs.select().with_only_columns(runs.c.run_id).where(
-                            and_(runs.c.file == r["file"], runs.c.host == r["host"], runs.c.run_id != r["run_id"])))]
-                        if gone:
-                            conn.execute(delete(runs).where(runs.c.run_id.in_(gone)))
-                            conn.execute(delete(md).where(md.c.run_id.in_(gone)))
-                    conn.execute(delete(md).where(md.c.run_id.in_(ids)))
+                    conn.execute(upsert, [r for r, _ in rows])
+                    # another run's row on this file: that run's file was replaced (by a run with --force)
+                    same = [{"f": r["file"], "h": r["host"], "i": r["run_id"]} for r, _ in rows]
+                    conn.execute(stale_md, same)
+                    conn.execute(stale_runs, same)
+                    conn.execute(drop_md, [{"i": r["run_id"]} for r, _ in rows])
                     values = [{"run_id": r["run_id"], "key": k, "value": v} for r, m in rows for k, v in m.items()]
                     if values:
-                        conn.execute(md.insert(), values)
+                        conn.execute(self.md.insert(), values)
         except SQLAlchemyError as exc:
             raise self.unavailable(exc) from None
+
+    def _statements(self):
+        """The statements `write` runs (made once per catalogue: building them costs more than running them)."""
+        if getattr(self, "_write_statements", None) is None:
+            from sqlalchemy import and_, bindparam, delete, select
+
+            if self.sqlite:
+                from sqlalchemy.dialects.sqlite import insert
+            else:
+                from sqlalchemy.dialects.postgresql import insert
+            runs, md = self.runs, self.md
+            upsert = insert(runs)
+            upsert = upsert.on_conflict_do_update(index_elements=[runs.c.run_id],
+                                                  set_={c: upsert.excluded[c] for c in RUN_COLUMNS if c != "run_id"})
+            other = and_(runs.c.file == bindparam("f"), runs.c.host == bindparam("h"), runs.c.run_id != bindparam("i"))
+            self._write_statements = (upsert, delete(md).where(md.c.run_id.in_(select(runs.c.run_id).where(other))),
+                                      delete(runs).where(other), delete(md).where(md.c.run_id == bindparam("i")))
+        return self._write_statements
 
     def remove(self, run_ids) -> None:
         """Delete the rows (and metadata) of ``run_ids`` in one transaction."""
