@@ -256,13 +256,14 @@ class Catalog:
     def stored(self, path) -> str:
         """A file as the catalogue stores it: relative to a SQLite catalogue's folder when below it (posix),
         else absolute."""
-        path = Path(os.path.abspath(path))
+        text = os.path.abspath(path)  # text, not pathlib: ls stores 1e4 names in a few milliseconds
         if self.root is not None:
-            try:
-                return path.relative_to(self.root).as_posix()
-            except ValueError:
-                pass
-        return path.as_posix()
+            root = str(self.root)
+            if text == root:
+                return "."
+            if text.startswith(root.rstrip(os.sep) + os.sep):
+                return text[len(root.rstrip(os.sep)) + 1:].replace(os.sep, "/")
+        return text.replace(os.sep, "/")
 
     def located(self, text: str) -> Path:
         """A stored file as a path here."""
@@ -359,6 +360,21 @@ class Catalog:
 
         field.fields = list(RUN_COLUMNS)
         return field
+
+    def column(self, stmt) -> list:
+        """The first column of a read statement's rows.
+
+        Raises
+        ------
+        CatalogUnavailable
+        """
+        from sqlalchemy.exc import SQLAlchemyError
+
+        try:
+            with self.engine.connect() as conn:
+                return list(conn.execute(stmt).scalars())
+        except SQLAlchemyError as exc:
+            raise self.unavailable(exc) from None
 
     def execute(self, stmt):
         """Rows of a read statement, as dicts.

@@ -236,17 +236,17 @@ class Rebuild:
         return "\n".join(lines)
 
 
-def walk(folder) -> tuple[list[Path], list[Path]]:
-    """The datasets (``*.nc``) and journals (``*.nc.part``) below ``folder``, by path (a journal's inside
-    is not entered)."""
+def walk(folder) -> tuple[list[str], list[Path]]:
+    """The datasets (``*.nc``, as text) and journals (``*.nc.part``) below ``folder``, by path (a journal's
+    inside is not entered)."""
     datasets, journals = [], []
     for root, dirs, files in os.walk(folder):
         for d in list(dirs):
             if d.endswith(".nc.part"):
                 journals.append(Path(root) / d)
                 dirs.remove(d)
-        datasets += [Path(root) / f for f in files if f.endswith(".nc")]
-    return sorted(datasets), sorted(journals)
+        datasets += [os.path.join(root, f) for f in files if f.endswith(".nc")]
+    return sorted(datasets, key=lambda p: p.split(os.sep)), sorted(journals)
 
 
 def _compare_keys():
@@ -333,7 +333,7 @@ def refresh(cat: Catalog, datasets) -> list[tuple[str, str]]:
     into another catalogue); the others are not read. Returns the (file, reason) of those that cannot be."""
     from sqlalchemy import select
 
-    known = {r["file"] for r in cat.execute(select(cat.runs.c.file))} if datasets else set()
+    known = set(cat.column(select(cat.runs.c.file))) if datasets else set()
     batch, bad = [], []
     for path in datasets:
         if cat.stored(path) in known:
