@@ -330,7 +330,8 @@ def check(folder, url=None) -> Rebuild:
 
 def refresh(cat: Catalog, datasets) -> list[tuple[str, str]]:
     """Index the datasets the catalogue does not hold by path (copied in, written by an older rdea-lab or
-    into another catalogue); the others are not read. Returns the (file, reason) of those that cannot be."""
+    into another catalogue); the others are not read. A copy of a run indexed at a file that is still there
+    is not indexed (its run id is the other file's). Returns the (file, reason) of those not indexed."""
     from sqlalchemy import select
 
     known = set(cat.column(select(cat.runs.c.file))) if datasets else set()
@@ -344,6 +345,10 @@ def refresh(cat: Catalog, datasets) -> list[tuple[str, str]]:
             bad.append((str(path), type(exc).__name__))
             continue
         row["file"] = cat.stored(path)
+        held = cat.column(select(cat.runs.c.file).where(cat.runs.c.run_id == row["run_id"]))
+        if held and cat.located(held[0]).exists() and held[0] != row["file"]:
+            bad.append((str(path), f"a copy: run id {row['run_id']} is {cat.located(held[0])}'s"))
+            continue
         batch.append((row, md))
     cat.write(batch)
     return bad
@@ -441,7 +446,8 @@ def listing(folder=".", where=None, since=None, columns=None, url=None, limit=No
         for path, why in bad:
             rows.append({**{c: None for c in RUN_COLUMNS}, "run_id": f"unreadable:{path}", "file": str(path),
                          "specimen": "?", "protocol": "?", "backend": "?", "model": "-", "samples": 0,
-                         "duration_s": 0.0, "status": f"unreadable ({why})", "file_state": "unreadable"})
+                         "duration_s": 0.0, "file_state": "not indexed",
+                         "status": f"{'not indexed' if why.startswith('a copy') else 'unreadable'} ({why})"})
         total += len(bad)
     more, md_more, shown = _journals(journals, where, since, limit)
     for r in more:

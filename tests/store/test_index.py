@@ -178,6 +178,19 @@ def test_a_file_edited_or_deleted_after_indexing_is_reported(tmp_path, capsys):
     assert run_cli(cli, ["catalog", "check", str(folder)]) == 0
 
 
+def test_a_copy_of_a_run_is_listed_once_and_not_indexed(tmp_path):
+    import shutil
+
+    out = journal_run(tmp_path / "a.nc", "a")
+    index.index_run(out)
+    shutil.copy(out, tmp_path / "b.nc")  # a backup beside it: same run id
+    for _ in range(2):  # stable: the copy never takes the run's row
+        table = catalog(tmp_path).set_index("file")
+        assert table.loc[str(out), "file_state"] == "ok"
+        assert table.loc[str(tmp_path / "b.nc"), "status"].startswith("not indexed (a copy: run id a is ")
+    assert index.rebuild(tmp_path).duplicates == (str(tmp_path / "b.nc"),)
+
+
 def index_listing():
     from rdea_lab.store import listing
 
