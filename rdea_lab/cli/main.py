@@ -24,6 +24,8 @@ COMMANDS = {
     "calibrate": ("rdea_lab.cli.calibrate", "calibrate",
                   "Fit the Yeoh and viscoelastic parameters to measured runs (Nelder-Mead, or least squares)."),
     "campaign": ("rdea_lab.cli.runs", "campaign", "Run a whole campaign of experiments (campaigns/*.yaml)."),
+    "catalog": ("rdea_lab.cli.catalog", "catalog",
+                "The catalogue index of runs: rebuild it from the files, check it against them."),
     "curve": ("rdea_lab.cli.card", "curve", "Quasi-static stress and force against stretch at fixed voltages."),
     "design": ("rdea_lab.cli.design", "design", "Evaluate a design study: roll geometry, bias and operating point "
                "against objectives and constraints."),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import os
 import shlex
 import sys
 from pathlib import Path
@@ -198,32 +199,71 @@ def recover(paths, out_path):
         sys.exit(LIVE_LEFT_ALONE)
 
 
+CATALOG_HELP = ("The catalogue: a SQLite file or postgresql://USER@HOST[:PORT]/DATABASE [default: env "
+                "RDEA_LAB_CATALOG, else rdea-lab-catalog.sqlite at or above FOLDER].")
+
+
 @click.command(name="ls", epilog=EXIT_HELP)
-@click.argument("folder", default="datasets", type=click.Path(file_okay=False))
-def ls_(folder):
+@click.argument("folder", required=False, type=click.Path(file_okay=False))
+@click.option("--where", metavar="QUERY", help="Only the runs the query selects, e.g. \"specimen == 'specimen-2' and "
+              "status == 'complete' and md.batch == 'B7'\" (docs/guide/catalogue.md).")
+@click.option("--since", metavar="DATE", help="Only runs created at or after DATE (ISO 8601, UTC), e.g. 2026-03-01.")
+@click.option("--columns", metavar="A,B,md.X", help="The columns to show (e.g. file,status,peak_force,md.batch).")
+@click.option("--catalog", "catalog_url", metavar="URL", help=CATALOG_HELP)
+@click.option("--limit", type=click.IntRange(1), metavar="N", help="At most N runs (by file).")
+def ls_(folder, where, since, columns, catalog_url, limit):
     """A table of the runs below FOLDER, from their attributes (with the user's metadata).
 
+    The catalogue index answers (a run's row is written when it ends); a file
+    changed or gone since it was indexed is marked so, not trusted (rdea-lab
+    catalog rebuild FOLDER re-reads them). FOLDER defaults to datasets/, or, with
+    --catalog (or RDEA_LAB_CATALOG), to every run of that catalogue.
+
     \b
-    Example:
+    Examples:
       rdea-lab ls datasets/
+      rdea-lab ls datasets/ --where "status == 'complete' and md.batch == 'B7'" --since 2026-03-01
+      rdea-lab ls --catalog postgresql://lab@dbhost/rdea --columns file,host,status,peak_force
     """
-    if not Path(folder).is_dir():
+    if folder is None and not (catalog_url or os.environ.get("RDEA_LAB_CATALOG", "").strip()):
+        folder = "datasets"
+    if folder is not None and not Path(folder).is_dir():
         die(f"{folder}: no such folder")
-    table = api.catalog(Path(folder))
+    table = api.catalog(Path(folder) if folder is not None else None, where=where, since=since,
+                        columns=columns.split(",") if columns is not None else None, catalog=catalog_url, limit=limit)
     if table.empty:
-        click.echo(f"no runs below {folder}")
+        click.echo(f"no runs below {folder}" if folder is not None else "no runs in the catalogue"
+                   + (" match" if where or since else ""))
         return
-    head = ["file", "specimen", "protocol", "backend", "model", "status", "duration", "samples"]
-    rows = [[r.file, r.specimen, r.protocol, r.backend, r.model, r.status, f"{r.duration_s:.1f} s", str(r.samples)]
-            for r in table.itertuples()]
-    if table["metadata"].astype(bool).any():
-        head.append("metadata")
-        for row, md in zip(rows, table["metadata"]):
-            row.append(md)
+    if columns is not None:
+        head = list(table.columns)
+        rows = [[_cell(v) for v in r] for r in table.itertuples(index=False)]
+    else:
+        head = ["file", "specimen", "protocol", "backend", "model", "status", "duration", "samples"]
+        rows = [[r.file, r.specimen, r.protocol, r.backend, r.model, _status(r.status, r.file_state),
+                 f"{r.duration_s:.1f} s", str(r.samples)] for r in table.itertuples()]
+        if table["metadata"].astype(bool).any():
+            head.append("metadata")
+            for row, md in zip(rows, table["metadata"]):
+                row.append(md)
     widths = [max(len(h), *(len(row[i]) for row in rows)) for i, h in enumerate(head)]
     click.echo("  ".join(h.ljust(w) for h, w in zip(head, widths)).rstrip())
     for row in rows:
         click.echo("  ".join(c.ljust(w) for c, w in zip(row, widths)).rstrip())
+    total = table.attrs.get("total", len(table))
+    if total > len(table):
+        click.echo(f"({len(table)} of {total} runs: --limit {limit})")
+
+
+def _status(status, state) -> str:
+    """A run's status as ls shows it: with the file's state when it is not as indexed."""
+    return f"{status} (file {state})" if state in ("changed since indexed", "missing") else status
+
+
+def _cell(value) -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    return "" if value is None else str(value)
 
 
 @click.command(epilog=EXIT_HELP)

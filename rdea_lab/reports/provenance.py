@@ -23,7 +23,7 @@ from ..calibration.envelope import Envelope, envelope
 from ..calibration.objective import file_hash, load_run
 from ..specs import SpecError
 from ..specs.record import CalibrationRecord
-from ..store.schema import is_emulated
+from ..store.schema import origin_kind
 
 CALIBRATION_RUN = "calibration run"
 HELD_OUT = "held out (same specimen)"
@@ -84,26 +84,26 @@ def run_origin(attrs) -> dict:
         phrase: the source file and credit, the truth, the model, or the rig), ``source_file``,
         ``source_credit`` and ``truth`` (``""`` where the file gives none).
     """
-    backend = str(attrs.get("backend", ""))
+    kind = origin_kind(attrs)
     out = {"source_credit": str(attrs.get("source_credit", "") or ""),
            "source_file": str(attrs.get("source_file", "") or ""), "truth": ""}
-    if backend == "import":
+    if kind == "import":
         sha, credit = str(attrs.get("source_sha256", "")), out["source_credit"]
         detail = (f"imported from {out['source_file'] or '?'} ({attrs.get('source_format', '?')}"
                   + (f", sha256 {sha[:12]}" if sha else "") + "); "
                   + (f"credit: {credit}" if credit else "no credit in the file"))
         return {**out, "origin": "import", "origin_detail": detail}
-    if is_emulated(attrs):
+    if kind == "emulator":
         out["truth"] = truth_name(str(attrs.get("emulator_truth", ""))) or "unnamed truth"
         return {**out, "origin": "emulator", "origin_detail": f"rdea-lab rig emulator, truth {out['truth']}"}
-    if backend == "twin":
+    if kind == "twin":
         return {**out, "origin": "twin", "origin_detail": f"twin simulation, model {attrs.get('model', '?')}, "
                                                           f"parameters {attrs.get('parameters_name', '?')}"}
-    if backend == "rig":
+    if kind == "rig":
         idn = str(attrs.get("rig_idn", "") or "")
         return {**out, "origin": "rig",
                 "origin_detail": "physical rig" + (f" ({idn})" if idn else " (not marked as emulated)")}
-    return {**out, "origin": "unknown", "origin_detail": f"backend {backend or 'not given'}"}
+    return {**out, "origin": "unknown", "origin_detail": f"backend {attrs.get('backend', '') or 'not given'}"}
 
 
 def data_origin(provenance: list[dict]) -> str:

@@ -275,8 +275,17 @@ def run_protocol(protocol, specimen, backend=None, *, out=None, overwrite=False,
     return ds
 
 
-def execute_setup(setup: RunSetup, *, callbacks=(), metadata=None, command=""):
-    """Execute a prepared run (`prepare_run`); returns the engine's `RunResult`."""
+def execute_setup(setup: RunSetup, *, callbacks=(), metadata=None, command="", catalog=None):
+    """Execute a prepared run (`prepare_run`); returns the engine's `RunResult`.
+
+    The dataset written, its row goes into the catalogue (``catalog``, a URL; default
+    `~rdea_lab.store.index.resolve_catalog` of its folder); a catalogue that cannot be written leaves the run
+    unindexed, says so in one line on stderr (`~rdea_lab.store.index.index_quietly`) and changes nothing else.
+    """
     with setup.opened() as executor:
-        return execute(setup.checked, setup.card, executor, setup.out, seed=setup.seed, command=command,
-                       callbacks=callbacks, metadata=metadata)
+        result = execute(setup.checked, setup.card, executor, setup.out, seed=setup.seed, command=command,
+                         callbacks=callbacks, metadata=metadata)
+    from ..store.index import index_quietly
+
+    index_quietly(result.path, catalog)
+    return result

@@ -134,6 +134,7 @@ def run_campaign(spec, root: Path | None = None, *, out_dir=None, overwrite=Fals
         root = folder if root is None else root
     root = Path(spec.folder if root is None else root)
     runs, seeds, metadata = _checked(spec, root, out_dir, overwrite, metadata, runs)
+    catalog = campaign_catalog(runs)
     results = []
 
     def record(result):
@@ -146,7 +147,8 @@ def run_campaign(spec, root: Path | None = None, *, out_dir=None, overwrite=Fals
         twin = Twin(load_params(root / spec.params if spec.params else DEFAULT_PARAMS), spec.model, realtime=realtime)
         for run in runs:
             setup = prepare_run(run.checked, run.card, twin, out=run.out, seed=seeds[id(run)])
-            if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
+            if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command,
+                                        catalog=catalog)):
                 break
         return results
     truth = campaign_truth(spec, root)
@@ -156,7 +158,8 @@ def run_campaign(spec, root: Path | None = None, *, out_dir=None, overwrite=Fals
             for run in mine:
                 rig = Rig(address, timeout=EMULATOR_REPLY_TIMEOUT)
                 setup = prepare_run(run.checked, run.card, rig, out=run.out, seed=seeds[id(run)])
-                if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)):
+                if not record(execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command,
+                                            catalog=catalog)):
                     return results
     return results
 
@@ -169,6 +172,15 @@ def _checked(spec, root, out_dir, overwrite, metadata, runs=None):
     spec.check_run_seeds([r.name for r in runs])
     check_outputs([r.out for r in runs], overwrite, names=[r.name for r in runs])
     return runs, {id(r): spec.seed + i for i, r in enumerate(runs)}, metadata  # each run its own noise
+
+
+def campaign_catalog(runs) -> str | None:
+    """The catalogue of a campaign's runs: the one at or above the folder holding them all (by default a
+    new ``rdea-lab-catalog.sqlite`` there, not one per specimen folder); None for no runs."""
+    from ..store.index import resolve_catalog
+
+    outs = [os.path.abspath(Path(r.out).parent.parent) for r in runs]
+    return resolve_catalog(os.path.commonpath(outs)) if outs else None
 
 
 def campaign_truth(spec, root: Path):
@@ -198,19 +210,20 @@ def submit_campaign(spec, root: Path, executor, *, out_dir=None, overwrite=False
     options = ({"params": load_params(root / spec.params if spec.params else DEFAULT_PARAMS), "model": spec.model}
                if spec.backend == "twin" else {"truth": campaign_truth(spec, root)})
     order = sorted(runs, key=lambda r: not first(r)) if first is not None else runs
+    options["catalog"] = campaign_catalog(runs)  # one catalogue for every worker (SQLite's WAL lets them write)
     futures = {id(r): executor.submit(run_experiment, spec.backend, r, seeds[id(r)], metadata=metadata,
                                       command=command, **options) for r in order}
     return [(r, futures[id(r)]) for r in runs]
 
 
 def run_experiment(backend: str, run: Experiment, seed: int, *, truth=None, params=None, model="auto",
-                   metadata=None, command="rdea-lab campaign run", callbacks=()) -> RunResult:
+                   metadata=None, command="rdea-lab campaign run", callbacks=(), catalog=None) -> RunResult:
     """One experiment of a campaign by itself: on the twin (``params``, ``model``), or on a built-in emulated
     rig of its own (``truth``), started for this run and stopped after it. What a task of
     `submit_campaign` runs; returns the engine's `RunResult`."""
     if backend == "twin":
         setup = prepare_run(run.checked, run.card, Twin(params, model), out=run.out, seed=seed)
-        return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)
+        return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command, catalog=catalog)
     with emulated_rig(run.card, truth) as address:
         setup = prepare_run(run.checked, run.card, Rig(address, timeout=EMULATOR_REPLY_TIMEOUT), out=run.out, seed=seed)
-        return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)
+        return execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command, catalog=catalog)

@@ -11,8 +11,7 @@ import xarray as xr
 
 from ..specs import SpecError
 from ..specs.errors import show
-from .journal import FORMAT, journal_writer
-from .schema import REQUIRED_ATTRS, is_emulated
+from .schema import REQUIRED_ATTRS
 
 #: Attributes rdea-lab writes as numbers: name -> (what, numpy kinds allowed); every other attribute of
 #: `REQUIRED_ATTRS` is a text string (and those of `TEXT_ATTRS` when present).
@@ -78,24 +77,6 @@ def open_run(path: Path) -> xr.Dataset:
         return ds.load()
 
 
-def _journal_row(folder: Path) -> dict:
-    header = json.loads((folder / "header.json").read_text())
-    if header.get("format") != FORMAT:
-        raise ValueError("not a journal")
-    a = header["attrs"]
-    size = (folder / "samples.f8").stat().st_size if (folder / "samples.f8").exists() else 0
-    n = size // (8 * len(header["columns"]))
-    rate = float(a.get("sample_rate", 0.0)) or float("nan")
-    writer = journal_writer(folder)
-    status = (f"running (pid {writer.get('pid', '?')} on {writer.get('host', '?')})" if writer is not None
-              else "unfinished (rdea-lab recover)")
-    return {"file": str(folder), "specimen": a.get("specimen_id", "?"), "protocol": a.get("protocol_name", "?"),
-            "backend": a.get("backend", "?"), "model": a.get("model", "-"),
-            "status": status, "duration_s": (n - 1) / rate if n else 0.0,
-            "samples": int(n), "created": a.get("created", "?"), "metadata": metadata_text(user_metadata(a)),
-            "_md": user_metadata(a)}
-
-
 def user_metadata(attrs) -> dict:
     """The user's metadata of a run (its ``metadata`` attribute, JSON), {} if none or unreadable."""
     try:
@@ -109,60 +90,52 @@ def metadata_text(metadata: dict) -> str:
     return "; ".join(f"{k}={v}" for k, v in metadata.items())
 
 
-COLUMNS = ["file", "specimen", "protocol", "backend", "model", "status", "duration_s", "samples", "created",
-           "metadata"]
-
-
-def catalog(folder: Path) -> pd.DataFrame:
+def catalog(folder=".", where=None, since=None, columns=None, catalog=None, limit=None) -> pd.DataFrame:
     """One row per run below ``folder`` (datasets ``*.nc`` and unfinished journals), as a DataFrame.
+
+    The catalogue index (`rdea_lab.store.index`) answers; a dataset below ``folder`` that it does not hold yet (a
+    folder never listed, a file copied in) is indexed first, the others are only stat-ed: one whose size
+    or mtime differs from the indexed ones is marked ``changed since indexed``, one gone ``missing``
+    (column ``file_state``; ``rdea-lab catalog rebuild`` re-reads them). Unfinished journals are found by
+    scanning ``folder``.
 
     Parameters
     ----------
-    folder : str or path-like
+    folder : str or path-like, optional
         Searched recursively; a ``*.nc`` file that cannot be read is listed with the status
-        ``unreadable (<error>)``.
+        ``unreadable (<error>)``. None: every run of the catalogue (``catalog`` or ``RDEA_LAB_CATALOG``),
+        no folder scanned.
+    where : str, optional
+        A query, e.g. ``"specimen == 'specimen-2' and status == 'complete' and md.batch == 'B7'"``
+        (`rdea_lab.store.query`).
+    since : str or datetime, optional
+        Only runs created at or after this (ISO 8601 date or date-time, UTC unless an offset is given).
+    columns : sequence of str, optional
+        The columns to return (`rdea_lab.store.index.RUN_COLUMNS`, ``metadata``, ``file_state``,
+        ``md.<key>``) instead of the default ones.
+    catalog : str, optional
+        The catalogue's URL (a SQLite file or ``postgresql://...``); default `~rdea_lab.store.index.resolve_catalog`.
+    limit : int, optional
+        At most this many runs (by file); ``table.attrs["total"]`` says how many matched.
 
     Returns
     -------
     pandas.DataFrame
         Columns ``file``, ``specimen``, ``protocol``, ``backend`` (``(emulator)``
         marked), ``model``, ``status``, ``duration_s`` [s], ``samples``,
-        ``created``, ``metadata`` (``key=value; ...``) and one ``md.<key>``
+        ``created``, ``metadata`` (``key=value; ...``), ``file_state`` and one ``md.<key>``
         column per metadata key that any run has: the datasets by path, then the journals by path.
+
+    Raises
+    ------
+    SpecError
+        A bad query (with its position), ``since``, column or catalogue URL.
+    CatalogUnavailable
+        The catalogue cannot be read or written.
     """
-    rows = catalog_rows(folder)
-    keys = list(dict.fromkeys(k for r in rows for k in r.get("_md", {})))
-    table = pd.DataFrame([{**{c: r[c] for c in COLUMNS}, **{f"md.{k}": r.get("_md", {}).get(k, "") for k in keys}}
-                          for r in rows], columns=COLUMNS + [f"md.{k}" for k in keys])
-    return table
+    from .listing import listing
 
-
-def catalog_rows(folder: Path) -> list[dict]:
-    """The rows of `catalog` as dicts (``_md`` holds each run's metadata as a dict)."""
-    folder = Path(folder)
-    rows = []
-    for path in sorted(folder.rglob("*.nc")):
-        try:
-            with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
-                a = ds.attrs
-                t = ds["time"].values if "time" in ds else np.array([])
-                backend = a.get("backend", "?") + (" (emulator)" if is_emulated(a) else "")
-                rows.append({"file": str(path), "specimen": a.get("specimen_id", "?"),
-                             "protocol": a.get("protocol_name", "?"), "backend": backend,
-                             "model": a.get("model", "-"), "status": a.get("status", "?"),
-                             "duration_s": float(t[-1] - t[0]) if t.size else 0.0, "samples": int(t.size),
-                             "created": a.get("created", "?"), "metadata": metadata_text(user_metadata(a)),
-                             "_md": user_metadata(a)})
-        except Exception as exc:  # a foreign or broken file: list it, say why
-            rows.append({"file": str(path), "specimen": "?", "protocol": "?", "backend": "?", "model": "-",
-                         "status": f"unreadable ({type(exc).__name__})", "duration_s": 0.0, "samples": 0,
-                         "created": "?", "metadata": ""})
-    for part in sorted(folder.rglob("*.nc.part")):
-        try:
-            rows.append(_journal_row(part))
-        except Exception:
-            continue
-    return rows
+    return listing(folder, where=where, since=since, columns=columns, url=catalog, limit=limit)
 
 
 def describe_run(ds: xr.Dataset) -> str:

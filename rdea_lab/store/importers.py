@@ -408,6 +408,9 @@ def import_files(paths, card, options: ImportOptions, out=None, overwrite=False,
     """
     targets = output_paths(paths, card.id, out, overwrite)
     done = [(Path(p), target, import_file(p, card, options, command)) for p, target in zip(paths, targets)]
+    from .index import index_quietly
+
     for _, target, ds in done:
         write_dataset(ds, target)
+        index_quietly(target)  # the catalogue row (a warning line, not a failure, if it cannot be written)
     return done

@@ -426,6 +426,9 @@ def recover(path: Path, out: Path | None = None) -> Path:
         shutil.rmtree(folder)
     finally:
         os.close(lock)
+    from .index import index_quietly
+
+    index_quietly(out)  # the catalogue row; a catalogue that cannot be written says so and changes nothing else
     return out
 
 

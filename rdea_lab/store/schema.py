@@ -47,6 +47,17 @@ def is_emulated(attrs) -> bool:
         return False
 
 
+def origin_kind(attrs) -> str:
+    """Where a run's data come from, as its attributes say: ``import``, ``emulator``, ``twin``, ``rig`` or
+    ``unknown`` (the catalogue's ``origin``; `rdea_lab.reports.provenance.run_origin` says more)."""
+    backend = str(attrs.get("backend", ""))
+    if backend == "import":
+        return "import"
+    if is_emulated(attrs):
+        return "emulator"
+    return backend if backend in ("twin", "rig") else "unknown"
+
+
 def portable_path(path) -> str:
     """A path as a shipped file may hold it: a packaged input by its name under ``rdea_lab/data``
     (``protocols/blocking_force.yaml``, which `rdea_lab.paths.resolve` finds again), a path below the
@@ -75,5 +86,5 @@ def portable_command(command: str) -> str:
 
 
 __all__ = ["EXTRA_VARIABLES", "FLAGS", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES", "REFERENCES", "REQUIRED_ATTRS",
-           "STATUSES", "TIME", "TIME_ENCODING", "VARIABLES", "global_attrs", "is_emulated", "portable_command",
-           "portable_path", "time_attrs", "variable_attrs"]
+           "STATUSES", "TIME", "TIME_ENCODING", "VARIABLES", "global_attrs", "is_emulated", "origin_kind",
+           "portable_command", "portable_path", "time_attrs", "variable_attrs"]
