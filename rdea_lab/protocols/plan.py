@@ -13,6 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..physics.selection import envelope, envelope_indices
 from ..specs.errors import SpecError
 from ..specs.protocol import REST, Limits, ProtocolSpec, dump_protocol, load_protocol, rate_text, sample_count
 from ..specs.limits import SLACK as _SLACK, Violations, limit_violations
@@ -209,9 +210,11 @@ class Plan:
         if "_scanned" not in self.__dict__:
             x_lo = x_hi = v_lo = v_hi = None
             x_arg = v_arg = 0
+            finite = True
             x_top = v_top = -np.inf
             for a, w in self.windows():
                 av = np.abs(w.voltage)
+                finite = finite and bool(np.isfinite(w.stretch).all() and np.isfinite(av).all())
                 parts = (w.stretch.min(), w.stretch.max(), w.voltage.min(), w.voltage.max())
                 x_lo, x_hi, v_lo, v_hi = parts if x_lo is None else (
                     min(x_lo, parts[0]), max(x_hi, parts[1]), min(v_lo, parts[2]), max(v_hi, parts[3]))
@@ -222,8 +225,31 @@ class Plan:
                     v_top, v_arg = av[j], a + j
             self.__dict__["_scanned"] = {"stretch_min": float(x_lo), "stretch_max": float(x_hi),
                                          "voltage_min": float(v_lo), "voltage_max": float(v_hi),
-                                         "stretch_argmax": x_arg, "abs_voltage_argmax": v_arg}
+                                         "stretch_argmax": x_arg, "abs_voltage_argmax": v_arg,
+                                         "finite": finite}
         return self.__dict__["_scanned"]
+
+    def envelope(self, max_points: int = 2000) -> tuple[np.ndarray, np.ndarray]:
+        """The (stretch, |voltage|) samples `rdea_lab.physics.selection.envelope` picks from the whole
+        arrays, computed without them: evenly spaced samples and those of largest stretch and |voltage|.
+
+        Parameters
+        ----------
+        max_points : int
+            At most this many samples.
+
+        Returns
+        -------
+        stretch : numpy.ndarray
+            [-].
+        voltage : numpy.ndarray
+            ``|voltage|`` [V].
+        """
+        scan = self._scan()
+        if not scan["finite"]:  # envelope drops non-finite samples first: only the whole arrays say which
+            return envelope(self.stretch, self.voltage, max_points)
+        w = self.at(envelope_indices(self.samples, scan["stretch_argmax"], scan["abs_voltage_argmax"], max_points))
+        return np.asarray(w.stretch, float), np.abs(np.asarray(w.voltage, float))
 
     def summary(self) -> dict:
         """Plain numbers describing the plan (JSON-serializable)."""

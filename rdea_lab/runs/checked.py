@@ -26,9 +26,15 @@ class UncheckedPlan(RuntimeError):
 
 def _fingerprint(plan, card, L3: float) -> str:
     """SHA-256 of what the limit check read: the setpoints, the limits, the card and its L3."""
+    names = ("time", "stretch", "voltage")
+    arrays = {name: hashlib.sha256() for name in names}
+    windows = (w for _, w in plan.windows()) if hasattr(plan, "windows") else (plan,)
+    for w in windows:  # in one pass, window by window: a long plan is never held whole
+        for name in names:
+            arrays[name].update(np.ascontiguousarray(getattr(w, name), dtype="<f8"))
     h = hashlib.sha256()
-    for name in ("time", "stretch", "voltage"):
-        h.update(np.ascontiguousarray(getattr(plan, name), dtype="<f8").tobytes())
+    for name in names:
+        h.update(arrays[name].digest())
         h.update(name.encode())
     dump = getattr(card, "model_dump_json", None)
     for text in (repr(plan.limits), repr(float(plan.sample_rate)), dump() if dump else repr(card), float(L3).hex()):
