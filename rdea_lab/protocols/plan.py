@@ -6,6 +6,7 @@ and checked (`check_plan`) without any backend.
 
 from __future__ import annotations
 
+import json
 import math
 import os
 from dataclasses import dataclass
@@ -158,6 +159,25 @@ class Plan:
 
     def _whole(self, name: str) -> np.ndarray:
         return _readonly(self._render(name, 0, self.samples))
+
+    def held(self) -> dict:
+        """The arrays the plan holds (given to it, or computed and kept since first read), by name."""
+        return {name: self.__dict__["_" + name] for name in _ARRAYS if self.__dict__.get("_" + name) is not None}
+
+    def rendered(self, name: str, size: int = CHUNK):
+        """One array (``time``, ``stretch``, ...) as computed from `spec`, window by window (an array held
+        is not read): yields arrays of at most `size` samples."""
+        if name not in _ARRAYS:
+            raise ValueError(f"{name!r} is not an array of a plan; allowed: {', '.join(_ARRAYS)}")
+        n = self.samples
+        for a in range(0, n, size):
+            yield self._render(name, a, min(a + size, n))
+
+    def definition(self) -> str:
+        """What the arrays not held are computed from, as text: `spec` (JSON, floats exact), the rate [Hz],
+        the duration [s] and the number of samples."""
+        return json.dumps([self.spec.model_dump_json(), float(self.sample_rate).hex(), float(self.duration).hex(),
+                           self.samples])
 
     def window(self, start: int, stop: int) -> PlanWindow:
         """Samples ``start .. stop-1`` of the plan, without computing the others.
