@@ -67,7 +67,8 @@ def one(samples: int, backend: str, fsync: bool, out: Path) -> dict:
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # [MB] (Linux: kB)
     return {"samples": samples, "backend": backend, "fsync": fsync, "prepare_s": round(t1 - t0, 2),
             "loop_s": round(marks["loop"] - t1, 2), "finish_s": round(t2 - marks["loop"], 2),
-            "end_to_end_samples_per_s": round(samples / (t2 - t0)), "loop_samples_per_s": round(samples / (marks["loop"] - t1)),
+            "end_to_end_samples_per_s": round(samples / (t2 - t0)),
+            "loop_samples_per_s": round(samples / (marks["loop"] - t1)),
             "peak_rss_MB": round(rss), "file_MB": round(out.stat().st_size / 1e6, 1)}
 
 

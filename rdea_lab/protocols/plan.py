@@ -164,12 +164,12 @@ class Plan:
         """The arrays the plan holds (given to it, or computed and kept since first read), by name."""
         return {name: self.__dict__["_" + name] for name in _ARRAYS if self.__dict__.get("_" + name) is not None}
 
-    def rendered(self, name: str, size: int = CHUNK):
+    def rendered(self, name: str, size: int | None = None):
         """One array (``time``, ``stretch``, ...) as computed from `spec`, window by window (an array held
-        is not read): yields arrays of at most `size` samples."""
+        is not read): yields arrays of at most `size` samples (default `CHUNK`)."""
         if name not in _ARRAYS:
             raise ValueError(f"{name!r} is not an array of a plan; allowed: {', '.join(_ARRAYS)}")
-        n = self.samples
+        n, size = self.samples, CHUNK if size is None else size
         for a in range(0, n, size):
             yield self._render(name, a, min(a + size, n))
 
@@ -219,9 +219,10 @@ class Plan:
             out.append(held[at] if held is not None else self._render(name, 0, 0, at))
         return PlanWindow(*out)
 
-    def windows(self, size: int = CHUNK):
-        """Consecutive windows of at most `size` samples covering the plan: yields ``(start, PlanWindow)``."""
-        n = self.samples
+    def windows(self, size: int | None = None):
+        """Consecutive windows of at most `size` samples (default `CHUNK`) covering the plan: yields
+        ``(start, PlanWindow)``."""
+        n, size = self.samples, CHUNK if size is None else size
         for a in range(0, n, size):
             yield a, self.window(a, min(a + size, n))
 
@@ -270,6 +271,49 @@ class Plan:
             return envelope(self.stretch, self.voltage, max_points)
         w = self.at(envelope_indices(self.samples, scan["stretch_argmax"], scan["abs_voltage_argmax"], max_points))
         return np.asarray(w.stretch, float), np.abs(np.asarray(w.voltage, float))
+
+    def decimated(self, columns: int = 2000) -> dict:
+        """The setpoints to draw: each channel's smallest and largest sample in each of `columns` runs
+        of consecutive samples, at their own times and in their order, so a spike stays visible; the
+        whole arrays when the plan has at most ``2 columns`` samples. Window by window.
+
+        Parameters
+        ----------
+        columns : int
+            Runs of samples (pixel columns of a figure), >= 1.
+
+        Returns
+        -------
+        dict
+            ``{"stretch": (time [s], stretch [-]), "voltage": (time [s], voltage [V]), "per_column": k}``
+            with ``k`` the samples per run (1: not decimated).
+        """
+        n = self.samples
+        if n <= 2 * columns:
+            w = self.window(0, n)
+            return {"stretch": (w.time, w.stretch), "voltage": (w.time, w.voltage), "per_column": 1}
+        per = -(-n // columns)
+        size = max(per, CHUNK // per * per)
+        picks = {"stretch": [], "voltage": []}
+        for a, w in self.windows(size):
+            whole = w.time.size // per * per
+            for name in picks:
+                values = getattr(w, name)
+                rows = [values[:whole].reshape(-1, per)] if whole else []
+                starts = [np.arange(0, whole, per)] if whole else []
+                if whole < values.size:  # the last, shorter run
+                    rows.append(values[whole:][None, :])
+                    starts.append(np.array([whole]))
+                for r, first in zip(rows, starts):
+                    lo, hi = np.argmin(r, axis=1), np.argmax(r, axis=1)
+                    k = np.sort(np.stack([first + lo, first + hi], axis=1), axis=1).ravel()
+                    picks[name].append(a + k)
+        out = {"per_column": per}
+        for name, parts in picks.items():
+            k = np.concatenate(parts)
+            w = self.at(np.unique(k))
+            out[name] = (w.time, getattr(w, name))
+        return out
 
     def summary(self) -> dict:
         """Plain numbers describing the plan (JSON-serializable)."""
