@@ -79,7 +79,8 @@ def one(samples: int, backend: str, fsync: bool, out: Path, finish: bool = True)
             "loop_s": round(marks["loop"] - t1, 2), "finish_s": round(t2 - marks["loop"], 2),
             "end_to_end_samples_per_s": round(samples / (t2 - t0)),
             "loop_samples_per_s": round(samples / (marks["loop"] - t1)),
-            "loop_peak_rss_MB": round(marks["loop_rss"]), "peak_rss_MB": round(rss), "file_MB": round(out.stat().st_size / 1e6, 1)}
+            "loop_peak_rss_MB": round(marks["loop_rss"]), "peak_rss_MB": round(rss),
+            "file_MB": round(out.stat().st_size / 1e6, 1)}
 
 
 class _NoFsync:

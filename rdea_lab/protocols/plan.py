@@ -226,14 +226,20 @@ class Plan:
         for a in range(0, n, size):
             yield a, self.window(a, min(a + size, n))
 
-    def _scan(self) -> dict:
-        """Extremes of the setpoints over the whole plan, window by window (kept)."""
+    def _scan(self, also=None) -> dict:
+        """Extremes of the setpoints over the whole plan, window by window (kept); ``also(start, window)``
+        is called with each window on the way (one pass for the check and the extremes)."""
+        if "_scanned" in self.__dict__ and also is not None:
+            for a, w in self.windows():
+                also(a, w)
         if "_scanned" not in self.__dict__:
             x_lo = x_hi = v_lo = v_hi = None
             x_arg = v_arg = 0
             finite = True
             x_top = v_top = -np.inf
             for a, w in self.windows():
+                if also is not None:
+                    also(a, w)
                 av = np.abs(w.voltage)
                 finite = finite and bool(np.isfinite(w.stretch).all() and np.isfinite(av).all())
                 parts = (w.stretch.min(), w.stretch.max(), w.voltage.min(), w.voltage.max())
@@ -452,8 +458,15 @@ def check_plan(plan: Plan, L3: float | None = None) -> list[SpecError]:
     """
     if hasattr(plan, "windows"):  # window by window: a long plan is never held whole
         found = Violations(plan.limits, plan.source, L3)
-        for _, w in plan.windows():
+
+        def add(_, w):
             found.add(w.time, w.stretch, w.voltage, w.stretch_segment, w.voltage_segment)
+
+        if isinstance(plan, Plan):  # the plan's extremes (summary, envelope) in the same pass
+            plan._scan(also=add)
+        else:
+            for a, w in plan.windows():
+                add(a, w)
         problems = found.errors()
     else:  # a plan-like object with whole arrays
         problems = limit_violations(plan.limits, plan.source, plan.time, plan.stretch, plan.voltage, L3,

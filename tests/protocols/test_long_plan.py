@@ -187,8 +187,8 @@ def _expanded_summarized_checked(samples):
 
 
 def test_a_long_plan_is_expanded_summarized_and_checked_in_bounded_memory(monkeypatch):
-    """2e6 samples (64 MB as whole arrays) in windows of 65536 samples: the peak is a few windows'."""
-    monkeypatch.setattr(plan_module, "CHUNK", 1 << 16)
+    """2e6 samples (64 MB as whole arrays) in windows of 32768 samples: the peak is a few windows'."""
+    monkeypatch.setattr(plan_module, "CHUNK", 1 << 15)
     whole_bytes = 2_000_000 * (3 * 8 + 2 * 4)
     assert _expanded_summarized_checked(2_000_000) < whole_bytes / 10
 
