@@ -176,10 +176,14 @@ def _finish(fig, path, created: bool, tight: bool = True):
     return fig
 
 
+#: A plan of more samples than this is drawn decimated (min/max per column); a shorter one whole, as it is.
+PLAN_DRAWN_WHOLE = 200_000
+
+
 def _plan_series(plan) -> dict:
     """The setpoints to draw: a long plan's min/max per pixel column (`rdea_lab.protocols.Plan.decimated`,
     window by window), a short one's (or a plan-like object's) whole arrays."""
-    if hasattr(plan, "decimated"):
+    if hasattr(plan, "decimated") and plan.samples > PLAN_DRAWN_WHOLE:
         return plan.decimated()
     return {"stretch": (plan.time, plan.stretch), "voltage": (plan.time, plan.voltage), "per_column": 1}
 
@@ -205,8 +209,9 @@ def plot_plan(plan, path=None, *, ax=None):
     ----------
     plan : Plan
         An expanded protocol (:func:`rdea_lab.protocols.load_plan`): ``time`` [s],
-        ``stretch`` [-], ``voltage`` [V]. A long one is drawn as the min and max of its samples in each
-        of 2000 runs (`rdea_lab.protocols.Plan.decimated`, said in the title), never held whole.
+        ``stretch`` [-], ``voltage`` [V]. One of more than `PLAN_DRAWN_WHOLE` samples is drawn as the min
+        and max of its samples in each of 2000 runs (`rdea_lab.protocols.Plan.decimated`, said in the
+        title), never held whole.
     path : str or path-like, optional
         Save the figure there as PNG (dpi 200). A figure made here is then
         closed (it is still returned).
