@@ -494,4 +494,4 @@ def first_violation(plan: Plan, L3: float | None = None) -> None:
         raise problems[0]
 
 
-__all__ = ["Plan", "as_plan", "check_plan", "expand", "first_violation", "load_plan"]
+__all__ = ["CHUNK", "Plan", "PlanWindow", "as_plan", "check_plan", "expand", "first_violation", "load_plan"]
