@@ -127,16 +127,24 @@ class RigBackend:
                 raise RigRefused(f"rig {self.address} refused {command.split()[0]}: {message}")
             raise BackendFailure(f"rig {self.address}: {command.split()[0]} failed: {message}")
 
-    def _upload(self, command: str, values: np.ndarray) -> None:
+    def _upload(self, command: str, windows, n: int, crc: int) -> int:
+        """Send a trajectory of `n` setpoints as one binary block, window by window (the plan is never held
+        whole: the block's bytes go out as they are computed); returns `crc` continued over them."""
+        size = 8 * n
         try:
-            self._inst.write_binary_values(command + " ", np.asarray(values, "<f8"), datatype="d",
-                                           is_big_endian=False)
+            self._inst.write_raw(f"{command} #{len(str(size))}{size}".encode("ascii"))
+            for values in windows:
+                values = np.ascontiguousarray(values, "<f8")
+                crc = wire.checksum_more(crc, values)
+                self._inst.write_raw(values.tobytes())
+            self._inst.write_raw(b"\n")
             reply = self._inst.read().strip()
         except Exception as exc:
             raise ConnectionLost(f"connection to the rig {self.address} lost during upload "
                                  f"({type(exc).__name__})") from None
         if reply != "OK":
             raise RigRefused(f"rig {self.address} refused {command}: {_error_text(reply)}")
+        return crc
 
     def _authenticate(self) -> None:
         """With a token: the challenge-response of docs/rig-protocol.md (``SYST:AUTH?`` gives a nonce, the
@@ -236,13 +244,14 @@ class RigBackend:
                               ("CONF:LENG", geom.L1), ("CONF:THIC", geom.L3), ("CONF:SEED", self.seed),
                               *zip(wire.LIMITS, limits)):
             self._command(wire.line(header, value))
-        self._upload("TRAJ:STR", plan.stretch)
-        self._upload("TRAJ:VOLT", plan.voltage)
+        crc = wire.checksum_head(plan.sample_rate, limits, geom.L3)
+        for name in ("stretch", "voltage"):  # streamed window by window; the rig holds both (one block each)
+            crc = self._upload(_TRAJECTORY[name], _setpoints(plan, name), plan.samples, crc)
         reply = self._query("ARM")
         if reply != "OK" and not reply.startswith("OK,"):
             raise RigRefused(f"rig {self.address} refused ARM: {_error_text(reply)}")
         if reply.startswith("OK,"):  # the rig says what it armed: it must be what was sent
-            ours = wire.armed_checksum(plan.sample_rate, limits, geom.L3, plan.stretch, plan.voltage)
+            ours = f"{crc:08x}"
             if reply[3:].strip().lower() != ours:
                 self._query("ABOR")
                 raise RigRefused(f"rig {self.address} armed something else than was sent (checksum "
@@ -331,6 +340,15 @@ class RigBackend:
         except Exception:
             pass
         self._inst = self._rm = None
+
+
+_TRAJECTORY = {"stretch": "TRAJ:STR", "voltage": "TRAJ:VOLT"}
+
+
+def _setpoints(plan, name: str):
+    """One channel of a plan, window by window (a plan-like object without windows: its whole array)."""
+    held = plan.held() if hasattr(plan, "held") else {name: getattr(plan, name)}
+    return (held[name],) if name in held else plan.rendered(name)
 
 
 def _loopback(host: str) -> bool:

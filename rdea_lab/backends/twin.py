@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import time as _time
 
 import numpy as np
@@ -12,6 +13,44 @@ from ..physics.models import three_ring
 from ..physics.selection import select_model
 from ..specs import as_params, as_specimen, dump_params
 from ..twin.simulate import TwinStream, as_geometry
+
+
+#: Most samples the twin computes in one vectorized step (several blocks, handed out one by one) [samples].
+STEP_SAMPLES = 16384
+#: ... and at most this many periods of the plan's fastest oscillation in one step: the path solver sends a
+#: step with many uncertified stretches of samples to its serial reference whole (`MAX_FALLBACK_RUNS`).
+STEP_CYCLES = 16
+
+
+def fastest_frequency(plan) -> float:
+    """The highest frequency in a plan's segments and probe [Hz] (0 for ramps and holds only): a table of
+    ``m`` values over ``T`` counts as ``(m - 1) / T``."""
+    spec = getattr(plan, "spec", None)
+    if spec is None:
+        return math.inf  # a plan-like object: no segments to read
+    top = spec.probe.frequency if spec.probe is not None else 0.0
+    for segment in (*spec.stretch, *spec.voltage):
+        if segment.kind == "table":
+            top = max(top, (len(segment.values) - 1) / segment.duration)
+        for key in ("frequency", "f_start", "f_end"):
+            top = max(top, getattr(segment, key, None) or 0.0)
+    return top
+
+
+def blocks_per_step(plan, block: int) -> int:
+    """How many blocks of `block` samples the twin computes at once: as many as fit `STEP_SAMPLES` samples
+    and `STEP_CYCLES` periods of the plan's `fastest_frequency`, at least one. The same plan is always
+    stepped the same way, so a run is reproducible bit for bit."""
+    f = fastest_frequency(plan)
+    most = STEP_SAMPLES if f == 0.0 else min(STEP_SAMPLES, STEP_CYCLES * plan.sample_rate / f)
+    return max(1, int(most // block))
+
+
+class _Window:
+    """`rdea_lab.protocols.PlanWindow` of a plan-like object that has whole arrays but no ``window``."""
+
+    def __init__(self, plan, a, b):
+        self.time, self.stretch, self.voltage = plan.time[a:b], plan.stretch[a:b], plan.voltage[a:b]
 
 
 class TwinBackend:
@@ -31,7 +70,10 @@ class TwinBackend:
     block_seconds : float, optional
         Samples per block, in seconds of run time; at most 1 s, which keeps
         the journal's at-most-a-second-lost promise. Default 1 s, or 0.25 s
-        with ``realtime`` (a smoother progress display).
+        with ``realtime`` (a smoother progress display). Without ``realtime``
+        several blocks are computed in one step (`blocks_per_step`) and handed
+        out one by one; the plan is read in windows (`rdea_lab.protocols.Plan.window`),
+        never whole.
     seed : int
         Recorded; the twin itself is deterministic.
     geometry : RollGeometry or StripGeometry, optional
@@ -69,12 +111,16 @@ class TwinBackend:
         if self.model == "3r":
             three_ring.check_applicable(self.geom)  # refuse before anything is written
         self._plan = plan
-        if self.requested == "auto":
-            self.choice = select_model(self.geom, self.params, plan.stretch, plan.voltage, self.tolerance)
+        if self.requested == "auto":  # over the plan's envelope: a long plan is not held for it
+            lam, v = plan.envelope() if hasattr(plan, "envelope") else (plan.stretch, plan.voltage)
+            self.choice = select_model(self.geom, self.params, lam, v, self.tolerance)
             self.model = self.choice.model
         self._stream = TwinStream(self.geom, self.params, self.model)
         self._charge = (0.0, 0.0)  # (C v, v) before the first sample: no charge at 0 V
-        self._blocks = iter(plan.block_slices(self.block_seconds))
+        slices = plan.block_slices(self.block_seconds)
+        per = 1 if self.realtime else blocks_per_step(plan, slices[0].stop - slices[0].start)
+        self._steps = iter([slices[i:i + per] for i in range(0, len(slices), per)])
+        self._blocks = iter(())
         self._t0 = self._clock()
 
     def attrs(self) -> dict:
@@ -88,32 +134,39 @@ class TwinBackend:
         return out
 
     def read_block(self):
-        if self.aborted is not None:
+        if self.aborted is not None or self._blocks is None:
             return None
-        sl = next(self._blocks, None)
-        if sl is None:
-            return None
-        plan = self._plan
-        t = plan.time[sl]
-        stretch = plan.stretch[sl]
-        voltage = plan.voltage[sl]
+        block = next(self._blocks, None)
+        if block is None:
+            step = next(self._steps, None)
+            if step is None:
+                return None
+            self._blocks = self._compute(step)
+            block = next(self._blocks)
         if self.realtime:
-            wait = (t[-1] - plan.time[0]) - (self._clock() - self._t0)
+            wait = float(block["time"][-1]) - (self._clock() - self._t0)  # the plan starts at t = 0
             if wait > 0:
                 self._sleep(wait)
-        out = self._stream.step(t, stretch, voltage)
+        return block
+
+    def _compute(self, slices):
+        """The blocks of consecutive `slices`, computed in one vectorized step and handed out as views."""
+        plan = self._plan
+        a, b = slices[0].start, slices[-1].stop
+        w = plan.window(a, b) if hasattr(plan, "window") else _Window(plan, a, b)
+        t, stretch, voltage = w.time, w.stretch, w.voltage
+        out = self._stream.step(t, stretch, voltage, summary=False)
         capacitance = out["capacitance"] if "capacitance" in plan.measure else np.full(t.size, np.nan)
-        extra = {}
+        data = {"time": t, "stretch": stretch, "position": (stretch - 1.0) * self.geom.L1, "voltage": voltage,
+                "force": out["force"], "capacitance": capacitance,
+                "stretch_setpoint": stretch, "voltage_setpoint": voltage, "model_status": out["model_status"]}
         if "current" in plan.measure:  # an ideal current monitor: the charge change per interval, no leakage
             q = out["capacitance"] * voltage
-            extra["current"] = np.diff(q, prepend=self._charge[0]) * plan.sample_rate
+            data = {"current": np.diff(q, prepend=self._charge[0]) * plan.sample_rate, **data}
             self._charge = (float(q[-1]), float(voltage[-1]))
-        return {**extra,
-            "time": t, "stretch": stretch, "position": (stretch - 1.0) * self.geom.L1, "voltage": voltage,
-            "force": out["force"], "capacitance": capacitance,
-            "stretch_setpoint": stretch, "voltage_setpoint": voltage,
-            "model_status": out["model_status"],
-        }
+        for sl in slices:
+            i, j = sl.start - a, sl.stop - a
+            yield {name: values[i:j] for name, values in data.items()}
 
     def abort(self, reason):
         self.aborted = reason  # the twin drives no hardware: nothing to switch off

@@ -65,16 +65,25 @@ class ModelChoice:
                 "samples": self.samples, "reason": self.reason}
 
 
+def envelope_indices(n: int, largest_stretch: int, largest_voltage: int, max_points=2000) -> np.ndarray:
+    """The samples `envelope` keeps of ``n`` (finite) ones: ``max_points - 2`` evenly spaced and the two
+    given (the first sample of largest stretch, of largest |voltage|), increasing, without repeats; all
+    of them when ``n <= max_points``."""
+    if n <= max_points:
+        return np.arange(n)
+    return np.unique(np.concatenate([np.linspace(0, n - 1, max_points - 2).astype(int),
+                                     [largest_stretch, largest_voltage]]))
+
+
 def envelope(stretch, voltage, max_points=2000):
     """At most ``max_points`` (stretch, voltage) pairs covering a run: evenly spaced
-    samples plus the samples of largest stretch and largest |voltage|."""
+    samples plus the samples of largest stretch and largest |voltage| (`envelope_indices`)."""
     lam = np.asarray(stretch, float).ravel()
     v = np.abs(np.asarray(voltage, float).ravel())
     ok = np.isfinite(lam) & np.isfinite(v)
     lam, v = lam[ok], v[ok]
     if lam.size > max_points:
-        pick = np.unique(np.concatenate([np.linspace(0, lam.size - 1, max_points - 2).astype(int),
-                                         [np.argmax(lam), np.argmax(v)]]))
+        pick = envelope_indices(lam.size, int(np.argmax(lam)), int(np.argmax(v)), max_points)
         lam, v = lam[pick], v[pick]
     return lam, v
 

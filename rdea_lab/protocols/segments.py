@@ -8,6 +8,8 @@ Evaluation is vectorized over ``t``; `render` loops over segments only.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..specs.protocol import REST, format_angle
@@ -101,8 +103,27 @@ def first_samples(durations, sample_rate: float, n: int) -> np.ndarray:
     return np.clip(np.ceil(starts), 0, n).astype(np.int64)
 
 
-def render(channel: str, segments, sample_rate: float, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Sample one channel at ``t_k = k / rate``, ``k = 0 .. n-1``.
+class Layout(NamedTuple):
+    """Where a channel's segments lie in its samples (`layout`).
+
+    Attributes
+    ----------
+    lo, hi : numpy.ndarray of int64
+        First sample of each segment, and one past its last.
+    begin : tuple of float
+        Each segment's start time [s] (the running sum of the durations before it).
+    previous : tuple of float
+        The value each segment starts from (the previous segment's end value; the channel's rest value first).
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    begin: tuple
+    previous: tuple
+
+
+def layout(channel: str, segments, sample_rate: float, n: int) -> Layout:
+    """The samples and start values of each segment of a channel of ``n`` samples (`render` reads it).
 
     Parameters
     ----------
@@ -115,8 +136,46 @@ def render(channel: str, segments, sample_rate: float, n: int) -> tuple[np.ndarr
 
     Returns
     -------
+    Layout
+    """
+    lo = first_samples([s.duration for s in segments], sample_rate, n)
+    hi = np.append(lo[1:], n)
+    begins, previous = [], []
+    begin, value = 0.0, REST[channel]
+    for segment in segments:
+        begins.append(begin)
+        previous.append(value)
+        value = end_value(segment, value)
+        begin += segment.duration
+    return Layout(lo, hi, tuple(begins), tuple(previous))
+
+
+def render(channel: str, segments, sample_rate: float, n: int, start: int = 0, stop: int | None = None, *,
+           at=None, where: Layout | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Sample one channel at ``t_k = k / rate`` for ``k = start .. stop-1`` (by default all ``n`` samples).
+
+    A window is the same slice of the whole channel, bit for bit: each sample is
+    evaluated by itself from ``k``, its segment and that segment's start.
+
+    Parameters
+    ----------
+    channel : {"stretch", "voltage"}
+    segments : sequence of segment models
+    sample_rate : float
+        [Hz].
+    n : int
+        Number of samples of the whole channel.
+    start, stop : int, optional
+        The window ``[start, stop)`` of sample indices, ``0 <= start <= stop <= n``; default ``[0, n)``.
+    at : array_like of int, optional
+        Instead of a window: these sample indices (increasing, each in ``[0, n)``).
+    where : Layout, optional
+        `layout` (channel, segments, sample_rate, n), computed once for many windows.
+
+    Returns
+    -------
     values : numpy.ndarray
-        Setpoints [-] or [V], shape ``(n,)``.
+        Setpoints [-] or [V], one per sample asked for.
     index : numpy.ndarray of int32
         Index of the segment each sample belongs to.
 
@@ -126,18 +185,28 @@ def render(channel: str, segments, sample_rate: float, n: int) -> tuple[np.ndarr
     a sample period after the protocol's end (``n = round(duration * rate) +
     1``) and then holds the last segment's end value.
     """
-    time = np.arange(n, dtype=float) / sample_rate
-    values = np.empty(n)
-    lo = first_samples([s.duration for s in segments], sample_rate, n)
-    hi = np.append(lo[1:], n)
-    start, previous = 0.0, REST[channel]
-    for segment, a, b in zip(segments, lo, hi):
-        if b > a:
-            t = np.clip(time[a:b] - start, 0.0, segment.duration)
-            values[a:b] = evaluate(segment, t, previous)
-        previous = end_value(segment, previous)
-        start += segment.duration
-    index = np.repeat(np.arange(len(segments), dtype=np.int32), hi - lo)
+    lo, hi, begins, previous = layout(channel, segments, sample_rate, n) if where is None else where
+    if at is None:
+        stop = n if stop is None else stop
+        if not 0 <= start <= stop <= n:
+            raise ValueError(f"window [{start}, {stop}) is not within the {n} samples")
+        m = stop - start
+        time = np.arange(start, stop, dtype=float) / sample_rate
+        first, last = np.clip(lo - start, 0, m), np.clip(hi - start, 0, m)
+    else:
+        at = np.asarray(at, dtype=np.int64)
+        if at.size and (at[0] < 0 or at[-1] >= n or np.any(np.diff(at) <= 0)):
+            raise ValueError(f"sample indices must increase within [0, {n})")
+        m = at.size
+        time = at.astype(float) / sample_rate
+        first, last = np.searchsorted(at, lo), np.searchsorted(at, hi)
+    values = np.empty(m)
+    index = np.empty(m, dtype=np.int32)
+    for i in np.flatnonzero(last > first).tolist():
+        a, b = int(first[i]), int(last[i])
+        t = np.clip(time[a:b] - begins[i], 0.0, segments[i].duration)
+        values[a:b] = evaluate(segments[i], t, previous[i])
+        index[a:b] = i
     return values, index
 
 
@@ -176,4 +245,4 @@ def describe(channel: str, segment, previous: float | None = None) -> str:
             f"{hz(segment.f_start)} -> {hz(segment.f_end)}")
 
 
-__all__ = ["describe", "end_value", "evaluate", "first_samples", "render"]
+__all__ = ["Layout", "describe", "end_value", "evaluate", "first_samples", "layout", "render"]

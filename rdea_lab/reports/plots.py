@@ -176,14 +176,28 @@ def _finish(fig, path, created: bool, tight: bool = True):
     return fig
 
 
-def _plan_on(ax, plan):
+#: A plan of more samples than this is drawn decimated (min/max per column); a shorter one whole, as it is.
+PLAN_DRAWN_WHOLE = 200_000
+
+
+def _plan_series(plan) -> dict:
+    """The setpoints to draw: a long plan's min/max per pixel column (`rdea_lab.protocols.Plan.decimated`,
+    window by window), a short one's (or a plan-like object's) whole arrays."""
+    if hasattr(plan, "decimated") and plan.samples > PLAN_DRAWN_WHOLE:
+        return plan.decimated()
+    return {"stretch": (plan.time, plan.stretch), "voltage": (plan.time, plan.voltage), "per_column": 1}
+
+
+def _plan_on(ax, plan, series=None):
     """Stretch setpoint on ``ax``, voltage setpoint on a twin y-axis; returns the twin axis."""
-    ax.plot(plan.time, plan.stretch, color="tab:blue")
+    series = _plan_series(plan) if series is None else series
+    ax.plot(*series["stretch"], color="tab:blue")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("stretch λ1 [-]", color="tab:blue")
     ax.grid(alpha=0.3)
     twin = ax.twinx()
-    twin.plot(plan.time, np.asarray(plan.voltage) / 1e3, color="tab:red")
+    t, v = series["voltage"]
+    twin.plot(t, np.asarray(v) / 1e3, color="tab:red")
     twin.set_ylabel("voltage [kV]", color="tab:red")
     return twin
 
@@ -195,7 +209,9 @@ def plot_plan(plan, path=None, *, ax=None):
     ----------
     plan : Plan
         An expanded protocol (:func:`rdea_lab.protocols.load_plan`): ``time`` [s],
-        ``stretch`` [-], ``voltage`` [V].
+        ``stretch`` [-], ``voltage`` [V]. One of more than `PLAN_DRAWN_WHOLE` samples is drawn as the min
+        and max of its samples in each of 2000 runs (`rdea_lab.protocols.Plan.decimated`, said in the
+        title), never held whole.
     path : str or path-like, optional
         Save the figure there as PNG (dpi 200). A figure made here is then
         closed (it is still returned).
@@ -209,16 +225,21 @@ def plot_plan(plan, path=None, *, ax=None):
     matplotlib.figure.Figure
         The figure drawn on (``ax.figure`` when ``ax`` is given).
     """
-    title = f"{plan.name} ({plan.kind}), {plan.time.size} samples at {plan.sample_rate:g} Hz"
+    series = _plan_series(plan)
+    samples = plan.samples if hasattr(plan, "samples") else plan.time.size
+    title = f"{plan.name} ({plan.kind}), {samples} samples at {plan.sample_rate:g} Hz"
+    if series["per_column"] > 1:
+        title += f"\n(drawn: min and max of each {series['per_column']} samples)"
     if ax is not None:
-        _plan_on(ax, plan)
+        _plan_on(ax, plan, series)
         ax.set_title(title)
         return _finish(ax.figure, path, created=False, tight=False)
     fig = _new_figure((8, 5))
     axes = fig.subplots(2, 1, sharex=True)
-    axes[0].plot(plan.time, plan.stretch, color="tab:blue")
+    axes[0].plot(*series["stretch"], color="tab:blue")
     axes[0].set_ylabel("stretch λ1 [-]")
-    axes[1].plot(plan.time, np.asarray(plan.voltage) / 1e3, color="tab:red")
+    t, v = series["voltage"]
+    axes[1].plot(t, np.asarray(v) / 1e3, color="tab:red")
     axes[1].set_ylabel("voltage [kV]")
     axes[1].set_xlabel("time [s]")
     axes[0].set_title(title)

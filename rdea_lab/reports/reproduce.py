@@ -211,7 +211,7 @@ def _reproduce(out, data, root, spec, spec_root, campaign, speed, echo, progress
     if CALIBRATION_SPECIMEN not in {r.card.id for r in runs}:
         raise ReproduceInputError(f"{campaign or 'the campaign'}: it has no {CALIBRATION_SPECIMEN}, "
                                   "the specimen the paper calibrates on")
-    total = sum(r.plan.time.size for r in runs)
+    total = sum(r.plan.samples for r in runs)
     echo(f"[1/5] campaign {spec.name} on the {spec.backend}: {len(runs)} runs, {total} samples -> {data}/"
          + (f" ({workers} processes)" if pool is not None else ""))
     models = None
@@ -358,7 +358,7 @@ class _CampaignProgress:
             for f in finished:
                 self.done.add(id(f))
                 if self.bar is not None:
-                    self.bar.update(next(r.plan.time.size for r, g in self.submitted if g is f))
+                    self.bar.update(next(r.plan.samples for r, g in self.submitted if g is f))
         self.seconds = time.perf_counter() - self.started
         return [f.result() for r, f in self.submitted if which(r)]
 

@@ -24,12 +24,45 @@ class UncheckedPlan(RuntimeError):
     """The engine was given a plan that did not go through `checked_plan` (or was changed after it)."""
 
 
-def _fingerprint(plan, card, L3: float) -> str:
-    """SHA-256 of what the limit check read: the setpoints, the limits, the card and its L3."""
+_NAMES = ("time", "stretch", "voltage")
+
+
+def _digest(pieces) -> bytes:
     h = hashlib.sha256()
-    for name in ("time", "stretch", "voltage"):
-        h.update(np.ascontiguousarray(getattr(plan, name), dtype="<f8").tobytes())
-        h.update(name.encode())
+    for piece in pieces:
+        h.update(np.ascontiguousarray(piece, dtype="<f8"))
+    return h.digest()
+
+
+def _held(plan) -> tuple:
+    """The setpoint arrays a plan holds (the others are computed from its definition when read)."""
+    return tuple(name for name in _NAMES if name in plan.held()) if hasattr(plan, "held") else _NAMES
+
+
+def _fingerprint(plan, card, L3: float, held=None) -> str:
+    """SHA-256 of what the limit check read: the setpoints, the limits, the card and its L3.
+
+    A `~rdea_lab.protocols.Plan`'s setpoints are its definition (spec, rate, duration, samples: what any
+    window is computed from) and the bytes of the arrays it holds; a long plan is never held for this.
+    `held` (the arrays held when the plan was checked): an array held since is taken for the plan's only
+    if it equals, bit for bit, what the definition computes.
+    """
+    h = hashlib.sha256()
+    if hasattr(plan, "held"):
+        h.update(plan.definition().encode())
+        now = plan.held()
+        for name in _NAMES:
+            if name not in now:
+                continue
+            digest = _digest((now[name],))
+            if held is not None and name not in held:  # read (and kept) since the check: must be the computed
+                if digest != _digest(plan.rendered(name)):
+                    h.update(b"edited since the check")
+                continue
+            h.update(name.encode() + digest)
+    else:  # a plan-like object: its whole arrays
+        for name in _NAMES:
+            h.update(name.encode() + _digest((getattr(plan, name),)))
     dump = getattr(card, "model_dump_json", None)
     for text in (repr(plan.limits), repr(float(plan.sample_rate)), dump() if dump else repr(card), float(L3).hex()):
         h.update(text.encode())
@@ -51,16 +84,19 @@ class CheckedPlan:
         The card's geometry (its ``L3`` [m] gave the field estimate).
     fingerprint : str
         SHA-256 of the setpoints, limits, card and L3 at the time of the check.
+    held : tuple of str
+        The setpoint arrays the plan held then (a long plan holds none: its windows are computed).
     """
 
     plan: object
     card: object
     geometry: object
     fingerprint: str
+    held: tuple = ()
 
     def intact(self) -> bool:
         """Whether the plan, the card and the geometry are still what was checked."""
-        return _fingerprint(self.plan, self.card, self.geometry.L3) == self.fingerprint
+        return _fingerprint(self.plan, self.card, self.geometry.L3, self.held) == self.fingerprint
 
     def is_for(self, card) -> bool:
         """Whether this plan was checked for ``card`` (the same specimen card) and is unchanged since."""
@@ -88,7 +124,7 @@ def checked_plan(plan, card, geometry) -> CheckedPlan:
         `rdea_lab.protocols.check_plan`).
     """
     first_violation(plan, L3=geometry.L3)
-    return CheckedPlan(plan, card, geometry, _fingerprint(plan, card, geometry.L3))
+    return CheckedPlan(plan, card, geometry, _fingerprint(plan, card, geometry.L3), _held(plan))
 
 
 def require_checked(checked, card):

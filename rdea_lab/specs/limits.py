@@ -148,6 +148,96 @@ def field_estimate(voltage, stretch, L3):
         return np.abs(np.asarray(voltage, float)) * np.sqrt(np.maximum(np.asarray(stretch, float), 0.0)) / L3
 
 
+class Violations:
+    """Limit violations gathered over consecutive windows of one history (`limit_violations` in pieces).
+
+    ``add`` each window in order; ``errors`` gives what `limit_violations` gives for the whole history:
+    for every check and segment, the first and last exceeding sample, their count and the worst one (the
+    first of equal worst ones), so a plan too long to hold is checked in windows with the same errors.
+
+    Parameters
+    ----------
+    limits : Limits
+    source : str
+        Where the arrays come from (a protocol file), for the messages.
+    L3 : float, optional
+        Membrane thickness of the specimen [m]; without it no field check.
+    """
+
+    def __init__(self, limits: Limits, source: str, L3: float | None = None):
+        if L3 is not None and not (math.isfinite(L3) and L3 > 0.0):
+            raise ValueError(f"L3 must be a finite thickness > 0 m, got {L3!r}")
+        self.limits, self.source, self.L3 = limits, source, L3
+        #: (order, segment) -> [t_first, t_last, count, worst excess, worst sample's (t, x, v, E), channel]
+        self._found: dict = {}
+
+    def add(self, time, stretch, voltage, stretch_segment=None, voltage_segment=None) -> None:
+        """Check one window: sample times [s], stretch [-], voltage [V] and, optionally, each sample's
+        segment per channel (then the fields are ``stretch[i]``, ``voltage[i]``). NaN samples are not
+        checked."""
+        lim = self.limits
+        t = np.asarray(time, float)
+        x = np.asarray(stretch, float)
+        v = np.broadcast_to(np.asarray(voltage, float), x.shape)
+        ss = None if stretch_segment is None else np.asarray(stretch_segment)
+        vs = None if voltage_segment is None else np.asarray(voltage_segment)
+        with np.errstate(invalid="ignore"):
+            av = np.abs(v)
+            E = None if self.L3 is None else field_estimate(v, x, self.L3)
+            self._report(0, x < 1.0 - SLACK, 1.0 - x, "stretch", ss, t, x, v, E)
+            self._report(1, x > lim.max_stretch * (1.0 + SLACK), x - lim.max_stretch, "stretch", ss, t, x, v, E)
+            self._report(2, av > lim.max_voltage * (1.0 + SLACK), av, "voltage", vs, t, x, v, E)
+            if E is not None:
+                self._report(3, E > lim.max_field * (1.0 + SLACK), E, "voltage", vs, t, x, v, E)
+
+    def _report(self, order, mask, excess, channel, segment, t, x, v, E):
+        idx = np.flatnonzero(mask)
+        if idx.size == 0:
+            return
+        groups = [idx] if segment is None else np.split(idx, np.flatnonzero(np.diff(segment[idx])) + 1)
+        for group in groups:
+            worst = int(group[np.argmax(excess[group])])
+            key = (order, None if segment is None else int(segment[worst]))
+            sample = (float(t[worst]), float(x[worst]), float(v[worst]), None if E is None else float(E[worst]))
+            known = self._found.get(key)
+            if known is None:
+                self._found[key] = [float(t[group[0]]), float(t[group[-1]]), group.size, float(excess[worst]),
+                                    sample, channel]
+                continue
+            known[1], known[2] = float(t[group[-1]]), known[2] + group.size
+            if excess[worst] > known[3]:  # the first of equal worst ones stays
+                known[3], known[4] = float(excess[worst]), sample
+
+    def errors(self) -> list[LimitError]:
+        """The violations found so far, one `LimitError` per check and segment, by the time each limit is
+        first exceeded (as `limit_violations`)."""
+        lim, L3 = self.limits, self.L3
+        plain = lambda value, digits: f"{value:.{digits}g}"  # noqa: E731
+        volts = lambda value, digits: format_quantity(value, "kV", digits=digits)  # noqa: E731
+        field = lambda value, digits: format_quantity(value, "V/um", digits=digits)  # noqa: E731
+        out = []
+        for (order, segment), (t0, t1, count, _, (t, x, v, E), channel) in self._found.items():
+            at = f"at t = {_seconds(t)}"
+            if order == 0:
+                message = f"stretch {_shown(x, 1.0, plain)} {at} is below 1; the roll must stay in tension"
+            elif order == 1:
+                message = (f"stretch {_shown(x, lim.max_stretch, plain)} {at} is above the limit "
+                           f"max_stretch = {lim.max_stretch:g}")
+            elif order == 2:
+                message = (f"voltage {_shown(v, math.copysign(lim.max_voltage, v), volts)} {at} is "
+                           f"{'above' if v > 0 else 'beyond (in magnitude)'} the limit "
+                           f"max_voltage = {volts(lim.max_voltage, 4)}")
+            else:
+                message = (f"field estimate |v| sqrt(stretch) / L3 = {_shown(E, lim.max_field, field)} "
+                           f"(voltage {volts(v, 4)}, stretch {x:.4g}, L3 = {format_quantity(L3, 'um', digits=4)}) "
+                           f"{at} is above the limit max_field = {field(lim.max_field, 4)}")
+            span = f" (exceeded from t = {_seconds(t0)} to {_seconds(t1)})" if count > 1 else ""
+            name = channel if segment is None else f"{channel}[{segment}]"
+            out.append((t0, order, LimitError(self.source, name, f"{message}{span}")))
+        out.sort(key=lambda item: (item[0], item[1]))
+        return [err for _, _, err in out]
+
+
 def limit_violations(limits: Limits, source: str, time, stretch, voltage, L3: float | None = None,
                      stretch_segment=None, voltage_segment=None) -> list[LimitError]:
     """Every limit violation of stretch and voltage arrays, one `LimitError` per check and segment.
@@ -176,53 +266,11 @@ def limit_violations(limits: Limits, source: str, time, stretch, voltage, L3: fl
         The message names the worst value, its time, the limit and, if more
         than one sample exceeds it, the span. Ordered by the time the limit is
         first exceeded. Empty if every sample is within the limits.
+        (`Violations` gathers the same over windows of a long history.)
     """
-    lim = limits
-    t = np.asarray(time, float)
-    x = np.asarray(stretch, float)
-    v = np.broadcast_to(np.asarray(voltage, float), x.shape)
-    found: list[tuple[float, int, LimitError]] = []
-
-    def report(order, mask, excess, channel, segment, message):
-        idx = np.flatnonzero(mask)
-        if idx.size == 0:
-            return
-        groups = [idx] if segment is None else np.split(idx, np.flatnonzero(np.diff(segment[idx])) + 1)
-        for group in groups:
-            worst = int(group[np.argmax(excess[group])])
-            span = f" (exceeded from t = {_seconds(t[group[0]])} to {_seconds(t[group[-1]])})" if group.size > 1 else ""
-            field = channel if segment is None else f"{channel}[{segment[worst]}]"
-            found.append((t[group[0]], order, LimitError(source, field, f"{message(worst)}{span}")))
-
-    at = lambda k: f"at t = {_seconds(t[k])}"  # noqa: E731
-    plain = lambda value, digits: f"{value:.{digits}g}"  # noqa: E731
-    volts = lambda value, digits: format_quantity(value, "kV", digits=digits)  # noqa: E731
-    field = lambda value, digits: format_quantity(value, "V/um", digits=digits)  # noqa: E731
-    ss = None if stretch_segment is None else np.asarray(stretch_segment)
-    vs = None if voltage_segment is None else np.asarray(voltage_segment)
-
-    with np.errstate(invalid="ignore"):
-        report(0, x < 1.0 - SLACK, 1.0 - x, "stretch", ss,
-               lambda k: f"stretch {_shown(x[k], 1.0, plain)} {at(k)} is below 1; the roll must stay in tension")
-        report(1, x > lim.max_stretch * (1.0 + SLACK), x - lim.max_stretch, "stretch", ss,
-               lambda k: f"stretch {_shown(x[k], lim.max_stretch, plain)} {at(k)} is above the limit "
-                         f"max_stretch = {lim.max_stretch:g}")
-        av = np.abs(v)
-        report(2, av > lim.max_voltage * (1.0 + SLACK), av, "voltage", vs,
-               lambda k: f"voltage {_shown(v[k], math.copysign(lim.max_voltage, v[k]), volts)} {at(k)} is "
-                         f"{'above' if v[k] > 0 else 'beyond (in magnitude)'} the limit "
-                         f"max_voltage = {volts(lim.max_voltage, 4)}")
-        if L3 is not None:
-            if not (math.isfinite(L3) and L3 > 0.0):
-                raise ValueError(f"L3 must be a finite thickness > 0 m, got {L3!r}")
-            E = field_estimate(v, x, L3)
-            report(3, E > lim.max_field * (1.0 + SLACK), E, "voltage", vs,
-                   lambda k: f"field estimate |v| sqrt(stretch) / L3 = {_shown(E[k], lim.max_field, field)} "
-                             f"(voltage {volts(v[k], 4)}, stretch {x[k]:.4g}, "
-                             f"L3 = {format_quantity(L3, 'um', digits=4)}) {at(k)} is above the limit "
-                             f"max_field = {field(lim.max_field, 4)}")
-    found.sort(key=lambda item: (item[0], item[1]))
-    return [err for _, _, err in found]
+    found = Violations(limits, source, L3)
+    found.add(time, stretch, voltage, stretch_segment, voltage_segment)
+    return found.errors()
 
 
 def check_limits(limits: Limits, source: str, time, stretch, voltage, L3: float | None = None,

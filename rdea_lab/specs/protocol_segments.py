@@ -26,7 +26,8 @@ CHANNELS = ("stretch", "voltage")
 #: value of each channel before its first segment
 REST = {"stretch": 1.0, "voltage": 0.0}
 MAX_SAMPLE_RATE = 100e3  # [Hz]
-MAX_SAMPLES = 50_000_000
+#: most samples a protocol may hold: 1e9 is 11.6 days at 1 kHz (a plan is rendered in windows, never whole)
+MAX_SAMPLES = 1_000_000_000
 #: relative slack when comparing the durations of the two channels (sums of decimals)
 _ROUNDING = 1e-9
 
@@ -350,7 +351,7 @@ def check_sample_count(duration: float, sample_rate: float) -> int:
         raise SpecError(
             "", "sample_rate",
             f"{format_quantity(duration, 's', digits=6)} at {rate_text(sample_rate, 6)} gives more than "
-            f"{MAX_SAMPLES} samples; at most {MAX_SAMPLES} (50 million) are allowed; "
+            f"{MAX_SAMPLES} samples; at most {MAX_SAMPLES} (1 billion) are allowed; "
             "lower the sample rate or shorten the protocol",
         )
     n = sample_count(duration, sample_rate)
@@ -358,7 +359,7 @@ def check_sample_count(duration: float, sample_rate: float) -> int:
         raise SpecError(
             "", "sample_rate",
             f"{format_quantity(duration, 's', digits=6)} at {rate_text(sample_rate, 6)} "
-            f"gives {n} samples; at most {MAX_SAMPLES} (50 million) are allowed; "
+            f"gives {n} samples; at most {MAX_SAMPLES} (1 billion) are allowed; "
             "lower the sample rate or shorten the protocol",
         )
     return n

@@ -147,11 +147,19 @@ def armed_checksum(rate, limits, thickness, stretch, voltage) -> str:
     """CRC-32 (8 hex digits) of what the client configured and ARM armed: ``CONF:RATE``, the four
     ``LIM:*`` values (VOLT, STR, FORC, FIEL), ``CONF:THIC`` and both trajectories, each as
     little-endian float64, in that order. The driver computes the same from what it sent."""
-    head = np.array([rate, *limits, thickness], "<f8")
-    crc = zlib.crc32(head.tobytes())
-    crc = zlib.crc32(np.ascontiguousarray(stretch, "<f8").tobytes(), crc)
-    crc = zlib.crc32(np.ascontiguousarray(voltage, "<f8").tobytes(), crc)
-    return f"{crc:08x}"
+    crc = checksum_more(checksum_head(rate, limits, thickness), stretch)
+    return f"{checksum_more(crc, voltage):08x}"
+
+
+def checksum_head(rate, limits, thickness) -> int:
+    """The CRC-32 of `armed_checksum` after ``CONF:RATE``, the four ``LIM:*`` values and ``CONF:THIC``."""
+    return zlib.crc32(np.array([rate, *limits, thickness], "<f8").tobytes())
+
+
+def checksum_more(crc: int, values) -> int:
+    """`crc` continued over `values` as little-endian float64 (a trajectory, or one window of it after
+    the previous ones: the CRC of the whole is the same)."""
+    return zlib.crc32(np.ascontiguousarray(values, "<f8"), crc)
 
 
 def new_nonce() -> str:

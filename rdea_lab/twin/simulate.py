@@ -295,8 +295,9 @@ class TwinStream:
         self._state = None  # ViscoState at the end of the previous block
         self._path = None  # the equilibrium's state at the end of the previous block (PathEnd)
 
-    def step(self, t, stretch, voltage) -> dict:
-        """Force [N], capacitance [F], stress [Pa] and model status for one block."""
+    def step(self, t, stretch, voltage, *, summary: bool = True) -> dict:
+        """Force [N], capacitance [F], stress [Pa] and model status for one block (and, with `summary`,
+        the model result's one-line ``summary``; a backend that does not record it skips it)."""
         stretch = np.asarray(stretch, float)
         t = viscoelastic.check_time(t, stretch.shape)
         if self._state is not None and not t[0] > self._state.t:
@@ -307,6 +308,8 @@ class TwinStream:
         sigma, sigma_irr, force, self._state = compose(self.geom, self._visco, t, stretch, res.tension, self._state)
         with np.errstate(invalid="ignore"):
             status = slack_status(res.status, res.tension + sigma_irr < 0.0, force)
-        return {"force": force, "capacitance": res.capacitance, "sigma1": sigma, "sigma1_irr": sigma_irr,
-                "lambda2b": res.lambda2b, "model_status": status,
-                "summary": dataclasses.replace(res, status=status).summary()}
+        out = {"force": force, "capacitance": res.capacitance, "sigma1": sigma, "sigma1_irr": sigma_irr,
+               "lambda2b": res.lambda2b, "model_status": status}
+        if summary:
+            out["summary"] = dataclasses.replace(res, status=status).summary()
+        return out

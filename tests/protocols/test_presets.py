@@ -126,18 +126,19 @@ def test_expand_preset_gives_explicit_segments_and_keeps_the_rest():
 
 
 def test_a_preset_whose_expansion_has_too_many_samples_is_refused_when_read_naming_the_file():
-    """The spec checks the file whole (the protocols layer only expands): 1000 cycles at 1 Hz plus 2 x 5 s
-    of approach and 5 s of settle are 1015 s, at 100 kHz 101500001 samples."""
+    """The spec checks the file whole (the protocols layer only expands): 10000 cycles at 1 Hz plus 2 x 5 s
+    of approach and 5 s of settle are 10015 s, at 100 kHz 1001500001 samples, above the 1e9 allowed."""
     from rdea_lab.specs import SpecError
-    with pytest.raises(SpecError, match=r"^x\.yaml: sample_rate: .* gives 101500001 samples"):
+    with pytest.raises(SpecError, match=r"^x\.yaml: sample_rate: .* gives 1001500001 samples; at most 1000000000 "
+                                        r"\(1 billion\) are allowed"):
         protocol_from_mapping(
-            {"name": "p", "sample_rate": "100 kHz", "preset": "blocking_force", "settings": {"cycles": 1000}},
+            {"name": "p", "sample_rate": "100 kHz", "preset": "blocking_force", "settings": {"cycles": 10000}},
             "x.yaml")
 
 
 def test_a_preset_too_long_to_count_its_samples_is_refused_when_read():
     from rdea_lab.specs import SpecError
-    with pytest.raises(SpecError, match=r"^x\.yaml: sample_rate: inf s at 100 Hz gives more than 50000000 samples"):
+    with pytest.raises(SpecError, match=r"^x\.yaml: sample_rate: inf s at 100 Hz gives more than 1000000000 samples"):
         protocol_from_mapping(
             {"name": "p", "sample_rate": "100 Hz", "preset": "tensile_ramp_sine", "settings": {"settle": "1e308 s"}},
             "x.yaml")

@@ -195,3 +195,23 @@ def test_plot_plan_default_and_path(plan, tmp_path):
     saved = plot_plan(plan, out)
     assert png_size(out) == (1000, 1600)  # (5 x 8) in at 200 dpi
     assert not plt.fignum_exists(saved.number)
+
+
+def test_a_long_plan_is_drawn_as_its_min_and_max_per_column_without_being_held():
+    from rdea_lab.protocols import expand
+    from rdea_lab.specs import protocol_from_mapping
+
+    plan = expand(protocol_from_mapping({
+        "name": "long", "kind": "custom", "sample_rate": "1 kHz",
+        "stretch": [{"kind": "sine", "duration": "300 s", "mean": 1.3, "amplitude": 0.2, "frequency": "3 Hz"}],
+        "voltage": [{"kind": "hold", "duration": "150 s", "value": "1 kV"},
+                    {"kind": "step", "duration": "0.002 s", "value": "2.5 kV"},  # a 3-sample spike
+                    {"kind": "hold", "duration": "149.998 s", "value": "1 kV"}],
+    }, "<test>"))
+    fig = plot_plan(plan)
+    stretch, voltage = fig.axes[0].lines[0].get_ydata(), fig.axes[1].lines[0].get_ydata()
+    assert plan.held() == {} and stretch.size <= 4000 and voltage.size <= 4000
+    # the sine's extremes (1.1 and 1.5 within a sampling step of 3 Hz at 1 kHz) and the spike stay visible
+    assert stretch.min() == pytest.approx(1.1, abs=1e-4) and stretch.max() == pytest.approx(1.5, abs=1e-4)
+    assert voltage.max() == 2.5 and voltage.min() == 1.0
+    assert "min and max of each" in fig.axes[0].get_title()
