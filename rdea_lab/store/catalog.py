@@ -52,8 +52,14 @@ def check_run(ds: xr.Dataset, source: str) -> None:
                             "integer, as rdea-lab writes them)")
 
 
+#: Runs up to this many samples get their ``time`` index at `open_run` (8 MB read, a few ms), so a short run
+#: behaves as an in-memory Dataset always did (``ds.sel(time=...)``, alignment); a longer one is opened
+#: without it (reading the ``time`` of a day-long run would take seconds): ``ds.set_xindex("time")`` makes it.
+INDEX_SAMPLES = 1 << 20
+
+
 def open_run(path: Path) -> xr.Dataset:
-    """Open a run dataset (loaded into memory, file closed).
+    """Open a run dataset lazily: its attributes are read, its variables when they are used.
 
     Parameters
     ----------
@@ -67,15 +73,60 @@ def open_run(path: Path) -> xr.Dataset:
         ``units``, ``seconds since <start, ISO 8601 UTC>``, say when that was; times are not decoded
         to dates, so ``ds.time.values`` arithmetic is in seconds), ``stretch`` [-], ``voltage`` [V],
         ``force`` [N], ... with ``units`` and ``long_name`` (docs/data-schema.md), and ``ds.rdea``.
+        Backed by the open file: a variable is read (and kept) the first time its values are used,
+        ``ds[name][a:b]`` reads only those samples (`iter_chunks` reads a long run chunk by chunk),
+        ``ds.load()`` reads it all. ``ds.close()`` (or ``with open_run(path) as ds:``) closes the
+        file; until then it stays open (a file replaced or removed meanwhile is not seen: the dataset
+        keeps what it opened). Runs longer than `INDEX_SAMPLES` have no ``time`` index.
 
     Raises
     ------
     SpecError
         An attribute or variable not of the type rdea-lab writes (`check_run`).
     """
-    with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
+    ds = xr.open_dataset(path, engine="netcdf4", decode_times=False, create_default_indexes=False)
+    try:
         check_run(ds, str(path))
-        return ds.load()
+        if "time" in ds.coords and ds["time"].dims == ("time",) and ds.sizes["time"] <= INDEX_SAMPLES:
+            ds = ds.set_xindex("time")
+    except BaseException:
+        ds.close()
+        raise
+    return ds
+
+
+def iter_chunks(ds: xr.Dataset, n: int = 1 << 20, names=None):
+    """The samples of a run, ``n`` at a time along ``time``, without reading the rest.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A run (`open_run`: lazily read, or in memory).
+    n : int
+        Samples per chunk (> 0); 2**20 by default (8 MB per float variable).
+    names : sequence of str, optional
+        The variables to read (``time`` included if wanted); default ``time`` and every data variable
+        along ``time``.
+
+    Yields
+    ------
+    tuple
+        ``(start, stop, {name: numpy.ndarray})``: the samples ``start:stop`` of each variable.
+
+    Raises
+    ------
+    ValueError
+        ``n`` is not a positive integer.
+    """
+    if int(n) != n or n <= 0:
+        raise ValueError(f"iter_chunks: n = {n!r}; allowed: a positive integer")
+    n = int(n)
+    if names is None:
+        names = [name for name in ("time", *ds.data_vars) if name in ds.variables and ds[name].dims == ("time",)]
+    size = ds.sizes.get("time", 0)
+    for start in range(0, size, n):
+        stop = min(size, start + n)
+        yield start, stop, {name: np.asarray(ds.variables[name][start:stop].values) for name in names}
 
 
 def _journal_row(folder: Path) -> dict:
@@ -143,14 +194,16 @@ def catalog_rows(folder: Path) -> list[dict]:
     rows = []
     for path in sorted(folder.rglob("*.nc")):
         try:
-            with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
-                a = ds.attrs
-                t = ds["time"].values if "time" in ds else np.array([])
+            with xr.open_dataset(path, engine="netcdf4", decode_times=False, create_default_indexes=False) as ds:
+                a = ds.attrs  # only the first and last time read: a day-long run lists as fast as a short one
+                t = (np.asarray(ds["time"][[0, -1]].values) if "time" in ds.variables and ds.sizes["time"]
+                     else np.array([]))
+                samples = int(ds.sizes.get("time", 0))
                 backend = a.get("backend", "?") + (" (emulator)" if is_emulated(a) else "")
                 rows.append({"file": str(path), "specimen": a.get("specimen_id", "?"),
                              "protocol": a.get("protocol_name", "?"), "backend": backend,
                              "model": a.get("model", "-"), "status": a.get("status", "?"),
-                             "duration_s": float(t[-1] - t[0]) if t.size else 0.0, "samples": int(t.size),
+                             "duration_s": float(t[-1] - t[0]) if t.size else 0.0, "samples": samples,
                              "created": a.get("created", "?"), "metadata": metadata_text(user_metadata(a)),
                              "_md": user_metadata(a)})
         except Exception as exc:  # a foreign or broken file: list it, say why
