@@ -349,7 +349,8 @@ class _Shadow(threading.Thread):
             while not self.stop:
                 self.wake.wait(FSYNC_EVERY)
                 self.wake.clear()
-                self.converter.convert(self.writer.samples, stop=lambda: self.stop)
+                # whole reads only (the HDF5 chunks are written once each); the tail is finish's
+                self.converter.convert(self.writer.samples // READ_ROWS * READ_ROWS, stop=lambda: self.stop)
         except BaseException as exc:  # noqa: BLE001 - kept for finish, which falls back to the journal
             self.failed = exc
 
