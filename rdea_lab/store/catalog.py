@@ -218,20 +218,37 @@ def catalog_rows(folder: Path) -> list[dict]:
     return rows
 
 
+def finite_range(var: xr.DataArray, n: int = 1 << 20):
+    """``(min, max)`` of a variable's finite values, None if it has none: its ``actual_range`` when it
+    has one (rdea-lab writes it), else read ``n`` samples at a time (a long run is never loaded whole)."""
+    span = var.attrs.get("actual_range")
+    if span is not None and np.size(span) == 2 and var.dtype.kind == "f":
+        return float(np.min(span)), float(np.max(span))
+    lo, hi = np.inf, -np.inf
+    flat = var.variable if var.ndim == 1 else xr.Variable(("i",), np.asarray(var.values).ravel())
+    for a in range(0, flat.shape[0], n):
+        v = np.asarray(flat[a:a + n].values, float)
+        v = v[np.isfinite(v)]
+        if v.size:
+            lo, hi = min(lo, v.min()), max(hi, v.max())
+    return (float(lo), float(hi)) if lo <= hi else None
+
+
 def describe_run(ds: xr.Dataset) -> str:
-    """A few lines on one run: provenance, status and the range of each variable."""
+    """A few lines on one run: provenance, status and the range of each variable (its ``actual_range``,
+    or read chunk by chunk: a day-long run is not loaded)."""
     a = ds.attrs
-    t = ds["time"].values
+    n = ds.sizes.get("time", 0)
+    t = np.asarray(ds["time"][[0, -1]].values, float) if n else np.array([])
     lines = [f"{a.get('title', '?')}",
              f"  status {a.get('status', '?')}" + (f": {a['status_reason']}" if a.get("status_reason") else ""),
              f"  backend {a.get('backend', '?')}, model {a.get('model', '-')}, run {a.get('run_id', '?')}",
              f"  created {a.get('created', '?')}, rdea-lab {a.get('rdea_lab_version', '?')}",
              *([f"  metadata {metadata_text(user_metadata(a))}"] if user_metadata(a) else []),
-             f"  {t.size} samples over {float(t[-1] - t[0]) if t.size else 0:.4g} s "
+             f"  {n} samples over {float(t[-1] - t[0]) if t.size else 0:.4g} s "
              f"at {float(a.get('sample_rate', 0)):g} Hz"]
     for name, var in ds.data_vars.items():
-        v = np.asarray(var.values, float)
-        finite = v[np.isfinite(v)]
-        span = f"{finite.min():.5g} .. {finite.max():.5g}" if finite.size else "not measured"
-        lines.append(f"  {name:<17} [{var.attrs.get('units', '?')}] {span}")
+        span = finite_range(var)
+        text = f"{span[0]:.5g} .. {span[1]:.5g}" if span is not None else "not measured"
+        lines.append(f"  {name:<17} [{var.attrs.get('units', '?')}] {text}")
     return "\n".join(lines)

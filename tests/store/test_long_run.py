@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rdea_lab.store import JournalWriter, iter_chunks, journal, journal_path, open_run, recover
+from rdea_lab.store import JournalWriter, describe_run, iter_chunks, journal, journal_path, open_run, recover
 from rdea_lab.store.journal import final_attrs, read_journal, write_dataset
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -234,6 +234,12 @@ def test_open_run_reads_no_variable_and_slices_read_only_their_samples(tmp_path,
             np.testing.assert_array_equal(values["time"], expected["time"][a:b])
             np.testing.assert_array_equal(values["force"], expected["force"][a:b])
         assert all(k != (slice(None),) and k != (slice(0, 20_000, 1),) for _, k in seen)  # never the whole
+        seen.clear()
+        text = describe_run(ds)  # show's summary: the ranges from actual_range, the rest read in chunks
+        finite = expected["force"][np.isfinite(expected["force"])]
+        assert f"force             [N] {finite.min():.5g} .. {finite.max():.5g}" in text
+        assert "capacitance       [F] not measured" in text and "20000 samples over 20 s" in text
+        assert {name for name, _ in seen} <= {"time", "capacitance", "model_status"}, seen
     monkeypatch.setattr(catalog, "INDEX_SAMPLES", 1 << 20)
     seen.clear()
     with open_run(out) as ds:  # a short run: its time index built, as an in-memory dataset has it
@@ -249,6 +255,7 @@ import resource, sys, time, numpy as np
 sys.path.insert(0, {tests!r})
 from rdea_lab.store import journal, recover
 from test_long_run import write_journal
+write_journal({out!r} + ".warm.nc", 200_000).finish("complete", "")  # the libraries' one-time allocations
 base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 t0 = time.perf_counter()
 w = write_journal({out!r}, {n})
@@ -265,7 +272,8 @@ print(base, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, time.perf_counte
 @pytest.mark.parametrize("kill", [False, True])
 def test_a_few_million_samples_finish_and_recover_in_bounded_rss(tmp_path, kill):
     """3e6 samples at 1 kHz in 1 s blocks (264 MB of journal), with the shipped chunk sizes and the
-    background conversion: the peak RSS of the writing process grows by far less than the journal."""
+    background conversion: the peak RSS of the writing process (after a short run has made the libraries'
+    one-time allocations) grows by a tenth of the journal at most (measured: 11-15 MB)."""
     n = 3_000_000
     out = tmp_path / "run.nc"
     code = LONG.format(tests=str(Path(__file__).parent), out=str(out), n=n, kill=kill)
@@ -274,7 +282,7 @@ def test_a_few_million_samples_finish_and_recover_in_bounded_rss(tmp_path, kill)
     assert done.returncode == 0, done.stderr
     base, peak, _ = map(float, done.stdout.split())
     journal_bytes = n * 8 * 11
-    assert (peak - base) * 1024 < journal_bytes / 5, (base, peak)
+    assert (peak - base) * 1024 < journal_bytes / 10, (base, peak)
     with open_run(out) as ds:
         assert ds.sizes["time"] == n and ds.attrs["status"] == ("interrupted" if kill else "complete")
         for a, b, values in iter_chunks(ds, 1 << 20, names=["time", "force"]):
