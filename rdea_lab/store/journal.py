@@ -233,7 +233,9 @@ class JournalWriter:
     def abandon(self) -> None:
         """Give up a run that never acquired (nothing was measured; `begin` may have been under way or
         done): the folder goes, the lock with it."""
-        self._stop_shadow()
+        converter = self._stop_shadow()
+        if converter is not None:
+            converter.discard()
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
@@ -271,7 +273,9 @@ class JournalWriter:
 
     def close(self):
         """Stop writing and let go of the journal (as a killed process would): `recover` may take it."""
-        self._stop_shadow()
+        converter = self._stop_shadow()
+        if converter is not None:  # closed; the file stays, as a killed run's would (recover drops it)
+            converter.discard(keep=True)
         self._close_fd()
         self._release()
 
@@ -298,11 +302,7 @@ class JournalWriter:
         shadow.stop = True
         shadow.wake.set()
         shadow.join()
-        if shadow.converter is not None and shadow.failed is None:
-            return shadow.converter
-        if shadow.converter is not None:
-            shadow.converter.discard()
-        return None
+        return shadow.converter if shadow.failed is None else None
 
     def finish(self, status: str, reason: str, history: str = "") -> Path:
         """Close the journal and write the dataset with its final status (the lock is kept until the end):
@@ -353,6 +353,8 @@ class _Shadow(threading.Thread):
                 self.converter.convert(self.writer.samples // READ_ROWS * READ_ROWS, stop=lambda: self.stop)
         except BaseException as exc:  # noqa: BLE001 - kept for finish, which falls back to the journal
             self.failed = exc
+            if self.converter is not None:
+                self.converter.discard()  # at once: a full disk gets the space back
 
 
 def final_attrs(attrs: dict, status: str, reason: str, history: str) -> dict:
@@ -491,6 +493,8 @@ class _Converter:
         while self.done < upto and not stop():
             b = min(upto, self.done + READ_ROWS)
             rows = _read_rows(self.folder, len(self.columns), self.done, b)
+            if not rows.shape[0]:  # the journal is shorter than said (never, short of a truncation)
+                break
             b = self.done + rows.shape[0]
             with self._lock:
                 for j, name in enumerate(self.columns):
@@ -518,8 +522,8 @@ class _Converter:
         os.replace(self.tmp, out)
         _fsync_dir(Path(out).parent)
 
-    def discard(self) -> None:
-        """Close and remove the file (never a half-written one left behind)."""
+    def discard(self, keep: bool = False) -> None:
+        """Close and remove the file (never a half-written one left behind; ``keep``: close only)."""
         if self._nc is not None:
             try:
                 with self._lock:
@@ -527,7 +531,8 @@ class _Converter:
             except Exception:  # noqa: BLE001 - a broken file (full disk) is removed all the same
                 pass
             self._nc = None
-        self.tmp.unlink(missing_ok=True)
+        if not keep:
+            self.tmp.unlink(missing_ok=True)
 
 
 def write_dataset(ds: xr.Dataset, out: Path) -> None:

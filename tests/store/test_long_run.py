@@ -115,27 +115,60 @@ def test_recover_streams_what_the_in_memory_writer_writes_and_drops_the_shadow(t
     assert_same_content(out, tmp_path / "ref.nc")
 
 
-def test_finish_and_recover_stay_in_bounded_memory(tmp_path, monkeypatch):
-    """100 000 samples (8.8 MB of journal) converted 2048 rows at a time: Python's allocations (numpy's
-    included, which tracemalloc sees) peak far below the journal's size, for finish and for recover."""
-    monkeypatch.setattr(journal, "READ_ROWS", 2048)
-    n = 100_000
+def test_finish_and_recover_never_read_more_than_a_chunk_of_the_journal(tmp_path, monkeypatch):
+    """Every read of the journal by finish and recover is of `READ_ROWS` rows at most, and the in-memory
+    reader is never called: what they hold at once does not grow with the run."""
+    monkeypatch.setattr(journal, "READ_ROWS", 1024)
+    reads = []
+    real = journal._read_rows
+
+    def counted(folder, ncolumns, start, stop):
+        reads.append(stop - start)
+        return real(folder, ncolumns, start, stop)
+
+    def whole(folder):
+        raise AssertionError("the whole journal read")
+
+    monkeypatch.setattr(journal, "_read_rows", counted)
+    monkeypatch.setattr(journal, "read_journal", whole)
+    n = 20_000
     for how in ("finish", "recover"):
         out = tmp_path / f"{how}.nc"
-        w = write_journal(out, n, per_block=20_000, background=False)
-        size = (w.dir / "samples.f8").stat().st_size
+        w = write_journal(out, n, per_block=5_000, background=False)
+        reads.clear()
         if how == "recover":
             w.close()
-        tracemalloc.start()
-        try:
-            w.finish("complete", "") if how == "finish" else recover(out)
-            peak = tracemalloc.get_traced_memory()[1]
-        finally:
-            tracemalloc.stop()
-        assert peak < size / 20, (how, peak, size)
+            recover(out)
+        else:
+            w.finish("complete", "")
+        assert max(reads) <= 1024 and sum(reads) == n, (how, reads[:5])
         with open_run(out) as ds:
-            assert ds.sizes["time"] == n
-            np.testing.assert_array_equal(ds["time"][-5:].values, np.arange(n - 5, n) / RATE)
+            np.testing.assert_array_equal(ds["time"].values, np.arange(n) / RATE)
+
+
+@pytest.mark.slow
+def test_finish_and_recover_stay_in_bounded_memory(tmp_path, monkeypatch):
+    """40 000 and 80 000 samples converted 1024 rows at a time: Python's allocations (numpy's included,
+    which tracemalloc sees) peak far below the journal's size (measured: 0.2-0.35 MB of 3.5-7 MB), for
+    finish and for recover, and do not grow with the run."""
+    monkeypatch.setattr(journal, "READ_ROWS", 1024)
+    for n in (40_000, 80_000):
+        for how in ("finish", "recover"):
+            out = tmp_path / f"{how}{n}.nc"
+            w = write_journal(out, n, per_block=4_000, background=False)
+            size = (w.dir / "samples.f8").stat().st_size
+            if how == "recover":
+                w.close()
+            tracemalloc.start()
+            try:
+                w.finish("complete", "") if how == "finish" else recover(out)
+                peak = tracemalloc.get_traced_memory()[1]
+            finally:
+                tracemalloc.stop()
+            assert peak < min(size / 10, 1_000_000), (how, n, peak, size)
+            with open_run(out) as ds:
+                assert ds.sizes["time"] == n
+                np.testing.assert_array_equal(ds["time"][-5:].values, np.arange(n - 5, n) / RATE)
 
 
 KILLED_WRITER = """
@@ -292,3 +325,32 @@ def test_a_few_million_samples_finish_and_recover_in_bounded_rss(tmp_path, kill)
         force = block(0, n)["force"]
         finite = force[np.isfinite(force)]
         np.testing.assert_array_equal(ds["force"].attrs["actual_range"], [finite.min(), finite.max()])
+
+
+def test_a_failing_background_conversion_falls_back_to_the_journal(tmp_path, small_chunks, monkeypatch):
+    """The background thread's writing fails (a full disk, say): its file is dropped at once and finish
+    converts the journal itself, the file the same as ever."""
+    import errno
+    import threading
+
+    real = journal._Converter.convert
+
+    def failing_in_the_thread(self, upto, stop=lambda: False):
+        if threading.current_thread() is not threading.main_thread():
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(self, upto, stop)
+
+    monkeypatch.setattr(journal._Converter, "convert", failing_in_the_thread)
+    out = tmp_path / "run.nc"
+    w = write_journal(out, 8_000)
+    shadow = w._shadow
+    shadow.wake.set()
+    for _ in range(200):
+        if shadow.failed is not None:
+            break
+        time.sleep(0.01)
+    assert isinstance(shadow.failed, OSError) and not (w.dir / journal.SHADOW).exists()
+    shutil.copytree(w.dir, tmp_path / "copy.nc.part")
+    w.finish("complete", "")
+    reference(tmp_path / "copy.nc.part", tmp_path / "ref.nc", "complete", "")
+    assert_same_content(out, tmp_path / "ref.nc")
