@@ -51,8 +51,14 @@ def check_run(ds: xr.Dataset, source: str) -> None:
                             "integer, as rdea-lab writes them)")
 
 
+#: Runs up to this many samples get their ``time`` index at `open_run` (8 MB read, a few ms), so a short run
+#: behaves as an in-memory Dataset always did (``ds.sel(time=...)``, alignment); a longer one is opened
+#: without it (reading the ``time`` of a day-long run would take seconds): ``ds.set_xindex("time")`` makes it.
+INDEX_SAMPLES = 1 << 20
+
+
 def open_run(path: Path) -> xr.Dataset:
-    """Open a run dataset (loaded into memory, file closed).
+    """Open a run dataset lazily: its attributes are read, its variables when they are used.
 
     Parameters
     ----------
@@ -66,15 +72,60 @@ def open_run(path: Path) -> xr.Dataset:
         ``units``, ``seconds since <start, ISO 8601 UTC>``, say when that was; times are not decoded
         to dates, so ``ds.time.values`` arithmetic is in seconds), ``stretch`` [-], ``voltage`` [V],
         ``force`` [N], ... with ``units`` and ``long_name`` (docs/data-schema.md), and ``ds.rdea``.
+        Backed by the open file: a variable is read (and kept) the first time its values are used,
+        ``ds[name][a:b]`` reads only those samples (`iter_chunks` reads a long run chunk by chunk),
+        ``ds.load()`` reads it all. ``ds.close()`` (or ``with open_run(path) as ds:``) closes the
+        file; until then it stays open (a file replaced or removed meanwhile is not seen: the dataset
+        keeps what it opened). Runs longer than `INDEX_SAMPLES` have no ``time`` index.
 
     Raises
     ------
     SpecError
         An attribute or variable not of the type rdea-lab writes (`check_run`).
     """
-    with xr.open_dataset(path, engine="netcdf4", decode_times=False) as ds:
+    ds = xr.open_dataset(path, engine="netcdf4", decode_times=False, create_default_indexes=False)
+    try:
         check_run(ds, str(path))
-        return ds.load()
+        if "time" in ds.coords and ds["time"].dims == ("time",) and ds.sizes["time"] <= INDEX_SAMPLES:
+            ds = ds.set_xindex("time")
+    except BaseException:
+        ds.close()
+        raise
+    return ds
+
+
+def iter_chunks(ds: xr.Dataset, n: int = 1 << 20, names=None):
+    """The samples of a run, ``n`` at a time along ``time``, without reading the rest.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A run (`open_run`: lazily read, or in memory).
+    n : int
+        Samples per chunk (> 0); 2**20 by default (8 MB per float variable).
+    names : sequence of str, optional
+        The variables to read (``time`` included if wanted); default ``time`` and every data variable
+        along ``time``.
+
+    Yields
+    ------
+    tuple
+        ``(start, stop, {name: numpy.ndarray})``: the samples ``start:stop`` of each variable.
+
+    Raises
+    ------
+    ValueError
+        ``n`` is not a positive integer.
+    """
+    if int(n) != n or n <= 0:
+        raise ValueError(f"iter_chunks: n = {n!r}; allowed: a positive integer")
+    n = int(n)
+    if names is None:
+        names = [name for name in ("time", *ds.data_vars) if name in ds.variables and ds[name].dims == ("time",)]
+    size = ds.sizes.get("time", 0)
+    for start in range(0, size, n):
+        stop = min(size, start + n)
+        yield start, stop, {name: np.asarray(ds.variables[name][start:stop].values) for name in names}
 
 
 def user_metadata(attrs) -> dict:
@@ -138,20 +189,37 @@ def catalog(folder=".", where=None, since=None, columns=None, catalog=None, limi
     return listing(folder, where=where, since=since, columns=columns, url=catalog, limit=limit)
 
 
+def finite_range(var: xr.DataArray, n: int = 1 << 20):
+    """``(min, max)`` of a variable's finite values, None if it has none: its ``actual_range`` when it
+    has one (rdea-lab writes it), else read ``n`` samples at a time (a long run is never loaded whole)."""
+    span = var.attrs.get("actual_range")
+    if span is not None and np.size(span) == 2 and var.dtype.kind == "f":
+        return float(np.min(span)), float(np.max(span))
+    lo, hi = np.inf, -np.inf
+    flat = var.variable if var.ndim == 1 else xr.Variable(("i",), np.asarray(var.values).ravel())
+    for a in range(0, flat.shape[0], n):
+        v = np.asarray(flat[a:a + n].values, float)
+        v = v[np.isfinite(v)]
+        if v.size:
+            lo, hi = min(lo, v.min()), max(hi, v.max())
+    return (float(lo), float(hi)) if lo <= hi else None
+
+
 def describe_run(ds: xr.Dataset) -> str:
-    """A few lines on one run: provenance, status and the range of each variable."""
+    """A few lines on one run: provenance, status and the range of each variable (its ``actual_range``,
+    or read chunk by chunk: a day-long run is not loaded)."""
     a = ds.attrs
-    t = ds["time"].values
+    n = ds.sizes.get("time", 0)
+    t = np.asarray(ds["time"][[0, -1]].values, float) if n else np.array([])
     lines = [f"{a.get('title', '?')}",
              f"  status {a.get('status', '?')}" + (f": {a['status_reason']}" if a.get("status_reason") else ""),
              f"  backend {a.get('backend', '?')}, model {a.get('model', '-')}, run {a.get('run_id', '?')}",
              f"  created {a.get('created', '?')}, rdea-lab {a.get('rdea_lab_version', '?')}",
              *([f"  metadata {metadata_text(user_metadata(a))}"] if user_metadata(a) else []),
-             f"  {t.size} samples over {float(t[-1] - t[0]) if t.size else 0:.4g} s "
+             f"  {n} samples over {float(t[-1] - t[0]) if t.size else 0:.4g} s "
              f"at {float(a.get('sample_rate', 0)):g} Hz"]
     for name, var in ds.data_vars.items():
-        v = np.asarray(var.values, float)
-        finite = v[np.isfinite(v)]
-        span = f"{finite.min():.5g} .. {finite.max():.5g}" if finite.size else "not measured"
-        lines.append(f"  {name:<17} [{var.attrs.get('units', '?')}] {span}")
+        span = finite_range(var)
+        text = f"{span[0]:.5g} .. {span[1]:.5g}" if span is not None else "not measured"
+        lines.append(f"  {name:<17} [{var.attrs.get('units', '?')}] {text}")
     return "\n".join(lines)
