@@ -165,20 +165,52 @@ def catalog_rows(folder: Path) -> list[dict]:
     return rows
 
 
+#: Samples read at once where a variable's range is computed (`finite_range`).
+RANGE_CHUNK = 1 << 21
+
+
+def finite_range(var, chunk: int = RANGE_CHUNK) -> tuple[float, float] | None:
+    """Smallest and largest finite value of a run's variable: its ``actual_range`` attribute when it has one
+    (written with the file), else read ``chunk`` samples at a time (a lazily opened run is not loaded whole).
+
+    Parameters
+    ----------
+    var : xarray.DataArray
+        A variable over ``time``.
+    chunk : int
+        Samples read at once.
+
+    Returns
+    -------
+    (float, float) or None
+        ``(min, max)`` in the variable's unit; None when no value is finite.
+    """
+    given = np.asarray(var.attrs.get("actual_range", ()), float).ravel()
+    if given.size == 2 and np.all(np.isfinite(given)):
+        return float(given[0]), float(given[1])
+    lo, hi, n = np.inf, -np.inf, var.shape[0] if var.ndim else 1
+    for a in range(0, n, chunk):
+        v = np.asarray(var[a:a + chunk].values if var.ndim else var.values, float)
+        v = v[np.isfinite(v)]
+        if v.size:
+            lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
+    return (lo, hi) if lo <= hi else None
+
+
 def describe_run(ds: xr.Dataset) -> str:
-    """A few lines on one run: provenance, status and the range of each variable."""
+    """A few lines on one run: provenance, status and the range of each variable (`finite_range`: read
+    chunk by chunk, or from ``actual_range``)."""
     a = ds.attrs
-    t = ds["time"].values
+    t = ds["time"]
+    span = float(t[-1] - t[0]) if t.size else 0.0
     lines = [f"{a.get('title', '?')}",
              f"  status {a.get('status', '?')}" + (f": {a['status_reason']}" if a.get("status_reason") else ""),
              f"  backend {a.get('backend', '?')}, model {a.get('model', '-')}, run {a.get('run_id', '?')}",
              f"  created {a.get('created', '?')}, rdea-lab {a.get('rdea_lab_version', '?')}",
              *([f"  metadata {metadata_text(user_metadata(a))}"] if user_metadata(a) else []),
-             f"  {t.size} samples over {float(t[-1] - t[0]) if t.size else 0:.4g} s "
-             f"at {float(a.get('sample_rate', 0)):g} Hz"]
+             f"  {t.size} samples over {span:.4g} s at {float(a.get('sample_rate', 0)):g} Hz"]
     for name, var in ds.data_vars.items():
-        v = np.asarray(var.values, float)
-        finite = v[np.isfinite(v)]
-        span = f"{finite.min():.5g} .. {finite.max():.5g}" if finite.size else "not measured"
-        lines.append(f"  {name:<17} [{var.attrs.get('units', '?')}] {span}")
+        r = finite_range(var)
+        lines.append(f"  {name:<17} [{var.attrs.get('units', '?')}] "
+                     + (f"{r[0]:.5g} .. {r[1]:.5g}" if r is not None else "not measured"))
     return "\n".join(lines)
