@@ -120,7 +120,7 @@ def stroke(x, lo, hi) -> tuple[np.ndarray, np.ndarray]:
     return np.repeat(x, 2), np.column_stack([lo, hi]).ravel()
 
 
-def occupancy(x, y, n: int, xlim, ylim, shape, chunk: int = CHUNK) -> np.ndarray:
+def occupancy(x, y, n: int, xlim, ylim, shape, chunk: int = CHUNK // 4) -> np.ndarray:
     """Which cells of a raster over ``xlim`` x ``ylim`` hold at least one sample of the curve (x, y).
 
     Parameters
@@ -154,5 +154,7 @@ def occupancy(x, y, n: int, xlim, ylim, shape, chunk: int = CHUNK) -> np.ndarray
         i[xs == x1] = cols - 1  # the upper edge belongs to the last cell
         j[ys == y1] = rows - 1
         ok = (i >= 0) & (i < cols) & (j >= 0) & (j < rows)
-        counts += np.bincount((j[ok] * cols + i[ok]).astype(np.int64), minlength=rows * cols)
+        j *= cols
+        j += i
+        counts += np.bincount(j[ok].astype(np.int64), minlength=rows * cols)
     return counts.reshape(rows, cols)
