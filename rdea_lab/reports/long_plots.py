@@ -70,6 +70,26 @@ def check_prediction(ds, prediction, n: int) -> dict:
     return out
 
 
+def series_envelopes(ds, names, sources: dict, n: int, columns: int):
+    """``(per, t, envelopes, from_overview)``: the envelopes of the run's variables ``names`` and of the
+    other ``sources`` at ``per`` samples per column (at most ``columns`` columns), ``t`` each column's first
+    time [s]. The run's variables come from its file's overview (`rdea_lab.store.overview`) when it has one
+    (``per`` then a multiple of its block; the same envelopes as of the samples), else are read chunk by chunk."""
+    from ..store.overview import read_overview
+
+    ov = read_overview(ds)
+    if ov is None or ov.samples != n or not all(k in ov.envelopes for k in ("time", *names)):
+        per = decimate.samples_per_column(n, columns)
+        env = decimate.envelopes({**{k: ds[k] for k in names}, **sources}, n, per)
+        return per, decimate.first_of_columns(ds["time"], n, per), env, None
+    m = math.ceil(decimate.samples_per_column(n, columns) / ov.block)
+    per = m * ov.block
+    env = {k: (decimate.envelope(ov.envelopes[k][0], m)[0], decimate.envelope(ov.envelopes[k][1], m)[1])
+           for k in names}
+    env.update(decimate.envelopes(sources, n, per) if sources else {})
+    return per, decimate.envelope(ov.envelopes["time"][0], m)[0], env, ov
+
+
 def plot_long_run(ds, *, ax=None, fig=None, prediction=None, new_figure, finish, path, styles, dpi):
     """`plot_run` of a long run (see the module's docstring); ``styles`` are `plot_run`'s labels and styles,
     ``new_figure`` and ``finish`` its figure helpers."""
@@ -79,9 +99,8 @@ def plot_long_run(ds, *, ax=None, fig=None, prediction=None, new_figure, finish,
     pred = check_prediction(ds, prediction, n)
     own, style = styles["own"], styles["prediction"]
     if ax is not None:
-        per = decimate.samples_per_column(n, pixel_columns(ax, dpi))
-        env = decimate.envelopes({"force": ds["force"], **{f"pred_{k}": v for k, v in pred.items()}}, n, per)
-        t = decimate.first_of_columns(ds["time"], n, per)
+        per, t, env, _ = series_envelopes(ds, ["force"], {f"pred_{k}": v for k, v in pred.items()}, n,
+                                          pixel_columns(ax, dpi))
         _band(ax, t, env)
         ax.plot(*decimate.stroke(t, *env["force"]), lw=0.8, label=own)
         if "force" in pred:
@@ -95,13 +114,10 @@ def plot_long_run(ds, *, ax=None, fig=None, prediction=None, new_figure, finish,
     created = fig is None
     if created:
         fig = new_figure((11, 2.3))  # resized when the panels are known
-    per = decimate.samples_per_column(n, pixel_columns(fig.get_figwidth() * LEFT, dpi))
     names = [k for k in ("stretch", "voltage", "force", "capacitance", "position") if k in ds]
-    sources = {k: ds[k] for k in names}
-    sources.update({f"pred_{k}": v for k, v in pred.items()})
+    sources = {f"pred_{k}": v for k, v in pred.items()}
     sources.update({f"res_{k}": _residual(pred[k], ds[k]) for k in ("force", "capacitance") if k in pred})
-    env = decimate.envelopes(sources, n, per)
-    t = decimate.first_of_columns(ds["time"], n, per)
+    per, t, env, ov = series_envelopes(ds, names, sources, n, pixel_columns(fig.get_figwidth() * LEFT, dpi))
     ranges = {k: _finite_range(*v) for k, v in env.items()}
     from .plots import ZERO_VOLTAGE
 
@@ -148,8 +164,12 @@ def plot_long_run(ds, *, ax=None, fig=None, prediction=None, new_figure, finish,
     xlim = tuple(1e3 * v for v in ranges.get("position", (math.nan, math.nan)))
     curves = [(ds["force"], "tab:blue", own)] + ([(pred["force"], "black", style["label"])] if "force" in pred else [])
     ylim = _union([ranges["force"]] + ([ranges["pred_force"]] if "force" in pred else []))
-    for y, color, label in curves:
-        _raster(a, _scaled(ds["position"], 1e3), y, n, xlim, ylim, shape, color, label)
+    if ov is not None and ov.loop is not None and "force" not in pred:  # the raster stored with the run
+        x0, x1, y0, y1 = ov.loop_extent
+        _draw_raster(a, ov.loop, (1e3 * x0, 1e3 * x1), (y0, y1), "tab:blue", own)
+    else:
+        for y, color, label in curves:
+            _raster(a, _scaled(ds["position"], 1e3), y, n, xlim, ylim, shape, color, label)
     if "force" in pred:
         a.legend(fontsize=8)
         r = fig.add_subplot(grid[len(panels) - 1, 1])
@@ -187,13 +207,22 @@ def _band(ax, t, env) -> None:
 
 def _raster(ax, x, y, n, xlim, ylim, shape, color, label) -> None:
     """Draw the cells the samples of (x, y) fall in, in ``color``."""
-    from matplotlib.colors import ListedColormap
-
     if not (math.isfinite(xlim[0]) and math.isfinite(ylim[0])):
         return
-    pad = lambda lo, hi: (lo, hi) if hi > lo else (lo - 0.5, hi + 0.5)  # noqa: E731 (a flat curve: one row)
-    xlim, ylim = pad(*xlim), pad(*ylim)
-    counts = decimate.occupancy(x, y, n, xlim, ylim, shape)
+    xlim, ylim = _padded(*xlim), _padded(*ylim)
+    _draw_raster(ax, decimate.occupancy(x, y, n, xlim, ylim, shape), xlim, ylim, color, label)
+
+
+def _padded(lo: float, hi: float) -> tuple[float, float]:
+    """An extent of some width (a flat curve: one row or column about its value)."""
+    return (lo, hi) if hi > lo else (lo - 0.5, hi + 0.5)
+
+
+def _draw_raster(ax, counts, xlim, ylim, color, label) -> None:
+    """Draw the cells of ``counts`` that hold a sample, over ``xlim`` x ``ylim``."""
+    from matplotlib.colors import ListedColormap
+
+    xlim, ylim = _padded(*xlim), _padded(*ylim)
     image = np.ma.masked_equal((counts > 0).astype(float), 0.0)
     ax.imshow(image, origin="lower", extent=(*xlim, *ylim), aspect="auto", interpolation="nearest",
               cmap=ListedColormap([color]), vmin=0.0, vmax=1.0)

@@ -169,9 +169,10 @@ def catalog_rows(folder: Path) -> list[dict]:
 RANGE_CHUNK = 1 << 21
 
 
-def finite_range(var, chunk: int = RANGE_CHUNK) -> tuple[float, float] | None:
+def finite_range(var, chunk: int = RANGE_CHUNK, overview=None) -> tuple[float, float] | None:
     """Smallest and largest finite value of a run's variable: its ``actual_range`` attribute when it has one
-    (written with the file), else read ``chunk`` samples at a time (a lazily opened run is not loaded whole).
+    (written with the file), else from the file's ``overview`` (`rdea_lab.store.overview`), else read
+    ``chunk`` samples at a time (a lazily opened run is not loaded whole).
 
     Parameters
     ----------
@@ -179,6 +180,8 @@ def finite_range(var, chunk: int = RANGE_CHUNK) -> tuple[float, float] | None:
         A variable over ``time``.
     chunk : int
         Samples read at once.
+    overview : Overview, optional
+        The run's overview (`rdea_lab.store.overview.read_overview`).
 
     Returns
     -------
@@ -188,6 +191,9 @@ def finite_range(var, chunk: int = RANGE_CHUNK) -> tuple[float, float] | None:
     given = np.asarray(var.attrs.get("actual_range", ()), float).ravel()
     if given.size == 2 and np.all(np.isfinite(given)):
         return float(given[0]), float(given[1])
+    if overview is not None and var.name in overview.envelopes and overview.samples == var.size:
+        lo, hi = (e[np.isfinite(e)] for e in overview.envelopes[var.name])
+        return (float(lo.min()), float(hi.max())) if lo.size else None
     lo, hi, n = np.inf, -np.inf, var.shape[0] if var.ndim else 1
     for a in range(0, n, chunk):
         v = np.asarray(var[a:a + chunk].values if var.ndim else var.values, float)
@@ -209,8 +215,11 @@ def describe_run(ds: xr.Dataset) -> str:
              f"  created {a.get('created', '?')}, rdea-lab {a.get('rdea_lab_version', '?')}",
              *([f"  metadata {metadata_text(user_metadata(a))}"] if user_metadata(a) else []),
              f"  {t.size} samples over {span:.4g} s at {float(a.get('sample_rate', 0)):g} Hz"]
+    from .overview import read_overview
+
+    overview = read_overview(ds) if not all("actual_range" in v.attrs for v in ds.data_vars.values()) else None
     for name, var in ds.data_vars.items():
-        r = finite_range(var)
+        r = finite_range(var, overview=overview)
         lines.append(f"  {name:<17} [{var.attrs.get('units', '?')}] "
                      + (f"{r[0]:.5g} .. {r[1]:.5g}" if r is not None else "not measured"))
     return "\n".join(lines)

@@ -35,6 +35,7 @@ import numpy as np
 import xarray as xr
 
 from ..specs.errors import SpecError, UserError
+from .overview import OVERVIEW_ABOVE, write_overview
 from .schema import EXTRA_VARIABLES, TIME_ENCODING, VARIABLES, time_attrs, variable_attrs
 
 FORMAT = "rdea-lab-journal-1"
@@ -312,6 +313,8 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
     encoding["time"] = {"zlib": True, "complevel": 4, **TIME_ENCODING}
     try:
         ds.to_netcdf(tmp, engine="netcdf4", unlimited_dims=["time"], encoding=encoding)
+        if ds.sizes.get("time", 0) > OVERVIEW_ABOVE:  # a long run: its figure drawn from the overview
+            write_overview(tmp)
         with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, out)
