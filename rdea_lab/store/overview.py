@@ -136,9 +136,99 @@ class Overview:
     loop_extent: tuple
 
 
+class OverviewBuilder:
+    """An overview gathered while a run's variables are written chunk by chunk (of any sizes, in order).
+
+    Parameters
+    ----------
+    block : int
+        Samples per overview value.
+
+    Examples
+    --------
+    A writer that streams a run into a netCDF file ``nc`` (netCDF4, open for writing)::
+
+        overview = OverviewBuilder()
+        for start, stop, data in chunks:      # data: name -> the samples start..stop-1
+            ...                                # write them
+            overview.add(data)
+        overview.write(nc)                     # before closing the file: the group and the loop's raster
+    """
+
+    def __init__(self, block: int = BLOCK):
+        self.block = int(block)
+        self.samples = 0
+        self._parts, self._rest = {}, {}
+
+    def add(self, data: dict) -> None:
+        """Add the next samples of every float variable over ``time`` (``data``: name -> array, equal lengths)."""
+        floats = {k: np.asarray(v, float) for k, v in data.items() if np.asarray(v).dtype.kind == "f"}
+        if not floats:
+            return
+        n = len(next(iter(floats.values())))
+        for name, values in floats.items():
+            values = np.concatenate([self._rest.get(name, np.empty(0)), values])
+            whole = (values.size // self.block) * self.block
+            if whole:
+                lo, hi = envelope(values[:whole], self.block)
+                parts = self._parts.setdefault(name, ([], []))
+                parts[0].append(lo)
+                parts[1].append(hi)
+            self._rest[name] = values[whole:]
+        self.samples += n
+
+    def envelopes(self) -> dict:
+        """``(lo, hi)`` of every block so far per variable (the last, partial block included)."""
+        out = {}
+        for name in set(self._parts) | set(self._rest):
+            lo, hi = self._parts.get(name, ([], []))
+            if self._rest.get(name, np.empty(0)).size:
+                rest = envelope(self._rest[name], self.block)
+                lo, hi = [*lo, rest[0]], [*hi, rest[1]]
+            out[name] = (np.concatenate(lo) if lo else np.empty(0), np.concatenate(hi) if hi else np.empty(0))
+        return out
+
+    def write(self, nc) -> None:
+        """Write the ``overview`` group into ``nc`` (a netCDF4.Dataset open for writing that holds the run's
+        ``position`` and ``force``: the loop's raster is a pass over those two, after their ranges are known).
+
+        Raises
+        ------
+        ValueError
+            ``nc`` already has an overview.
+        """
+        if GROUP in nc.groups:
+            raise ValueError(f"{nc.filepath()}: already has an overview")
+        n = self.samples
+        g = nc.createGroup(GROUP)
+        g.setncatts({"samples_per_block": np.int64(self.block), "samples": np.int64(n),
+                     "comment": "min/max of each block of samples_per_block samples of each variable "
+                                "(rdea_lab.store.overview), and the force-displacement loop's raster"})
+        g.createDimension("block", math.ceil(n / self.block) if n else 0)
+        ranges = {}
+        for k, (lo, hi) in sorted(self.envelopes().items()):
+            for suffix, values in (("min", lo), ("max", hi)):
+                var = g.createVariable(f"{k}_{suffix}", "f8", ("block",), zlib=True, complevel=4)
+                var[:] = values
+            finite = np.isfinite(lo)
+            ranges[k] = (float(lo[finite].min()), float(hi[finite].max())) if finite.any() else None
+        if ranges.get("position") and ranges.get("force"):
+            (x0, x1), (y0, y1) = ranges["position"], ranges["force"]
+            x, y = nc.variables["position"], nc.variables["force"]
+            x.set_auto_maskandscale(False)
+            y.set_auto_maskandscale(False)
+            counts = occupancy(x, y, n, (x0, x1), (y0, y1), LOOP_SHAPE)
+            g.createDimension("loop_force", LOOP_SHAPE[0])
+            g.createDimension("loop_position", LOOP_SHAPE[1])
+            var = g.createVariable("loop", "i8", ("loop_force", "loop_position"), zlib=True, complevel=4)
+            var[:] = counts
+            var.setncatts({"extent": np.array([x0, x1, y0, y1]), "long_name": "samples per cell of (position "
+                           "[m], force [N]) over extent = (position min, max, force min, max)"})
+
+
 def write_overview(path, block: int = BLOCK, chunk: int = CHUNK) -> None:
-    """Add the overview group to a run's netCDF file (read chunk by chunk: two passes, the second over
-    position and force only).
+    """Add the overview group to a run's netCDF file written by any writer (read chunk by chunk: every float
+    variable over ``time``, then position and force again for the loop's raster).
 
     Parameters
     ----------
@@ -147,46 +237,24 @@ def write_overview(path, block: int = BLOCK, chunk: int = CHUNK) -> None:
     block : int
         Samples per overview value.
     chunk : int
-        About how many samples are read at once (rounded down to whole blocks).
+        About how many samples are read at once.
+
+    Raises
+    ------
+    ValueError
+        The file already has an overview.
     """
     import netCDF4
 
-    step = block * max(1, chunk // block)
     with netCDF4.Dataset(path, "a") as nc:
         n = len(nc.dimensions["time"])
         names = [k for k, v in nc.variables.items() if v.dimensions == ("time",) and v.dtype.kind == "f"]
-        for v in nc.variables.values():
-            v.set_auto_maskandscale(False)  # the raw values (NaN is NaN); no masked arrays
-        parts = {k: ([], []) for k in names}
-        for a in range(0, n, step):
-            for k in names:
-                lo, hi = envelope(nc.variables[k][a:min(a + step, n)], block)
-                parts[k][0].append(lo)
-                parts[k][1].append(hi)
-        if GROUP in nc.groups:
-            raise ValueError(f"{path}: already has an overview")
-        g = nc.createGroup(GROUP)
-        g.setncatts({"samples_per_block": np.int64(block), "samples": np.int64(n),
-                     "comment": "min/max of each block of samples_per_block samples of each variable "
-                                "(rdea_lab.store.overview), and the force-displacement loop's raster"})
-        g.createDimension("block", math.ceil(n / block) if n else 0)
-        ranges = {}
-        for k, (lo, hi) in parts.items():
-            lo, hi = (np.concatenate(p) if p else np.empty(0) for p in (lo, hi))
-            for suffix, values in (("min", lo), ("max", hi)):
-                var = g.createVariable(f"{k}_{suffix}", "f8", ("block",), zlib=True, complevel=4)
-                var[:] = values
-            finite = np.isfinite(lo)
-            ranges[k] = (float(lo[finite].min()), float(hi[finite].max())) if finite.any() else None
-        if ranges.get("position") and ranges.get("force"):
-            (x0, x1), (y0, y1) = ranges["position"], ranges["force"]
-            counts = occupancy(nc.variables["position"], nc.variables["force"], n, (x0, x1), (y0, y1), LOOP_SHAPE)
-            g.createDimension("loop_force", LOOP_SHAPE[0])
-            g.createDimension("loop_position", LOOP_SHAPE[1])
-            var = g.createVariable("loop", "i8", ("loop_force", "loop_position"), zlib=True, complevel=4)
-            var[:] = counts
-            var.setncatts({"extent": np.array([x0, x1, y0, y1]), "long_name": "samples per cell of (position "
-                           "[m], force [N]) over extent = (position min, max, force min, max)"})
+        for k in names:
+            nc.variables[k].set_auto_maskandscale(False)  # the raw values (NaN is NaN); no masked arrays
+        builder = OverviewBuilder(block)
+        for a in range(0, n, chunk):
+            builder.add({k: nc.variables[k][a:min(a + chunk, n)] for k in names})
+        builder.write(nc)
 
 
 def read_overview(ds) -> Overview | None:
