@@ -13,6 +13,7 @@ draws from it when the samples per pixel column are a multiple of `BLOCK`).
 from __future__ import annotations
 
 import math
+from array import array
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -158,34 +159,41 @@ class OverviewBuilder:
     def __init__(self, block: int = BLOCK):
         self.block = int(block)
         self.samples = 0
-        self._parts, self._rest = {}, {}
+        self._parts = {}  # name -> (lo, hi) of the whole blocks so far (compact arrays: 8 bytes a value)
+        self._open = {}  # name -> [samples, lo, hi] of the block being filled (its envelope so far, no samples)
 
     def add(self, data: dict) -> None:
         """Add the next samples of every float variable over ``time`` (``data``: name -> array, equal lengths)."""
         floats = {k: np.asarray(v, float) for k, v in data.items() if np.asarray(v).dtype.kind == "f"}
-        if not floats:
-            return
-        n = len(next(iter(floats.values())))
-        for name, values in floats.items():
-            values = np.concatenate([self._rest.get(name, np.empty(0)), values])
-            whole = (values.size // self.block) * self.block
-            if whole:
-                lo, hi = envelope(values[:whole], self.block)
-                parts = self._parts.setdefault(name, ([], []))
-                parts[0].append(lo)
-                parts[1].append(hi)
-            self._rest[name] = values[whole:]
-        self.samples += n
+        for name, v in floats.items():
+            parts = self._parts.setdefault(name, (array("d"), array("d")))
+            part = self._open.setdefault(name, [0, math.nan, math.nan])
+            k = min(self.block - part[0], v.size) if part[0] else 0  # the open block's missing samples first
+            if k:
+                head = v[:k]
+                part[:] = [part[0] + k, np.fmin(part[1], np.fmin.reduce(head)), np.fmax(part[2], np.fmax.reduce(head))]
+            if part[0] == self.block:
+                parts[0].append(part[1])
+                parts[1].append(part[2])
+                part[:] = [0, math.nan, math.nan]
+            whole = k + ((v.size - k) // self.block) * self.block
+            if whole > k:
+                lo, hi = envelope(v[k:whole], self.block)
+                parts[0].extend(lo.tolist())
+                parts[1].extend(hi.tolist())
+            if whole < v.size:
+                part[:] = [v.size - whole, np.fmin.reduce(v[whole:]), np.fmax.reduce(v[whole:])]
+        if floats:
+            self.samples += len(next(iter(floats.values())))
 
     def envelopes(self) -> dict:
         """``(lo, hi)`` of every block so far per variable (the last, partial block included)."""
         out = {}
-        for name in set(self._parts) | set(self._rest):
-            lo, hi = self._parts.get(name, ([], []))
-            if self._rest.get(name, np.empty(0)).size:
-                rest = envelope(self._rest[name], self.block)
-                lo, hi = [*lo, rest[0]], [*hi, rest[1]]
-            out[name] = (np.concatenate(lo) if lo else np.empty(0), np.concatenate(hi) if hi else np.empty(0))
+        for name, (lo, hi) in self._parts.items():
+            filled, *last = self._open[name]
+            lo, hi = (np.concatenate([np.frombuffer(p, float) if len(p) else np.empty(0), [x] if filled else []])
+                      for p, x in ((lo, last[0]), (hi, last[1])))
+            out[name] = (lo, hi)
         return out
 
     def write(self, nc) -> None:

@@ -49,3 +49,24 @@ def test_columns_from_the_overview_equal_the_columns_of_the_samples(tmp_path):
             np.testing.assert_array_equal(env[name][1], direct[name][1])
         np.testing.assert_array_equal(t, ds["time"].values[::per])
         assert env["force"][1].max() == 9.0  # the one-sample spike
+
+
+def test_the_builder_of_chunks_of_any_size_equals_the_envelope_of_the_whole():
+    from rdea_lab.store.overview import OverviewBuilder
+
+    rng = np.random.default_rng(0)
+    for block in (1, 3, 10, 1000):
+        for _ in range(10):
+            n = int(rng.integers(1, 5000))
+            v = rng.standard_normal(n)
+            v[rng.random(n) < 0.3] = np.nan  # a block of NaN only stays NaN
+            builder, i = OverviewBuilder(block), 0
+            while i < n:
+                k = int(rng.integers(1, 700))  # chunks shorter and longer than a block, never aligned
+                builder.add({"x": v[i:i + k], "n": np.arange(i, min(i + k, n))})  # integers are not gathered
+                i += k
+            lo, hi = builder.envelopes()["x"]
+            ref_lo, ref_hi = decimate.envelope(v, block)
+            np.testing.assert_array_equal(lo, ref_lo)
+            np.testing.assert_array_equal(hi, ref_hi)
+            assert builder.samples == n and set(builder.envelopes()) == {"x"}
