@@ -78,7 +78,8 @@ class RdeaAccessor:
             raise ValueError(f"this dataset has no {key!r} attribute: not an rdea-lab run")
         return self._ds.attrs[key]
 
-    def predict(self, params=None, model="su", *, bands=None, **kwargs) -> xr.Dataset:
+    def predict(self, params=None, model="su", *, bands=None, out=None, block=None, overwrite=False,
+                **kwargs) -> xr.Dataset:
         """The twin on this run's own stretch and voltage history (:func:`rdea_lab.twin.predict`).
 
         Parameters
@@ -91,6 +92,15 @@ class RdeaAccessor:
             Nominal level of a prediction band of the force [-] (0.9: the 90 % band). Its ``uncertainty``
             (`rdea_lab.calibration.bands.Uncertainty`) is read from ``params``, a calibration record,
             unless given; the run is checked against the record's calibration envelope.
+        out : str or path-like, optional
+            Predict block by block (:func:`rdea_lab.twin.predict.predict_blocks`: the run is read a block
+            at a time, the model's state carried across) and write the prediction there as netCDF, one
+            block at a time: for a run too long to hold. The same numbers as the one-shot prediction (to
+            rounding); not with ``bands`` or model ``auto``.
+        block : int, optional
+            Samples per block with ``out`` (default `rdea_lab.twin.predict.BLOCK`).
+        overwrite : bool
+            With ``out``: replace an existing file.
         **kwargs
             Passed to `rdea_lab.predict`: ``specimen`` (default: the run's card), ``protocol`` (check the
             history against its limits first), ``tolerance`` [-] (for ``auto``), ``uncertainty``.
@@ -100,7 +110,8 @@ class RdeaAccessor:
         xarray.Dataset
             On the run's ``time`` [s]: ``force`` [N], ``capacitance`` [F], ``sigma1``, ``sigma1_irr``
             [Pa], ``model_status``, ... (see `rdea_lab.predict`); with ``bands``, ``force_lower`` and
-            ``force_upper`` [N] and the ``band_*`` attributes.
+            ``force_upper`` [N] and the ``band_*`` attributes. With ``out``: that file, opened lazily
+            (close it when done).
 
         Raises
         ------
@@ -108,7 +119,8 @@ class RdeaAccessor:
             No ``params`` for a measured run (it records none), or an unknown ``model``.
         SpecError
             A card or parameter file that cannot be read; ``bands`` with a ``params`` that is no calibration
-            record (and no ``uncertainty``), or a level outside 0.05-0.99.
+            record (and no ``uncertainty``), or a level outside 0.05-0.99; with ``out``: ``bands``, model
+            ``auto`` or ``tolerance``, or an ``out`` that exists (and not ``overwrite``) or is no ``.nc`` name.
 
         References
         ----------
@@ -117,6 +129,8 @@ class RdeaAccessor:
         """
         from ..twin import predict
 
+        if out is not None or block is not None:
+            return self._predict_to(out, params, model, bands, block, overwrite, kwargs)
         if bands is not None and kwargs.get("uncertainty") is None:
             from ..calibration.bands import Uncertainty
             from ..specs import SpecError
@@ -127,7 +141,29 @@ class RdeaAccessor:
             kwargs["uncertainty"] = Uncertainty.of_record(params)
         return predict(self._ds, params, model, bands=bands, **kwargs)
 
-    def plot(self, path=None, *, ax=None, fig=None, prediction=None):
+    def _predict_to(self, out, params, model, bands, block, overwrite, kwargs) -> xr.Dataset:
+        """`predict` block by block into the file ``out``, opened lazily."""
+        from datetime import datetime, timezone
+
+        from ..specs import SpecError
+        from ..store.blocks import write_blocks
+        from ..twin.predict import BLOCK, predict_blocks
+
+        if out is None:
+            raise SpecError("arguments", "block", "needs out=PATH (the file the prediction is written to block "
+                            "by block)")
+        for name, value in (("bands", bands), ("tolerance", kwargs.pop("tolerance", None)),
+                            ("uncertainty", kwargs.pop("uncertainty", None))):
+            if value is not None:
+                raise SpecError("arguments", name, "not with out= (a band needs the whole prediction); "
+                                "allowed: predict without out=")
+        blocks = predict_blocks(self._ds, params, model, block=block or BLOCK, **kwargs)
+        created = datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+        write_blocks(out, blocks.samples, blocks, lambda: blocks.attrs(created),
+                     time_attrs=dict(self._ds["time"].attrs), overwrite=overwrite)
+        return xr.open_dataset(out, engine="netcdf4", decode_times=False)
+
+    def plot(self, path=None, *, ax=None, fig=None, prediction=None, envelope=None):
         """The run's figure (:func:`rdea_lab.reports.plots.plot_run`), as ``rdea-lab show`` draws it.
 
         Parameters
@@ -142,6 +178,10 @@ class RdeaAccessor:
         prediction : xarray.Dataset, optional
             The twin on the same ``time`` (`predict`): its ``force`` [N] (and ``capacitance`` [F]) drawn
             dashed over the measurement, with residual panels in the full layout.
+        envelope : bool, optional
+            Draw the time histories as min/max envelopes per pixel column, read chunk by chunk (a long
+            run is never loaded whole; the title says so). Default: for a run of more than
+            `rdea_lab.reports.plots.ENVELOPE_ABOVE` samples.
 
         Returns
         -------
@@ -155,4 +195,4 @@ class RdeaAccessor:
         """
         from ..reports.plots import plot_run
 
-        return plot_run(self._ds, path, ax=ax, fig=fig, prediction=prediction)
+        return plot_run(self._ds, path, ax=ax, fig=fig, prediction=prediction, envelope=envelope)

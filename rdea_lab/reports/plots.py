@@ -22,6 +22,9 @@ DPI = 200
 PREDICTION = {"color": "black", "ls": "--", "lw": 0.9, "label": "twin"}
 #: Below this |voltage| [V] everywhere a run is a 0 V run: no voltage axis is drawn for it.
 ZERO_VOLTAGE = 5.0
+#: A run of more samples than this is drawn as a min/max envelope per pixel column, read chunk by chunk
+#: (`rdea_lab.reports.long_plots`); a shorter one sample by sample, as it always was.
+ENVELOPE_ABOVE = 200_000
 
 
 def save_figure(fig, path, dpi: int = DPI, vector: bool = False):
@@ -108,6 +111,12 @@ def residual_panel(ax, x, measured, predicted, peak: float, unit: str = "N", sca
     """
     r = (np.asarray(predicted, float) - np.asarray(measured, float)) * scale
     ax.plot(x, r, **{"color": "black", "lw": 0.7, **style})
+    return residual_axes(ax, peak, unit, scale)
+
+
+def residual_axes(ax, peak: float, unit: str = "N", scale: float = 1.0):
+    """The axes of `residual_panel` (its zero line, left label in ``unit``, right axis in % of ``peak``
+    [SI]), for a residual already drawn."""
     ax.axhline(0.0, color="tab:gray", lw=0.6)
     ax.set_ylabel(f"twin − measured [{unit}]", fontsize=8)
     ax.grid(alpha=0.3)
@@ -290,7 +299,7 @@ def _prediction_label(prediction) -> str:
     return f"prediction ({model})" if model else "prediction"
 
 
-def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
+def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None, envelope=None):
     """Time histories of a run and its force-displacement loop.
 
     Parameters
@@ -314,6 +323,13 @@ def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
         measurement (force panel, loop and capacitance panel, or ``ax``); in
         the full layout a residual panel (`residual_panel`: predicted -
         measured in N or pF, and in % of the run's peak) under each of them.
+    envelope : bool, optional
+        Draw each time history as its min/max envelope per pixel column
+        (:func:`rdea_lab.reports.decimate.envelope`, read chunk by chunk, so a
+        lazily opened run is never loaded whole; a one-sample spike stays
+        visible) and the loop as the pixels its samples fall in; the title
+        says so. Default (None): for a run of more than `ENVELOPE_ABOVE`
+        samples. False: every sample drawn (the run is read whole).
 
     Returns
     -------
@@ -328,6 +344,12 @@ def plot_run(ds, path=None, *, ax=None, fig=None, prediction=None):
     """
     if ax is not None and fig is not None:
         raise ValueError("plot_run: give ax= or fig=, not both")
+    if envelope or (envelope is None and ds.sizes["time"] > ENVELOPE_ABOVE):
+        from .long_plots import plot_long_run
+
+        styles = {"own": _run_label(ds), "prediction": dict(PREDICTION, label=_prediction_label(prediction))}
+        return plot_long_run(ds, ax=ax, fig=fig, prediction=prediction, new_figure=_new_figure, finish=_finish,
+                             path=path, styles=styles, dpi=DPI)
     pred = _prediction(ds, prediction)
     t = ds["time"].values
     own = _run_label(ds)

@@ -189,20 +189,42 @@ def catalog(folder=".", where=None, since=None, columns=None, catalog=None, limi
     return listing(folder, where=where, since=since, columns=columns, url=catalog, limit=limit)
 
 
-def finite_range(var: xr.DataArray, n: int = 1 << 20):
-    """``(min, max)`` of a variable's finite values, None if it has none: its ``actual_range`` when it
-    has one (rdea-lab writes it), else read ``n`` samples at a time (a long run is never loaded whole)."""
-    span = var.attrs.get("actual_range")
-    if span is not None and np.size(span) == 2 and var.dtype.kind == "f":
-        return float(np.min(span)), float(np.max(span))
-    lo, hi = np.inf, -np.inf
-    flat = var.variable if var.ndim == 1 else xr.Variable(("i",), np.asarray(var.values).ravel())
-    for a in range(0, flat.shape[0], n):
-        v = np.asarray(flat[a:a + n].values, float)
+#: Samples read at once where a variable's range is computed (`finite_range`).
+RANGE_CHUNK = 1 << 21
+
+
+def finite_range(var, chunk: int = RANGE_CHUNK, overview=None) -> tuple[float, float] | None:
+    """Smallest and largest finite value of a run's variable: its ``actual_range`` attribute when it has one
+    (written with the file), else from the file's ``overview`` (`rdea_lab.store.overview`), else read
+    ``chunk`` samples at a time (a lazily opened run is not loaded whole).
+
+    Parameters
+    ----------
+    var : xarray.DataArray
+        A variable over ``time``.
+    chunk : int
+        Samples read at once.
+    overview : Overview, optional
+        The run's overview (`rdea_lab.store.overview.read_overview`).
+
+    Returns
+    -------
+    (float, float) or None
+        ``(min, max)`` in the variable's unit; None when no value is finite.
+    """
+    given = np.asarray(var.attrs.get("actual_range", ()), float).ravel()
+    if given.size == 2 and np.all(np.isfinite(given)):
+        return float(given[0]), float(given[1])
+    if overview is not None and var.name in overview.envelopes and overview.samples == var.size:
+        lo, hi = (e[np.isfinite(e)] for e in overview.envelopes[var.name])
+        return (float(lo.min()), float(hi.max())) if lo.size else None
+    lo, hi, n = np.inf, -np.inf, var.shape[0] if var.ndim else 1
+    for a in range(0, n, chunk):
+        v = np.asarray(var[a:a + chunk].values if var.ndim else var.values, float)
         v = v[np.isfinite(v)]
         if v.size:
-            lo, hi = min(lo, v.min()), max(hi, v.max())
-    return (float(lo), float(hi)) if lo <= hi else None
+            lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
+    return (lo, hi) if lo <= hi else None
 
 
 def describe_run(ds: xr.Dataset) -> str:
@@ -218,8 +240,11 @@ def describe_run(ds: xr.Dataset) -> str:
              *([f"  metadata {metadata_text(user_metadata(a))}"] if user_metadata(a) else []),
              f"  {n} samples over {float(t[-1] - t[0]) if t.size else 0:.4g} s "
              f"at {float(a.get('sample_rate', 0)):g} Hz"]
+    from .overview import read_overview
+
+    overview = read_overview(ds) if not all("actual_range" in v.attrs for v in ds.data_vars.values()) else None
     for name, var in ds.data_vars.items():
-        span = finite_range(var)
-        text = f"{span[0]:.5g} .. {span[1]:.5g}" if span is not None else "not measured"
-        lines.append(f"  {name:<17} [{var.attrs.get('units', '?')}] {text}")
+        r = finite_range(var, overview=overview)
+        lines.append(f"  {name:<17} [{var.attrs.get('units', '?')}] "
+                     + (f"{r[0]:.5g} .. {r[1]:.5g}" if r is not None else "not measured"))
     return "\n".join(lines)

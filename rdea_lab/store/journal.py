@@ -55,6 +55,7 @@ import numpy as np
 import xarray as xr
 
 from ..specs.errors import SpecError, UserError
+from .overview import OVERVIEW_ABOVE, OverviewBuilder, write_overview
 from .schema import EXTRA_VARIABLES, TIME_ENCODING, VARIABLES, time_attrs, variable_attrs
 
 FORMAT = "rdea-lab-journal-1"
@@ -473,6 +474,7 @@ class _Converter:
         self.attrs = dict(layout.attrs)
         self.tmp.parent.mkdir(parents=True, exist_ok=True)
         self.done, self.ranges, self._nc = 0, {}, None
+        self.overview = OverviewBuilder()  # min/max per block, for the figure of a long run (store.overview)
         try:
             layout.attrs = netcdf_attrs(layout.attrs)
             layout.to_netcdf(self.tmp, engine="netcdf4", unlimited_dims=["time"], encoding=_encoding(layout))
@@ -502,6 +504,8 @@ class _Converter:
                     self._nc[name][self.done:b] = values
                     if j and values.dtype.kind == "f":
                         self.ranges[name] = actual_range(values, self.ranges.get(name))
+                self.overview.add({name: rows[:, j] for j, name in enumerate(self.columns)  # views, no copies
+                                   if name == "time" or name in VARIABLES or EXTRA_VARIABLES[name][2] == "f8"})
             self.done = b
         return self.done
 
@@ -515,6 +519,8 @@ class _Converter:
                     self._nc[name].setncattr("actual_range", span)
             for key, value in attrs.items():
                 self._nc.setncattr(key, value)
+            if self.done > OVERVIEW_ABOVE:
+                self.overview.write(self._nc)
             self._nc.close()
             self._nc = None
         with open(self.tmp, "rb") as fh:
@@ -552,6 +558,8 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
                 var.attrs["actual_range"] = span
     try:
         ds.to_netcdf(tmp, engine="netcdf4", unlimited_dims=["time"], encoding=_encoding(ds))
+        if ds.sizes.get("time", 0) > OVERVIEW_ABOVE:  # a long run: its figure drawn from the overview
+            write_overview(tmp)
         with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, out)

@@ -10,7 +10,10 @@ import xarray as xr
 
 from ..physics.selection import select_model
 from ..specs import MODEL_CHOICES, SpecError, as_params, params_from_yaml, specimen_from_yaml
-from .simulate import as_geometry, simulate
+from ..physics.result import OK, is_valid
+from ..specs import check_limits
+from ..specs.status import STATUS_NAMES
+from .simulate import TwinStream, as_geometry, history_limits, simulate, simulation_attrs
 
 from ..specs.importing import MIN_STRETCH  # below it a compressed specimen; between it and 1, noise
 MODELS = MODEL_CHOICES
@@ -36,6 +39,21 @@ def _history(history):
         return np.asarray(t, float), np.asarray(lam, float), v, None
     raise TypeError(f"history: expected a run Dataset, a mapping with time, stretch and voltage, or a "
                     f"(t, stretch, voltage) tuple, got {type(history).__name__}")
+
+
+def _material(ds, params, model, specimen):
+    """``(geometry, ParameterSet)`` of a prediction: given, or the run's own; the model checked."""
+    if model not in MODELS:
+        raise ValueError(f"model: {model!r}; allowed: {', '.join(MODELS)}")
+    if specimen is None:
+        if ds is None or "specimen" not in ds.attrs:
+            raise ValueError("specimen: required (the history is not a run that records its specimen card)")
+        specimen = specimen_from_yaml(ds.attrs["specimen"], "history (attribute 'specimen')")
+    if params is None:
+        if ds is None or not ds.attrs.get("parameters"):
+            raise ValueError("params: required (the history is not a twin run that records its parameter set)")
+        params = params_from_yaml(ds.attrs["parameters"], "history (attribute 'parameters')")
+    return as_geometry(specimen), as_params(params)
 
 
 def predict(history, params=None, model="su", *, specimen=None, protocol=None, tolerance=0.01, bands=None,
@@ -114,18 +132,7 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
         015008 (2021 online), doi:10.1088/1361-665X/ac34be.
     """
     t, stretch, voltage, ds = _history(history)
-    if model not in MODELS:
-        raise ValueError(f"model: {model!r}; allowed: {', '.join(MODELS)}")
-    if specimen is None:
-        if ds is None or "specimen" not in ds.attrs:
-            raise ValueError("specimen: required (the history is not a run that records its specimen card)")
-        specimen = specimen_from_yaml(ds.attrs["specimen"], "history (attribute 'specimen')")
-    if params is None:
-        if ds is None or not ds.attrs.get("parameters"):
-            raise ValueError("params: required (the history is not a twin run that records its parameter set)")
-        params = params_from_yaml(ds.attrs["parameters"], "history (attribute 'parameters')")
-    params = as_params(params)
-    geom = as_geometry(specimen)
+    geom, params = _material(ds, params, model, specimen)
     voltage = np.broadcast_to(np.asarray(voltage, float), stretch.shape)
     noise = np.isfinite(stretch) & (stretch >= MIN_STRETCH) & (stretch < 1.0)
     used = np.where(noise, np.nan, stretch) if noise.any() else stretch
@@ -151,3 +158,150 @@ def predict(history, params=None, model="su", *, specimen=None, protocol=None, t
                             "Uncertainty.of_record(PARAMS) (or ds.rdea.predict(PARAMS, bands=...), which builds it)")
         out = uncertainty.add_to(out, bands, specimen=geom, model=model, flags=band_flags)
     return out
+
+
+#: Samples per block of `predict_blocks` (about 2 MB per variable).
+BLOCK = 1 << 18
+
+
+class PredictionBlocks:
+    """`predict` block by block, for a history too long to hold: iterate it for ``(start, stop, data)``.
+
+    Made by :func:`predict_blocks`, which checks its arguments at once. Each block reads only samples
+    ``start`` to ``stop - 1`` of the history (``history[name][start:stop]``, so a lazily opened run is
+    never loaded whole) and gives the variables of `predict` there; a `TwinStream` carries the
+    viscoelastic state and the equilibrium path from block to block, so the blocks join into the one-shot
+    prediction. Iterate once.
+
+    Attributes
+    ----------
+    geometry : RollGeometry or StripGeometry
+    params : ParameterSet
+    model : str
+    samples : int
+        Length of the history.
+    block : int or tuple of int
+        Samples per block (the last one shorter), or each block's size.
+    status_counts : dict of int to int
+        Samples per ``model_status`` code so far.
+    excluded : int
+        Samples so far with a NaN stretch, or one within noise below 1 (NaN in the output).
+    """
+
+    def __init__(self, history, geometry, params, model, protocol, block, samples):
+        self._history, self.geometry, self.params, self.model = history, geometry, params, model
+        self._limits = history_limits(protocol) if protocol is not None else None
+        self.block, self.samples = block, samples
+        self.status_counts, self.excluded = {}, 0
+
+    def _read(self, name, a, b):
+        if name not in self._history:
+            return np.zeros(b - a) if name == "voltage" else None
+        part = self._history[name][a:b]
+        return np.asarray(getattr(part, "values", part), float)
+
+    def __iter__(self):
+        stream = TwinStream(self.geometry, self.params, self.model)
+        last = None  # the previous block's last sample, for the limit checks across the boundary
+        for a, b in self.bounds():
+            t, stretch = self._read("time", a, b), self._read("stretch", a, b)
+            voltage = np.broadcast_to(self._read("voltage", a, b), stretch.shape)
+            if self._limits is not None:
+                limits, source = self._limits
+                joined = [np.concatenate([[p], q]) for p, q in zip(last, (t, stretch, voltage))] if last else None
+                check_limits(limits, source, *(joined or (t, stretch, voltage)), L3=self.geometry.L3)
+                last = (t[-1], stretch[-1], voltage[-1])
+            noise = np.isfinite(stretch) & (stretch >= MIN_STRETCH) & (stretch < 1.0)
+            out = stream.step(t, np.where(noise, np.nan, stretch) if noise.any() else stretch, voltage)
+            self.excluded += int(noise.sum() + (~np.isfinite(stretch)).sum())
+            codes, counts = np.unique(out["model_status"], return_counts=True)
+            for code, count in zip(codes.tolist(), counts.tolist()):
+                self.status_counts[code] = self.status_counts.get(code, 0) + count
+            data = {"time": t, "stretch": stretch, "voltage": np.array(voltage), "force": out["force"],
+                    "capacitance": out["capacitance"], "sigma1": out["sigma1"], "sigma1_irr": out["sigma1_irr"],
+                    "lambda2b": out["lambda2b"],
+                    "converged": is_valid(out["model_status"]).astype(np.int8),
+                    "model_status": out["model_status"]}
+            yield a, b, data
+
+    def bounds(self) -> list[tuple[int, int]]:
+        """``(start, stop)`` of each block."""
+        if isinstance(self.block, int):
+            edges = list(range(0, self.samples, self.block)) + [self.samples]
+        else:
+            edges = [0, *np.cumsum(self.block).tolist()]
+        return [(a, b) for a, b in zip(edges[:-1], edges[1:])]
+
+    def summary(self) -> str:
+        """The samples without a valid equilibrium so far, counted per status (or ``all N samples converged``)."""
+        parts = [f"{count} of {self.samples} samples {STATUS_NAMES[code]}"
+                 for code, count in sorted(self.status_counts.items()) if code != OK]
+        return "; ".join(parts) or f"all {self.samples} samples converged"
+
+    def attrs(self, created: str) -> dict:
+        """The global attributes of the prediction (`predict`'s, with the `summary` of the blocks so far)."""
+        out = simulation_attrs(self.geometry, self.params, self.model, self.summary(), created)
+        if isinstance(self._history, xr.Dataset):
+            for key in ("run_id", "specimen_id", "protocol_name"):
+                if key in self._history.attrs:
+                    out[f"history_{key}"] = self._history.attrs[key]
+        out["parameters_name"] = str(getattr(self.params, "name", ""))
+        out["excluded_samples"] = self.excluded
+        out["prediction_blocks"] = self.block
+        return out
+
+
+def predict_blocks(history, params=None, model="su", *, specimen=None, protocol=None,
+                   block: int = BLOCK) -> PredictionBlocks:
+    """`predict` block by block, with the model's history carried across the blocks.
+
+    Parameters
+    ----------
+    history : xarray.Dataset or mapping
+        A run (opened lazily or loaded: ``time`` [s], ``stretch`` [-], ``voltage`` [V], its ``specimen``
+        and, for a twin run, ``parameters`` attributes), or a mapping of arrays with those keys.
+    params : ParameterSet or path, optional
+        Material; default: the run's own parameters (twin runs only).
+    model : {"su", "1r", "3r", "cr"}
+        Quasi-static model. Not ``auto``: its choice compares the models over the whole history.
+    specimen : SpecimenCard, RollGeometry or path, optional
+        The roll; default: the run's own card.
+    protocol : ProtocolSpec, Plan, Limits or path, optional
+        Check each block against its limits first (as `predict`).
+    block : int or sequence of int
+        Samples per block, >= 2 (the last block shorter); or the size of each block (>= 1, adding up to
+        the history's length).
+
+    Returns
+    -------
+    PredictionBlocks
+        Iterate for ``(start, stop, data)``: ``data`` maps ``time`` [s] and the variables of `predict` (``stretch``,
+        ``voltage``, ``force`` [N], ``capacitance`` [F], ``sigma1``, ``sigma1_irr`` [Pa], ``lambda2b``,
+        ``converged``, ``model_status``) to samples ``start`` to ``stop - 1``, the same numbers as
+        ``predict(history, ...)`` there (to rounding).
+
+    Raises
+    ------
+    SpecError
+        ``model`` auto, or ``block`` not as above.
+    ValueError
+        An unknown ``model``; no ``specimen`` (or ``params``) for a history that records none; no ``time``
+        or ``stretch``.
+    """
+    if model == "auto":
+        raise SpecError("arguments", "model", "auto chooses over the whole history; allowed for a prediction "
+                        f"block by block: {', '.join(m for m in MODELS if m != 'auto')} (the model auto picks "
+                        "on a shorter part of the run)")
+    for name in ("time", "stretch"):
+        if name not in history:
+            raise ValueError(f"history: no {name!r}; a run has time, stretch and voltage")
+    n = int(np.shape(history["time"])[0])
+    sizes = np.atleast_1d(np.asarray(block))
+    if sizes.dtype.kind not in "iu" or np.any(sizes < 1) or (sizes.size == 1 and sizes[0] < 2) or (
+            sizes.size > 1 and sizes.sum() != n):
+        raise SpecError("arguments", "block", f"{block!r}; allowed: an integer >= 2 samples, or the sizes of "
+                        f"the blocks (integers >= 1 that add up to the history's {n} samples)")
+    ds = history if isinstance(history, xr.Dataset) else None
+    geom, params = _material(ds, params, model, specimen)
+    block = int(sizes[0]) if np.ndim(block) == 0 else tuple(int(k) for k in sizes)
+    return PredictionBlocks(history, geom, params, model, protocol, block, n)

@@ -222,7 +222,6 @@ def simulate(specimen, params, t, stretch, voltage, model="su", *, protocol=None
         limits, source = history_limits(protocol)
         check_limits(limits, source, t, stretch, voltage, L3=geom.L3)
     out = TwinStream(geom, params, model).step(t, stretch, voltage)  # the whole series as one block
-    law = viscous(params)[3]
     data = {
         "stretch": stretch,
         "voltage": voltage,
@@ -240,12 +239,18 @@ def simulate(specimen, params, t, stretch, voltage, model="su", *, protocol=None
         coords={"time": ("time", np.asarray(t, float), time_attrs(created))},
     )
     ds["time"].encoding.update({"_FillValue": None})  # a coordinate has no missing values (CF 2.5.1)
-    ds.attrs.update({
+    ds.attrs.update(simulation_attrs(geom, params, model, out["summary"], created))
+    return ds
+
+
+def simulation_attrs(geom, params, model: str, summary: str, created: str) -> dict:
+    """The global attributes of a dataset `simulate` makes (also of a prediction written chunk by chunk)."""
+    return {
         "Conventions": "CF-1.8",
         "title": f"twin ({model}) of a roll over a given stretch and voltage history",
         "model": model,
-        "viscoelastic_law": law,
-        "model_summary": out["summary"],
+        "viscoelastic_law": viscous(params)[3],
+        "model_summary": summary,
         "geometry": json.dumps(geom.as_dict(params.eps_r)),
         "parameters": parameters_yaml(params),  # YAML, as every run writes it
         "rdea_lab_version": __version__,
@@ -253,8 +258,7 @@ def simulate(specimen, params, t, stretch, voltage, model="su", *, protocol=None
         "history": f"{created}: rdea_lab.twin.simulate",
         **global_attrs(f"rdea-lab {__version__} twin.simulate, model {model}, parameters "
                        f"{getattr(params, 'name', 'unnamed')}"),
-    })
-    return ds
+    }
 
 
 def parameters_yaml(params) -> str:

@@ -1,0 +1,95 @@
+"""Writing a dataset over ``time`` block by block (a prediction of a day-long run), in bounded memory."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..specs.variables import variable_attrs
+from .outputs import check_dataset_name, check_new
+
+#: zlib level of every variable (as the journal writes runs).
+COMPLEVEL = 4
+
+
+def write_blocks(path, samples: int, blocks, attrs, *, time_attrs=None, overwrite: bool = False) -> Path:
+    """Write the blocks ``(start, stop, {name: array})`` of a dataset over ``time`` to a netCDF file, one at a time.
+
+    Parameters
+    ----------
+    path : path
+        The ``.nc`` file to write; written as ``<path>.tmp`` and renamed when complete (a file that is
+        there is whole).
+    samples : int
+        Samples of every variable (the blocks cover 0 to ``samples - 1`` in order).
+    blocks : iterable
+        ``(start, stop, data)``: ``data`` maps each variable (its ``units`` and ``long_name`` from
+        `rdea_lab.specs.variables`) to samples ``start`` to ``stop - 1``; one of them is ``time`` [s].
+    attrs : callable
+        ``attrs()`` gives the global attributes, asked for after the last block (so they can say what the
+        blocks found).
+    time_attrs : dict, optional
+        The ``time`` coordinate's attributes (the run's: ``units`` ``seconds since ...``).
+    overwrite : bool
+        Replace an existing file.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    OutputError
+        ``path`` exists (and not ``overwrite``), is no ``.nc`` name or cannot be written.
+    ValueError
+        Blocks that do not cover the samples in order.
+    """
+    import netCDF4
+
+    path = Path(path)
+    check_dataset_name(path)
+    check_new(path, overwrite)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    ranges = {}
+    try:
+        with netCDF4.Dataset(tmp, "w", format="NETCDF4") as nc:
+            nc.createDimension("time", samples)
+            made, end = {}, 0
+            for start, stop, data in blocks:
+                if start != end:
+                    raise ValueError(f"write_blocks: a block starts at sample {start}, after {end} were written")
+                for name, values in data.items():
+                    values = np.asarray(values)
+                    if name not in made:
+                        made[name] = _variable(nc, name, values.dtype, samples, time_attrs)
+                    made[name][start:stop] = values
+                    if values.dtype.kind == "f":
+                        finite = values[np.isfinite(values)]
+                        if finite.size:
+                            lo, hi = ranges.get(name, (np.inf, -np.inf))
+                            ranges[name] = (min(lo, float(finite.min())), max(hi, float(finite.max())))
+                end = stop
+            if end != samples:
+                raise ValueError(f"write_blocks: the blocks end at sample {end} of {samples}")
+            for name, (lo, hi) in ranges.items():
+                made[name].setncattr("actual_range", np.array([lo, hi], made[name].dtype))
+            nc.setncatts(attrs())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def _variable(nc, name: str, dtype, samples: int, time_attrs):
+    """A compressed variable over ``time`` with its CF attributes (NaN as the fill value of a float)."""
+    chunk = (min(samples, 1 << 16),) if samples else None
+    fill = np.nan if dtype.kind == "f" and name != "time" else False
+    var = nc.createVariable(name, dtype, ("time",), zlib=True, complevel=COMPLEVEL, chunksizes=chunk,
+                            fill_value=fill)
+    var.setncatts(dict(time_attrs or {}) if name == "time" else variable_attrs(name))
+    return var
