@@ -6,6 +6,8 @@ import csv
 import math
 from pathlib import Path
 
+import numpy as np
+
 from ..specs import dump_params, format_quantity
 from .phases import PHASE_RULE, hold_spans
 from ..specs.record import CalibrationRecord, FitParameter, FitRun, Matrix, Statistics
@@ -115,8 +117,10 @@ def _plot_history(result, path: Path) -> None:
     h = result.history
     for st in result.stages:
         mine = h[h[:, 2] == st["stage"]]
-        ax.semilogy(mine[:, 0], mine[:, 1], drawstyle="steps-post",
-                    label=st["label"] + ("" if st["kept"] else " (dropped)"))
+        ax.plot(mine[:, 0], mine[:, 1], drawstyle="steps-post",
+                label=st["label"] + ("" if st["kept"] else " (dropped)"))
+    if h.size and np.all(h[:, 1] > 0):  # a fit that reaches 0 exactly (a run made by the same model) stays linear
+        ax.set_yscale("log")
     if len(result.stages) > 1:
         ax.legend(fontsize="small")
     ax.set_xlabel("objective evaluations (all stages)")
