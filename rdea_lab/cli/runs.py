@@ -206,7 +206,7 @@ CATALOG_HELP = ("The catalogue: a SQLite file or postgresql://USER@HOST[:PORT]/D
 @click.command(name="ls", epilog=EXIT_HELP)
 @click.argument("folder", required=False, type=click.Path(file_okay=False))
 @click.option("--where", metavar="QUERY", help="Only the runs the query selects, e.g. \"specimen == 'specimen-2' and "
-              "status == 'complete' and md.batch == 'B7'\" (docs/guide/catalogue.md).")
+              "status == 'complete' and md.batch == 'B7'\" (docs/catalogue.md).")
 @click.option("--since", metavar="DATE", help="Only runs created at or after DATE (ISO 8601, UTC), e.g. 2026-03-01.")
 @click.option("--columns", metavar="A,B,md.X", help="The columns to show (e.g. file,status,peak_force,md.batch).")
 @click.option("--catalog", "catalog_url", metavar="URL", help=CATALOG_HELP)
