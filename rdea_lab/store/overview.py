@@ -101,8 +101,9 @@ def occupancy(x, y, n: int, xlim, ylim, shape, chunk: int = CHUNK // 4) -> np.nd
     for a in range(0, n, chunk):
         b = min(a + chunk, n)
         xs, ys = _slice(x, a, b), _slice(y, a, b)
-        i = np.floor((xs - x0) * sx)
-        j = np.floor((ys - y0) * sy)
+        with np.errstate(invalid="ignore"):  # a non-finite sample (inf * 0, NaN) falls outside every cell
+            i = np.floor((xs - x0) * sx)
+            j = np.floor((ys - y0) * sy)
         i[xs == x1] = cols - 1  # the upper edge belongs to the last cell
         j[ys == y1] = rows - 1
         ok = (i >= 0) & (i < cols) & (j >= 0) & (j < rows)

@@ -152,6 +152,13 @@ def test_finish_and_recover_stay_in_bounded_memory(tmp_path, monkeypatch):
     which tracemalloc sees) peak far below the journal's size (measured: 0.2-0.35 MB of 3.5-7 MB), for
     finish and for recover, and do not grow with the run."""
     monkeypatch.setattr(journal, "READ_ROWS", 1024)
+    from rdea_lab.store import index
+
+    monkeypatch.setattr(index, "index_quietly", lambda path: None)  # the conversion's memory (the row's own
+    # sha256 reads 1 MiB at a time, a fixed cost: tests/store/test_index.py)
+    write_journal(tmp_path / "warm.nc", 2_000, background=False).finish("complete", "")  # one-time set-up
+    write_journal(tmp_path / "warm2.nc", 2_000, background=False).close()
+    recover(tmp_path / "warm2.nc")
     for n in (40_000, 80_000):
         for how in ("finish", "recover"):
             out = tmp_path / f"{how}{n}.nc"
