@@ -220,6 +220,10 @@ class RigBackend:
             raise
 
     def _start(self, plan) -> None:
+        if plan.samples > wire.MAX_POINTS:  # refused before the rig is touched, not a broken pipe mid-upload
+            raise RigRefused(f"rig {self.address}: the protocol '{plan.name}' has {plan.samples} samples; the rig "
+                             f"protocol takes at most {wire.MAX_POINTS} setpoints per trajectory (shorten the "
+                             "protocol or lower its sample_rate)")
         if self.geom is None:  # a driver built by hand: its card comes in here
             from ..physics.geometry import geometry_from_card
 

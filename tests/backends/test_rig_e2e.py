@@ -261,3 +261,17 @@ def test_the_identity_check_is_recorded(server, card, tmp_path):
     plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml")
     r, ds = run_with(server, card, plan, tmp_path / "ok.nc")
     assert ds.attrs["rig_identity"] == f"checked: the rig holds {card.id}"
+
+
+def test_a_plan_longer_than_the_rig_protocol_takes_is_refused_before_the_rig_is_touched(tmp_path):
+    """More setpoints than one trajectory block holds (`MAX_POINTS`): refused by the driver with the count and
+    the limit, before it connects (the address below has no server), so nothing moves and nothing is written."""
+    from rdea_lab.specs import rigwire
+
+    card = load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml")
+    plan = load_plan(ROOT / "rdea_lab" / "data" / "protocols" / "fatigue_24h.yaml")
+    assert plan.samples > rigwire.MAX_POINTS  # the check below is not vacuous
+    backend = RigBackend("tcp://127.0.0.1:9", card)
+    with pytest.raises(RigRefused, match=f"{plan.samples} samples.*at most {rigwire.MAX_POINTS}"):
+        backend.start(plan)
+    assert backend._touched is False
