@@ -16,6 +16,7 @@ from ..twin import MIN_STRETCH, compose, viscous
 from ..specs import specimen_from_yaml
 from .phases import sample_weights
 from ..store import open_run
+from ..store.journal import walk_runs
 
 
 @dataclass
@@ -144,7 +145,7 @@ def find_runs(paths, kinds=("tensile",), skipped=None) -> list[Path]:
     out = []
     for p in map(Path, paths):
         if p.is_dir():
-            for f in sorted(p.rglob("*.nc")):
+            for f in map(Path, walk_runs(p)[0]):  # a journal's inside (a shadow file) is not entered
                 try:
                     with xr.open_dataset(f) as ds:
                         kind, status = ds.attrs.get("protocol_kind"), ds.attrs.get("status")

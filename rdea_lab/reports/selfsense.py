@@ -32,6 +32,7 @@ not where the clamps are.
 
 from __future__ import annotations
 
+import uuid
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -260,7 +261,8 @@ def selfsense_run(run, params, model: str = "su", *, tare: str = "rest", estimat
         "rdea_lab_version": __version__, "created": utc_now(), "status": str(ds.attrs.get("status", "unknown")),
         "backend": str(ds.attrs.get("backend", "unknown")), "protocol_name": protocol_name,
         "sample_rate": float(ds.attrs.get("sample_rate", 1.0 / float(np.median(np.diff(t))))),
-        "run": Path(source).name, "run_id": str(ds.attrs.get("run_id", "")), "specimen_id": card.id,
+        "run": Path(source).name, "run_id": uuid.uuid4().hex,  # a dataset of its own (the catalogue's key)
+        "source_run_id": str(ds.attrs.get("run_id", "")), "specimen_id": card.id,
         "source": f"rdea-lab selfsense of {Path(source).name} ({ds.attrs.get('source', 'unknown source')})",
         "institution": str(ds.attrs.get("institution", "not stated")),
         "references": str(ds.attrs.get("references", "")),

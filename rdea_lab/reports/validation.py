@@ -44,6 +44,7 @@ from .repeats import REPEAT_KEYS, REPEAT_LEGEND, add_repeats, columns_for, repea
 from .provenance import (NONE_RECORDED, NOT_CHECKED, calibration_envelope, calibration_summary, data_origin, role,
                          run_origin)
 from .validation_figures import write_figures
+from ..store.journal import walk_runs
 
 #: Table 4 of [1]: maximum relative error [-] per (experiment, voltage [V]) and specimen.
 PAPER_TABLE4 = {
@@ -157,7 +158,7 @@ def kv(volts: float) -> str:
 def scan_runs(folder: Path) -> tuple[list[Path], list[dict]]:
     """The complete runs (``*.nc``, recursively) below ``folder``, and the files skipped, with why."""
     use, skipped = [], []
-    for path in sorted(Path(folder).rglob("*.nc")):
+    for path in map(Path, walk_runs(folder)[0]):  # not inside a journal (its shadow file)
         try:
             with xr.open_dataset(path, engine="netcdf4") as ds:
                 status = ds.attrs.get("status", "?")

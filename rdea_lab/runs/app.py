@@ -285,7 +285,9 @@ def execute_setup(setup: RunSetup, *, callbacks=(), metadata=None, command="", c
     with setup.opened() as executor:
         result = execute(setup.checked, setup.card, executor, setup.out, seed=setup.seed, command=command,
                          callbacks=callbacks, metadata=metadata)
+    from ..signals import deferred
     from ..store.index import index_quietly
 
-    index_quietly(result.path, catalog)
+    with deferred():  # the run is closed whole: a Ctrl-C now comes after its row (and its status line)
+        index_quietly(result.path, catalog)
     return result

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import json
 from pathlib import Path
 
@@ -57,6 +58,11 @@ def check_run(ds: xr.Dataset, source: str) -> None:
 INDEX_SAMPLES = 1 << 20
 
 
+#: Whether this xarray can open a file without building its index coordinates (``create_default_indexes``,
+#: xarray 2025.07 and later); without it the ``time`` index of a long run is read at open (slower, same data).
+_LAZY_INDEX = "create_default_indexes" in inspect.signature(xr.open_dataset).parameters
+
+
 def open_run(path: Path) -> xr.Dataset:
     """Open a run dataset lazily: its attributes are read, its variables when they are used.
 
@@ -83,10 +89,12 @@ def open_run(path: Path) -> xr.Dataset:
     SpecError
         An attribute or variable not of the type rdea-lab writes (`check_run`).
     """
-    ds = xr.open_dataset(path, engine="netcdf4", decode_times=False, create_default_indexes=False)
+    lazy = {"create_default_indexes": False} if _LAZY_INDEX else {}  # older xarray: the time index is read
+    ds = xr.open_dataset(path, engine="netcdf4", decode_times=False, **lazy)
     try:
         check_run(ds, str(path))
-        if "time" in ds.coords and ds["time"].dims == ("time",) and ds.sizes["time"] <= INDEX_SAMPLES:
+        if ("time" in ds.coords and ds["time"].dims == ("time",) and ds.sizes["time"] <= INDEX_SAMPLES
+                and "time" not in ds.xindexes):
             ds = ds.set_xindex("time")
     except BaseException:
         ds.close()

@@ -18,6 +18,7 @@ elsewhere it is absolute, with the ``host`` that wrote it.
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import socket
 import sys
@@ -289,6 +290,10 @@ class Catalog:
         if not rows:
             return
         upsert, stale_md, stale_runs, drop_md = self._statements()
+        # a non-finite number is stored as NULL on both engines (SQLite makes NaN NULL, PostgreSQL keeps it,
+        # and the same query would then answer differently)
+        rows = [({k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()}, m)
+                for r, m in rows]
         try:
             with self.engine.connect().execution_options(sqlite_write=True) as conn:
                 with conn.begin():

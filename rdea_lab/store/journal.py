@@ -176,6 +176,19 @@ def utc_now() -> str:
     return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
+def walk_runs(folder) -> tuple[list[str], list[Path]]:
+    """The datasets (``*.nc``, as text) and journals (``*.nc.part``) below ``folder``, by path (a journal's
+    inside is not entered)."""
+    datasets, journals = [], []
+    for root, dirs, files in os.walk(folder):
+        for d in list(dirs):
+            if d.endswith(".nc.part"):
+                journals.append(Path(root) / d)
+                dirs.remove(d)
+        datasets += [os.path.join(root, f) for f in files if f.endswith(".nc")]
+    return sorted(datasets, key=lambda p: p.split(os.sep)), sorted(journals)
+
+
 def journal_path(out: Path) -> Path:
     """The journal folder of the dataset ``out``."""
     out = Path(out)

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..specs.errors import DOCUMENT, SpecError
+from .journal import walk_runs as walk
 from .index import RUN_COLUMNS, Catalog, CatalogUnavailable, _when, read_row, resolve_catalog, shown_url
 
 #: `catalog`'s columns by default (what ``rdea-lab ls`` showed before the index), then ``md.<key>``.
@@ -236,19 +237,6 @@ class Rebuild:
         return "\n".join(lines)
 
 
-def walk(folder) -> tuple[list[str], list[Path]]:
-    """The datasets (``*.nc``, as text) and journals (``*.nc.part``) below ``folder``, by path (a journal's
-    inside is not entered)."""
-    datasets, journals = [], []
-    for root, dirs, files in os.walk(folder):
-        for d in list(dirs):
-            if d.endswith(".nc.part"):
-                journals.append(Path(root) / d)
-                dirs.remove(d)
-        datasets += [os.path.join(root, f) for f in files if f.endswith(".nc")]
-    return sorted(datasets, key=lambda p: p.split(os.sep)), sorted(journals)
-
-
 def _compare_keys():
     return [c for c in RUN_COLUMNS if c not in ("indexed_at", "mtime")]
 
@@ -288,6 +276,8 @@ def rebuild(folder, url=None, write=True) -> Rebuild:
         by_id = {r["run_id"]: r for r in old}
         found = {k: [] for k in ("added", "updated", "unchanged", "changed", "unreadable", "duplicates")}
         seen, batch = set(), []
+        held = {os.path.abspath(cat.located(r["file"])) for r in old}
+        datasets = sorted(datasets, key=lambda p: os.path.abspath(p) not in held)  # a run's indexed file first
         for path in datasets:
             try:
                 row, md = read_row(path)
@@ -335,7 +325,7 @@ def refresh(cat: Catalog, datasets) -> list[tuple[str, str]]:
     from sqlalchemy import select
 
     known = set(cat.column(select(cat.runs.c.file))) if datasets else set()
-    batch, bad = [], []
+    batch, bad, pending = [], [], {}
     for path in datasets:
         if cat.stored(path) in known:
             continue
@@ -349,6 +339,10 @@ def refresh(cat: Catalog, datasets) -> list[tuple[str, str]]:
         if held and cat.located(held[0]).exists() and held[0] != row["file"]:
             bad.append((str(path), f"a copy: run id {row['run_id']} is {cat.located(held[0])}'s"))
             continue
+        if row["run_id"] in pending:  # two files of one run found in this pass: the first (by path) is indexed
+            bad.append((str(path), f"a copy: run id {row['run_id']} is {cat.located(pending[row['run_id']])}'s"))
+            continue
+        pending[row["run_id"]] = row["file"]
         batch.append((row, md))
     cat.write(batch)
     return bad

@@ -277,16 +277,23 @@ def read_overview(ds) -> Overview | None:
     Returns
     -------
     Overview or None
+        None also when ``ds`` is a dataset whose variables are in memory (loaded, maybe edited) or whose file
+        now holds another run: the overview describes the file's values, not necessarily the dataset's.
     """
     import netCDF4
 
-    source = ds if isinstance(ds, (str, Path)) else getattr(ds, "encoding", {}).get("source")
+    given = not isinstance(ds, (str, Path))
+    source = getattr(ds, "encoding", {}).get("source") if given else ds
     if not source or not Path(source).is_file():
         return None
+    if given and any(getattr(v.variable, "_in_memory", True) for v in ds.data_vars.values() if "time" in v.dims):
+        return None  # loaded, so perhaps changed since: the file's overview may not be of these values
     try:
         with netCDF4.Dataset(source) as nc:
             if GROUP not in nc.groups:
                 return None
+            if given and str(getattr(nc, "run_id", "")) != str(ds.attrs.get("run_id", "")):
+                return None  # the file was replaced since the dataset was opened (another run written there)
             g = nc.groups[GROUP]
             g.set_auto_maskandscale(False)
             names = [k[:-4] for k in g.variables if k.endswith("_min")]

@@ -191,6 +191,29 @@ def test_a_copy_of_a_run_is_listed_once_and_not_indexed(tmp_path):
     assert index.rebuild(tmp_path).duplicates == (str(tmp_path / "b.nc"),)
 
 
+def test_two_files_of_one_run_never_indexed_before_are_listed_once_and_rebuild_agrees(tmp_path):
+    """A folder never listed holding a run and its copy (same run id): the first listing indexes one file and
+    lists the other as a copy (both went into one batch before, and the last silently won); a rebuild keeps the
+    row where the index holds it, and the listing after it is the same."""
+    import shutil
+
+    out = journal_run(tmp_path / "src" / "r.nc", "r")
+    folder = tmp_path / "f"
+    folder.mkdir()
+    for name in ("b.nc", "a_copy.nc"):
+        shutil.copy(out, folder / name)
+    first = catalog(folder).set_index("file")
+    assert len(first) == 2
+    indexed = [f for f in first.index if not first.loc[f, "status"].startswith("not indexed")]
+    assert len(indexed) == 1
+    other = next(f for f in first.index if f not in indexed)
+    assert first.loc[other, "status"].startswith("not indexed (a copy: run id r is ")
+    assert index.rebuild(folder).duplicates == (other,)
+    after = catalog(folder).set_index("file")
+    assert list(after.loc[indexed, "file_state"]) == ["ok"]
+    assert after.loc[other, "status"] == first.loc[other, "status"]
+
+
 def index_listing():
     from rdea_lab.store import listing
 

@@ -70,3 +70,23 @@ def test_the_builder_of_chunks_of_any_size_equals_the_envelope_of_the_whole():
             np.testing.assert_array_equal(lo, ref_lo)
             np.testing.assert_array_equal(hi, ref_hi)
             assert builder.samples == n and set(builder.envelopes()) == {"x"}
+
+
+def test_the_overview_is_not_used_for_values_that_may_differ_from_the_file(tmp_path):
+    """Drawn from the overview only while the dataset's variables are the file's: not once loaded (maybe
+    edited: force scaled by 100 must show as 100 times larger), nor when the file now holds another run."""
+    n = 20_011
+    run = long_run(n, spike_at=12_345)
+    run.attrs["run_id"] = "first"
+    run.to_netcdf(tmp_path / "run.nc")
+    write_overview(tmp_path / "run.nc", block=10)
+    with xr.open_dataset(tmp_path / "run.nc", decode_times=False) as ds:
+        assert read_overview(ds) is not None
+        edited = ds.load()
+        edited["force"] = edited["force"] * 100.0
+        assert read_overview(edited) is None
+        per, t, env, ov = series_envelopes(edited, ["force"], {}, n, 997)
+        assert ov is None and env["force"][1].max() == 900.0  # the spike, scaled
+    with xr.open_dataset(tmp_path / "run.nc", decode_times=False) as ds:
+        ds.attrs["run_id"] = "second"  # as a dataset of another run would read
+        assert read_overview(ds) is None
