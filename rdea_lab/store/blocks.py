@@ -8,10 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from ..specs.variables import variable_attrs
+from .journal import CHUNK, COMPRESSION, _fsync_dir, actual_range, netcdf_attrs
 from .outputs import check_dataset_name, check_new
-
-#: zlib level of every variable (as the journal writes runs).
-COMPLEVEL = 4
 
 
 def write_blocks(path, samples: int, blocks, attrs, *, time_attrs=None, overwrite: bool = False) -> Path:
@@ -67,18 +65,19 @@ def write_blocks(path, samples: int, blocks, attrs, *, time_attrs=None, overwrit
                     if name not in made:
                         made[name] = _variable(nc, name, values.dtype, samples, time_attrs)
                     made[name][start:stop] = values
-                    if values.dtype.kind == "f":
-                        finite = values[np.isfinite(values)]
-                        if finite.size:
-                            lo, hi = ranges.get(name, (np.inf, -np.inf))
-                            ranges[name] = (min(lo, float(finite.min())), max(hi, float(finite.max())))
+                    if values.dtype.kind == "f" and name != "time":
+                        ranges[name] = actual_range(values, ranges.get(name))
                 end = stop
             if end != samples:
                 raise ValueError(f"write_blocks: the blocks end at sample {end} of {samples}")
-            for name, (lo, hi) in ranges.items():
-                made[name].setncattr("actual_range", np.array([lo, hi], made[name].dtype))
-            nc.setncatts(attrs())
+            for name, span in ranges.items():
+                if span is not None:
+                    made[name].setncattr("actual_range", span)
+            nc.setncatts(netcdf_attrs(attrs()))
+        with open(tmp, "rb") as fh:  # as the journal's datasets: a file that is there is whole
+            os.fsync(fh.fileno())
         os.replace(tmp, path)
+        _fsync_dir(path.parent)
     finally:
         if tmp.exists():
             tmp.unlink()
@@ -86,10 +85,10 @@ def write_blocks(path, samples: int, blocks, attrs, *, time_attrs=None, overwrit
 
 
 def _variable(nc, name: str, dtype, samples: int, time_attrs):
-    """A compressed variable over ``time`` with its CF attributes (NaN as the fill value of a float)."""
-    chunk = (min(samples, 1 << 16),) if samples else None
+    """A variable over ``time`` compressed as a run's (`~rdea_lab.store.journal.COMPRESSION`), with its CF
+    attributes (NaN as the fill value of a float)."""
+    chunk = (min(samples, CHUNK),) if samples else None
     fill = np.nan if dtype.kind == "f" and name != "time" else False
-    var = nc.createVariable(name, dtype, ("time",), zlib=True, complevel=COMPLEVEL, chunksizes=chunk,
-                            fill_value=fill)
+    var = nc.createVariable(name, dtype, ("time",), **COMPRESSION, chunksizes=chunk, fill_value=fill)
     var.setncatts(dict(time_attrs or {}) if name == "time" else variable_attrs(name))
     return var
