@@ -457,6 +457,7 @@ def read_row(path) -> tuple[dict, dict]:
         A file that cannot be read, or is not an rdea-lab run (no ``run_id``).
     """
     import netCDF4
+    from xarray.backends.locks import HDF5_LOCK  # HDF5 is not thread-safe: one call at a time, as xarray's
 
     from .catalog import user_metadata
     from .schema import origin_kind
@@ -464,7 +465,7 @@ def read_row(path) -> tuple[dict, dict]:
     path = Path(os.path.abspath(path))
     st = path.stat()
     sha = file_sha256(path)
-    with netCDF4.Dataset(path) as nc:
+    with HDF5_LOCK, netCDF4.Dataset(path) as nc:
         nc.set_auto_mask(False)
         a = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in ((k, nc.getncattr(k)) for k in nc.ncattrs())}
         if not str(a.get("run_id", "")).strip():

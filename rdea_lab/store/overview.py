@@ -254,8 +254,9 @@ def write_overview(path, block: int = BLOCK, chunk: int = CHUNK) -> None:
         The file already has an overview.
     """
     import netCDF4
+    from xarray.backends.locks import HDF5_LOCK  # HDF5 is not thread-safe: one call at a time, as xarray's
 
-    with netCDF4.Dataset(path, "a") as nc:
+    with HDF5_LOCK, netCDF4.Dataset(path, "a") as nc:
         n = len(nc.dimensions["time"])
         names = [k for k, v in nc.variables.items() if v.dimensions == ("time",) and v.dtype.kind == "f"]
         for k in names:
@@ -281,6 +282,7 @@ def read_overview(ds) -> Overview | None:
         now holds another run: the overview describes the file's values, not necessarily the dataset's.
     """
     import netCDF4
+    from xarray.backends.locks import HDF5_LOCK  # HDF5 is not thread-safe: one call at a time, as xarray's
 
     given = not isinstance(ds, (str, Path))
     source = getattr(ds, "encoding", {}).get("source") if given else ds
@@ -289,7 +291,7 @@ def read_overview(ds) -> Overview | None:
     if given and any(getattr(v.variable, "_in_memory", True) for v in ds.data_vars.values() if "time" in v.dims):
         return None  # loaded, so perhaps changed since: the file's overview may not be of these values
     try:
-        with netCDF4.Dataset(source) as nc:
+        with HDF5_LOCK, netCDF4.Dataset(source) as nc:
             if GROUP not in nc.groups:
                 return None
             if given and str(getattr(nc, "run_id", "")) != str(ds.attrs.get("run_id", "")):
