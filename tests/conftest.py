@@ -46,12 +46,14 @@ def postgresql_server():
     if url := os.environ.get(pg_server.ENV):
         server = pg_server.Server(url)
     else:
+        # where the server must be there (CI installs it: RDEA_LAB_REQUIRE_POSTGRESQL=1) a missing one fails
+        give_up = pytest.fail if os.environ.get("RDEA_LAB_REQUIRE_POSTGRESQL") == "1" else pytest.skip
         if reason := pg_server.unavailable():
-            pytest.skip(reason)
+            give_up(reason)
         try:
             server = pg_server.Server.start()
         except (OSError, RuntimeError) as exc:
-            pytest.skip(f"PostgreSQL tests skipped: the throwaway server did not start ({exc})")
+            give_up(f"PostgreSQL tests skipped: the throwaway server did not start ({exc})")
     yield server
     server.stop()
 
