@@ -69,6 +69,17 @@ class PauseSpec:
         return abs(float(voltage)) / self.ramp_rate
 
 
+def pause_spec_of(plan) -> PauseSpec:
+    """The `PauseSpec` of a plan: its protocol's ``pause:`` mapping, else the defaults."""
+    given = getattr(getattr(plan, "spec", None), "pause", None)
+    if given is None:
+        return PauseSpec()
+    if isinstance(given, PauseSpec):
+        return given
+    return PauseSpec(ramp_rate=float(given.ramp_rate), hold_stretch=given.hold_stretch,
+                     stretch_rate=float(given.stretch_rate))
+
+
 class Setpoints(NamedTuple):
     """Samples taken from `PausedSetpoints`: one entry per sample."""
 
@@ -271,4 +282,5 @@ def pause_intervals(paused) -> list[tuple[int, int]]:
 
 
 __all__ = ["DEFAULT_RAMP_RATE", "DEFAULT_STRETCH_RATE", "FLAG_MEANINGS", "FLAG_VALUES", "HELD", "PauseSpec",
-           "PausedSetpoints", "RAMPING_DOWN", "RAMPING_UP", "RUNNING", "Setpoints", "pause_intervals", "ramp"]
+           "PausedSetpoints", "RAMPING_DOWN", "RAMPING_UP", "RUNNING", "Setpoints", "pause_intervals", "pause_spec_of",
+           "ramp"]
