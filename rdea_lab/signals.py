@@ -57,11 +57,14 @@ class Signals:
     """SIGINT and SIGTERM raise ``error(name)`` until `closing` is set; then they are recorded in `pending`.
 
     ``once``: the first signal also sets `closing` (the engine: after the first, the run is closing).
+    ``first``: called for a SIGINT (never a SIGTERM) before anything else; when it returns True the signal
+    was taken (the engine: a Ctrl-C that pauses the run and asks what next) and nothing is raised.
     """
 
-    def __init__(self, error=KeyboardInterrupt, *, once=False):
+    def __init__(self, error=KeyboardInterrupt, *, once=False, first=None):
         self.error = error
         self.once = once
+        self.first = first
         self.closing = False
         self.pending = ""
         self._previous = {}
@@ -108,6 +111,8 @@ class Signals:
     def _handle(self, signum, frame):
         if self.closing:
             self.pending = self.pending or signal_name(signum)
+            return
+        if self.first is not None and signum == signal.SIGINT and self.first():
             return
         if self.once:
             self.closing = True

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import json
 import math
 import time as _time
@@ -10,6 +11,7 @@ import numpy as np
 
 from .._version import __version__
 from ..physics.models import three_ring
+from ..protocols.pause import HELD, PausedSetpoints, pause_spec_of
 from ..physics.selection import select_model
 from ..specs import as_params, as_specimen, dump_params
 from ..twin.simulate import TwinStream, as_geometry
@@ -17,6 +19,9 @@ from ..twin.simulate import TwinStream, as_geometry
 
 #: Most samples the twin computes in one vectorized step (several blocks, handed out one by one) [samples].
 STEP_SAMPLES = 16384
+#: Longest a held (paused) twin waits for wall time before it hands out the held samples due [s]: the
+#: engine reads a resume request between two blocks, so this bounds how late a resume acts.
+HELD_WAIT = 0.05
 #: ... and at most this many periods of the plan's fastest oscillation in one step: the path solver sends a
 #: step with many uncertified stretches of samples to its serial reference whole (`MAX_FALLBACK_RUNS`).
 STEP_CYCLES = 16
@@ -46,11 +51,13 @@ def blocks_per_step(plan, block: int) -> int:
     return max(1, int(most // block))
 
 
-class _Window:
-    """`rdea_lab.protocols.PlanWindow` of a plan-like object that has whole arrays but no ``window``."""
-
-    def __init__(self, plan, a, b):
-        self.time, self.stretch, self.voltage = plan.time[a:b], plan.stretch[a:b], plan.voltage[a:b]
+def _window(plan, a, b):
+    """``(time, stretch, voltage)`` of samples ``a`` to ``b`` of a plan (`rdea_lab.protocols.Plan.window`),
+    or of a plan-like object that has whole arrays but no ``window``."""
+    if hasattr(plan, "window"):
+        w = plan.window(a, b)
+        return w.time, w.stretch, w.voltage
+    return plan.time[a:b], plan.stretch[a:b], plan.voltage[a:b]
 
 
 class TwinBackend:
@@ -82,7 +89,7 @@ class TwinBackend:
     """
 
     name = "twin"
-    extra_variables = ("model_status",)
+    extra_variables = ("model_status", "paused")
 
     def __init__(self, card, params, model="su", tolerance=0.01, realtime=False, block_seconds=None, seed=0,
                  clock=_time.monotonic, sleep=_time.sleep, geometry=None):
@@ -102,7 +109,9 @@ class TwinBackend:
         self.model = None if model == "auto" else model
         self._clock, self._sleep = clock, sleep
         self._plan = None
-        self._blocks = None
+        self._live = False  # started, not closed
+        self._pending = collections.deque()  # blocks computed, not yet handed out
+        self._step = None  # (model state, path state, charge, setpoints) before the last step
         self._stream = None
         self._t0 = None
         self.aborted = None
@@ -118,10 +127,36 @@ class TwinBackend:
         self._stream = TwinStream(self.geom, self.params, self.model)
         self._charge = (0.0, 0.0)  # (C v, v) before the first sample: no charge at 0 V
         slices = plan.block_slices(self.block_seconds)
-        per = 1 if self.realtime else blocks_per_step(plan, slices[0].stop - slices[0].start)
-        self._steps = iter([slices[i:i + per] for i in range(0, len(slices), per)])
-        self._blocks = iter(())
+        self._block = slices[0].stop - slices[0].start
+        self._per = 1 if self.realtime else blocks_per_step(plan, self._block)
+        self._setpoints = PausedSetpoints(lambda a, b: _window(plan, a, b)[1:], plan.samples, plan.sample_rate,
+                                          pause_spec_of(plan), clock=self._clock)
+        self._live = True
         self._t0 = self._clock()
+
+    # ------------------------------------------------------------ pause
+    def pause(self, reason: str = "") -> None:
+        """Voltage to 0 at the plan's pause ramp rate from the next sample handed out, the stretch held
+        (`rdea_lab.protocols.pause.PausedSetpoints`). Blocks computed ahead of it (several per step, without
+        ``realtime``) are given back and the model's state taken back to the last sample handed out (that
+        part of the step computed again), so the pause acts where the run is, not where it computed to."""
+        ahead = sum(len(b["time"]) for b in self._pending)
+        if ahead and self._step is not None and self._setpoints.untake(ahead):
+            state, path, charge, taken = self._step
+            self._stream._state, self._stream._path, self._charge = state, path, charge
+            kept = taken.paused.size - ahead
+            if kept:
+                self._advance(taken.stretch[:kept], taken.voltage[:kept], self._setpoints.taken - kept)
+            self._pending.clear()
+        self._setpoints.pause()
+
+    def resume(self) -> None:
+        """Back to the plan's setpoints at the pause, then on with the plan."""
+        self._setpoints.resume()
+
+    def conditions(self) -> dict:
+        """The twin has no rig channels (no interlock, amplifier or load cell): none."""
+        return {}
 
     def attrs(self) -> dict:
         out = {"source": f"rdea-lab {__version__} twin, model {self.model or self.requested}, parameters "
@@ -134,27 +169,39 @@ class TwinBackend:
         return out
 
     def read_block(self):
-        if self.aborted is not None or self._blocks is None:
+        if self.aborted is not None or not self._live:
             return None
-        block = next(self._blocks, None)
-        if block is None:
-            step = next(self._steps, None)
-            if step is None:
+        while not self._pending:
+            sp = self._setpoints
+            if sp.done:
                 return None
-            self._blocks = self._compute(step)
-            block = next(self._blocks)
+            taken = sp.take(self._per * self._block)
+            if taken.paused.size == 0:  # held (nothing else takes none): the wall clock paces the held samples
+                self._sleep(max(HELD_WAIT, 1.0 / self._plan.sample_rate))
+                continue
+            self._compute(taken)
+        block = self._pending.popleft()
         if self.realtime:
             wait = float(block["time"][-1]) - (self._clock() - self._t0)  # the plan starts at t = 0
             if wait > 0:
                 self._sleep(wait)
         return block
 
-    def _compute(self, slices):
-        """The blocks of consecutive `slices`, computed in one vectorized step and handed out as views."""
+    def _compute(self, taken):
+        """The blocks of the setpoints `taken` (`PausedSetpoints.take`), computed in one vectorized step and
+        queued as views of at most a block each."""
+        self._step = (self._stream._state, self._stream._path, self._charge, taken)
+        data = self._advance(taken.stretch, taken.voltage, self._setpoints.taken - taken.paused.size)
+        data["paused"] = taken.paused
+        for i in range(0, taken.paused.size, self._block):
+            self._pending.append({name: values[i:i + self._block] for name, values in data.items()})
+
+    def _advance(self, stretch, voltage, a: int) -> dict:
+        """The model over samples ``a, a + 1, ...`` driven at ``stretch`` and ``voltage``: the block's
+        variables, the model's state carried on. Sample ``k`` of the run is at ``t = k / rate``, paused
+        samples counted: the time axis runs on uniformly through a pause."""
         plan = self._plan
-        a, b = slices[0].start, slices[-1].stop
-        w = plan.window(a, b) if hasattr(plan, "window") else _Window(plan, a, b)
-        t, stretch, voltage = w.time, w.stretch, w.voltage
+        t = np.arange(a, a + stretch.size) / plan.sample_rate
         out = self._stream.step(t, stretch, voltage, summary=False)
         capacitance = out["capacitance"] if "capacitance" in plan.measure else np.full(t.size, np.nan)
         data = {"time": t, "stretch": stretch, "position": (stretch - 1.0) * self.geom.L1, "voltage": voltage,
@@ -164,12 +211,11 @@ class TwinBackend:
             q = out["capacitance"] * voltage
             data = {"current": np.diff(q, prepend=self._charge[0]) * plan.sample_rate, **data}
             self._charge = (float(q[-1]), float(voltage[-1]))
-        for sl in slices:
-            i, j = sl.start - a, sl.stop - a
-            yield {name: values[i:j] for name, values in data.items()}
+        return data
 
     def abort(self, reason):
         self.aborted = reason  # the twin drives no hardware: nothing to switch off
 
     def close(self):
-        self._blocks = None
+        self._live = False
+        self._pending.clear()

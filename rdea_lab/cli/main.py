@@ -35,6 +35,12 @@ COMMANDS = {
                "Import measurements (CSV, TDMS, MATLAB .mat) as datasets of the rdea-lab schema."),
     "ls": ("rdea_lab.cli.runs", "ls_",
            "A table of the runs below FOLDER, from their attributes (with the user's metadata)."),
+    "abort": ("rdea_lab.cli.operate", "abort", "End a run in progress now: voltage off, status aborted, every "
+              "sample kept."),
+    "pause": ("rdea_lab.cli.operate", "pause", "Pause a run in progress: the voltage to 0 at its protocol's ramp "
+              "rate, the stretch held."),
+    "resume": ("rdea_lab.cli.operate", "resume", "Resume a paused run: back to the plan's setpoints at the pause, "
+               "then on with the plan."),
     "plan": ("rdea_lab.cli.plan", "plan", "Plan the voltage that drives the twin along a target force (blocking) "
              "or stretch (against a bias)."),
     "protocol": ("rdea_lab.cli.runs", "protocol", "Inspect protocols."),

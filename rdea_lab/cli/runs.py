@@ -105,10 +105,13 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
               help="User metadata stored with the run (operator, batch, notes; repeatable).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed (recorded), 0 to 2**63 - 1.")
+@click.option("--on-ctrl-c", "on_ctrl_c", type=click.Choice(["ask", "interrupt"]), default=None,
+              help="A first Ctrl-C pauses the run and asks resume or abort (ask; the default on a terminal), or "
+                   "interrupts it at once (interrupt; the default otherwise). A second Ctrl-C always interrupts.")
 @click.option("--trust-card", is_flag=True,
               help="With --backend rig: run although the rig names another specimen than --specimen (recorded).")
 def run(protocol, card_path, backend, rig_address, token_file, truth_path, faults, stall_timeout, params_path,
-        model, tolerance, out_path, overwrite, realtime, dry_run, live, md, quiet, seed, trust_card):
+        model, tolerance, out_path, overwrite, realtime, dry_run, live, md, quiet, seed, on_ctrl_c, trust_card):
     """Run a protocol on a specimen and store the run as one netCDF file.
 
     \b
@@ -139,7 +142,13 @@ def run(protocol, card_path, backend, rig_address, token_file, truth_path, fault
     with contextlib.ExitStack() as stack:
         subs = subscribers(live, quiet, plan.samples, f"{plan.name} on {setup.card.id}",
                            plan.duration if paced else plan.samples / 1e5, stack)
-        result = api.execute_setup(setup, callbacks=subs, metadata=metadata, command=_command_line())
+        from ..runs.control import RunControl
+        from .operate import AskOnCtrlC
+
+        control = RunControl()
+        ask = on_ctrl_c == "ask" or (on_ctrl_c is None and sys.stdin.isatty() and sys.stderr.isatty())
+        result = api.execute_setup(setup, callbacks=subs, metadata=metadata, command=_command_line(),
+                                   control=control, on_interrupt=AskOnCtrlC(control) if ask else None)
     what = ""
     if backend == "twin":
         what = f", model {api.open_run(result.path).attrs.get('model', '?')}"

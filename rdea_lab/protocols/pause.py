@@ -265,6 +265,25 @@ class PausedSetpoints:
         return Setpoints(*(np.concatenate(column) for column in zip(*parts)))
 
 
+    def untake(self, m: int) -> bool:
+        """Give back the last ``m`` samples taken, when they were plan samples taken while running (a
+        backend that computed ahead and had not driven them yet: the next `take` starts with them again);
+        False, and nothing changes, otherwise."""
+        m = int(m)
+        if m <= 0:
+            return m == 0
+        if self.phase != RUNNING or self._want is not None or m > self.next:
+            return False
+        self.next -= m
+        self.taken -= m
+        if self.next:
+            s, v = self._window(self.next - 1, self.next)
+            self._current = (float(np.asarray(s, float)[-1]), float(np.asarray(v, float)[-1]))
+        else:
+            self._current = None
+        return True
+
+
 def pause_intervals(paused) -> list[tuple[int, int]]:
     """``[(first, stop), ...]``: the sample ranges of a run's pauses (from its first sample not `RUNNING`
     to the first `RUNNING` one after it, or the end).

@@ -221,7 +221,7 @@ def _geometry(card, specimen):
 
 
 def run_protocol(protocol, specimen, backend=None, *, out=None, overwrite=False, seed=0, metadata=None,
-                 callbacks=(), command=""):
+                 callbacks=(), command="", control=None):
     """Run a protocol on a specimen and return the run's dataset.
 
     Parameters
@@ -247,6 +247,10 @@ def run_protocol(protocol, specimen, backend=None, *, out=None, overwrite=False,
         `LiveTable`, `LivePlot` or a function of your own.
     command : str
         Recorded in the dataset's history.
+    control : RunControl, optional
+        To pause, resume or abort the run while it goes, from any thread (`rdea_lab.runs.control`):
+        ``ctl = RunControl(); run_protocol(..., control=ctl)`` and ``ctl.pause("look at the specimen")``.
+        Another process does the same through the run's journal (``rdea-lab pause RUN``).
 
     Returns
     -------
@@ -267,7 +271,7 @@ def run_protocol(protocol, specimen, backend=None, *, out=None, overwrite=False,
     setup = prepare_run(protocol, specimen, backend, out=out, seed=seed)
     metadata = check_metadata(metadata)
     check_outputs([setup.out], overwrite)
-    result = execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command)
+    result = execute_setup(setup, callbacks=callbacks, metadata=metadata, command=command, control=control)
     if result.status == "interrupted":  # Ctrl-C stops the caller too (a notebook loop), once the file is safe
         raise KeyboardInterrupt(f"{result.reason}; {result.samples} samples kept in {result.path}")
     ds = open_run(result.path)
@@ -275,16 +279,19 @@ def run_protocol(protocol, specimen, backend=None, *, out=None, overwrite=False,
     return ds
 
 
-def execute_setup(setup: RunSetup, *, callbacks=(), metadata=None, command="", catalog=None):
+def execute_setup(setup: RunSetup, *, callbacks=(), metadata=None, command="", catalog=None, control=None,
+                  on_interrupt=None):
     """Execute a prepared run (`prepare_run`); returns the engine's `RunResult`.
 
     The dataset written, its row goes into the catalogue (``catalog``, a URL; default
     `~rdea_lab.store.index.resolve_catalog` of its folder); a catalogue that cannot be written leaves the run
     unindexed, says so in one line on stderr (`~rdea_lab.store.index.index_quietly`) and changes nothing else.
+    ``control`` and ``on_interrupt`` are the engine's (`~rdea_lab.runs.engine.execute`): pause, resume and
+    abort requests, and what a Ctrl-C does.
     """
     with setup.opened() as executor:
         result = execute(setup.checked, setup.card, executor, setup.out, seed=setup.seed, command=command,
-                         callbacks=callbacks, metadata=metadata)
+                         callbacks=callbacks, metadata=metadata, control=control, on_interrupt=on_interrupt)
     from ..signals import deferred
     from ..store.index import index_quietly
 

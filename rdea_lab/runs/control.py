@@ -108,12 +108,13 @@ class RunControl:
         self.folder = Path(folder)
         (self.folder / REQUESTS).mkdir(exist_ok=True)
 
-    def poll(self) -> list[Request]:
-        """Every request not yet read, oldest first (this process's, then the folder's by the time sent)."""
+    def poll(self, folder: bool = True) -> list[Request]:
+        """Every request not yet read, oldest first (this process's, then the folder's by the time sent;
+        ``folder=False``: this process's only, without a look at the folder)."""
         with self._lock:
             out = list(self._queue)
             self._queue.clear()
-        if self.folder is None:
+        if self.folder is None or not folder:
             return out
         found = []
         try:

@@ -26,6 +26,8 @@ from ..store.journal import DiskFull, JournalWriter, utc_now
 from ..store.schema import OPTIONAL_RUN_VARIABLES, global_attrs, portable_command, portable_path
 from .callbacks import RunBlock, subscriber_name
 from .checked import require_checked
+from .control import RunControl
+from .operate import Operator
 from ..signals import Signals, deferred
 
 #: Exit status of a run by its dataset status (the CLI's, and `RunResult.exit_code`).
@@ -139,7 +141,8 @@ class _SubscriberFailed(Exception):
     pass
 
 
-def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(), metadata=None) -> RunResult:
+def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(), metadata=None, control=None,
+            suspenders=None, on_interrupt=None) -> RunResult:
     """Run a checked plan on ``backend`` into the dataset ``out``.
 
     The engine runs only a plan whose limits were checked for this specimen, in
@@ -165,6 +168,16 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
         Subscribers called with each `RunBlock` (see `rdea_lab.runs.callbacks`).
     metadata : dict, optional
         User metadata (str -> str), stored as JSON in the ``metadata`` attribute.
+    control : RunControl, optional
+        Pause, resume and abort requests to the run (`rdea_lab.runs.control`); one is made when not given.
+        Requests from other processes come through the run's journal folder either way.
+    suspenders : sequence of Suspender, optional
+        Conditions on the backend's channels that pause the run and resume it (`rdea_lab.runs.operate`);
+        default: the protocol's ``suspend:``.
+    on_interrupt : callable, optional
+        Called (in the main thread, from the signal handler) for a Ctrl-C while the run goes; when it returns
+        True the Ctrl-C was taken (e.g. as a pause and a question to the user) and the run goes on; otherwise,
+        and for SIGTERM always, the run is interrupted at once, voltage off.
 
     Returns
     -------
@@ -180,13 +193,16 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
     subscribers = _subscribers(callbacks)
     # while the run starts and acquires, the first signal raises RunInterrupted; from then on, and from the
     # moment the loop is left however it ends, the run is closing: a signal waits until the dataset is closed
-    with Signals(RunInterrupted, once=True) as signals:
-        result = _execute(plan, card, backend, out, seed, command, subscribers, metadata, signals)
+    control = control if control is not None else RunControl()
+    with Signals(RunInterrupted, once=True, first=on_interrupt) as signals:
+        result = _execute(plan, card, backend, out, seed, command, subscribers, metadata, signals, control,
+                          suspenders)
         _raise_pending(signals, result)
     return result
 
 
-def _execute(plan, card, backend, out, seed, command, subscribers, metadata, signals) -> RunResult:
+def _execute(plan, card, backend, out, seed, command, subscribers, metadata, signals, control,
+             suspenders) -> RunResult:
     started, writer = False, None
     try:
         metadata = check_metadata(metadata)
@@ -194,8 +210,12 @@ def _execute(plan, card, backend, out, seed, command, subscribers, metadata, sig
         attrs = run_attrs(plan, card, backend, seed, command, metadata)
         # the output is claimed (journal folder and lock) before anything moves: a second run on it is refused
         measured = tuple(m for m in plan.measure if m in OPTIONAL_RUN_VARIABLES)  # e.g. current
+        extra = tuple(dict.fromkeys((*backend.extra_variables, *measured, "paused")))  # every run: its phases
         with deferred():  # the claim is whole or not made
-            writer = JournalWriter(out, None, extra=(*backend.extra_variables, *measured))
+            writer = JournalWriter(out, None, extra=extra)
+        control.attach(writer.dir)
+        if suspenders is None:
+            suspenders = getattr(getattr(plan, "spec", None), "suspend", None) or ()
         for cb in subscribers:  # a subscriber that cannot start stops the run before anything moves
             start = getattr(cb, "start", None)
             if start is not None:
@@ -216,6 +236,8 @@ def _execute(plan, card, backend, out, seed, command, subscribers, metadata, sig
     status, reason = "complete", ""
     failure = None
     failed_cb = [None]
+    operator = Operator(control, backend, writer, suspenders)
+    operator.publish(0, force=True)
 
     def notify(method, *args):
         for cb in subscribers:
@@ -240,6 +262,8 @@ def _execute(plan, card, backend, out, seed, command, subscribers, metadata, sig
                 if block is None:
                     break
                 first = writer.samples
+                if "paused" not in block:  # a backend that cannot pause: every sample runs the plan
+                    block = {**block, "paused": np.zeros(len(block["time"]), np.int8)}
                 writer.append(block)
                 over = np.flatnonzero(np.abs(block["force"]) > max_force)
                 if over.size:
@@ -250,6 +274,11 @@ def _execute(plan, card, backend, out, seed, command, subscribers, metadata, sig
                     backend.abort(reason)
                 notify(None, RunBlock(block, first, writer.samples, planned, "running"))
                 if status != "complete":
+                    break
+                ended = operator.after_block(block, first, writer.samples)
+                if ended is not None:  # an abort asked for, or a suspender that waited too long
+                    status, reason = ended
+                    backend.abort(reason)
                     break
         finally:  # however the loop is left, the run is closing: a signal from here waits for the dataset
             signals.closing = True

@@ -1,0 +1,116 @@
+"""``rdea-lab pause|resume|abort RUN``: operate a run in progress from another terminal; and the question a
+first Ctrl-C asks in ``rdea-lab run``."""
+
+from __future__ import annotations
+
+import sys
+import threading
+
+import click
+
+from .errors import EXIT_HELP
+
+RUN_HELP = ("RUN is the run's dataset as `rdea-lab run --out` names it (or its journal folder, RUN.part); "
+            "the run must be going.")
+
+
+def _ask(action: str, run: str, reason: str, wait: float) -> None:
+    from ..runs.control import request
+
+    state = request(run, action, reason, by=f"rdea-lab {action}", wait=wait)
+    if state.get("refused"):
+        from ..runs.control import ControlError
+
+        raise ControlError(run, f"the run refused to {action}: {state['refused']}")
+    if wait <= 0:
+        click.echo(f"{run}: {action} asked")
+        return
+    said = state.get("state", "?") + (f" ({state['reason']})" if state.get("reason") else "")
+    click.echo(f"{run}: {action} acted on; the run is {said}, {state.get('samples', '?')} samples")
+
+
+def _command(action: str, doc: str):
+    @click.command(name=action, epilog=EXIT_HELP + " 2 also when no run is going at RUN, or it refused.")
+    @click.argument("run", type=click.Path())
+    @click.option("--reason", default="", help=f"Why (recorded in the dataset with the {action}).")
+    @click.option("--wait", type=click.FloatRange(0, 600), default=10.0, show_default=True,
+                  help="Seconds to wait for the run to act on it (0: ask and return).")
+    def command(run, reason, wait):
+        _ask(action, run, reason, wait)
+
+    command.__doc__ = doc
+    return command
+
+
+pause = _command("pause", """Pause a run in progress: the voltage to 0 at its protocol's ramp rate, the stretch held.
+
+    The run keeps measuring while paused (the samples are flagged ``paused`` in its dataset, with the reason);
+    ``rdea-lab resume RUN`` goes back to the plan where it left it; ``rdea-lab abort RUN`` ends it, every
+    sample kept. RUN_HELP
+
+    \b
+    Example:
+      rdea-lab pause datasets/long.nc --reason "look at the electrode"
+    """.replace("RUN_HELP", RUN_HELP))
+resume = _command("resume", """Resume a paused run: back to the plan's setpoints at the pause, then on with the plan.
+
+    Refused while a suspender still holds the run (its condition has not cleared) or the rig's interlock is
+    open. RUN_HELP
+
+    \b
+    Example:
+      rdea-lab resume datasets/long.nc
+    """.replace("RUN_HELP", RUN_HELP))
+abort = _command("abort", """End a run in progress now: voltage off, status aborted, every sample kept.
+
+    RUN_HELP
+
+    \b
+    Example:
+      rdea-lab abort datasets/long.nc --reason "electrode torn"
+    """.replace("RUN_HELP", RUN_HELP))
+
+
+class AskOnCtrlC:
+    """What a first Ctrl-C does in ``rdea-lab run`` on a terminal: pause the run and ask "resume or abort?".
+
+    The answer is read from the terminal (``r`` resume, ``a`` abort); a second Ctrl-C while the question is
+    open interrupts the run at once, voltage off, as a Ctrl-C always did. Called from the signal handler:
+    it only asks the run to pause (`RunControl.pause`) and starts the reader; it never blocks.
+    """
+
+    def __init__(self, control, stream=None, echo=None):
+        self.control = control
+        self.stream = stream if stream is not None else sys.stdin
+        self.echo = echo or (lambda text: click.echo(text, err=True))
+        self.open = False
+        self._lock = threading.Lock()
+
+    def __call__(self) -> bool:
+        with self._lock:
+            if self.open:
+                return False  # the second Ctrl-C: interrupt
+            self.open = True
+        self.control.pause("paused at the terminal (Ctrl-C)", by="Ctrl-C")
+        self.echo("\nrdea-lab: pausing (voltage ramping to 0, stretch held). Type r + Enter to resume, a + Enter "
+                  "to abort (every sample kept); Ctrl-C again interrupts at once.")
+        threading.Thread(target=self._answer, daemon=True, name="rdea-lab ctrl-c question").start()
+        return True
+
+    def _answer(self) -> None:
+        while True:
+            line = self.stream.readline()
+            if not line:  # the terminal closed: the run stays paused; Ctrl-C or rdea-lab resume/abort decide
+                return
+            word = line.strip().lower()
+            if word in ("r", "resume"):
+                self.control.resume("resumed at the terminal", by="Ctrl-C")
+                self.echo("rdea-lab: resuming")
+                break
+            if word in ("a", "abort"):
+                self.control.abort("aborted at the terminal after Ctrl-C", by="Ctrl-C")
+                self.echo("rdea-lab: aborting")
+                break
+            self.echo("rdea-lab: r to resume, a to abort (Ctrl-C interrupts)")
+        with self._lock:
+            self.open = False
