@@ -56,6 +56,10 @@ class RunBlock:
         return len(self.data["time"])
 
 
+#: How the live table marks a sample that is not running the plan (the ``paused`` flag's phases).
+PHASE_WORDS = {1: "pausing", 2: "paused", 3: "resuming"}
+
+
 def subscriber_name(cb) -> str:
     return getattr(cb, "__qualname__", None) or type(cb).__name__
 
@@ -120,7 +124,11 @@ class LiveTable:
             values = np.asarray(block.data.get(c, [np.nan]), float)
             value = values[-1] * scale if values.size else np.nan
             cells.append(f"{value:>14.6g}" if np.isfinite(value) else f"{'-':>14}")
-        self._line("  ".join(f"{cell:>14}" for cell in cells))
+        line = "  ".join(f"{cell:>14}" for cell in cells)
+        phase = np.asarray(block.data.get("paused", ()))
+        if phase.size and phase[-1] in PHASE_WORDS:  # a run paused (or ramping to or from a pause) says so
+            line += f"  [{PHASE_WORDS[int(phase[-1])]}]"
+        self._line(line)
 
     def __call__(self, block):
         self._block = block
