@@ -67,8 +67,10 @@ def note_line(first, reason, by) -> bytes:
         raise ValueError(f"note_pause: first = {first!r}; allowed: the sample index (an integer >= 0) of the "
                          "pause's first sample")
     for key, value in (("reason", reason), ("by", by)):
-        if not isinstance(value, str):
-            raise ValueError(f"note_pause: {key} = {value!r}; allowed: text")
+        try:
+            value.encode("utf-8")  # the dataset holds it as UTF-8
+        except (AttributeError, UnicodeEncodeError):
+            raise ValueError(f"note_pause: {key} = {value!r}; allowed: text (UTF-8)") from None
     return (json.dumps({"first": int(first), "reason": reason, "by": by}) + "\n").encode()
 
 
