@@ -91,5 +91,5 @@ def portable_command(command: str) -> str:
 
 
 __all__ = ["EXTRA_VARIABLES", "FLAGS", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES", "PAUSE_VARIABLES", "REFERENCES",
-           "REQUIRED_ATTRS", "STATUSES", "TEXT_VARIABLES", "TIME", "TIME_ENCODING", "VARIABLES", "global_attrs", "is_emulated", "origin_kind",
-           "portable_command", "portable_path", "time_attrs", "variable_attrs"]
+           "REQUIRED_ATTRS", "STATUSES", "TEXT_VARIABLES", "TIME", "TIME_ENCODING", "VARIABLES", "global_attrs",
+           "is_emulated", "origin_kind", "portable_command", "portable_path", "time_attrs", "variable_attrs"]

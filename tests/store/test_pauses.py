@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -262,7 +261,8 @@ def test_write_and_reload_keep_the_table_and_cf_readers_decode_its_times(tmp_pat
     assert rows == reference(paused, np.arange(8) / RATE, notes)
     with open_run(tmp_path / "again.nc") as again:
         assert table_rows(again) == rows
-        assert again["pause_first"].dtype == np.int32 and again["pause_start"].attrs["units"] == f"seconds since {START}"
+        assert again["pause_first"].dtype == np.int32
+        assert again["pause_start"].attrs["units"] == f"seconds since {START}"
     with xr.open_dataset(tmp_path / "r.nc") as decoded:  # dates, as time decodes
         t0 = np.datetime64(START.rstrip("Z"), "ns")
         assert list(decoded["pause_start"].values) == [t0 + np.timedelta64(10, "ms"), t0 + np.timedelta64(70, "ms")]
