@@ -15,7 +15,7 @@ import rdea_lab
 from rdea_lab import open_run  # the public name: ds.rdea comes with it
 from rdea_lab.protocols import pause as phases
 from rdea_lab.specs.variables import global_attrs
-from rdea_lab.store import JournalWriter, describe_run, journal, read_journal, recover, write_dataset
+from rdea_lab.store import DiskFull, JournalWriter, describe_run, journal, read_journal, recover, write_dataset
 from rdea_lab.store import pauses as P
 
 RATE = 100.0
@@ -223,6 +223,25 @@ def test_the_background_conversion_follows_the_pauses_too(tmp_path, small_reads,
     write_journal(tmp_path / "r.nc", paused, notes, rng)
     with open_run(tmp_path / "r.nc") as ds:
         assert table_rows(ds) == reference(paused, ds["time"].values, notes)
+
+
+def test_a_full_disk_refuses_a_note_and_says_the_samples_are_safe(tmp_path, monkeypatch):
+    import errno
+    import os
+
+    writer = JournalWriter(tmp_path / "r.nc", dict(ATTRS), extra=("paused",))
+    writer.append({"time": np.arange(3) / RATE, "paused": np.array([0, 1, 2], np.int8)})
+
+    def full(fd, data):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "write", full)
+    with pytest.raises(DiskFull, match=r"disk full writing .*pauses.jsonl; 3 samples are safe in"):
+        writer.note_pause(1, "limit", "engine")
+    monkeypatch.undo()
+    writer.finish("complete", "")
+    with open_run(tmp_path / "r.nc") as ds:  # the pause is in the table all the same, its reason unknown
+        assert table_rows(ds) == [(0.01, 0.03, 1, 2, P.NOT_RECORDED, P.NOT_RECORDED)]
 
 
 @pytest.mark.parametrize("first, reason, by, match", [
