@@ -10,6 +10,7 @@ In the manner of xarray extensions (cf_xarray, pint-xarray)::
     ds.rdea.protocol          # its ProtocolSpec
     ds.rdea.parameters        # the twin's ParameterSet (twin runs), else None
     ds.rdea.metadata          # the user's metadata (operator, batch, notes)
+    ds.rdea.pauses            # the run's pauses (start, end, reason, by), a DataFrame
     ds.rdea.plot(ax=None)     # the `rdea-lab show` figure; returns the Figure
     twin = ds.rdea.predict("params/paper2021_table3.yaml", "su")   # on the same time axis
 """
@@ -72,6 +73,15 @@ class RdeaAccessor:
     def status(self) -> str:
         """The run's ``status`` attribute (``complete``, ``aborted``, ``interrupted``), or ``"?"``."""
         return str(self._ds.attrs.get("status", "?"))
+
+    @property
+    def pauses(self):
+        """The run's pauses (issue 29) as a pandas DataFrame, one row per pause: ``start``, ``end`` [s since
+        the run's start], ``first``, ``samples`` (its samples along ``time``), ``reason``, ``by``; no rows for
+        a run that never paused (`rdea_lab.store.pauses`)."""
+        from ..store.pauses import pauses
+
+        return pauses(self._ds)
 
     def _require(self, key):
         if key not in self._ds.attrs:

@@ -26,11 +26,13 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-#: The phases of a sample: the ``paused`` flag variable's values.
-RUNNING, RAMPING_DOWN, HELD, RAMPING_UP = 0, 1, 2, 3
-FLAG_VALUES = (RUNNING, RAMPING_DOWN, HELD, RAMPING_UP)
+from ..specs.variables import PAUSE_FLAG_MEANINGS, PAUSE_FLAG_VALUES
+
+#: The phases of a sample: the ``paused`` flag variable's values (declared with the variable table, in the specs).
+FLAG_VALUES = PAUSE_FLAG_VALUES
+RUNNING, RAMPING_DOWN, HELD, RAMPING_UP = FLAG_VALUES
 #: CF ``flag_meanings`` of the ``paused`` flag (blank-separated, in the order of `FLAG_VALUES`).
-FLAG_MEANINGS = "running ramping_down held ramping_up"
+FLAG_MEANINGS = PAUSE_FLAG_MEANINGS
 #: Voltage ramp rate of a pause when the protocol declares none [V/s]: 2.6 kV (the paper's largest voltage)
 #: is off in 2.6 s.
 DEFAULT_RAMP_RATE = 1000.0

@@ -47,6 +47,28 @@ OPTIONAL_RUN_VARIABLES: dict[str, tuple[str, str, str]] = {
                      "interval (charging d(C v)/dt plus leakage)", "f8"),
 }
 
+#: The phases of a sample of a run that can pause (issue 29), the values of its ``paused`` flag: running,
+#: ramping the voltage down, held, ramping back up (`rdea_lab.protocols.pause` drives them).
+PAUSE_FLAG_VALUES = (0, 1, 2, 3)
+#: CF ``flag_meanings`` of ``paused`` (blank-separated, in the order of `PAUSE_FLAG_VALUES`).
+PAUSE_FLAG_MEANINGS = "running ramping_down held ramping_up"
+
+#: Variables of a run that can pause: ``paused``, the phase of each sample (along ``time``, a journal column),
+#: and the pause table (along ``pause``, one entry per pause, written with the dataset: `rdea_lab.store.pauses`):
+#: name -> (units, long_name, netCDF dtype; "S1" text as a CF character array, UTF-8). The times are written in
+#: the units of the run's ``time`` (seconds since its start: `pause_attrs`). CF 1.8 as both checkers read it:
+#: no 64-bit integers (int32 indices) and no netCDF-4 strings.
+PAUSE_VARIABLES: dict[str, tuple[str, str, str]] = {
+    "paused": ("1", "phase of the run: running, or paused (ramping down, held, ramping up)", "i1"),
+    "pause_start": ("s", "start of a pause: time of its first sample not running", "f8"),
+    "pause_end": ("s", "end of a pause: time of the first running sample after it (a run that ended paused: its "
+                       "last sample's time plus one sample interval)", "f8"),
+    "pause_first": ("1", "index along time of the first sample of a pause", "i4"),
+    "pause_samples": ("1", "samples of a pause (ramping down, held and ramping up)", "i4"),
+    "pause_reason": ("", "why the run was paused", "S1"),
+    "pause_by": ("", "who or what paused the run", "S1"),
+}
+
 #: Variables of a self-sensing dataset (`rdea_lab.twin.selfsense`, ``rdea-lab selfsense``):
 #: name -> (units, long_name, netCDF dtype).
 SELFSENSE_VARIABLES: dict[str, tuple[str, str, str]] = {
@@ -82,6 +104,7 @@ FLAGS: dict[str, tuple[np.ndarray, str]] = {
                      " ".join(flag_word(STATUS_NAMES[code]) for code in sorted(STATUS_NAMES))),
     "converged": (np.array([0, 1], np.int8), "no_stable_equilibrium stable_equilibrium"),
     "estimate_valid": (np.array([0, 1], np.int8), "not_used used"),
+    "paused": (np.array(PAUSE_FLAG_VALUES, np.int8), PAUSE_FLAG_MEANINGS),
 }
 
 TIME_LONG_NAME = "time since the start of the run"
@@ -101,8 +124,8 @@ def variable_attrs(name: str) -> dict:
         units, long_name = RUN_VARIABLES[name]
     else:
         units, long_name, _ = {**MODEL_VARIABLES, **OPTIONAL_RUN_VARIABLES, **SELFSENSE_VARIABLES,
-                                **BAND_VARIABLES}[name]
-    attrs = {"units": units, "long_name": long_name}
+                                **BAND_VARIABLES, **PAUSE_VARIABLES}[name]
+    attrs = {"units": units, "long_name": long_name} if units else {"long_name": long_name}
     if name in FLAGS:
         values, meanings = FLAGS[name]
         attrs.update({"flag_values": values.copy(), "flag_meanings": meanings})
@@ -116,6 +139,17 @@ def time_attrs(start: str) -> dict:
             "long_name": TIME_LONG_NAME}
 
 
+def pause_attrs(name: str, time_units: str) -> dict:
+    """CF attributes of a variable of the pause table (`PAUSE_VARIABLES`): a time (``pause_start``,
+    ``pause_end``) in the run's ``time`` units, ``time_units`` (``seconds since <start>``), so a CF reader
+    decodes it as it decodes ``time`` (the calendar is CF's default, ``standard``, as ``time``'s); text has
+    no ``units``."""
+    attrs = variable_attrs(name)
+    if name in ("pause_start", "pause_end"):
+        attrs = {**attrs, "units": time_units, "standard_name": "time"}
+    return attrs
+
+
 #: How a ``time`` coordinate is encoded: no ``_FillValue`` (CF 2.5.1: a coordinate has no missing values).
 TIME_ENCODING = {"_FillValue": None, "dtype": "f8"}
 
@@ -127,6 +161,7 @@ def global_attrs(source: str, metadata: dict | None = None) -> dict:
     return {"institution": institution, "source": source, "references": REFERENCES}
 
 
-__all__ = ["BAND_VARIABLES", "FLAGS", "MODEL_VARIABLES", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES", "REFERENCES",
-           "RUN_VARIABLES", "SELFSENSE_VARIABLES", "TIME_ENCODING", "TIME_LONG_NAME", "flag_word", "global_attrs",
+__all__ = ["BAND_VARIABLES", "FLAGS", "MODEL_VARIABLES", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES",
+           "PAUSE_FLAG_MEANINGS", "PAUSE_FLAG_VALUES", "PAUSE_VARIABLES", "REFERENCES", "RUN_VARIABLES",
+           "SELFSENSE_VARIABLES", "TIME_ENCODING", "TIME_LONG_NAME", "flag_word", "global_attrs", "pause_attrs",
            "time_attrs", "variable_attrs"]

@@ -12,7 +12,7 @@ import xarray as xr
 
 from ..specs import SpecError
 from ..specs.errors import show
-from .schema import REQUIRED_ATTRS
+from .schema import REQUIRED_ATTRS, TEXT_VARIABLES
 
 #: Attributes rdea-lab writes as numbers: name -> (what, numpy kinds allowed); every other attribute of
 #: `REQUIRED_ATTRS` is a text string (and those of `TEXT_ATTRS` when present).
@@ -31,7 +31,8 @@ def _kind(value) -> str:
 
 def check_run(ds: xr.Dataset, source: str) -> None:
     """Refuse a dataset whose attributes or variables are not of the types rdea-lab writes (a file made
-    elsewhere): attributes and dtypes only, no data read.
+    elsewhere): attributes and dtypes only, no data read. Variables hold numbers, but for the text of the
+    pause table (`rdea_lab.store.schema.TEXT_VARIABLES`).
 
     Raises
     ------
@@ -47,6 +48,8 @@ def check_run(ds: xr.Dataset, source: str) -> None:
         if name in attrs and _kind(attrs[name]) not in kinds:
             raise SpecError(source, f"attribute '{name}'", f"{show(attrs[name])}; allowed: {what}")
     for name, var in ds.variables.items():
+        if name in TEXT_VARIABLES and var.dtype.kind in "OSU":  # the pause table's text
+            continue
         if var.dtype.kind not in "biuf":
             raise SpecError(source, f"variable '{name}'", f"holds {var.dtype} values; allowed: numbers (float or "
                             "integer, as rdea-lab writes them)")
@@ -250,9 +253,15 @@ def describe_run(ds: xr.Dataset) -> str:
              f"at {float(a.get('sample_rate', 0)):g} Hz"]
     from .overview import read_overview
 
-    overview = read_overview(ds) if not all("actual_range" in v.attrs for v in ds.data_vars.values()) else None
-    for name, var in ds.data_vars.items():
+    series = {name: var for name, var in ds.data_vars.items() if var.dims == ("time",)}
+    overview = read_overview(ds) if not all("actual_range" in v.attrs for v in series.values()) else None
+    for name, var in series.items():
         r = finite_range(var, overview=overview)
         lines.append(f"  {name:<17} [{var.attrs.get('units', '?')}] "
                      + (f"{r[0]:.5g} .. {r[1]:.5g}" if r is not None else "not measured"))
+    if "paused" in ds.data_vars:
+        from .pauses import pauses
+
+        for p in pauses(ds).itertuples():
+            lines.append(f"  paused {p.start:.6g} s .. {p.end:.6g} s ({p.samples} samples): {p.reason}, by {p.by}")
     return "\n".join(lines)

@@ -7,6 +7,8 @@ so the journal, not the netCDF file, is the record of a run. While a run goes,
 * ``header.json``: the column names, variable attributes and dataset attributes;
 * ``samples.f8``: rows of little-endian float64, one per sample, each block (at
   most a second of samples) written with one ``os.write`` as it arrives;
+* ``pauses.jsonl``: for a run that pauses, why and by whom each pause began (`JournalWriter.note_pause`;
+  the pause table the dataset gets: `rdea_lab.store.pauses`);
 * ``writer.lock``: held with an OS lock (``flock``) by the writing process for
   as long as it runs; the header names it (``writer``: pid, host, start time);
 * ``shadow.nc``: for a long run (from `SHADOW_FROM` rows), the netCDF file being
@@ -55,8 +57,9 @@ import numpy as np
 import xarray as xr
 
 from ..specs.errors import SpecError, UserError
+from . import pauses as _pauses
 from .overview import OVERVIEW_ABOVE, OverviewBuilder, write_overview
-from .schema import EXTRA_VARIABLES, TIME_ENCODING, VARIABLES, time_attrs, variable_attrs
+from .schema import EXTRA_VARIABLES, TEXT_VARIABLES, TIME_ENCODING, VARIABLES, time_attrs, variable_attrs
 
 FORMAT = "rdea-lab-journal-1"
 LOCK = "writer.lock"
@@ -285,6 +288,34 @@ class JournalWriter:
             self._shadow.start()
         return n
 
+    def note_pause(self, first: int, reason: str, by: str) -> None:
+        """Note why a pause began at sample ``first`` (the run's first sample not running after running ones)
+        and who or what paused it: one line of ``pauses.jsonl``, written with one ``os.write`` and ``fsync``-ed
+        (a killed run's `recover` reads it as `finish` does). The dataset's pause table takes ``reason`` and
+        ``by`` for the pause the sample falls in (`rdea_lab.store.pauses`).
+
+        Parameters
+        ----------
+        first : int
+            Index along ``time`` of the pause's first sample, >= 0.
+        reason, by : str
+            Why the run was paused; who or what paused it.
+
+        Raises
+        ------
+        ValueError
+            ``first`` not an integer >= 0, ``reason`` or ``by`` not text.
+        DiskFull
+            No room for the note (the samples so far are safe).
+        """
+        line = _pauses.note_line(first, reason, by)
+        try:
+            _pauses.write_note(self.dir, line)
+        except OSError as exc:
+            if exc.errno in _FULL:
+                raise _disk_full(exc, self.dir / _pauses.NOTES, self.dir, self.samples) from None
+            raise
+
     def close(self):
         """Stop writing and let go of the journal (as a killed process would): `recover` may take it."""
         converter = self._stop_shadow()
@@ -424,8 +455,9 @@ def _column(name: str, values: np.ndarray) -> np.ndarray:
     return np.nan_to_num(values, nan=-1).astype(EXTRA_VARIABLES[name][2])
 
 
-def _dataset(header: dict, rows: np.ndarray) -> xr.Dataset:
-    """The dataset of journal rows (all of them, or none: the layout of the file to write)."""
+def _dataset(header: dict, rows: np.ndarray, notes=None) -> xr.Dataset:
+    """The dataset of journal rows (all of them, or none: the layout of the file to write); with ``notes``
+    (`rdea_lab.store.pauses.read_notes`; all the rows), the pause table of a run that can pause too."""
     columns = header["columns"]
     data_vars = {name: ("time", _column(name, rows[:, j]), variable_attrs(name))
                  for j, name in enumerate(columns) if j}
@@ -435,6 +467,12 @@ def _dataset(header: dict, rows: np.ndarray) -> xr.Dataset:
     coords = {"time": ("time", rows[:, 0], time_attrs(start))}
     ds = xr.Dataset(data_vars, coords=coords, attrs=attrs)
     ds.attrs["samples"] = int(rows.shape[0])
+    if notes is not None and "paused" in columns:
+        edges = _pauses.PauseEdges()
+        edges.add(_column("paused", rows[:, columns.index("paused")]), rows[:, 0])
+        intervals = edges.intervals(attrs.get("sample_rate"))
+        ds = ds.assign(_pauses.table_variables(_pauses.table(intervals, notes), coords["time"][2]["units"]))
+        ds.attrs["pauses"] = len(intervals)
     return ds
 
 
@@ -444,7 +482,7 @@ def read_journal(folder: Path) -> xr.Dataset:
     folder = Path(folder)
     header = _read_header(folder)
     n = _journal_rows(folder, len(header["columns"]))
-    return _dataset(header, _read_rows(folder, len(header["columns"]), 0, n))
+    return _dataset(header, _read_rows(folder, len(header["columns"]), 0, n), _pauses.read_notes(folder))
 
 
 def actual_range(values: np.ndarray, current=None):
@@ -462,7 +500,13 @@ def actual_range(values: np.ndarray, current=None):
 def _encoding(ds: xr.Dataset) -> dict:
     """How each variable of a run is written: compressed, in chunks of `CHUNK` samples along ``time``."""
     encoding = {name: {**COMPRESSION, **({"chunksizes": (CHUNK,)} if ds[name].dims == ("time",) else {})}
-                for name in ds.data_vars}
+                for name in ds.data_vars if ds[name].dtype.kind in "biuf"}  # text (the pause table) uncompressed
+    for name in ("pause_start", "pause_end"):  # times, written as time is (no _FillValue)
+        if name in ds.data_vars:
+            encoding[name] = {**encoding[name], **TIME_ENCODING}
+    for name in TEXT_VARIABLES:  # CF character arrays (the checkers refuse netCDF-4 strings)
+        if name in ds.data_vars:
+            encoding[name] = {"dtype": "S1"}
     encoding["time"] = {**COMPRESSION, **({"chunksizes": (CHUNK,)} if "time" in ds.dims else {}), **TIME_ENCODING}
     return encoding
 
@@ -488,6 +532,7 @@ class _Converter:
         self.tmp.parent.mkdir(parents=True, exist_ok=True)
         self.done, self.ranges, self._nc = 0, {}, None
         self.overview = OverviewBuilder()  # min/max per block, for the figure of a long run (store.overview)
+        self.edges = _pauses.PauseEdges() if "paused" in self.columns else None  # the pauses so far
         try:
             layout.attrs = netcdf_attrs(layout.attrs)
             layout.to_netcdf(self.tmp, engine="netcdf4", unlimited_dims=["time"], encoding=_encoding(layout))
@@ -517,6 +562,8 @@ class _Converter:
                     self._nc[name][self.done:b] = values
                     if j and values.dtype.kind == "f":
                         self.ranges[name] = actual_range(values, self.ranges.get(name))
+                    elif name == "paused":
+                        self.edges.add(values, rows[:, 0])
                 self.overview.add({name: rows[:, j] for j, name in enumerate(self.columns)  # views, no copies
                                    if name == "time" or name in VARIABLES or EXTRA_VARIABLES[name][2] == "f8"})
             self.done = b
@@ -524,9 +571,18 @@ class _Converter:
 
     def close(self, final: dict, out: Path) -> None:
         """Set the dataset's attributes (the header's, ``samples``, then ``final``) and each float
-        variable's ``actual_range``; fsync and rename the file to ``out``."""
-        attrs = netcdf_attrs({**self.attrs, "samples": int(self.done), **final})
+        variable's ``actual_range``, and the pause table of a run that can pause (the notes of the journal's
+        ``pauses.jsonl``); fsync and rename the file to ``out``."""
+        attrs = {**self.attrs, "samples": int(self.done), **final}
+        values = None
+        if self.edges is not None:
+            intervals = self.edges.intervals(self.attrs.get("sample_rate"))
+            values = _pauses.table(intervals, _pauses.read_notes(self.folder))
+            attrs["pauses"] = len(intervals)
+        attrs = netcdf_attrs(attrs)
         with self._lock:
+            if values is not None:
+                _pauses.write_table(self._nc, values)
             for name, span in self.ranges.items():
                 if span is not None:
                     self._nc[name].setncattr("actual_range", span)
@@ -565,7 +621,7 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
             and " since " not in str(ds["time"].attrs.get("units", ""))):
         ds["time"].attrs.update(time_attrs(str(ds.attrs.get("created") or utc_now())))  # float seconds, CF-1.8
     for name, var in ds.data_vars.items():
-        if var.dtype.kind == "f":
+        if var.dtype.kind == "f" and var.dims == ("time",):
             span = actual_range(np.asarray(var.values))
             if span is not None:
                 var.attrs["actual_range"] = span

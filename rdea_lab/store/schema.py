@@ -5,17 +5,22 @@ from __future__ import annotations
 from pathlib import Path, PurePath
 
 from ..paths import portable
-from ..specs.variables import (FLAGS, MODEL_VARIABLES, NO_INSTITUTION, OPTIONAL_RUN_VARIABLES, REFERENCES,
-                               RUN_VARIABLES, TIME_ENCODING, TIME_LONG_NAME, global_attrs, time_attrs, variable_attrs)
+from ..specs.variables import (FLAGS, MODEL_VARIABLES, NO_INSTITUTION, OPTIONAL_RUN_VARIABLES, PAUSE_VARIABLES,
+                               REFERENCES, RUN_VARIABLES, TIME_ENCODING, TIME_LONG_NAME, global_attrs, time_attrs,
+                               variable_attrs)
 
 #: Variables of every run, in journal column order after ``time``: name -> (units, long_name).
 #: The one table is `rdea_lab.specs.variables` (below the store and the twin, which writes datasets too).
 VARIABLES: dict[str, tuple[str, str]] = RUN_VARIABLES
 
-#: Optional variables: per backend (``model_status``) or recorded when the protocol measures them
-#: (``current``): name -> (units, long_name, netCDF dtype).
+#: Optional variables: per backend (``model_status``), recorded when the protocol measures them
+#: (``current``), or by a run that can pause (``paused``, the phase of each sample: `rdea_lab.store.pauses`):
+#: name -> (units, long_name, netCDF dtype).
 EXTRA_VARIABLES: dict[str, tuple[str, str, str]] = {"model_status": MODEL_VARIABLES["model_status"],
-                                                    **OPTIONAL_RUN_VARIABLES}
+                                                    **OPTIONAL_RUN_VARIABLES, "paused": PAUSE_VARIABLES["paused"]}
+
+#: Text variables of a run (the pause table's, along ``pause``); every other variable holds numbers.
+TEXT_VARIABLES = tuple(name for name, (_, _, dtype) in PAUSE_VARIABLES.items() if dtype == "S1")
 
 #: ``(units, long_name)`` of ``time`` as a reader gets it from `open_run`: float seconds since the
 #: run's start (the file's ``units`` say since when: `time_attrs`).
@@ -85,6 +90,6 @@ def portable_command(command: str) -> str:
     return " ".join(one(w) for w in str(command).split(" "))
 
 
-__all__ = ["EXTRA_VARIABLES", "FLAGS", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES", "REFERENCES", "REQUIRED_ATTRS",
-           "STATUSES", "TIME", "TIME_ENCODING", "VARIABLES", "global_attrs", "is_emulated", "origin_kind",
-           "portable_command", "portable_path", "time_attrs", "variable_attrs"]
+__all__ = ["EXTRA_VARIABLES", "FLAGS", "NO_INSTITUTION", "OPTIONAL_RUN_VARIABLES", "PAUSE_VARIABLES", "REFERENCES",
+           "REQUIRED_ATTRS", "STATUSES", "TEXT_VARIABLES", "TIME", "TIME_ENCODING", "VARIABLES", "global_attrs",
+           "is_emulated", "origin_kind", "portable_command", "portable_path", "time_attrs", "variable_attrs"]
