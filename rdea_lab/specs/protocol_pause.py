@@ -37,6 +37,8 @@ def _stretch_rate(value: Any) -> float:
         if not math.isfinite(value):
             raise SpecError("", "", f"{value} is not a finite number; {example}")
         return float(value)
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        raise SpecError("", "", f"'{value}' has no unit; give a stretch rate, e.g. '{value} /s'")
     match = _NUMBER.match(value) if isinstance(value, str) else None
     if match is not None and match.group(2).startswith("/"):  # '0.05 /s' reads as 0.05 per second
         value = f"{match.group(1)} 1{match.group(2)}"
