@@ -26,16 +26,14 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
+# The defaults of a protocol's ``pause:`` mapping (1 kV/s, 0.05 /s), defined once with the spec.
+from ..specs.protocol_pause import DEFAULT_RAMP_RATE, DEFAULT_STRETCH_RATE
+
 #: The phases of a sample: the ``paused`` flag variable's values.
 RUNNING, RAMPING_DOWN, HELD, RAMPING_UP = 0, 1, 2, 3
 FLAG_VALUES = (RUNNING, RAMPING_DOWN, HELD, RAMPING_UP)
 #: CF ``flag_meanings`` of the ``paused`` flag (blank-separated, in the order of `FLAG_VALUES`).
 FLAG_MEANINGS = "running ramping_down held ramping_up"
-#: Voltage ramp rate of a pause when the protocol declares none [V/s]: 2.6 kV (the paper's largest voltage)
-#: is off in 2.6 s.
-DEFAULT_RAMP_RATE = 1000.0
-#: Stretch rate to and from a declared ``hold_stretch`` when the protocol gives none [1/s].
-DEFAULT_STRETCH_RATE = 0.05
 
 
 @dataclass(frozen=True)
