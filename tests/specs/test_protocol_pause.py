@@ -152,3 +152,14 @@ def test_no_pause_or_suspend_key_in_an_old_protocols_dumps(name):
     spec = load_protocol(PROTOCOLS / f"{name}.yaml")
     for text in (dump_protocol(spec), expand(spec).yaml):
         assert "pause" not in text and "suspend" not in text
+
+
+def test_the_packaged_example_and_its_description():
+    plan = expand(load_protocol("pause_example"))
+    assert plan.spec.pause == Pause(ramp_rate=1000.0, hold_stretch=1.05, stretch_rate=0.05)
+    assert [s.name for s in plan.spec.suspend] == ["door", "hot", "drift"]
+    text = plan.describe()
+    assert "  pause: voltage to 0 at 1 kV/s, holding stretch 1.05 (reached at 0.05 /s)\n" in text
+    assert ("  suspend (hot): pause while amplifier_temperature > 60 degC; resume once amplifier_temperature "
+            "< 50 degC; abort if not resumed within 10 min\n") in text
+    assert "pause:" not in expand(load_protocol("custom_example")).describe()
