@@ -145,6 +145,17 @@ class ProtocolSpec(SpecModel):
         spec._origin = origin
         return spec
 
+    def with_suspenders(self, suspenders) -> "ProtocolSpec":
+        """The same protocol with `suspenders` as its ``suspend:`` list, checked (names distinct), its
+        `origin` kept: e.g. a campaign's run with ``merged_suspenders(spec, campaign)``, so that the
+        dataset's ``protocol`` attribute (the dump) holds every suspender the run had."""
+        fields = {name: getattr(self, name) for name in type(self).model_fields}
+        try:
+            spec = type(self)(**{**fields, "suspend": tuple(suspenders)})
+        except SpecError as err:
+            raise err.with_source(self.origin) from None
+        return spec.with_origin(self.origin)
+
     @model_validator(mode="before")
     @classmethod
     def _waveform(cls, data: Any) -> Any:

@@ -9,7 +9,7 @@ from rdea_lab.specs import SpecError
 from rdea_lab.specs.campaign import CampaignSpec
 from rdea_lab.specs.suspenders import (DEFAULT_WAIT, Condition, Suspender, merged_suspenders,
                                        parse_condition)
-from rdea_lab.specs.protocol import protocol_from_yaml
+from rdea_lab.specs.protocol import load_protocol, protocol_from_yaml
 
 
 @pytest.mark.parametrize("text, channel, op, value, magnitude", [
@@ -173,3 +173,16 @@ def test_a_campaign_file_declares_suspenders(tmp_path):
     campaign.write_text(campaign.read_text().replace("interlock == open", "interlock is open"))
     with pytest.raises(SpecError, match=rf"^{campaign}: suspend\[1\]\.when: at column 11 .*got 'is'"):
         CampaignSpec.load(campaign)
+
+
+def test_a_protocol_with_a_campaigns_suspenders_dumps_them_all():
+    protocol = protocol_from_yaml(PROTOCOL + "suspend: [{name: door, when: interlock == open}]\n", "p.yaml")
+    hot = Suspender(name="hot", when="amplifier_temperature > 60 degC")
+    merged = protocol.with_suspenders(merged_suspenders(protocol, _campaign((hot,))))
+    assert merged.origin == "p.yaml" and [s.name for s in merged.suspend] == ["door", "hot"]
+    assert protocol_from_yaml(merged.dump()) == merged
+    assert merged.with_suspenders(()) == protocol_from_yaml(PROTOCOL)
+    with pytest.raises(SpecError, match=r"^p\.yaml: suspend\[1\]\.name: 'door' also names suspend\[0\]"):
+        protocol.with_suspenders(protocol.suspend * 2)
+    preset = load_protocol("blocking_force")
+    assert preset.with_suspenders((hot,)).settings == preset.settings
