@@ -136,7 +136,7 @@ def _parse(text: str) -> dict:
         if kind != "end":
             raise r.fail(column, f"unexpected {show(extra)} after the value; a condition is one comparison")
         return {"channel": channel, "op": op, "value": value, "magnitude": False}
-    dimension, unit = SUSPEND_CHANNELS[channel]
+    dimension = SUSPEND_CHANNELS[channel][0]
     _, number, column = r.take("number", f"a number with a unit, e.g. {_example(channel)}")
     unit_column = r.peek()[2]
     unit_text = text[unit_column - 1:].strip()
