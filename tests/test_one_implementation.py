@@ -100,9 +100,15 @@ def imported_modules(path: Path):
 
 
 def references(tree, name: str):
-    """Lines where ``name`` is used at all: called, passed, imported, as ``x.name`` or bare."""
+    """Lines where the function ``name`` is used at all: called, passed, imported, bare or as ``module.name``
+    of an imported module. A data attribute of the same name (``spec.stretch_rate``, a pause's rate) or a
+    field declared under it is not the function."""
+    modules = {(a.asname or a.name).split(".")[0] for node in ast.walk(tree)
+               if isinstance(node, (ast.Import, ast.ImportFrom)) for a in node.names}
     for node in ast.walk(tree):
-        if (isinstance(node, ast.Name) and node.id == name) or (isinstance(node, ast.Attribute) and node.attr == name):
+        if (isinstance(node, ast.Name) and node.id == name and isinstance(node.ctx, ast.Load)) or (
+                isinstance(node, ast.Attribute) and node.attr == name and isinstance(node.value, ast.Name)
+                and node.value.id in modules):
             yield node.lineno
         elif isinstance(node, (ast.Import, ast.ImportFrom)) and any(
                 a.name.split(".")[-1] == name or a.asname == name for a in node.names):

@@ -26,6 +26,7 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
+from ..specs.protocol_pause import DEFAULT_RAMP_RATE, DEFAULT_STRETCH_RATE  # the pause: mapping's defaults
 from ..specs.variables import PAUSE_FLAG_MEANINGS, PAUSE_FLAG_VALUES
 
 #: The phases of a sample: the ``paused`` flag variable's values (declared with the variable table, in the specs).
@@ -33,11 +34,6 @@ FLAG_VALUES = PAUSE_FLAG_VALUES
 RUNNING, RAMPING_DOWN, HELD, RAMPING_UP = FLAG_VALUES
 #: CF ``flag_meanings`` of the ``paused`` flag (blank-separated, in the order of `FLAG_VALUES`).
 FLAG_MEANINGS = PAUSE_FLAG_MEANINGS
-#: Voltage ramp rate of a pause when the protocol declares none [V/s]: 2.6 kV (the paper's largest voltage)
-#: is off in 2.6 s.
-DEFAULT_RAMP_RATE = 1000.0
-#: Stretch rate to and from a declared ``hold_stretch`` when the protocol gives none [1/s].
-DEFAULT_STRETCH_RATE = 0.05
 
 
 @dataclass(frozen=True)

@@ -356,6 +356,17 @@ class Plan:
             p = self.spec.probe
             lines.append(f"  probe: {format_quantity(p.amplitude, 'V', digits=6)} sine at "
                          f"{format_quantity(p.frequency, 'Hz', digits=6)} on the voltage (self-sensing)")
+        pause = self.spec.pause
+        if pause is not None:
+            held = ("the stretch it had" if pause.hold_stretch is None else
+                    f"stretch {pause.hold_stretch:g} (reached at {pause.stretch_rate:.6g} /s)")
+            lines.append(f"  pause: voltage to 0 at {format_quantity(pause.ramp_rate, 'kV/s', digits=6)}, "
+                         f"holding {held}")
+        for s in self.spec.suspend:
+            name = f" ({s.name})" if s.name else ""
+            wait = format_quantity(s.wait, "min" if s.wait >= 60.0 else "s", digits=6)
+            lines.append(f"  suspend{name}: pause while {s.when.text}; resume once {s.resume_text}; "
+                         f"abort if not resumed within {wait}")
         for channel in ("stretch", "voltage"):
             start, previous = 0.0, REST[channel]
             for i, segment in enumerate(getattr(self.spec, channel)):

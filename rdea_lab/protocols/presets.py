@@ -133,7 +133,7 @@ def expand_preset(spec: ProtocolSpec) -> ProtocolSpec:
     explicit = ProtocolSpec(
         name=spec.name, kind=spec.kind, description=spec.description, source=spec.source,
         sample_rate=spec.sample_rate, measure=spec.measure, limits=spec.limits,
-        stretch=stretch, voltage=voltage, probe=spec.probe,
+        stretch=stretch, voltage=voltage, probe=spec.probe, pause=spec.pause, suspend=spec.suspend,
     )
     return explicit.with_origin(spec.origin)
 

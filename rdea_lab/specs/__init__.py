@@ -28,6 +28,8 @@ _EXPORTS = {
     "record": ("CalibrationRecord",),
     "protocol": ("Limits", "ProtocolSpec", "dump_protocol", "load_protocol", "protocol_from_mapping",
                  "protocol_from_yaml"),
+    "protocol_pause": ("Pause",),
+    "suspenders": ("Condition", "Suspender", "merged_suspenders", "parse_condition"),
     "specimen": ("Membrane", "Radii", "SpecimenCard", "dump_specimen", "load_specimen", "specimen_from_mapping",
                  "specimen_from_yaml"),
     "truth": ("Instrument", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth", "truth_as_mapping",
@@ -61,4 +63,5 @@ __all__ = [
     "specimen_from_mapping", "specimen_from_yaml", "ureg", "yeoh_slope_nonpositive_at",
     "Instrument", "MODEL_CHOICES", "MODELS", "RadiiFactors", "TruthSpec", "dump_truth", "load_truth",
     "truth_as_mapping", "truth_from_mapping", "truth_from_yaml", "truth_json", "CalibrationRecord",
+    "Pause", "Condition", "Suspender", "merged_suspenders", "parse_condition",
 ]

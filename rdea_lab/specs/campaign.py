@@ -6,11 +6,12 @@ import os
 from pathlib import Path
 from typing import Literal
 
-from pydantic import PrivateAttr
+from pydantic import PrivateAttr, model_validator
 
 from .base import Identifier, SpecModel
 from .errors import DOCUMENT, MAX_SEED, SpecError, show
 from ..paths import resolve
+from .suspenders import Suspender, suspenders_problem
 from .truth import MODEL_CHOICES, Seed
 
 
@@ -21,7 +22,8 @@ class CampaignSpec(SpecModel):
     folder (default ``..``: a file in ``campaigns/`` names ``specimens/...``), or
     name packaged inputs (``specimens/specimen2.yaml``, `rdea_lab.paths.resolve`);
     `load_campaign` gives them back as absolute paths. ``out`` is relative to the
-    working directory.
+    working directory. ``suspend:`` (a list as a protocol's, `rdea_lab.specs.suspenders`) applies to
+    every run, in addition to its protocol's own (`rdea_lab.specs.suspenders.merged_suspenders`).
     """
 
     name: Identifier
@@ -36,6 +38,7 @@ class CampaignSpec(SpecModel):
     out: str
     specimens: tuple[str, ...]
     protocols: tuple[str, ...]
+    suspend: tuple[Suspender, ...] = ()
     _origin: str = PrivateAttr("<python>")
 
     spec_kind = "campaigns"
@@ -49,6 +52,13 @@ class CampaignSpec(SpecModel):
     def folder(self) -> Path:
         """The folder the campaign's input paths are relative to (``root`` from the file's folder)."""
         return (Path(self._origin).parent / self.root).resolve()
+
+    @model_validator(mode="after")
+    def _distinct_suspenders(self) -> "CampaignSpec":
+        problem = suspenders_problem(self.suspend)
+        if problem is not None:
+            raise problem
+        return self
 
     @classmethod
     def _from_form(cls, mapping: dict, source: str) -> "CampaignSpec":

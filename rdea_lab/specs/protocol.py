@@ -48,6 +48,8 @@ from .protocol_segments import (  # noqa: F401  (re-exported: part of the protoc
     sample_count,
     _ROUNDING, _join, _segments,
 )
+from .protocol_pause import Pause
+from .suspenders import Suspender, suspenders_problem
 from .units import format_quantity
 
 
@@ -93,6 +95,12 @@ class ProtocolSpec(SpecModel):
     probe : Probe or None
         A small sine on the voltage for self-sensing (needs ``current`` in
         `measure`; its frequency below ``sample_rate / 2``).
+    pause : Pause or None
+        How the run pauses (``pause: {ramp_rate: 1 kV/s, hold_stretch: 1.05, stretch_rate: 0.05 /s}``):
+        its ``hold_stretch`` at most ``limits.max_stretch``; None (no ``pause:``) for the defaults.
+    suspend : tuple of Suspender
+        Conditions on rig channels that pause the run and resume it (``suspend:``, a list); empty
+        when not given.
     preset : str or None
         A key of `PRESETS`.
     settings : settings model or None
@@ -114,6 +122,8 @@ class ProtocolSpec(SpecModel):
     stretch: tuple[StretchSegment, ...] | None = None
     voltage: tuple[VoltageSegment, ...] | None = None
     probe: Probe | None = None
+    pause: Pause | None = None
+    suspend: tuple[Suspender, ...] = ()
     preset: str | None = None
     settings: Settings | None = None
     _origin: str = PrivateAttr("<python>")
@@ -134,6 +144,17 @@ class ProtocolSpec(SpecModel):
         spec = self.model_copy()
         spec._origin = origin
         return spec
+
+    def with_suspenders(self, suspenders) -> "ProtocolSpec":
+        """The same protocol with `suspenders` as its ``suspend:`` list, checked (names distinct), its
+        `origin` kept: e.g. a campaign's run with ``merged_suspenders(spec, campaign)``, so that the
+        dataset's ``protocol`` attribute (the dump) holds every suspender the run had."""
+        fields = {name: getattr(self, name) for name in type(self).model_fields}
+        try:
+            spec = type(self)(**{**fields, "suspend": tuple(suspenders)})
+        except SpecError as err:
+            raise err.with_source(self.origin) from None
+        return spec.with_origin(self.origin)
 
     @model_validator(mode="before")
     @classmethod
@@ -226,6 +247,18 @@ class ProtocolSpec(SpecModel):
         return self
 
     @model_validator(mode="after")
+    def _pause_within_limits(self) -> "ProtocolSpec":
+        hold = None if self.pause is None else self.pause.hold_stretch
+        if hold is not None and not hold <= self.limits.max_stretch:
+            raise SpecError("", "pause.hold_stretch", f"stretch {hold:g} is above the limit max_stretch = "
+                            f"{self.limits.max_stretch:g}; allowed: 1 <= hold_stretch <= {self.limits.max_stretch:g} "
+                            "(limits.max_stretch)")
+        problem = suspenders_problem(self.suspend)
+        if problem is not None:
+            raise problem
+        return self
+
+    @model_validator(mode="after")
     def _below_nyquist(self) -> "ProtocolSpec":
         # a sine above half the sample rate is sampled as another (aliased) one: never what was asked for
         nyquist = 0.5 * self.sample_rate
@@ -281,6 +314,10 @@ class ProtocolSpec(SpecModel):
         if self.probe is not None:
             data["probe"] = _Flow({"amplitude": format_quantity(self.probe.amplitude, "V"),
                                    "frequency": format_quantity(self.probe.frequency, "Hz")})
+        if self.pause is not None:
+            data["pause"] = _Flow(self.pause._form())
+        if self.suspend:
+            data["suspend"] = [_Flow(s._form()) for s in self.suspend]
         if self.preset is not None:
             data["preset"] = self.preset
             settings = _dump_fields(self.settings, "settings", only_set=True)

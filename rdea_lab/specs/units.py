@@ -81,11 +81,13 @@ _DIMENSIONS: dict[str, tuple[str, str, str]] = {
     "specific_energy": ("J/kg", "specific energy", "2 J/kg"),
     "volume": ("m^3", "volume", "300 mm^3"),
     "density": ("kg/m^3", "density", "1100 kg/m^3"),
+    "voltage_rate": ("V/s", "voltage rate", "1 kV/s"),
+    "temperature": ("K", "temperature", "60 degC"),
 }
 _NOTES = {"viscosity": " (pressure times time)", "electric_field": " (voltage per length)",
           "compliance": " (length per force)", "force_rate": " (force per time)",
           "stiffness": " (force per length)", "specific_energy": " (energy per mass)",
-          "density": " (mass per volume)"}
+          "density": " (mass per volume)", "voltage_rate": " (voltage per time)"}
 DIMENSIONS = tuple(_DIMENSIONS)
 
 _NUMBER = re.compile(
@@ -102,10 +104,11 @@ _UNIT = re.compile(rf"(?:1\s*/\s*)?{_UNIT_NAME}(?:\s*[*/ ·⋅]\s*{_UNIT_NAME})*
 
 
 #: Where a bare number's likely unit is looked for [SI]: a rolled DEA's voltages (up to the 30 kV of the
-#: limits' ceiling), forces, fields and frequencies. A number that is plausible in the field's display unit
-#: keeps it; '3000' for a voltage shown in kV is '3000 V' (or '3 kV'), not '3000 kV'.
+#: limits' ceiling), forces, fields, frequencies and a pause's voltage ramp rates. A number that is
+#: plausible in the field's display unit keeps it; '3000' for a voltage shown in kV is '3000 V' (or '3 kV'),
+#: not '3000 kV'.
 _PLAUSIBLE = {"voltage": (1.0, 30e3), "force": (1e-4, 1e3), "electric_field": (1e5, 1e9),
-              "frequency": (1e-4, 1e5)}
+              "frequency": (1e-4, 1e5), "voltage_rate": (1.0, 1e5)}
 
 
 def _bare_example(dimension: str, number: str, example_unit: str | None) -> str:
@@ -156,7 +159,8 @@ def parse_quantity(
         ``dimensionless`` [-], ``force`` [N], ``capacitance`` [F],
         ``electric_field`` [V/m], ``compliance`` [m/N], ``force_rate`` [N/s],
         ``stiffness`` [N/m], ``mass`` [kg], ``current`` [A], ``resistance`` [ohm], ``energy`` [J],
-        ``specific_energy`` [J/kg], ``volume`` [m^3], ``density`` [kg/m^3].
+        ``specific_energy`` [J/kg], ``volume`` [m^3], ``density`` [kg/m^3], ``voltage_rate`` [V/s],
+        ``temperature`` [K] (``60 degC`` is 333.15 K: an offset unit, converted as such).
     source, field : str
         Where the value came from, for the error message.
     example_unit : str, optional
@@ -226,10 +230,23 @@ def parse_quantity(
     if "radian" in str(quantity.to_root_units().units):
         unit_hint = "a plain number" if dimension == "dimensionless" else f"a {name} in {si_unit}"
         raise fail(f"{show(value)} uses an angle unit (ambiguous by 2 pi); give {unit_hint}")
+    if dimension == "temperature":
+        return _kelvin(value, float(number), units, fail)
     si = _to_si(number, units, si_unit)
     if not math.isfinite(si):
         raise fail(f"{show(value)} is not a finite number; give a finite {name}")
     return si
+
+
+def _kelvin(value: str, number: float, units: Any, fail) -> float:
+    """A temperature in kelvin. degC and degF are offset units (0 degC is 273.15 K): converted as pint converts
+    a temperature, never by a factor; a temperature difference (``delta_degC``) is not a temperature."""
+    if "delta" in str(units):
+        raise fail(f"{show(value)} is a temperature difference; give a temperature, e.g. '60 degC' or '333 K'")
+    kelvin = float(ureg.Quantity(number, units).to("K").magnitude)
+    if not (math.isfinite(kelvin) and kelvin >= 0.0):
+        raise fail(f"{show(value)} is below absolute zero; give a temperature, e.g. '60 degC' or '333 K'")
+    return kelvin
 
 
 def _to_si(number: str, units: Any, si_unit: str) -> float:

@@ -171,3 +171,42 @@ def test_the_unit_registry_is_built_on_first_use_only():
             "assert q.to('mm').magnitude == 1001.0")  # exact in floats
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+
+
+# ------------------------------------------------------------ temperature
+@pytest.mark.parametrize("text, kelvin", [
+    ("60 degC", 333.15), ("60 °C", 333.15), ("333 K", 333.0), ("0 K", 0.0), ("-40 degC", 233.15),
+])
+def test_temperature_is_kelvin_and_degc_an_offset_unit(text, kelvin):
+    # 60 degC = 60 + 273.15 K: a factor would give 60 K (or 60 * 274.15); the offset is exact in decimals,
+    # so only the float rounding of the sum is allowed
+    assert parse(text, "temperature") == pytest.approx(kelvin, rel=1e-15, abs=0)
+
+
+def test_temperature_in_fahrenheit():
+    assert parse("140 degF", "temperature") == pytest.approx(333.15, rel=1e-12)  # (140 - 32) * 5/9 + 273.15
+
+
+def test_a_temperature_writes_back_in_degc_and_round_trips():
+    assert format_quantity(333.15, "degC") == "60 degC"
+    assert parse(format_quantity(300.0, "degC"), "temperature") == 300.0
+
+
+@pytest.mark.parametrize("text, match", [
+    ("60 delta_degC", r"a temperature difference"),
+    ("-300 degC", r"below absolute zero"),
+    ("60 C", r"'60 C' is not a temperature"),  # coulomb
+    ("60", r"has no unit; give a temperature, e.g. '60 degC'"),
+])
+def test_bad_temperatures(text, match):
+    with pytest.raises(SpecError, match=rf"^test\.yaml: x: .*{match}"):
+        parse(text, "temperature")
+
+
+def test_voltage_rate():
+    assert parse("1 kV/s", "voltage_rate") == 1000.0
+    assert parse("500 V/s", "voltage_rate") == 500.0
+    with pytest.raises(SpecError, match=r"'1000' has no unit; give a voltage rate, e.g. '1000 V/s' or '1 kV/s'"):
+        parse(1000, "voltage_rate")
+    with pytest.raises(SpecError, match=r"'1 kV' is not a voltage rate \(voltage per time\)"):
+        parse("1 kV", "voltage_rate")
