@@ -65,7 +65,7 @@ def experiments(spec, root: Path, out_dir: Path | None = None) -> list[Experimen
         The first plan beyond its limits on a specimen.
     """
     out_dir = Path(out_dir if out_dir is not None else spec.out)  # a user's folder, never the campaign's
-    plans = [load_plan(root / p) for p in spec.protocols]
+    plans = [_with_campaign_suspenders(load_plan(root / p), spec) for p in spec.protocols]
     runs = []
     for i, rel in enumerate(spec.specimens):
         card = load_specimen(root / rel)
@@ -76,6 +76,18 @@ def experiments(spec, root: Path, out_dir: Path | None = None) -> list[Experimen
                      f"with protocols[{j}] ({Path(spec.protocols[j]).name})")
             runs.append(Experiment(checked, out_dir / card.id / f"{plan.name}.nc", entry))
     return runs
+
+
+def _with_campaign_suspenders(plan, spec):
+    """The plan with the campaign's ``suspend:`` added to its protocol's own (the dataset's ``protocol``
+    attribute then says every suspender the run had); the plan itself when the campaign declares none."""
+    if not getattr(spec, "suspend", ()):
+        return plan
+    from ..protocols import as_plan
+    from ..specs import merged_suspenders
+
+    plan_spec = plan.spec
+    return as_plan(plan_spec.with_suspenders(merged_suspenders(plan_spec, spec)))
 
 
 def run_campaign(spec, root: Path | None = None, *, out_dir=None, overwrite=False, realtime=False, callbacks=(),
