@@ -101,25 +101,51 @@ def test_readme_commands(tmp_path, monkeypatch):
     work = tmp_path / "work"
     work.mkdir()
     monkeypatch.chdir(work)
-    port, server = str(_free_port()), None
+    port, viewer = str(_free_port()), str(_free_port())
+    servers, paced, codes = [], None, []
     try:
         for argv in table_examples():
             if _key(argv) or argv[0] == "import":
                 continue
             argv = [a.replace("5025", port) for a in argv]
-            if argv[:2] == ["rig", "serve"]:
-                env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
-                server = subprocess.Popen([sys.executable, "-m", "rdea_lab.cli.main", *argv], cwd=work, env=env,
-                                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-                _wait_listening(int(port), server)
+            if argv[:2] == ["rig", "serve"] or argv[0] == "monitor":
+                argv = [a.replace("5006", viewer) for a in argv]
+                servers.append(_background(argv, work))
+                _wait_listening(int(viewer if argv[0] == "monitor" else port), servers[-1])
+                continue
+            if argv[0] == "run" and "--realtime" in argv:  # a paced run, operated by the rows after it
+                paced = _background(argv, work)
+                _wait_running(work / argv[argv.index("--out") + 1], paced)
                 continue
             _run(argv, work)
+        if paced is not None:  # the rows after it ended it (abort): exit 3, its dataset whole
+            assert paced.wait(60) == 3, paced.communicate()[1]
     finally:
-        if server is not None:
-            server.terminate()
-            stderr = server.communicate(timeout=30)[1]
-    if server is not None:
-        assert server.returncode == 0, stderr
+        for process in [*servers, *([paced] if paced is not None else [])]:
+            if process.poll() is None:
+                process.terminate()
+            codes.append((process.args, process.wait(30), process.communicate()[1]))
+    for args, code, stderr in codes[:len(servers)]:  # a server ends cleanly on SIGTERM
+        assert code == 0, (args, stderr)
+
+
+def _background(argv, cwd):
+    """A row that keeps running (a server, a paced run), as a process of its own."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    return subprocess.Popen([sys.executable, "-m", "rdea_lab.cli.main", *argv], cwd=cwd, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_running(out, process, timeout=120.0):
+    from rdea_lab.runs.control import read_state
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        assert process.poll() is None, process.communicate()[1]
+        if (read_state(out) or {}).get("samples", 0) > 0:
+            return
+        time.sleep(0.1)
+    pytest.fail(f"the paced run {out} did not start within {timeout} s")
 
 
 def _wait_listening(port, process, timeout=60.0):
