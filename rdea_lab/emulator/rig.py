@@ -43,8 +43,9 @@ are the plan's own, computed ahead as above (so its data are those of the same
 run without ``CONF:PAUS``); a pause asked for while part of such a block is not
 yet produced rewinds the block to the last sample produced, so the pause acts
 from the next sample. While it pauses, holds or resumes, blocks are at most
-`PAUSE_BLOCK_TIME` long (aligned too). Sample ``k`` is at ``t = k / rate``
-whatever it drives: a paused run is longer than its plan by its paused samples.
+`PAUSE_BLOCK_TIME` long (aligned too; a held block is made once the wall
+clock allows all of it). Sample ``k`` is at ``t = k / rate`` whatever it
+drives: a paused run is longer than its plan by its paused samples.
 """
 
 from __future__ import annotations
@@ -289,6 +290,7 @@ class EmulatedRig:
         self.conditions = conditions if conditions is not None else Conditions(force_drift=inst.force_drift)
         self._sp = None  # a pausable run's setpoints
         self._ahead = None  # (k0, j0, state) of a pausable run's block computed ahead from the plan
+        self._woken = False  # a resume asked for while held, not yet acted on
         if config.pause is not None:
             x, v = config.stretch_setpoint, config.voltage_setpoint
             self._sp = PausedSetpoints(lambda a, b: (x[a:b], v[a:b]), config.n, config.rate, config.pause,
@@ -311,11 +313,13 @@ class EmulatedRig:
     def pause(self) -> bool:
         """Pause a pausable run from the next sample produced; False when it pauses already, or when every
         plan sample is taken (`paused` tells them apart)."""
+        self._woken = False
         return self._sp.pause()
 
     def resume(self) -> bool:
         """Resume a pausable run from the next sample produced; False when it is not paused."""
-        return self._sp.resume()
+        self._woken = self._sp.resume()
+        return self._woken
 
     @property
     def paused(self) -> bool:
@@ -439,6 +443,11 @@ class EmulatedRig:
                 return np.empty((0, len(cfg.columns))), None
             self._ahead = (k0, j0, self._state())
             return self._physics(k0, cfg.stretch_setpoint[j0:j0 + m], cfg.voltage_setpoint[j0:j0 + m], np.zeros(m))
+        if sp.phase == HELD and not self._woken and sp.held_due() < m:
+            # held: whole blocks only, as the wall clock allows them (a block's physics costs the same however
+            # few its samples)
+            return np.empty((0, len(cfg.columns))), None
+        self._woken = False
         got = sp.take(m)
         if not got.stretch.size:
             return np.empty((0, len(cfg.columns))), None
