@@ -82,6 +82,12 @@ def error_reply(code: int, message: str) -> str:
     return f'ERR {code},"{message}"'
 
 
+def error_code(reply: str) -> int | None:
+    """The code of an ``ERR`` reply; None when it is none."""
+    m = re.match(r"^ERR\s*(-?\d+)", reply)
+    return int(m[1]) if m else None
+
+
 def error_message(reply: str) -> str:
     """The message of an ``ERR`` reply; the reply itself when it is none (``"no reply"`` when empty)."""
     m = re.match(r'^ERR\s*(-?\d+)\s*,\s*"(.*)"\s*$', reply)
@@ -526,7 +532,7 @@ def line(header: str, value=None) -> str:
 
 
 __all__ = ["ANYONE", "BEFORE_AUTH", "CHANNELS", "CHANNEL_CODES", "COLUMNS", "COMMANDS", "CONDITIONS", "CONTROLLER",
-           "CURRENT_COLUMN", "PAUSED_COLUMN", "PAUSE_STATES", "PauseArgs", "conditions_reply", "read_conditions",
-           "read_pause", "Command", "FramingError", "LIMITS", "RigError", "STATES", "armed_checksum",
+           "CURRENT_COLUMN", "PAUSED_COLUMN", "PAUSE_STATES", "PauseArgs", "conditions_reply", "error_code",
+           "read_conditions", "read_pause", "Command", "FramingError", "LIMITS", "RigError", "STATES", "armed_checksum",
            "auth_response", "clean", "decode_block", "encode_block", "error_message", "error_reply", "line",
            "read_status", "status_reply"]
