@@ -39,7 +39,8 @@ import numpy as np
 
 from ..physics import viscoelastic
 from ..protocols.pause import PauseSpec
-from ..specs.rigwire import DATA_OUT_OF_RANGE, LIMITS, SETTINGS_CONFLICT, COMMANDS, RigError, armed_checksum
+from ..specs.rigwire import (DATA_OUT_OF_RANGE, LIMITS, MAX_POINTS, SETTINGS_CONFLICT, COMMANDS, RigError,
+                             armed_checksum)
 from .conditions import FAULTS, Conditions, Fault, check_faults
 from .rig import BLOCK, EmulatedRig, RunConfig, _g, limit_violation
 #: Longest the rig computes samples while holding its lock [s]: a ``FETC?`` returns the rows made by then
@@ -243,6 +244,15 @@ class RigState:
             if hold and hold > lim["LIM:STR"] * (1.0 + 1e-12):
                 raise RigError(DATA_OUT_OF_RANGE, f"CONF:PAUS hold_stretch {_g(hold, lim['LIM:STR'])} is above "
                                                   f"LIM:STR {_g(lim['LIM:STR'])}")
+            ramps = [(np.max(np.abs(v)) / ramp_rate, f"ramp_rate {ramp_rate:g} V/s takes {{n:.3g}} samples from "
+                                                     f"{np.max(np.abs(v)):g} V to 0")]
+            if hold:
+                ramps.append((np.max(np.abs(x - hold)) / stretch_rate,
+                              f"stretch_rate {stretch_rate:g} /s takes {{n:.3g}} samples to hold_stretch {hold:g}"))
+            for seconds, what in ramps:  # the rig holds a ramp in memory: no longer than a trajectory
+                if seconds * self.rate > MAX_POINTS:
+                    raise RigError(DATA_OUT_OF_RANGE, f"CONF:PAUS {what.format(n=seconds * self.rate)}; at most "
+                                                      f"{MAX_POINTS:g}")
             config = dataclasses.replace(config, pause=PauseSpec(ramp_rate, hold or None, stretch_rate))
         self._stop.set()
         self._armed, self.run, self.state, self.reason, self.owner = config, None, "ARMED", "", session

@@ -123,6 +123,14 @@ def test_conf_paus_while_armed_and_a_hold_stretch_above_the_limit_are_refused(cl
         'ERR -221,"settings conflict: CONF:PAUS while ARMED; send ABOR or *RST first"'
 
 
+def test_a_ramp_longer_than_a_trajectory_is_refused_at_arm(client):
+    client.configure(pause=(1e-6, 0.0, 0.05))  # 2 kV at 1 uV/s: 2e11 samples at 100 Hz
+    x, v = trajectory()
+    assert client.upload("TRAJ:STR", x) == "OK" and client.upload("TRAJ:VOLT", v) == "OK"
+    assert client.q("ARM") == ('ERR -222,"CONF:PAUS ramp_rate 1e-06 V/s takes 2e+11 samples from 2000 V to 0; '
+                               'at most 1e+07"')
+
+
 # ------------------------------------------------------------------ a pause through the server
 def test_a_run_paused_and_resumed_drives_every_plan_sample_once(server, client):
     client.configure(pause=PAUSE)
@@ -151,6 +159,44 @@ def test_a_run_paused_and_resumed_drives_every_plan_sample_once(server, client):
     up = rows[flag == RAMPING_UP]
     assert up.shape[0] == 200 and up[-1, V_SP] == v[499]  # back to the plan's setpoint at the pause
     assert not server.controller.voltage_on
+
+
+def test_a_declared_hold_stretch_is_reached_at_zero_volts_and_left_the_same_way(client):
+    client.configure(pause=(1000.0, 1.1, 0.05))
+    x, v = trajectory()
+    client.start(x, v)
+    before = fetch(client, 500)  # stretch 1.2 at 2 kV
+    assert client.q("PAUS") == "OK"
+    down = fetch_now(client)
+    assert client.q("CONT") == "OK"
+    rows = np.concatenate([before, down, client.drain(300)])
+    assert_plan_driven_once(rows, x, v)
+    paused = rows[rows[:, PAUSED] != RUNNING]
+    at_hold = paused[:, X_SP] == 1.1
+    assert at_hold.any() and np.all(paused[at_hold, V_SP] == 0.0)  # held at 1.1, at 0 V
+    moving = paused[:, X_SP] != x[499]  # the stretch moves only at 0 V, at 0.05 /s
+    assert np.all(paused[moving, V_SP] == 0.0)
+    assert np.max(np.abs(np.diff(paused[:, X_SP]))) <= 0.05 / RATE * (1 + 1e-9)
+
+
+@pytest.mark.parametrize("server", [{"realtime": True}], indirect=True)
+def test_in_realtime_a_pause_acts_within_a_short_block(server, client):
+    client.configure(pause=(1e4, 0.0, 0.05))  # 2 kV to 0 in 0.2 s
+    x, v = trajectory(301)  # 3 s; 2 kV from 1.21 s
+    client.start(x, v)
+    time.sleep(1.5)
+    asked = float(client.q("STAT?").split(",")[1]) / RATE  # the rig's run time when PAUS is sent
+    assert client.q("PAUS") == "OK"
+    time.sleep(0.5)
+    assert client.q("PAUS?") == "PAUSED,1"
+    rows = fetch_now(client)
+    first = rows[int(np.argmax(rows[:, PAUSED] != RUNNING)), T]
+    # a block of 2048 samples (20 s) is computed ahead, and rewound; the pause acts within a short block
+    # (0.05 s) and the producer's turn (0.02 s), plus the time the test's own commands take
+    assert asked <= first <= asked + 0.25, (asked, first)
+    assert client.q("CONT") == "OK"
+    rows = np.concatenate([rows, client.drain(300)])
+    assert_plan_driven_once(rows, x, v)
 
 
 def test_held_samples_are_paced_by_the_wall_clock_in_virtual_time(client):
