@@ -398,8 +398,10 @@ class RigBackend:
         Raises
         ------
         BackendFailure
-            A reply that is not a reading.
+            A reply that is not a reading, or no connection (before `start`, after `close`).
         """
+        if self._inst is None:
+            raise BackendFailure(f"rig {self.address}: not connected (conditions are read during a run)")
         now = self._clock()
         if self._conditions is None or now - self._conditions_at >= CONDITIONS_EVERY:
             reply = self._query("COND?")

@@ -192,8 +192,8 @@ def test_in_realtime_a_pause_acts_within_a_short_block(server, client):
     rows = fetch_now(client)
     first = rows[int(np.argmax(rows[:, PAUSED] != RUNNING)), T]
     # a block of 2048 samples (20 s) is computed ahead, and rewound; the pause acts within a short block
-    # (0.05 s) and the producer's turn (0.02 s), plus the time the test's own commands take
-    assert asked <= first <= asked + 0.25, (asked, first)
+    # (0.05 s) and the producer's turn (0.02 s), plus the time the test's own commands take on a busy machine
+    assert asked <= first <= asked + 0.5, (asked, first)
     assert client.q("CONT") == "OK"
     rows = np.concatenate([rows, client.drain(300)])
     assert_plan_driven_once(rows, x, v)
@@ -406,3 +406,18 @@ def test_a_pause_acts_from_the_next_sample_and_any_chunking_gives_the_same_data(
     assert_plan_driven_once(rows, x, v)
     np.testing.assert_array_equal(rows[:1000, :8], pausable(card, truth, x, v, Clock(), pause=None).produce(1000))
     np.testing.assert_array_equal(paused_run(card, truth, x, v, sizes), rows)
+
+
+def test_a_pause_asked_for_after_cont_and_before_the_next_sample_keeps_the_run_held(card, truth):
+    """The later request wins (the door opening right after a CONT: the rig must not ramp up)."""
+    x, v = slow_trajectory(1001)
+    clock = Clock()
+    r = pausable(card, truth, x, v, clock)
+    r.produce(300)
+    assert r.pause()
+    r.produce(1000)
+    assert r.pause_state() == ("PAUSED", 1)
+    assert r.resume() and r.pause()  # CONT, then a pause before any sample: the resume is withdrawn
+    clock.t += 0.2
+    held = r.produce(1000)
+    assert held.shape[0] == 20 and np.all(held[:, PAUSED] == HELD) and r.pause_state() == ("PAUSED", 1)
