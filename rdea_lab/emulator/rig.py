@@ -382,6 +382,8 @@ class EmulatedRig:
         while n > 0 and self.state == "running" and not self.interlocked:
             if self._ahead is not None and self._sp.paused:  # a pause asked for after the block was computed
                 self._rewind()
+                if self.state != "running":  # the physics failed computing the rewound samples again
+                    break
             if self._pending is None or self._pending[0].shape[0] == 0:
                 self._pending = self._compute_block()
                 if self._pending[0].shape[0] == 0:  # aborted, or held and no sample due yet
