@@ -8,7 +8,7 @@ backend; `RigBackend` also sends them to the rig, which checks them again.
 The quick start is `rdea_lab`'s (one, run as a doctest).
 """
 
-from .base import Backend, BackendFailure, RunInterrupted
+from .base import Backend, BackendFailure, PauseRefused, RunInterrupted
 from .twin import TwinBackend
 
-__all__ = ["Backend", "BackendFailure", "RunInterrupted", "TwinBackend"]
+__all__ = ["Backend", "BackendFailure", "PauseRefused", "RunInterrupted", "TwinBackend"]

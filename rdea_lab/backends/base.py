@@ -9,6 +9,11 @@ class BackendFailure(Exception):
     """The backend reports the run cannot go on (lost connection, breakdown, server abort)."""
 
 
+class PauseRefused(RuntimeError):
+    """The backend refused to pause or resume the run (the rig's message: not paused, the door interlock open,
+    a rig that cannot pause); the run goes on as it was."""
+
+
 class RunInterrupted(KeyboardInterrupt):
     """Ctrl-C or SIGTERM during a run. A KeyboardInterrupt, not an Exception: no ``except Exception`` on
     the way (a driver's, pyvisa's) can take it for a lost connection."""

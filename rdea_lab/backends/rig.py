@@ -6,12 +6,21 @@ own front end to its DAQ) can be driven. Limits are sent and the trajectories
 checked by the server (``ARM``) before anything moves; every abort path sends
 ``ABOR`` (voltage to zero, actuator back to its start) and keeps every sample
 fetched so far.
+
+Every run is armed pausable (``CONF:PAUS`` from the protocol's ``pause:``, else
+the defaults of `rdea_lab.protocols.pause`): `RigBackend.pause` and
+`RigBackend.resume` ask the rig (``PAUS``, ``CONT``), the rows carry each
+sample's phase (the block key ``paused``), and `RigBackend.conditions` reads
+the rig's condition channels (``COND?``). A server of an older protocol (no
+``CONF:PAUS``) runs as before, without pauses.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import re
+import threading
 import time as _time
 
 import numpy as np
@@ -19,7 +28,10 @@ import numpy as np
 from ..specs import rigwire as wire
 from ..specs.errors import UserError
 from ..specs.rigwire import COLUMNS
-from .base import BackendFailure
+from .base import BackendFailure, PauseRefused
+
+#: Least wall time between two ``COND?`` queries; `RigBackend.conditions` answers from its cache meanwhile [s].
+CONDITIONS_EVERY = 0.1
 
 _ADDRESS = re.compile(r"^tcp://(?P<host>[A-Za-z0-9.\-]+|\[[0-9a-fA-F:]+\]):(?P<port>\d{1,5})$")
 
@@ -100,6 +112,15 @@ class RigBackend:
         #: whether a command that changes the rig (``*RST`` onward) has been sent: until then a failure
         #: sends nothing, not even ``ABOR`` (which any connection may send: it would stop another's run)
         self._touched = False
+        #: whether the rig armed the run pausable (it took ``CONF:PAUS``)
+        self.pausable = False
+        #: why the run was last paused (`pause`'s reason), "" when it never was
+        self.pause_reason = ""
+        self._conditions: dict | None = None
+        self._conditions_at = -math.inf
+        # one command and its reply at a time, from whichever thread (the engine may ask to pause or read the
+        # conditions from another thread than the one reading blocks); ABOR takes no lock (abort)
+        self._io = threading.RLock()
 
     # -- plumbing ---------------------------------------------------------
     def _open(self):
@@ -114,7 +135,8 @@ class RigBackend:
 
     def _query(self, command: str) -> str:
         try:
-            return self._inst.query(command).strip()
+            with self._io:
+                return self._inst.query(command).strip()
         except Exception as exc:
             raise ConnectionLost(f"connection to the rig {self.address} lost during {command.split()[0]} "
                                  f"({type(exc).__name__})") from None
@@ -131,17 +153,18 @@ class RigBackend:
         """Send a trajectory of `n` setpoints as one binary block, window by window (the plan is never held
         whole: the block's bytes go out as they are computed); returns `crc` continued over them."""
         size = 8 * n
-        try:
-            self._inst.write_raw(f"{command} #{len(str(size))}{size}".encode("ascii"))
-            for values in windows:
-                values = np.ascontiguousarray(values, "<f8")
-                crc = wire.checksum_more(crc, values)
-                self._inst.write_raw(values.tobytes())
-            self._inst.write_raw(b"\n")
-            reply = self._inst.read().strip()
-        except Exception as exc:
-            raise ConnectionLost(f"connection to the rig {self.address} lost during upload "
-                                 f"({type(exc).__name__})") from None
+        with self._io:
+            try:
+                self._inst.write_raw(f"{command} #{len(str(size))}{size}".encode("ascii"))
+                for values in windows:
+                    values = np.ascontiguousarray(values, "<f8")
+                    crc = wire.checksum_more(crc, values)
+                    self._inst.write_raw(values.tobytes())
+                self._inst.write_raw(b"\n")
+                reply = self._inst.read().strip()
+            except Exception as exc:
+                raise ConnectionLost(f"connection to the rig {self.address} lost during upload "
+                                     f"({type(exc).__name__})") from None
         if reply != "OK":
             raise RigRefused(f"rig {self.address} refused {command}: {_error_text(reply)}")
         return crc
@@ -241,14 +264,16 @@ class RigBackend:
             self.truth = "" if truth.startswith("ERR") else truth
         lim = plan.limits
         self._touched = True  # from here on the rig is ours: a failure sends ABOR
-        # rows gain a ninth column, the amplifier current, when it is measured (docs/rig-protocol.md)
-        self._columns = wire.row_columns(plan.measure)
         limits = (lim.max_voltage, lim.max_stretch, lim.max_force, lim.max_field)  # in the order of wire.LIMITS
         for header, value in (("*RST", None), ("CONF:RATE", plan.sample_rate), ("CONF:MEAS", plan.measure),
                               ("CONF:LENG", geom.L1), ("CONF:THIC", geom.L3), ("CONF:SEED", self.seed),
                               *zip(wire.LIMITS, limits)):
             self._command(wire.line(header, value))
-        crc = wire.checksum_head(plan.sample_rate, limits, geom.L3)
+        pause = self._arm_pausable(plan)
+        # rows gain a column, the amplifier current, when it is measured, and a last one, each sample's phase,
+        # when the run is pausable (docs/rig-protocol.md)
+        self._columns = wire.row_columns(plan.measure, paused=self.pausable)
+        crc = wire.checksum_head(plan.sample_rate, limits, geom.L3, pause)
         for name in ("stretch", "voltage"):  # streamed window by window; the rig holds both (one block each)
             crc = self._upload(_TRAJECTORY[name], _setpoints(plan, name), plan.samples, crc)
         reply = self._query("ARM")
@@ -264,13 +289,30 @@ class RigBackend:
         self._rows = max(1, int(plan.sample_rate))  # at most a second of samples per block
         self._last_new = self._clock()
 
+    def _arm_pausable(self, plan) -> tuple | None:
+        """Send ``CONF:PAUS`` (the plan's `PauseSpec`); the values sent, or None when the rig does not know the
+        command (``ERR -113``: a server of an older protocol; the run goes on without pauses)."""
+        from ..protocols.pause import pause_spec_of
+
+        spec = pause_spec_of(plan)
+        pause = (float(spec.ramp_rate), float(spec.hold_stretch or 0.0), float(spec.stretch_rate))
+        reply = self._query(wire.line("CONF:PAUS", pause))
+        if reply == "OK":
+            self.pausable = True
+            return pause
+        if wire.error_code(reply) == wire.UNDEFINED_HEADER:
+            self.pausable = False
+            return None
+        raise RigRefused(f"rig {self.address} refused CONF:PAUS: {_error_text(reply)}")
+
     def _fetch(self) -> np.ndarray:
-        try:
-            data = self._inst.query_binary_values(f"FETC? {self._rows}", datatype="d", is_big_endian=False,
-                                                  container=np.array)
-        except Exception as exc:
-            raise ConnectionLost(f"connection to the rig {self.address} lost while fetching samples "
-                                 f"({type(exc).__name__})") from None
+        with self._io:
+            try:
+                data = self._inst.query_binary_values(f"FETC? {self._rows}", datatype="d", is_big_endian=False,
+                                                      container=np.array)
+            except Exception as exc:
+                raise ConnectionLost(f"connection to the rig {self.address} lost while fetching samples "
+                                     f"({type(exc).__name__})") from None
         width = len(self._columns)
         if data.size % width:
             raise BackendFailure(f"rig {self.address} sent {data.size} values, not whole rows of {width}")
@@ -311,6 +353,65 @@ class RigBackend:
                 raise BackendFailure(f"the rig stalled: no new sample for {self.stall_timeout:g} s "
                                      f"({acquired} acquired, state {state})")
             self._sleep(self.poll)
+
+    # -- pause, resume, conditions -------------------------------------------
+    def pause(self, reason: str) -> None:
+        """Ask the rig to pause the run (``PAUS``): from its next sample the voltage ramps to 0 at the protocol's
+        rate and the stretch is held (or taken to its ``hold_stretch``); the run stays ``RUNNING`` and blocks go
+        on coming (held samples, their ``paused`` flag set). Already pausing or held: nothing changes.
+
+        Raises
+        ------
+        PauseRefused
+            The rig refused (no run going, every plan sample driven) or cannot pause (an older server).
+        """
+        if not self.pausable:
+            raise PauseRefused(f"rig {self.address} cannot pause this run: "
+                               + ("it does not know CONF:PAUS (a server of an older protocol); the run goes on "
+                                  "(ABOR stops it)" if self._inst is not None else "no run started"))
+        reply = self._query("PAUS")
+        if reply != "OK":
+            raise PauseRefused(f"rig {self.address} refused PAUS: {_error_text(reply)}")
+        self.pause_reason = str(reason)
+
+    def resume(self) -> None:
+        """Ask the rig to resume the paused run (``CONT``): back to the plan's setpoints at the pause (the
+        stretch first, then the voltage), and on from the plan sample it would have driven next.
+
+        Raises
+        ------
+        PauseRefused
+            The rig refused: the run is not paused, or the door interlock is open.
+        """
+        if not self.pausable:
+            raise PauseRefused(f"rig {self.address} cannot resume: this run cannot pause")
+        reply = self._query("CONT")
+        if reply != "OK":
+            raise PauseRefused(f"rig {self.address} refused CONT: {_error_text(reply)}")
+
+    def conditions(self) -> dict:
+        """The rig's condition channels at its latest sample (``COND?``): ``interlock`` (``"open"`` or
+        ``"closed"``), ``amplifier_temperature`` [K], ``force_offset_drift`` (the load cell's zero now minus at
+        the run's start) [N]. Asked at most every `CONDITIONS_EVERY` s; meanwhile the last reading. An empty
+        dict from a server of an older protocol (no ``COND?``).
+
+        Raises
+        ------
+        BackendFailure
+            A reply that is not a reading, or no connection (before `start`, after `close`).
+        """
+        if self._inst is None:
+            raise BackendFailure(f"rig {self.address}: not connected (conditions are read during a run)")
+        now = self._clock()
+        if self._conditions is None or now - self._conditions_at >= CONDITIONS_EVERY:
+            reply = self._query("COND?")
+            reading = wire.read_conditions(reply)
+            if reading is None:
+                if wire.error_code(reply) != wire.UNDEFINED_HEADER:
+                    raise BackendFailure(f"rig {self.address}: unreadable COND? reply {reply[:80]!r}")
+                reading = {}
+            self._conditions, self._conditions_at = reading, now
+        return dict(self._conditions)
 
     def _reconnect(self, attempts=3, wait=0.5) -> bool:
         """Open a new connection to the same rig (no reset); True on success."""

@@ -28,8 +28,9 @@ def rig():
 @click.option("--realtime", is_flag=True, help="Pace runs at wall-clock speed (default: as fast as fetched).")
 @click.option("--token-file", "token_file", type=click.Path(dir_okay=False),
               help="File holding the token clients must send first (SYST:AUTH <token>).")
-@click.option("--fault", "faults", multiple=True, metavar="KIND-at=SECONDS",
-              help="Inject a fault at a run time: disconnect-at=, breakdown-at= or stall-at= (repeatable).")
+@click.option("--fault", "faults", multiple=True, metavar="KIND-at=SECONDS[:DURATION]",
+              help="Inject a fault at a run time: disconnect-at=, breakdown-at=, stall-at=; for DURATION s or "
+                   "to the end: interlock-at= (door open), overheat-at=, drift-at= (repeatable).")
 @click.option("--max-voltage", default="3 kV", show_default=True, help="The rig's own voltage limit.")
 @click.option("--max-field", default="80 V/um", show_default=True,
               help="The rig's own field limit, checked with the card's thickness.")

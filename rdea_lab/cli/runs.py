@@ -83,8 +83,9 @@ def subscribers(live, quiet, total, label, seconds, stack) -> list:
 @click.option("--token-file", type=click.Path(dir_okay=False), help="Token presented to the rig server.")
 @click.option("--truth", "truth_path", type=click.Path(dir_okay=False),
               help="For --backend emulator: truth file [default: truth/paper2021.yaml].")
-@click.option("--fault", "faults", multiple=True, metavar="KIND-at=SECONDS",
-              help="For --backend emulator: disconnect-at=, breakdown-at= or stall-at= (repeatable).")
+@click.option("--fault", "faults", multiple=True, metavar="KIND-at=SECONDS[:DURATION]",
+              help="For --backend emulator: disconnect-at=, breakdown-at=, stall-at=, interlock-at=, "
+                   "overheat-at=, drift-at= (repeatable; see docs/rig-protocol.md).")
 @click.option("--stall-timeout", type=click.FloatRange(0.1, 3600), default=5.0, show_default=True,
               help="Seconds without a new sample before a rig run is aborted as stalled.")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False),

@@ -11,6 +11,7 @@ client checked; it binds loopback unless it has a token.
 The quick start is `rdea_lab`'s (one, run as a doctest).
 """
 
+from .conditions import Fault
 from .controller import FAULTS, RigController, RigError
 from .instruments import FirstOrderLag, lcr_bridge, load_cell, tau_of_bandwidth
 from .rig import CHANNELS, COLUMNS, EmulatedRig, RunConfig, limit_violation
@@ -18,6 +19,6 @@ from .server import RigServer, is_loopback
 from .truth import true_geometry
 
 __all__ = [
-    "CHANNELS", "COLUMNS", "FAULTS", "EmulatedRig", "FirstOrderLag", "RigController", "RigError", "RigServer",
+    "CHANNELS", "COLUMNS", "FAULTS", "EmulatedRig", "Fault", "FirstOrderLag", "RigController", "RigError", "RigServer",
     "RunConfig", "is_loopback", "lcr_bridge", "limit_violation", "load_cell", "tau_of_bandwidth", "true_geometry",
 ]

@@ -11,8 +11,8 @@ under its lock; errors become ``ERR`` replies and are queued per session
 for ``SYST:ERR?``. One run at a time: from ``ARM`` until the run ends, only
 the session that armed it may send commands that change or consume
 anything; the others may ask ``*IDN?``, ``STAT?``, ``LIM?``,
-``CONF:RATE?``, ``CONF:MEAS?``, ``TRAJ:POIN?``, ``SYST:ERR?`` and
-``SYST:TRUTH?``.
+``CONF:RATE?``, ``CONF:MEAS?``, ``TRAJ:POIN?``, ``SYST:ERR?``,
+``SYST:TRUTH?``, ``PAUS?`` and ``COND?``.
 
 ``ABOR`` never takes the lock (`RigState.emergency_stop`); ``STAT?`` waits
 for it `STAT_WAIT` s at most, then answers from what it can read without it.
@@ -28,9 +28,10 @@ import time
 from .._version import __version__
 from ..specs.rigwire import (CHANNEL_CODES, COMMAND_ERROR, COMMANDS, CONTROLLER, LIMITS, NOT_IN_CONTROL,
                              SYNTAX_ERROR, UNDEFINED_HEADER, PARAMETER_NOT_ALLOWED, QUEUE_OVERFLOW, Block,
-                             FramingError, RigError, armed_checksum, clean, encode_block, error_reply, new_nonce,
-                             status_reply)
+                             FramingError, RigError, armed_checksum, clean, conditions_reply, encode_block,
+                             error_reply, new_nonce, status_reply)
 from ..specs.truth import truth_json
+from .conditions import WINDOWED, Fault
 from .rigstate import FAULTS, CloseConnection, RigState, check_faults
 
 #: Most rows one ``FETC?`` returns.
@@ -50,8 +51,9 @@ class RigController:
     realtime : bool
         Pace the run at wall-clock speed (a producer thread) instead of
         producing samples when they are fetched.
-    faults : sequence of (str, float)
-        ``("disconnect" | "breakdown" | "stall", run time [s])``.
+    faults : sequence
+        ``(kind, run time [s])`` of `FAULTS`, or ``(kind, run time [s], duration [s])`` for the
+        condition faults (``interlock``, ``overheat``, ``drift``; `rdea_lab.emulator.conditions`).
     truth_source : str, optional
         Where the truth came from, for error messages.
     close_session : callable, optional
@@ -99,9 +101,14 @@ class RigController:
             "STAT?": lambda session, _: self._stat(),
             "FETC?": lambda session, rows: encode_block(rig.fetch(session, min(rows, MAX_FETCH))),
             "ABOR": lambda session, _: _ok(rig.emergency_stop("aborted by ABOR")),  # (execute serves ABOR itself)
+            "CONF:PAUS?": lambda session, _: "NONE" if rig.pause is None else ",".join(repr(x) for x in rig.pause),
+            "PAUS": lambda session, _: _ok(rig.pause_run()),
+            "CONT": lambda session, _: _ok(rig.resume_run()),
+            "PAUS?": lambda session, _: "{},{}".format(*rig.pause_status()),
+            "COND?": lambda session, _: conditions_reply(rig.conditions()),
         }
         for header, name in (("CONF:RATE", "rate"), ("CONF:MEAS", "measure"), ("CONF:LENG", "L1"),
-                             ("CONF:THIC", "L3"), ("CONF:SEED", "seed")):
+                             ("CONF:THIC", "L3"), ("CONF:SEED", "seed"), ("CONF:PAUS", "pause")):
             actions[header] = lambda session, value, name=name: _ok(rig.configure(name, value))
         for header in LIMITS:
             actions[header] = lambda session, value, header=header: _ok(rig.set_limit(header, value))
@@ -232,14 +239,17 @@ def _size(values) -> int:
     return 0 if values is None else values.size
 
 
-__all__ = ["FAULTS", "CloseConnection", "RigController", "RigError", "armed_checksum", "check_faults"]
+__all__ = ["FAULTS", "CloseConnection", "Fault", "RigController", "RigError", "armed_checksum", "check_faults"]
 
 
-_FAULT_TEXT = re.compile(r"^(?P<kind>[a-z]+)-at=(?P<at>.+)$")
+_FAULT_TEXT = re.compile(r"^(?P<kind>[a-z]+)-at=(?P<at>[^:]+)(?::(?P<duration>.*))?$")
 
 
-def parse_fault(text, source: str = "command line", field: str = "--fault") -> tuple[str, float]:
-    """``"stall-at=3"`` -> ``("stall", 3.0)``; a ``(kind, seconds)`` pair passes through checked.
+def parse_fault(text, source: str = "command line", field: str = "--fault") -> Fault:
+    """``"stall-at=3"`` -> ``Fault("stall", 3.0)``, ``"interlock-at=5:2"`` -> ``Fault("interlock", 5.0, 2.0)``
+    (the door open from run time 5 s for 2 s; without ``:2``, to the end of the run); a ``(kind, seconds)``
+    pair or ``(kind, seconds, duration)`` triple passes through checked. A `Fault` unpacks as the pair
+    ``(kind, seconds)``.
 
     Raises
     ------
@@ -248,26 +258,37 @@ def parse_fault(text, source: str = "command line", field: str = "--fault") -> t
     """
     from ..specs import SpecError
 
-    allowed = ", ".join(f"{k}-at=SECONDS" for k in FAULTS)
+    allowed = ", ".join(f"{k}-at=SECONDS" + ("[:DURATION]" if k in WINDOWED else "") for k in FAULTS)
     if not isinstance(text, str):
         try:
-            return next(iter(check_faults([text]).items()))
+            return next(iter(check_faults([text]).values()))
         except ValueError as exc:
             raise SpecError(source, field, str(exc)) from None
     m = _FAULT_TEXT.match(text.strip())
     if not m or m["kind"] not in FAULTS:
-        raise SpecError(source, field, f"{text!r} is not one of {allowed} (e.g. stall-at=3.0)")
+        raise SpecError(source, field, f"{text!r} is not one of {allowed} (e.g. stall-at=3.0, interlock-at=5:2)")
     try:
         at = float(m["at"])
     except ValueError:
         raise SpecError(source, field, f"{text!r}: {m['at']!r} is not a number of seconds") from None
     if not (math.isfinite(at) and at >= 0.0):
         raise SpecError(source, field, f"{text!r}: the time must be a finite number of seconds >= 0")
-    return m["kind"], at
+    duration = None
+    if m["duration"] is not None:
+        if m["kind"] not in WINDOWED:
+            raise SpecError(source, field, f"{text!r}: {m['kind']} takes no duration (only "
+                                           f"{', '.join(WINDOWED)} do)")
+        try:
+            duration = float(m["duration"])
+        except ValueError:
+            raise SpecError(source, field, f"{text!r}: {m['duration']!r} is not a number of seconds") from None
+        if not (math.isfinite(duration) and duration > 0.0):
+            raise SpecError(source, field, f"{text!r}: the duration must be a finite number of seconds > 0")
+    return Fault(m["kind"], at, duration)
 
 
-def parse_faults(items, source: str = "command line", field: str = "--fault") -> list[tuple[str, float]]:
-    """Several faults (texts or pairs), each kind at most once."""
+def parse_faults(items, source: str = "command line", field: str = "--fault") -> list[Fault]:
+    """Several faults (texts, pairs or triples), each kind at most once."""
     from ..specs import SpecError
 
     parsed = [parse_fault(f, source, field) for f in items]

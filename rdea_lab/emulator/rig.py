@@ -30,18 +30,38 @@ producing in chunks of any sizes gives bit-identical data:
   left: pull-in), a load-cell reading above ``max_force``, or a block the
   truth's physics cannot solve (`rdea_lab.emulator.roll`: the reason says so). The samples up
   to and including the breaking one are kept (a pull-in sample has no force
-  and is dropped); then voltage goes to 0 and the actuator back to its start.
+  and is dropped); then voltage goes to 0 and the actuator back to its start;
+- conditions (`rdea_lab.emulator.conditions`, from injected faults): the door
+  interlock, the amplifier's temperature, a step of the load cell's zero (in
+  the force column). A run that cannot pause aborts when it would drive a
+  voltage with the door open.
+
+A pausable run (`RunConfig.pause`, the rig's ``CONF:PAUS``) drives the setpoints
+of `rdea_lab.protocols.pause.PausedSetpoints` and its rows gain a last column,
+``paused`` (the phase of each sample). While no pause is asked for, its blocks
+are the plan's own, computed ahead as above (so its data are those of the same
+run without ``CONF:PAUS``); a pause asked for while part of such a block is not
+yet produced rewinds the block to the last sample produced, so the pause acts
+from the next sample. While it pauses, holds or resumes, blocks are at most
+`PAUSE_BLOCK_TIME` long (aligned too; a held block is made once the wall
+clock allows all of it). Sample ``k`` is at ``t = k / rate`` whatever it
+drives: a paused run is longer than its plan by its paused samples.
 """
 
 from __future__ import annotations
 
+import copy
 import math
+import sys
+import time as _time
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..physics.result import LIMIT_POINT, OUTSIDE_RANGE, STATUS_NAMES, is_valid
-from ..specs.rigwire import CHANNELS, COLUMNS, CURRENT_COLUMN, row_columns
+from ..protocols.pause import HELD, RAMPING_DOWN, RAMPING_UP, PausedSetpoints
+from ..specs.rigwire import CHANNELS, COLUMNS, CURRENT_COLUMN, PAUSE_STATES, row_columns
+from .conditions import Conditions
 from .roll import TrueRoll
 from .instruments import CurrentMonitor, FirstOrderLag, lcr_bridge, load_cell, tau_of_bandwidth
 from .truth import true_geometry
@@ -52,6 +72,33 @@ LCR_MAX_VOLTAGE = 1.0
 BLOCK = 2048
 #: Relative slack of the limit checks, as in `rdea_lab.protocols.check_plan`.
 SLACK = 1e-12
+#: Longest block of a pausable run while it pauses, holds or resumes [s]: how late a pause may act on
+#: samples computed already.
+PAUSE_BLOCK_TIME = 0.05
+#: `EmulatedRig.n` of a pausable run still running: its length is not known until it ends.
+UNBOUNDED = sys.maxsize
+
+
+def pause_block(rate: float) -> int:
+    """Samples of a block of a pausable run while it pauses, holds or resumes: at most `PAUSE_BLOCK_TIME`
+    of them, at least 1, at most `BLOCK`.
+
+    Parameters
+    ----------
+    rate : float
+        Sample rate [Hz].
+    """
+    return max(1, min(BLOCK, int(math.floor(PAUSE_BLOCK_TIME * rate + 1e-9))))
+
+
+def samples_before(t: float, rate: float) -> int:
+    """Number of sample times ``k / rate`` (k >= 0) below `t` [s]."""
+    k = max(0, math.ceil(t * rate))
+    while k > 0 and (k - 1) / rate >= t:
+        k -= 1
+    while k / rate < t:
+        k += 1
+    return k
 
 
 @dataclass(frozen=True)
@@ -72,6 +119,8 @@ class RunConfig:
         Limits [V], [-], [N], [V/m].
     measure : tuple of str
         Measured channels, from `CHANNELS`.
+    pause : PauseSpec, optional
+        How the run pauses (``CONF:PAUS``); None: it cannot pause and its rows have no ``paused`` column.
     """
 
     rate: float
@@ -84,6 +133,7 @@ class RunConfig:
     max_force: float = math.inf
     max_field: float = math.inf
     measure: tuple = ("force",)
+    pause: object = None
 
     def __post_init__(self):
         for name in ("stretch_setpoint", "voltage_setpoint"):
@@ -101,8 +151,9 @@ class RunConfig:
 
     @property
     def columns(self) -> tuple:
-        """The columns of this run's rows: `COLUMNS`, and ``current`` when it is measured."""
-        return row_columns(self.measure)
+        """The columns of this run's rows: `COLUMNS`, ``current`` when it is measured, ``paused`` when the run
+        can pause."""
+        return row_columns(self.measure, paused=self.pause is not None)
 
     @property
     def time(self) -> np.ndarray:
@@ -196,6 +247,10 @@ class EmulatedRig:
         ``t >= breakdown_at`` [s].
     truth_source : str, optional
         Where `truth` came from, for error messages.
+    conditions : Conditions, optional
+        The rig's condition channels over the run (injected interlock, overheat, drift); default: nominal.
+    clock : callable
+        Wall time [s]: paces the held samples of a pausable run.
 
     Attributes
     ----------
@@ -208,7 +263,8 @@ class EmulatedRig:
     """
 
     def __init__(self, card, truth, rng: np.random.Generator, config: RunConfig, *,
-                 breakdown_at: float | None = None, truth_source: str | None = None):
+                 breakdown_at: float | None = None, truth_source: str | None = None, conditions=None,
+                 clock=_time.monotonic):
         if config.n < 1:
             raise ValueError("a run needs at least one sample")
         self.config = config
@@ -231,12 +287,58 @@ class EmulatedRig:
         self.state = "running"
         self.reason = ""
         self.interlocked = False  # the amplifier's interlock: open, no sample is made with the voltage on
+        self.conditions = conditions if conditions is not None else Conditions(force_drift=inst.force_drift)
+        self._sp = None  # a pausable run's setpoints
+        self._ahead = None  # (k0, j0, state) of a pausable run's block computed ahead from the plan
+        self._woken = False  # a resume asked for while held, not yet acted on
+        if config.pause is not None:
+            x, v = config.stretch_setpoint, config.voltage_setpoint
+            self._sp = PausedSetpoints(lambda a, b: (x[a:b], v[a:b]), config.n, config.rate, config.pause,
+                                       clock=clock)
+            self._short = pause_block(config.rate)
 
     # ------------------------------------------------------------ state
     @property
     def n(self) -> int:
-        """Samples in the whole run."""
-        return self.config.n
+        """Samples in the whole run: the plan's; a pausable run's, the plan's and its paused ones, known once it
+        has ended (`UNBOUNDED` until then)."""
+        if self._sp is None:
+            return self.config.n
+        return UNBOUNDED if self.state == "running" else self.acquired
+
+    @property
+    def pausable(self) -> bool:
+        return self._sp is not None
+
+    def pause(self) -> bool:
+        """Pause a pausable run from the next sample produced; False when it pauses already, or when every
+        plan sample is taken (`paused` tells them apart)."""
+        self._woken = False
+        return self._sp.pause()
+
+    def resume(self) -> bool:
+        """Resume a pausable run from the next sample produced; False when it is not paused."""
+        self._woken = self._sp.resume()
+        return self._woken
+
+    @property
+    def paused(self) -> bool:
+        """A pausable run pausing, held or resuming."""
+        return self._sp is not None and self._sp.paused
+
+    def pause_state(self) -> tuple[str, int]:
+        """``(state, pauses so far)``, state one of `PAUSE_STATES` (``RUNNING`` for a run that cannot pause)."""
+        sp = self._sp
+        if sp is None:
+            return PAUSE_STATES[0], 0
+        names = {RAMPING_DOWN: "PAUSING", HELD: "PAUSED", RAMPING_UP: "RESUMING"}
+        state = names.get(sp.phase, "PAUSING" if sp.paused else "RUNNING")
+        return state, sp.pauses
+
+    def condition_reading(self) -> dict:
+        """The condition channels at the latest sample's time (`Conditions.reading`; t = 0 before any)."""
+        t = (self.acquired - 1) / self.config.rate if self.acquired else 0.0
+        return self.conditions.reading(t)
 
     @property
     def running(self) -> bool:
@@ -260,12 +362,7 @@ class EmulatedRig:
 
     def samples_before(self, t: float) -> int:
         """Number of samples of the run with time ``k / rate < t``."""
-        k = max(0, math.ceil(t * self.config.rate))
-        while k > 0 and (k - 1) / self.config.rate >= t:
-            k -= 1
-        while k / self.config.rate < t:
-            k += 1
-        return min(k, self.n)
+        return min(samples_before(t, self.config.rate), self.n)
 
     def samples_until(self, t: float) -> int:
         """Number of samples of the run with time ``k / rate <= t``."""
@@ -283,23 +380,36 @@ class EmulatedRig:
         out = []
         n = int(n)
         while n > 0 and self.state == "running" and not self.interlocked:
+            if self._ahead is not None and self._sp.paused:  # a pause asked for after the block was computed
+                self._rewind()
+                if self.state != "running":  # the physics failed computing the rewound samples again
+                    break
             if self._pending is None or self._pending[0].shape[0] == 0:
                 self._pending = self._compute_block()
+                if self._pending[0].shape[0] == 0:  # aborted, or held and no sample due yet
+                    break
             rows, event = self._pending
             take = min(n, rows.shape[0])
             if event is not None:
                 take = min(take, event.keep - self.acquired)
+            if self._ahead is not None:
+                self._sp.take(take)  # in step: the plan's own setpoints, no pause asked for
             out.append(rows[:take])
             self._pending = (rows[take:], event)
             self.acquired += take
             n -= take
             if event is not None and self.acquired == event.keep:
                 self.abort(event.reason)
-            elif self.acquired >= self.n:
+            elif self._ended():
                 self.state = "done"
                 self._amplifier.reset(0.0)
                 self._actuator.reset(self._start)
         return np.concatenate(out) if out else np.empty((0, len(self.config.columns)))
+
+    def _ended(self) -> bool:
+        if self._sp is None:
+            return self.acquired >= self.n
+        return self._sp.done and (self._pending is None or self._pending[0].shape[0] == 0)
 
     def produce_until(self, t: float) -> np.ndarray:
         """Every not yet produced sample with time ``<= t`` [s]."""
@@ -311,16 +421,68 @@ class EmulatedRig:
         Always the same blocks from the start of the run, whatever `produce`
         is asked for: the physics (whose viscoelastic prefix scan rounds
         differently for different block lengths) and the noise streams see
-        the same blocks, so any chunking gives bit-identical data.
+        the same blocks, so any chunking gives bit-identical data. A pausable
+        run: see the module docstring.
         """
-        cfg, inst = self.config, self.truth.instrument
+        cfg = self.config
         k0 = self._computed
-        m = min(BLOCK, self.n - k0)
-        self._computed += m
+        if self._sp is None:
+            m = min(BLOCK, self.n - k0)
+            return self._physics(k0, cfg.stretch_setpoint[k0:k0 + m], cfg.voltage_setpoint[k0:k0 + m])
+        sp = self._sp
+        self._ahead = None
+        if self.conditions.active("interlock", k0 / cfg.rate):
+            sp.pause()  # the rig does not drive its plan with its door open
+        size = self._short if sp.paused else BLOCK
+        m = size - k0 % size
+        opening = self.conditions.opening()
+        if opening is not None and samples_before(opening, cfg.rate) > k0:  # a pause acts as the door opens
+            m = min(m, samples_before(opening, cfg.rate) - k0)
+        if not sp.paused:  # the plan's own setpoints, computed ahead (a pause asked for meanwhile rewinds)
+            j0 = sp.next
+            m = min(m, sp.samples - j0)
+            if m <= 0:
+                return np.empty((0, len(cfg.columns))), None
+            self._ahead = (k0, j0, self._state())
+            return self._physics(k0, cfg.stretch_setpoint[j0:j0 + m], cfg.voltage_setpoint[j0:j0 + m], np.zeros(m))
+        if sp.phase == HELD and not self._woken and sp.held_due() < m:
+            # held: whole blocks only, as the wall clock allows them (a block's physics costs the same however
+            # few its samples)
+            return np.empty((0, len(cfg.columns))), None
+        self._woken = False
+        got = sp.take(m)
+        if not got.stretch.size:
+            return np.empty((0, len(cfg.columns))), None
+        return self._physics(k0, got.stretch, got.voltage, got.paused.astype(float))
+
+    def _state(self):
+        """A copy of everything a block changes: instruments, roll, noise streams."""
+        return copy.deepcopy((self._actuator, self._amplifier, self._roll, self._force_rng, self._cap_rng,
+                              self._current))
+
+    def _rewind(self):
+        """A pause asked for while a block computed ahead from the plan is not all produced: back to the
+        block's start, its samples produced so far computed again from there (their rows were sent; the
+        state goes on from them), the rest dropped."""
+        k0, j0, state = self._ahead
+        self._ahead = None
+        if self._pending is None or self._pending[0].shape[0] == 0:
+            return
+        (self._actuator, self._amplifier, self._roll, self._force_rng, self._cap_rng, self._current) = state
+        self._pending, self._computed = None, k0
+        m = self.acquired - k0
+        if m:
+            cfg = self.config
+            self._physics(k0, cfg.stretch_setpoint[j0:j0 + m], cfg.voltage_setpoint[j0:j0 + m], np.zeros(m))
+
+    def _physics(self, k0, s_sp, v_sp, paused=None):
+        """Rows of samples ``k0, k0 + 1, ...`` driven by setpoints `s_sp`, `v_sp` (and their ``paused`` phase,
+        the last column of a pausable run), and their first abort event."""
+        cfg, inst = self.config, self.truth.instrument
+        m = len(s_sp)
+        self._computed = k0 + m
         k = np.arange(k0, k0 + m)
         t = k / cfg.rate
-        s_sp = cfg.stretch_setpoint[k0:k0 + m]
-        v_sp = cfg.voltage_setpoint[k0:k0 + m]
         stretch = self._actuator(s_sp)
         voltage = self._amplifier(v_sp)
         # the roll cannot be compressed: a setpoint of 1 - 1e-16 is 1
@@ -329,7 +491,10 @@ class EmulatedRig:
         except RuntimeError as exc:  # the truth's physics has no solution here: stop, voltage off
             self.abort(f"the emulated roll has no solution from t = {seconds(t[0])} s: {exc}")
             return np.empty((0, len(cfg.columns))), None
-        force = load_cell(true["force"], inst.force_offset + inst.force_drift * t, inst.force_noise, self._force_rng)
+        offset = inst.force_offset + inst.force_drift * t
+        if self.conditions.drifts:  # the injected step of the zero
+            offset = offset + self.conditions.offset_step(t)
+        force = load_cell(true["force"], offset, inst.force_noise, self._force_rng)
         capacitance = lcr_bridge(true["capacitance"], voltage, inst.parasitic_capacitance, inst.capacitance_noise,
                                  self._cap_rng, enabled="capacitance" in cfg.measure, max_voltage=LCR_MAX_VOLTAGE)
         rows = np.column_stack([
@@ -337,16 +502,18 @@ class EmulatedRig:
             force if "force" in cfg.measure else np.full(m, np.nan),
             capacitance, s_sp, v_sp,
             *([self._current(true["capacitance"], voltage)] if self._current is not None else []),
+            *([paused] if paused is not None else []),
         ])
         event = self._first_event(t, np.where(np.isnan(true["lambda_a"]), stretch, true["lambda_a"]), voltage, force,
-                                  true["model_status"])
+                                  true["model_status"], v_sp)
         if event is not None:
             event.index += k0
             event.keep += k0
         return rows, event
 
-    def _first_event(self, t, stretch, voltage, force, status) -> _Event | None:
-        """The earliest abort in a block: breakdown, pull-in or force limit (indices in the block).
+    def _first_event(self, t, stretch, voltage, force, status, v_sp) -> _Event | None:
+        """The earliest abort in a block: breakdown, pull-in, force limit, or (a run that cannot pause) a
+        voltage setpoint with the door open (indices in the block).
 
         `stretch` is the electroded zone's (the field's) stretch."""
         E = np.abs(voltage) * np.sqrt(np.maximum(stretch, 1.0)) / self.geom.L3
@@ -376,6 +543,13 @@ class EmulatedRig:
             i = int(np.argmax(high))
             events.append(_Event(i, i + 1, f"force {force[i]:.4g} N at t = {seconds(t[i])} s above "
                                            f"LIM:FORC {_g(self.config.max_force)} N"))
+        if self._sp is None and self.conditions.opening() is not None:
+            hot = self.conditions.active("interlock", t) & (np.asarray(v_sp) != 0.0)
+            if hot.any():
+                i = int(np.argmax(hot))
+                events.append(_Event(i, i, f"the door interlock is open at t = {seconds(t[i])} s with the voltage "
+                                           f"setpoint at {v_sp[i]:.4g} V: armed without CONF:PAUS, the run cannot "
+                                           "pause, so it aborts (voltage off)"))
         if not events:
             return None
         first = min(events, key=lambda e: e.index)  # ties: in the order above
@@ -384,4 +558,5 @@ class EmulatedRig:
         return first
 
 
-__all__ = ["CHANNELS", "COLUMNS", "CURRENT_COLUMN", "EmulatedRig", "RunConfig", "limit_violation"]
+__all__ = ["CHANNELS", "COLUMNS", "CURRENT_COLUMN", "EmulatedRig", "PAUSE_BLOCK_TIME", "RunConfig", "limit_violation",
+           "pause_block"]

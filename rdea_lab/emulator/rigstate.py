@@ -19,24 +19,30 @@ Time is virtual by default: samples are produced when ``FETC?`` asks for them.
 With ``realtime=True`` only samples with ``t <=`` the wall time since ``INIT``
 exist, and a thread produces them (so limits abort a run even when nobody
 fetches).
+
+A run armed after ``CONF:PAUS`` can pause (``PAUS``, ``CONT``; the setpoints of
+`rdea_lab.protocols.pause.PausedSetpoints`), stays ``RUNNING`` while paused (the
+heartbeat and every limit still apply) and pauses by itself when the door
+interlock opens; one armed without it aborts when it would drive a voltage with
+the door open. ``CONT`` is refused while the door is open.
 """
 
 from __future__ import annotations
 
 import collections
 import contextlib
-import math
+import dataclasses
 import threading
 import time
 
 import numpy as np
 
 from ..physics import viscoelastic
-from ..specs.rigwire import DATA_OUT_OF_RANGE, LIMITS, SETTINGS_CONFLICT, COMMANDS, RigError, armed_checksum
-from .rig import BLOCK, EmulatedRig, RunConfig, limit_violation
-
-#: Faults that can be injected, each at a run time [s].
-FAULTS = ("disconnect", "breakdown", "stall")
+from ..protocols.pause import PauseSpec
+from ..specs.rigwire import (DATA_OUT_OF_RANGE, LIMITS, MAX_POINTS, SETTINGS_CONFLICT, COMMANDS, RigError,
+                             armed_checksum)
+from .conditions import FAULTS, Conditions, Fault, check_faults
+from .rig import BLOCK, EmulatedRig, RunConfig, _g, limit_violation
 #: Longest the rig computes samples while holding its lock [s]: a ``FETC?`` returns the rows made by then
 #: (fewer than asked; the client asks again), the realtime producer goes on at its next turn. So no
 #: command, heartbeat or status waits longer than this (and a block) for the lock; ``ABOR`` waits for none.
@@ -45,25 +51,6 @@ PRODUCE_SLICE = 0.1
 
 class CloseConnection(Exception):
     """The session's connection is to be closed without a reply (injected disconnect)."""
-
-
-def check_faults(faults) -> dict[str, float]:
-    """``[("stall", 3.0), ...]`` -> ``{"stall": 3.0}``; ValueError naming the bad item."""
-    out: dict[str, float] = {}
-    for item in faults:
-        try:
-            kind, at = item
-            at = float(at)
-        except (TypeError, ValueError):
-            raise ValueError(f"fault {item!r} is not (kind, seconds); kinds: {', '.join(FAULTS)}") from None
-        if kind not in FAULTS:
-            raise ValueError(f"unknown fault {kind!r}; allowed: {', '.join(FAULTS)}")
-        if not (math.isfinite(at) and at >= 0.0):
-            raise ValueError(f"fault {kind} at {at!r} s: the time must be a finite number of seconds >= 0")
-        if kind in out:
-            raise ValueError(f"fault {kind} given twice")
-        out[kind] = at
-    return out
 
 
 class RigState:
@@ -105,6 +92,7 @@ class RigState:
         self.L1: float | None = None
         self.L3: float | None = None
         self.seed = 0
+        self.pause: tuple | None = None  # CONF:PAUS (ramp rate, hold stretch or 0, stretch rate)
         self.limits: dict[str, float | None] = {header: None for header in LIMITS}
         self.trajectories: dict[str, np.ndarray | None] = {"TRAJ:STR": None, "TRAJ:VOLT": None}
         self.state = "IDLE"
@@ -211,7 +199,7 @@ class RigState:
                            f"settings conflict: {header} while {self.state}; send ABOR or *RST first")
 
     def configure(self, name: str, value) -> None:
-        """One of ``rate``, ``measure``, ``L1``, ``L3``, ``seed``, checked by the protocol already."""
+        """One of ``rate``, ``measure``, ``L1``, ``L3``, ``seed``, ``pause``, checked by the protocol already."""
         setattr(self, name, value)
 
     def set_limit(self, header: str, value: float) -> None:
@@ -251,12 +239,27 @@ class RigState:
         problem = limit_violation(config)
         if problem:
             raise RigError(DATA_OUT_OF_RANGE, problem)
+        if self.pause is not None:  # no client talks the rig past its limits by pausing
+            ramp_rate, hold, stretch_rate = self.pause
+            if hold and hold > lim["LIM:STR"] * (1.0 + 1e-12):
+                raise RigError(DATA_OUT_OF_RANGE, f"CONF:PAUS hold_stretch {_g(hold, lim['LIM:STR'])} is above "
+                                                  f"LIM:STR {_g(lim['LIM:STR'])}")
+            ramps = [(np.max(np.abs(v)) / ramp_rate, f"ramp_rate {ramp_rate:g} V/s takes {{n:.3g}} samples from "
+                                                     f"{np.max(np.abs(v)):g} V to 0")]
+            if hold:
+                ramps.append((np.max(np.abs(x - hold)) / stretch_rate,
+                              f"stretch_rate {stretch_rate:g} /s takes {{n:.3g}} samples to hold_stretch {hold:g}"))
+            for seconds, what in ramps:  # the rig holds a ramp in memory: no longer than a trajectory
+                if seconds * self.rate > MAX_POINTS:
+                    raise RigError(DATA_OUT_OF_RANGE, f"CONF:PAUS {what.format(n=seconds * self.rate)}; at most "
+                                                      f"{MAX_POINTS:g}")
+            config = dataclasses.replace(config, pause=PauseSpec(ramp_rate, hold or None, stretch_rate))
         self._stop.set()
         self._armed, self.run, self.state, self.reason, self.owner = config, None, "ARMED", "", session
         self._rows.clear()
         self._buffered = self.fetched = 0
         self._disconnect_fired = False
-        return armed_checksum(self.rate, [self.limits[h] for h in LIMITS], self.L3, x, v)
+        return armed_checksum(self.rate, [self.limits[h] for h in LIMITS], self.L3, x, v, self.pause)
 
     def init(self) -> None:
         """Start the armed run: state RUNNING, the watchdog (and, realtime, the producer) running."""
@@ -264,8 +267,11 @@ class RigState:
             raise RigError(SETTINGS_CONFLICT, f"settings conflict: INIT needs an armed run, the rig is {self.state}; "
                                               "send ARM first")
         rng = np.random.default_rng([self.truth.seed, self.seed])
-        self.run = EmulatedRig(self.card, self.truth, rng, self._armed, breakdown_at=self.faults.get("breakdown"),
-                               truth_source=self.truth_source)
+        breakdown = self.faults.get("breakdown")
+        self.run = EmulatedRig(self.card, self.truth, rng, self._armed,
+                               breakdown_at=breakdown.at if breakdown is not None else None,
+                               truth_source=self.truth_source, clock=self._clock,
+                               conditions=Conditions(self.faults, self.truth.instrument.force_drift))
         self.state = "RUNNING"
         self._t0 = self._last_heard = self._clock()
         self._start_watchdog()
@@ -274,6 +280,53 @@ class RigState:
             self._thread = threading.Thread(target=self._producer, args=(self._stop,), daemon=True,
                                             name="rig-emulator-daq")
             self._thread.start()
+
+    # ------------------------------------------------------------ pause
+    def _pausable_run(self, header: str) -> EmulatedRig:
+        if self.state != "RUNNING" or self.run is None:
+            raise RigError(SETTINGS_CONFLICT, f"settings conflict: {header} needs a RUNNING run, the rig is "
+                                              f"{self.state}")
+        if not self.run.pausable:
+            raise RigError(SETTINGS_CONFLICT, f"settings conflict: {header}: this run was armed without CONF:PAUS, "
+                                              "so it cannot pause (send CONF:PAUS before ARM; ABOR stops it)")
+        return self.run
+
+    def pause_run(self) -> None:
+        """``PAUS``: the run ramps its voltage to 0 and holds, from the next sample produced (already pausing
+        or held: nothing changes)."""
+        run = self._pausable_run("PAUS")
+        if not run.pause() and not run.paused:
+            raise RigError(SETTINGS_CONFLICT, "settings conflict: PAUS: the run has driven every sample of its "
+                                              "trajectories, nothing is left to pause")
+
+    def resume_run(self) -> None:
+        """``CONT``: the paused run goes back to its trajectories; refused while the door interlock is open."""
+        run = self._pausable_run("CONT")
+        if self.realtime:
+            self.advance_realtime()
+        if run.condition_reading()["interlock"] == "open":
+            raise RigError(SETTINGS_CONFLICT, "settings conflict: CONT: the door interlock is open; the rig puts "
+                                              "no voltage on with its door open (close it, then CONT)")
+        if not run.resume():
+            raise RigError(SETTINGS_CONFLICT, f"settings conflict: CONT: the run is not paused (PAUS? "
+                                              f"{run.pause_state()[0]})")
+
+    def pause_status(self) -> tuple[str, int]:
+        """``PAUS?``: ``(state, pauses so far)`` of the run (the last one when none goes)."""
+        if self.run is None:
+            raise RigError(SETTINGS_CONFLICT, f"settings conflict: PAUS? describes a run started by INIT; the rig "
+                                              f"is {self.state}")
+        if self.realtime:
+            self.advance_realtime()
+        return self.run.pause_state()
+
+    def conditions(self) -> dict:
+        """``COND?``: the condition channels at the latest sample of the run (run time 0 without one)."""
+        if self.realtime:
+            self.advance_realtime()
+        if self.run is None:
+            return Conditions(self.faults, self.truth.instrument.force_drift).reading(0.0)
+        return self.run.condition_reading()
 
     def fetch(self, session, wanted: int) -> np.ndarray | list:
         """Up to `wanted` unfetched rows (producing them first in virtual time).
@@ -385,7 +438,7 @@ class RigState:
         cap = self.run.n
         for kind in ("stall", "disconnect"):
             if kind in self.faults:
-                cap = min(cap, self.run.samples_before(self.faults[kind]))
+                cap = min(cap, self.run.samples_before(self.faults[kind].at))
         return cap
 
     def _produce_to(self, target: int) -> None:
@@ -397,6 +450,8 @@ class RigState:
             if rows.shape[0]:
                 self._rows.append(rows)
                 self._buffered += rows.shape[0]
+            elif self.run.running:  # a held run: no sample due yet (the wall clock paces it)
+                break
             if time.monotonic() >= end:
                 break
         self.take_trip()
@@ -406,7 +461,7 @@ class RigState:
         """Whether the run has reached the injected disconnect (asked for a sample at t >= T)."""
         if "disconnect" not in self.faults or self._disconnect_fired or self.state != "RUNNING":
             return False
-        cap = self.run.samples_before(self.faults["disconnect"])
+        cap = self.run.samples_before(self.faults["disconnect"].at)
         return cap < self.run.n and wanted > cap and self.run.acquired >= cap  # every sample before it made
 
     def _fire_disconnect(self) -> object:
@@ -447,4 +502,4 @@ class RigState:
             thread.join()
 
 
-__all__ = ["FAULTS", "CloseConnection", "RigState", "check_faults"]
+__all__ = ["FAULTS", "CloseConnection", "Fault", "RigState", "check_faults"]

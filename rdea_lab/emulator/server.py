@@ -83,10 +83,13 @@ class RigServer:
     realtime : bool
         Pace runs at wall-clock speed; default: virtual time (samples are
         made as fast as they are fetched).
-    faults : sequence of (str, float)
-        Injected faults at a run time [s]: ``disconnect`` (the connection
-        is closed), ``breakdown`` (dielectric breakdown), ``stall`` (no new
-        samples, the rig keeps saying RUNNING).
+    faults : sequence
+        Injected faults at a run time [s], ``(kind, seconds)`` or `Fault`:
+        ``disconnect`` (the connection is closed), ``breakdown`` (dielectric
+        breakdown), ``stall`` (no new samples, the rig keeps saying RUNNING);
+        and, for a duration (``(kind, seconds, duration)``) or to the end of
+        the run, ``interlock`` (the door opens), ``overheat`` (the amplifier
+        at 343 K), ``drift`` (the load cell's zero steps by 10 mN).
     limits : Limits, optional
         The rig's own hard limits, which no client can raise (default
         `rdea_lab.specs.Limits()`: 3 kV, stretch 2, 50 N, 80 V/um); the field is

@@ -158,7 +158,10 @@ class PausedSetpoints:
 
     def pause(self) -> bool:
         """Pause from the next sample taken; False (nothing changes) when already pausing or held, or when
-        the plan is done."""
+        the plan is done. A resume asked for and not yet acted on is withdrawn (True): the later request wins."""
+        if self._want == "resume":
+            self._want = None
+            return True
         if self.phase in (RAMPING_DOWN, HELD) or self._want == "pause" or self.next >= self.samples:
             return False
         self._want = "pause"

@@ -82,6 +82,12 @@ def error_reply(code: int, message: str) -> str:
     return f'ERR {code},"{message}"'
 
 
+def error_code(reply: str) -> int | None:
+    """The code of an ``ERR`` reply; None when it is none."""
+    m = re.match(r"^ERR\s*(-?\d+)", reply)
+    return int(m[1]) if m else None
+
+
 def error_message(reply: str) -> str:
     """The message of an ``ERR`` reply; the reply itself when it is none (``"no reply"`` when empty)."""
     m = re.match(r'^ERR\s*(-?\d+)\s*,\s*"(.*)"\s*$', reply)
@@ -96,15 +102,59 @@ COLUMNS = ("time", "stretch", "position", "voltage", "force", "capacitance", "st
            "voltage_setpoint")
 #: The column a row gains when ``current`` is measured (after `COLUMNS`).
 CURRENT_COLUMN = "current"
+#: The last column of a row when the run was armed with ``CONF:PAUS``: the sample's phase (0 running,
+#: 1 ramping down, 2 held, 3 ramping up; `rdea_lab.protocols.pause`), as a float.
+PAUSED_COLUMN = "paused"
 #: ``CONF:MEAS`` codes of the channels that can be measured.
 CHANNEL_CODES = {"FORC": "force", "CAP": "capacitance", "CUR": "current"}
 #: Channels that can be measured.
 CHANNELS = tuple(CHANNEL_CODES.values())
 
 
-def row_columns(measure) -> tuple:
-    """The columns of a run's rows: `COLUMNS`, and ``current`` when it is measured."""
-    return COLUMNS + ((CURRENT_COLUMN,) if "current" in measure else ())
+def row_columns(measure, paused: bool = False) -> tuple:
+    """The columns of a run's rows: `COLUMNS`, ``current`` when it is measured, ``paused`` last when the run
+    was armed with ``CONF:PAUS`` (`paused`)."""
+    return COLUMNS + ((CURRENT_COLUMN,) if "current" in measure else ()) + ((PAUSED_COLUMN,) if paused else ())
+
+
+#: The replies of ``PAUS?`` (``<state>,<pauses so far>``), in the order of the phases they follow.
+PAUSE_STATES = ("RUNNING", "PAUSING", "PAUSED", "RESUMING")
+
+
+def read_pause(reply: str) -> tuple[str, int] | None:
+    """``(state, pauses)`` of a ``PAUS?`` reply; None if it is not one."""
+    m = re.match(r"^(RUNNING|PAUSING|PAUSED|RESUMING),(\d+)$", reply)
+    return (m[1], int(m[2])) if m else None
+
+
+#: The rig's condition channels (``COND?``) and their units: the door interlock (``open`` or ``closed``),
+#: the high-voltage amplifier's temperature [K], the load cell's zero offset now minus at the run's start [N].
+CONDITIONS = {"interlock": "", "amplifier_temperature": "K", "force_offset_drift": "N"}
+
+
+def conditions_reply(reading: dict) -> str:
+    """The ``COND?`` reply ``interlock=closed,amplifier_temperature=308.15,force_offset_drift=0.0``."""
+    return ",".join(f"{k}={reading[k]}" if k == "interlock" else f"{k}={float(reading[k])!r}" for k in CONDITIONS)
+
+
+def read_conditions(reply: str) -> dict | None:
+    """The channels of a ``COND?`` reply (``interlock`` a str, the others floats in SI); None if it is not one."""
+    out = {}
+    for part in reply.split(","):
+        key, eq, value = part.partition("=")
+        key, value = key.strip(), value.strip()
+        if not eq or key not in CONDITIONS or key in out:
+            return None
+        if key == "interlock":
+            if value not in ("open", "closed"):
+                return None
+            out[key] = value
+        else:
+            try:
+                out[key] = float(value)
+            except ValueError:
+                return None
+    return out if out.keys() == CONDITIONS.keys() else None
 
 
 def status_reply(state: str, acquired: int, fetched: int, reason: str) -> str:
@@ -143,17 +193,19 @@ def decode_block(payload: bytes) -> np.ndarray:
     return np.frombuffer(payload, dtype="<f8").astype(float)
 
 
-def armed_checksum(rate, limits, thickness, stretch, voltage) -> str:
+def armed_checksum(rate, limits, thickness, stretch, voltage, pause=None) -> str:
     """CRC-32 (8 hex digits) of what the client configured and ARM armed: ``CONF:RATE``, the four
-    ``LIM:*`` values (VOLT, STR, FORC, FIEL), ``CONF:THIC`` and both trajectories, each as
+    ``LIM:*`` values (VOLT, STR, FORC, FIEL), ``CONF:THIC``, the three ``CONF:PAUS`` values when it was
+    given (`pause`: ramp rate, hold stretch or 0, stretch rate) and both trajectories, each as
     little-endian float64, in that order. The driver computes the same from what it sent."""
-    crc = checksum_more(checksum_head(rate, limits, thickness), stretch)
+    crc = checksum_more(checksum_head(rate, limits, thickness, pause), stretch)
     return f"{checksum_more(crc, voltage):08x}"
 
 
-def checksum_head(rate, limits, thickness) -> int:
-    """The CRC-32 of `armed_checksum` after ``CONF:RATE``, the four ``LIM:*`` values and ``CONF:THIC``."""
-    return zlib.crc32(np.array([rate, *limits, thickness], "<f8").tobytes())
+def checksum_head(rate, limits, thickness, pause=None) -> int:
+    """The CRC-32 of `armed_checksum` after ``CONF:RATE``, the four ``LIM:*`` values, ``CONF:THIC`` and
+    the ``CONF:PAUS`` values (when `pause` is given)."""
+    return zlib.crc32(np.array([rate, *limits, thickness, *(pause or ())], "<f8").tobytes())
 
 
 def checksum_more(crc: int, values) -> int:
@@ -325,6 +377,31 @@ class Channels:
         return tuple(CHANNEL_CODES[n] for n in names)
 
 
+@dataclass(frozen=True)
+class PauseArgs:
+    """``CONF:PAUS <ramp_rate>,<hold_stretch>,<stretch_rate>``: three plain decimals, the voltage ramp rate
+    [V/s] > 0, the stretch held while paused (0: where it is; else >= 1) and the stretch rate to and from
+    it [1/s] > 0. Parsed as a tuple of three floats."""
+
+    placeholder = "V/s>,<hold_stretch or 0>,<1/s"
+
+    def parse(self, header: str, text: str, block: bytes | None) -> tuple:
+        parts = [p.strip() for p in text.split(",")] if text.strip() else []
+        if len(parts) != 3:
+            raise RigError(MISSING_PARAMETER, f"{header} takes three numbers <ramp_rate V/s>,<hold_stretch or 0>,"
+                                              f"<stretch_rate 1/s>; got {len(parts)}")
+        bad = [p for p in parts if not _NUMBER.fullmatch(p)]
+        if bad:
+            raise RigError(DATA_TYPE_ERROR, f"{bad[0][:40]!r} is not a plain decimal number ({header})")
+        ramp_rate, hold, stretch_rate = (float(p) for p in parts)
+        for name, value, unit in (("ramp_rate", ramp_rate, "V/s"), ("stretch_rate", stretch_rate, "1/s")):
+            if not (math.isfinite(value) and value > 0.0):
+                raise RigError(DATA_OUT_OF_RANGE, f"{header} {name} {value:g} {unit} must be > 0")
+        if not (math.isfinite(hold) and (hold == 0.0 or hold >= 1.0)):
+            raise RigError(DATA_OUT_OF_RANGE, f"{header} hold_stretch {hold:g} must be 0 (hold where it is) or >= 1")
+        return ramp_rate, hold, stretch_rate
+
+
 #: Most setpoints one trajectory holds.
 MAX_POINTS = 10_000_000
 
@@ -386,6 +463,8 @@ class Command:
             return f"{self.header} {','.join(codes[m] for m in value)}"
         if isinstance(self.arg, Number):
             return f"{self.header} {value!r}"
+        if isinstance(self.arg, PauseArgs):
+            return f"{self.header} {','.join(repr(float(x)) for x in value)}"
         return f"{self.header} {value}"
 
 
@@ -434,6 +513,13 @@ COMMANDS: dict[str, Command] = {c.header: c for c in (
     Command("STAT?", _NONE, ANYONE, doc='<state>,<acquired>,<fetched>,"<reason>"'),
     Command("FETC?", Count("max rows"), CONTROLLER, doc="up to <max> unfetched rows as a block"),
     Command("ABOR", _NONE, BEFORE_AUTH, doc="emergency stop: voltage to 0 first"),
+    Command("CONF:PAUS", PauseArgs(), CONTROLLER, setting=True,
+            doc="how this run pauses: <ramp_rate V/s>,<hold_stretch or 0>,<stretch_rate 1/s>"),
+    Command("CONF:PAUS?", _NONE, ANYONE, doc="<ramp_rate>,<hold_stretch>,<stretch_rate>, or NONE"),
+    Command("PAUS", _NONE, CONTROLLER, doc="pause the run: voltage to 0 at the CONF:PAUS rate, stretch held"),
+    Command("CONT", _NONE, CONTROLLER, doc="resume a paused run (not while the door interlock is open)"),
+    Command("PAUS?", _NONE, ANYONE, doc="RUNNING|PAUSING|PAUSED|RESUMING,<pauses so far>"),
+    Command("COND?", _NONE, ANYONE, doc="interlock=open|closed,amplifier_temperature=<K>,force_offset_drift=<N>"),
 )}
 
 #: The ``LIM:*`` commands in the order of ``LIM?`` and of `armed_checksum`.
@@ -445,7 +531,8 @@ def line(header: str, value=None) -> str:
     return COMMANDS[header].line(value)
 
 
-__all__ = ["ANYONE", "BEFORE_AUTH", "CHANNELS", "CHANNEL_CODES", "COLUMNS", "COMMANDS", "CONTROLLER",
-           "CURRENT_COLUMN", "Command", "FramingError", "LIMITS", "RigError", "STATES", "armed_checksum",
+__all__ = ["ANYONE", "BEFORE_AUTH", "CHANNELS", "CHANNEL_CODES", "COLUMNS", "COMMANDS", "CONDITIONS", "CONTROLLER",
+           "CURRENT_COLUMN", "PAUSED_COLUMN", "PAUSE_STATES", "PauseArgs", "conditions_reply", "error_code",
+           "read_conditions", "read_pause", "Command", "FramingError", "LIMITS", "RigError", "STATES", "armed_checksum",
            "auth_response", "clean", "decode_block", "encode_block", "error_message", "error_reply", "line",
            "read_status", "status_reply"]

@@ -62,6 +62,8 @@ class Client:
         self.send(header.encode() + b" " + block(values) + b"\n")
         return self.line()
 
+    width = 8  # columns of a row: 8, + 1 with CUR, + 1 with CONF:PAUS (`configure`)
+
     def fetch(self, n: int) -> np.ndarray:
         self.send(f"FETC? {n}")
         head = self.file.read(2)
@@ -71,7 +73,7 @@ class Client:
         size = int(self.file.read(int(head[1:2])))
         data = self.file.read(size)
         assert self.file.read(1) == b"\n"
-        return np.frombuffer(data, "<f8").reshape(-1, 8)
+        return np.frombuffer(data, "<f8").reshape(-1, self.width)
 
     def auth(self, token: str) -> str:
         """The challenge-response of docs/rig-protocol.md, written out here from the spec (not the
@@ -95,13 +97,18 @@ class Client:
         self.sock.close()
 
     def configure(self, rate=100.0, meas="FORC,CAP", L1=0.034, L3=4.8e-05, volt=3000.0, stretch=1.6,
-                  force=50.0, field=8e7) -> None:
+                  force=50.0, field=8e7, pause=None) -> None:
+        """The settings of a run; `pause` ``(ramp_rate, hold_stretch or 0, stretch_rate)`` sends ``CONF:PAUS``."""
         for command in (f"CONF:RATE {rate!r}", f"CONF:MEAS {meas}", f"CONF:LENG {L1!r}", f"CONF:THIC {L3!r}",
                         f"LIM:VOLT {volt!r}", f"LIM:STR {stretch!r}", f"LIM:FORC {force!r}",
                         f"LIM:FIEL {field!r}"):
             reply = self.q(command)
             assert reply == "OK", f"{command}: {reply}"
-        self.sent = (rate, volt, stretch, force, field, L3)
+        if pause is not None:
+            command = "CONF:PAUS " + ",".join(repr(float(p)) for p in pause)
+            assert self.q(command) == "OK", command
+        self.sent = (rate, volt, stretch, force, field, L3, *(pause or ()))
+        self.width = 8 + ("CUR" in meas.upper()) + (pause is not None)
 
     def start(self, x, v) -> None:
         assert self.upload("TRAJ:STR", x) == "OK"
@@ -124,6 +131,7 @@ class Client:
 
 def crc_of_what_was_sent(sent, x, v) -> str:
     """docs/rig-protocol.md's ARM checksum, computed here from what the client sent (not by the server's code):
-    CRC-32 of rate, LIM:VOLT, LIM:STR, LIM:FORC, LIM:FIEL, CONF:THIC, then TRAJ:STR and TRAJ:VOLT, as <f8."""
+    CRC-32 of rate, LIM:VOLT, LIM:STR, LIM:FORC, LIM:FIEL, CONF:THIC, the CONF:PAUS values when sent, then
+    TRAJ:STR and TRAJ:VOLT, as <f8."""
     data = np.array(sent, "<f8").tobytes() + np.asarray(x, "<f8").tobytes() + np.asarray(v, "<f8").tobytes()
     return f"{zlib.crc32(data):08x}"
