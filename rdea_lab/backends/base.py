@@ -50,8 +50,3 @@ class Backend(Protocol):
 
     def close(self) -> None:
         """Release resources."""
-
-
-class PauseRefused(Exception):
-    """The backend will not pause or resume now (the message says why: not running, the rig's interlock
-    open, a rig of an older protocol); the run goes on as it was."""

@@ -205,7 +205,10 @@ class Emulator(_Backend):
     truth : TruthSpec or path, optional
         Default ``truth/paper2021.yaml``.
     faults : sequence
-        ``"stall-at=3"`` or ``("stall", 3.0)``: ``disconnect``, ``breakdown``, ``stall`` at a run time [s].
+        ``"stall-at=3"`` or ``("stall", 3.0)``: ``disconnect``, ``breakdown``, ``stall`` at a run time [s];
+        ``"interlock-at=5:2"`` or ``("interlock", 5.0, 2.0)``: the door open, the amplifier overheated
+        (``overheat``) or the load cell's zero drifted (``drift``) from a run time for a duration [s] (to
+        the end without one): the conditions a protocol's suspenders watch.
     realtime : bool
         Pace the emulated rig at wall-clock speed.
     stall_timeout : float
@@ -243,7 +246,7 @@ class Emulator(_Backend):
                              seed=setup.seed, geometry=setup.geometry)
 
     def describe(self, setup) -> str:
-        faults = ", ".join(f"{k}-at={a:g}" for k, a in self.faults)
+        faults = ", ".join(str(f) for f in self.faults)  # interlock-at=5:2, stall-at=3
         return f"emulator: truth {self.truth.name}" + (f", faults {faults}" if faults else "")
 
 
