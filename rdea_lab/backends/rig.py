@@ -335,6 +335,7 @@ class RigBackend:
             rows = self._fetch()
             if rows.shape[0]:
                 self._last_new = self._clock()
+                self._conditions_at = -math.inf  # new samples: the next conditions() reads the rig again
                 return {name: rows[:, j].copy() for j, name in enumerate(self._columns)}
             state, acquired, fetched, reason = _status(self._query("STAT?"))
             if state == "DONE" and fetched >= acquired:
@@ -392,8 +393,9 @@ class RigBackend:
     def conditions(self) -> dict:
         """The rig's condition channels at its latest sample (``COND?``): ``interlock`` (``"open"`` or
         ``"closed"``), ``amplifier_temperature`` [K], ``force_offset_drift`` (the load cell's zero now minus at
-        the run's start) [N]. Asked at most every `CONDITIONS_EVERY` s; meanwhile the last reading. An empty
-        dict from a server of an older protocol (no ``COND?``).
+        the run's start) [N]. Asked again once new samples came (a rig in virtual time runs faster than the
+        wall clock) or `CONDITIONS_EVERY` s passed; meanwhile the last reading. An empty dict from a server of
+        an older protocol (no ``COND?``).
 
         Raises
         ------

@@ -28,8 +28,8 @@ from ..protocols.pause import HELD, RAMPING_DOWN, RAMPING_UP, RUNNING
 
 #: The published state of a sample's phase.
 PHASE_STATE = {RUNNING: "running", RAMPING_DOWN: "pausing", HELD: "paused", RAMPING_UP: "resuming"}
-#: Wall time between two looks at the control folder and the backend's conditions [s] (requests made in this
-#: process are read after every block).
+#: Wall time between two looks at the control folder [s] (requests made in this process, and the backend's
+#: conditions where suspenders watch them, are read after every block).
 POLL_EVERY = 0.02
 #: Wall time between two publications of an unchanged state (its sample count) [s].
 PUBLISH_EVERY = 0.5
@@ -78,7 +78,9 @@ class Operator:
         look = now - self._polled >= POLL_EVERY  # the folder and the backend's conditions: not every block
         if look:
             self._polled = now
-        ended = self._requests(look) or (self._suspenders() if look else None)
+        # suspenders after every block: a backend faster than the wall clock (the twin, the emulator in
+        # virtual time) must not run through a condition between two looks
+        ended = self._requests(look) or self._suspenders()
         self.publish(samples, force=ended is not None)
         return ended
 

@@ -15,7 +15,7 @@ import xarray as xr
 
 import rdea_lab
 from rdea_lab.protocols import load_plan
-from rdea_lab.protocols.pause import RUNNING, pause_intervals
+from rdea_lab.protocols.pause import HELD, RAMPING_DOWN, RUNNING, pause_intervals
 
 ROOT = Path(__file__).resolve().parents[2]
 CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
@@ -78,7 +78,10 @@ def test_an_open_door_pauses_the_run_and_its_closing_resumes_it(tmp_path):
     t = seconds(ds, "time")
     assert abs(t[a] - 2.0) <= 1.0 / RATE + 1e-9  # the rig paused at the first sample with its door open
     assert t[b] >= 3.5  # and did not go on before the door closed (2 s + 1.5 s of run time)
-    assert np.all(ds["voltage_setpoint"].values[a:b][t[a:b] >= 2.0 + 1000 / 10e3 + 2 / RATE] == 0.0)
+    v, flag = ds["voltage_setpoint"].values, ds["paused"].values
+    assert np.all(v[flag == HELD] == 0.0) and (flag == HELD).sum() >= 1.5 * RATE * 0.9
+    down = int(np.ceil(1000.0 / (10e3 / RATE)))  # 1 kV at 10 kV/s: the samples of the ramp down
+    assert v[a + down - 1] == 0.0 and np.all(flag[a:a + down] == RAMPING_DOWN)
     assert ds.sizes["pause"] == 1
 
 
