@@ -19,6 +19,9 @@ from ..twin.simulate import TwinStream, as_geometry
 
 #: Most samples the twin computes in one vectorized step (several blocks, handed out one by one) [samples].
 STEP_SAMPLES = 16384
+#: Samples per block of a twin paced at wall-clock speed [s of run time]: a pause asked for while a block is
+#: paced acts from the next one, so within this much of run time (and a smoother progress display).
+REALTIME_BLOCK = 0.1
 #: Longest a held (paused) twin waits for wall time before it hands out the held samples due [s]: the
 #: engine reads a resume request between two blocks, so this bounds how late a resume acts.
 HELD_WAIT = 0.05
@@ -76,7 +79,7 @@ class TwinBackend:
         Pace blocks at wall-clock speed, as a rig would run.
     block_seconds : float, optional
         Samples per block, in seconds of run time; at most 1 s, which keeps
-        the journal's at-most-a-second-lost promise. Default 1 s, or 0.25 s
+        the journal's at-most-a-second-lost promise. Default 1 s, or `REALTIME_BLOCK`
         with ``realtime`` (a smoother progress display). Without ``realtime``
         several blocks are computed in one step (`blocks_per_step`) and handed
         out one by one; the plan is read in windows (`rdea_lab.protocols.Plan.window`),
@@ -100,7 +103,7 @@ class TwinBackend:
         self.tolerance = tolerance
         self.realtime = realtime
         if block_seconds is None:
-            block_seconds = 0.25 if realtime else 1.0
+            block_seconds = REALTIME_BLOCK if realtime else 1.0
         if not 0.0 < block_seconds <= 1.0:
             raise ValueError(f"block_seconds must be in (0, 1], got {block_seconds!r}")
         self.block_seconds = block_seconds

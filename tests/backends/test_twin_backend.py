@@ -85,7 +85,8 @@ def test_realtime_computes_one_block_at_a_time(card, params):
                        sleep=lambda s: now.__setitem__(0, now[0] + s))
     twin.start(plan)
     first = twin.read_block()
-    assert first["time"].size == 250 and now[0] == pytest.approx(first["time"][-1])  # 0.25 s blocks, paced
+    # blocks of REALTIME_BLOCK (0.1 s) at blocking_force's 1 kHz, paced
+    assert first["time"].size == 100 and now[0] == pytest.approx(first["time"][-1])
 
 
 def test_auto_selects_over_the_envelope_as_from_the_whole_arrays(card, params):
