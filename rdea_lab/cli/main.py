@@ -35,6 +35,8 @@ COMMANDS = {
                "Import measurements (CSV, TDMS, MATLAB .mat) as datasets of the rdea-lab schema."),
     "ls": ("rdea_lab.cli.runs", "ls_",
            "A table of the runs below FOLDER, from their attributes (with the user's metadata)."),
+    "monitor": ("rdea_lab.cli.monitor", "monitor",
+                "A live view of the runs in progress below DIR in the browser, and the catalogue of finished ones."),
     "plan": ("rdea_lab.cli.plan", "plan", "Plan the voltage that drives the twin along a target force (blocking) "
              "or stretch (against a bias)."),
     "protocol": ("rdea_lab.cli.runs", "protocol", "Inspect protocols."),
