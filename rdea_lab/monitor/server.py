@@ -101,6 +101,7 @@ class Monitor:
         check_bind(bind, token)
         if params is not None:
             from ..specs import as_params
+            from ..twin import simulate  # noqa: F401 - imported now, not in the page's first tick
 
             params = as_params(params)
         self.folder, self.port, self.bind = folder, port, bind
