@@ -103,9 +103,11 @@ class LiveView:
                 f.legend.background_fill_alpha = 0.6
             else:
                 f.line(x="time", y=name, source=source, color=COLOURS["measured"], line_width=1.2)
-            f.xaxis.axis_label = "time [s]"
+            f.xaxis.visible = False
             figs[name] = f
-        _show_only(figs, set())
+        last = list(figs.values())[-1]
+        last.xaxis.visible = True
+        last.xaxis.axis_label = "time [s]"
         return figs
 
     def _layout(self):
@@ -129,19 +131,18 @@ class LiveView:
         for action, b in self.buttons.items():
             b.on_click(functools.partial(self.press, action))
         self.message = Div(text="", name="message", width=500)
-        self.figs = self._figures(self.source, CHANNELS, prediction=self.hub.params is not None)
+        self.plots = column(sizing_mode="stretch_width")  # the run's channels, made once its first points are in
         live = column(row(self.select, self.state),
                       row(self.reason, *self.buttons.values(), self.message),
-                      *self.figs.values(), sizing_mode="stretch_width")
+                      self.plots, sizing_mode="stretch_width")
         table = DataTable(source=self.catalog, height=260, sizing_mode="stretch_width", index_position=None,
                           columns=[TableColumn(field=c, title=c, formatter=NumberFormatter(format="0.[00]"))
                                    if c in ("duration_s", "samples") else TableColumn(field=c, title=c)
                                    for c in CATALOG_COLUMNS], name="catalog_table")
         self.catalog.selected.on_change("indices", self._picked)
         self.finished_title = Div(text="select a run in the table to see it", sizing_mode="stretch_width")
-        self.finished_figs = self._figures(self.finished, [c for c in CHANNELS if c != "paused"], prediction=False,
-                                           height=150)
-        done = column(table, self.finished_title, *self.finished_figs.values(), sizing_mode="stretch_width")
+        self.finished_plots = column(sizing_mode="stretch_width")
+        done = column(table, self.finished_title, self.finished_plots, sizing_mode="stretch_width")
         tabs = Tabs(tabs=[TabPanel(child=live, title="Runs in progress"), TabPanel(child=done, title="Finished runs")],
                     sizing_mode="stretch_width")
         return column(title, row(self.role_div), self.help, tabs, sizing_mode="stretch_width")
@@ -168,9 +169,12 @@ class LiveView:
                 else:
                     self.source.stream(data, rollover=KEEP)
             self.seq = seq
-            if feed.measured != self.present:
+            if feed.measured and feed.measured != self.present:
                 self.present = set(feed.measured)
-                _show_only(self.figs, self.present)
+                # only the channels this run measures get a figure: every glyph on the source is updated at
+                # every stream, so one per channel that shows nothing would cost the browser for nothing
+                self.plots.children = list(self._figures(self.source, [c for c in CHANNELS if c in self.present],
+                                                         prediction=self.hub.params is not None).values())
         if self.ticks % 5 == 1:
             self._show_state(feed)
         if self.hub.catalog_version != self.catalog_version:
@@ -182,7 +186,8 @@ class LiveView:
         self.key = new or None
         self.seq = 0
         self.source.data = _empty(self.KEYS)
-        self.present = None  # the figures shown are set at the first points
+        self.present = None  # the figures are made at the first points
+        self.plots.children = []
         self._show_state(self.hub.feeds.get(self.key) if self.key else None)
 
     def _show_state(self, feed) -> None:
@@ -244,7 +249,7 @@ class LiveView:
         path = self.catalog.data["file"][new[0]]
         self.finished_title.text = f"reading {path} ..."
 
-        def shown(future):
+        def loaded(future):
             try:
                 data = future.result()
             except Exception as exc:  # noqa: BLE001
@@ -252,21 +257,12 @@ class LiveView:
                 return
             self.finished_title.text = f"<b>{data.pop('title')}</b>"
             self.finished.data = shown(data, ("time", *CHANNELS))
-            _show_only(self.finished_figs, {k for k, v in data.items() if k != "time" and np.isfinite(v).any()})
+            names = [c for c in CHANNELS if c in data and c != "paused" and np.isfinite(data[c]).any()]
+            self.finished_plots.children = list(self._figures(self.finished, names or ["force"], height=150,
+                                                              prediction=False).values())
 
         future = self.hub.pool.submit(self.hub.finished_run, path)
-        future.add_done_callback(lambda f: self.doc.add_next_tick_callback(functools.partial(shown, f)))
-
-
-def _show_only(figs: dict, names: set) -> None:
-    """Show the figures of ``names`` (force, stretch and voltage when none), the time axis on the last one."""
-    names = names or {"force", "stretch", "voltage"}
-    for name, f in figs.items():
-        f.visible = name in names
-        f.xaxis.visible = False
-    last = [f for name, f in figs.items() if name in names]
-    if last:
-        last[-1].xaxis.visible = True
+        future.add_done_callback(lambda f: self.doc.add_next_tick_callback(functools.partial(loaded, f)))
 
 
 def shown(points: dict, keys) -> dict:

@@ -20,11 +20,13 @@ from .tail import JournalTail, dataset_of
 
 #: The channels shown, in order, when the journal has them (``paused`` is 0/1 where the engine records it).
 CHANNELS = ("force", "stretch", "voltage", "capacitance", "current", "paused")
-#: Envelope columns per update at most (each two points): a run of 1e6 samples/s read every 100 ms gives
-#: 1e5 rows, shown as 500 columns of 200 samples.
-COLUMNS_PER_UPDATE = 500
-#: Points a feed keeps (older ones fall off; the viewers' sources roll over at the same length).
-KEEP = 30_000
+#: Envelope columns per update at most (each two points): a run up to 2 kHz is shown sample by sample (read
+#: every 100 ms); one of 1e6 samples/s gives 1e5 rows a read, shown as 100 columns of 1000 samples.
+COLUMNS_PER_UPDATE = 100
+#: Points a feed keeps (older ones fall off; the viewers' sources roll over at the same length): the live
+#: window is 10 s at 1 kHz, 5 s for a faster run. The browser's work at each update grows with it: with 30000
+#: points a headless chromium on a loaded 2-core machine fell behind (benchmarks/monitor_latency.py).
+KEEP = 10_000
 #: Rows of a journal joined late that are read at the start (the newest ones).
 START_ROWS = 2_000_000
 

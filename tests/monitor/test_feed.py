@@ -27,8 +27,9 @@ def test_viewers_get_the_points_after_theirs_and_a_new_one_gets_those_kept(tmp_p
     assert feed.update() == 100
     seq, points, reset = feed.since(0)
     assert (seq, points["time"].size, reset) == (100, 100, False)
-    append(j, rows(np.arange(100, 400) * 0.01))
-    feed.update()
+    for a in (100, 200, 300):  # a slow run: each read holds few rows, every one shown
+        append(j, rows(np.arange(a, a + 100) * 0.01))
+        feed.update()
     seq2, points, reset = feed.since(seq)
     assert (seq2, points["time"].size, reset) == (400, 300, False)
     _, points, reset = feed.since(0)  # a viewer joining now: the newest kept (at least keep), as a reset
