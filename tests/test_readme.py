@@ -1,8 +1,9 @@
 """The README: short, the two set-up lines exactly, its notebook cell and every command of its table run.
 
 The table's examples run in the order written, in one empty folder (later rows use what earlier rows
-wrote), in process through `rdea_lab.cli.errors.run`. Left out here: the install and test lines and
-`rdea-lab reproduce` (tests/reports cover reproduce). The longer examples (a whole campaign, the speed
+wrote), in process through `rdea_lab.cli.errors.run`. Left out here: the install and test lines,
+`rdea-lab reproduce` (tests/reports cover reproduce) and `rdea-lab monitor`, which serves until Ctrl-C
+(tests/monitor run it). The longer examples (a whole campaign, the speed
 study, a design study, bench) run alone, each in its own folder: none of them uses another row's
 output; those over about 15 s on a loaded 2-core machine (design, bench: 20-30 s) are marked slow. The
 `import` example needs the VHB 4910 files beside the checkout (docs/vhb4910.md); without them it skips
@@ -32,7 +33,8 @@ SETUP = ['python3 -m pip install -e ".[test]" && rdea-lab reproduce       # inst
 ALONE = {("campaign", "run"), ("report", "speed"), ("design",), ("bench",)}
 #: ... and those of them over ~10 s here (marked slow).
 SLOW = {("design",), ("bench",), ("campaign", "run"), ("report", "speed")}
-NOT_RUN = {("reproduce",)}
+#: Not run here: reproduce (tests/reports cover it) and monitor, which serves until Ctrl-C (tests/monitor).
+NOT_RUN = {("reproduce",), ("monitor",)}
 
 
 def _text():

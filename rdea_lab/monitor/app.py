@@ -131,7 +131,8 @@ class LiveView:
         for action, b in self.buttons.items():
             b.on_click(functools.partial(self.press, action))
         self.message = Div(text="", name="message", width=500)
-        self.plots = column(sizing_mode="stretch_width")  # the run's channels, made once its first points are in
+        waiting = Div(text="<i>the run's channels appear with its first samples</i>")
+        self.plots = column(waiting, sizing_mode="stretch_width")  # the run's channels, made at its first points
         live = column(row(self.select, self.state),
                       row(self.reason, *self.buttons.values(), self.message),
                       self.plots, sizing_mode="stretch_width")
@@ -141,7 +142,7 @@ class LiveView:
                                    for c in CATALOG_COLUMNS], name="catalog_table")
         self.catalog.selected.on_change("indices", self._picked)
         self.finished_title = Div(text="select a run in the table to see it", sizing_mode="stretch_width")
-        self.finished_plots = column(sizing_mode="stretch_width")
+        self.finished_plots = column(Div(text=""), sizing_mode="stretch_width")
         done = column(table, self.finished_title, self.finished_plots, sizing_mode="stretch_width")
         tabs = Tabs(tabs=[TabPanel(child=live, title="Runs in progress"), TabPanel(child=done, title="Finished runs")],
                     sizing_mode="stretch_width")
@@ -187,7 +188,7 @@ class LiveView:
         self.seq = 0
         self.source.data = _empty(self.KEYS)
         self.present = None  # the figures are made at the first points
-        self.plots.children = []
+        self.plots.children = [Div(text="<i>the run's channels appear with its first samples</i>")]
         self._show_state(self.hub.feeds.get(self.key) if self.key else None)
 
     def _show_state(self, feed) -> None:
