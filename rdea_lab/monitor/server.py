@@ -130,19 +130,16 @@ class Monitor:
                       sign_sessions=True, secret_key=secrets.token_urlsafe(32), generate_session_ids=True,
                       num_procs=1, **kwargs)
 
-    def serve_forever(self) -> None:
-        """Serve in this thread until Ctrl-C (KeyboardInterrupt) or `stop`."""
-        io_loop = IOLoop.current()
+    def serve_forever(self, stop: threading.Event | None = None) -> None:
+        """Serve until Ctrl-C (KeyboardInterrupt in this thread) or ``stop`` is set; the server's event loop
+        runs on a thread of its own, this thread waits (so that a signal reaches it at once)."""
+        self.start()
+        stop = stop or threading.Event()
         try:
-            self.server = self._make_server(io_loop)
-        except OSError as exc:
-            raise SpecError("arguments", "port", f"cannot listen on {self.bind}:{self.port} "
-                            f"({exc.strerror or exc})") from None
-        self.server.start()
-        try:
-            io_loop.start()
+            while not stop.wait(0.5):
+                pass
         finally:
-            self.close()
+            self.stop()
 
     def start(self, timeout: float = 30.0) -> "Monitor":
         """Serve on a thread of its own (its own event loop); returns once listening."""
@@ -154,6 +151,11 @@ class Monitor:
             try:
                 self.server = self._make_server(io_loop)
                 self.server.start()
+            except OSError as exc:
+                failed.append(SpecError("arguments", "port", f"cannot listen on {self.bind}:{self.port} "
+                                        f"({exc.strerror or exc})"))
+                ready.set()
+                return
             except BaseException as exc:  # noqa: BLE001 - handed to the caller
                 failed.append(exc)
                 ready.set()
