@@ -243,6 +243,9 @@ class LiveView:
             self.message.text = f"<span style='color:#a00'>{action} refused by the run: {state['refused']}</span>"
         else:
             self.message.text = f"{action}: the run is {state.get('state', '?')}"
+        if self.key in self.hub.feeds and state.get("state"):  # its answer is its state now: shown at once
+            self.hub.states[self.key] = state
+            self._show_state(self.hub.feeds[self.key])
 
     def _picked(self, attr, old, new) -> None:
         if not new:

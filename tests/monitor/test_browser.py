@@ -89,7 +89,7 @@ def click(driver, name):
 
 
 @pytest.mark.slow  # 20-30 s on a loaded 2-core machine (two browsers, a realtime run, the twin beside it)
-def test_a_realtime_run_in_the_browser_and_pause_from_the_controller(tmp_path):
+def test_a_realtime_run_in_the_browser_and_pause_from_the_controller(tmp_path, monkeypatch):
     pytest.importorskip("bokeh", reason="the monitor needs bokeh (pip install 'rdea-lab[monitor]')")
     driver = browser()
     from rdea_lab.monitor import Monitor
@@ -102,7 +102,8 @@ def test_a_realtime_run_in_the_browser_and_pause_from_the_controller(tmp_path):
                             "--specimen", "specimen2", "--backend", "emulator", "--realtime", "--quiet",
                             "--out", str(runs / "live.nc")], env=env, cwd=tmp_path,
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    mon = Monitor(runs, port=free_port(), params="paper2021_table3", model="su")
+    monkeypatch.chdir(tmp_path)
+    mon = Monitor("runs", port=free_port(), params="paper2021_table3", model="su")
     viewer = None
     try:
         mon.start()
@@ -139,6 +140,9 @@ def test_a_realtime_run_in_the_browser_and_pause_from_the_controller(tmp_path):
         message = lambda: driver.execute_script(  # noqa: E731
             "return Bokeh.documents[0].get_model_by_name('message').text")
         assert wait_for(lambda: "the run is pausing" in message(), 10), message()
+        state = lambda: driver.execute_script(  # noqa: E731
+            "return Bokeh.documents[0].get_model_by_name('state').text")
+        assert wait_for(lambda: "<b>pausing</b>" in state(), 10), state()  # the run's published state
         assert run.poll() is None and journal.is_dir()  # the run goes on after its viewers left
         shot = os.environ.get("RDEA_LAB_MONITOR_SCREENSHOT")
         driver.save_screenshot(str(tmp_path / "monitor.png"))
