@@ -94,16 +94,15 @@ class Hub:
 
     def _scan(self) -> None:
         new, gone = self.follower.poll()
-        for journal in new:
-            key = str(journal)
-            if key not in self.feeds or self.feeds[key].finished:  # a new run on the same output
-                self.feeds.pop(key, None)
-                self.feeds[key] = RunFeed(journal, self.params, self.model)
-        for journal in gone:
+        for journal in gone:  # first: a journal replaced by a new run's at the same path is in both
             feed = self.feeds.get(str(journal))
             if feed is not None and not feed.finished:
                 feed.update()  # the last rows, if the folder is still readable
                 feed.finished = True
+        for journal in new:
+            key = str(journal)
+            self.feeds.pop(key, None)  # a finished run on the same output gives way (and goes to the end)
+            self.feeds[key] = RunFeed(journal, self.params, self.model)
         ended = [k for k, f in self.feeds.items() if f.finished]
         for key in ended[:max(0, len(ended) - ENDED_KEPT)]:
             del self.feeds[key]

@@ -101,6 +101,9 @@ class JournalTail:
 class Follower:
     """The journals below a folder: `poll` says which appeared and which vanished since the last poll.
 
+    A journal is known by its path and its folder's inode, so that a run that ends and a new run on the same
+    output between two polls are seen as one journal gone and one new.
+
     Parameters
     ----------
     folder : path
@@ -109,13 +112,20 @@ class Follower:
 
     def __init__(self, folder):
         self.folder = Path(folder)
-        self.known: set[Path] = set()
+        self.known: dict[Path, int] = {}
 
     def poll(self) -> tuple[list[Path], list[Path]]:
-        """``(new, gone)``: the journals that appeared and those that vanished since the last call, by path."""
+        """``(new, gone)``: the journals that appeared and those that vanished since the last call, by path
+        (a journal replaced by another at the same path is in both)."""
         _, journals = walk_runs(self.folder)
-        now = {Path(j) for j in journals}
-        new, gone = sorted(now - self.known), sorted(self.known - now)
+        now = {}
+        for j in journals:
+            try:
+                now[Path(j)] = os.stat(j).st_ino
+            except OSError:  # gone between the walk and the stat
+                pass
+        new = sorted(p for p, ino in now.items() if self.known.get(p) != ino)
+        gone = sorted(p for p, ino in self.known.items() if now.get(p) != ino)
         self.known = now
         return new, gone
 

@@ -57,3 +57,12 @@ def test_journals_appear_and_vanish(tmp_path):
     assert tail.gone and tail.read().size == 0
     assert follower.poll() == ([], [a])
     assert dataset_of(a) == tmp_path / "x" / "a.nc"
+
+
+def test_a_new_run_on_the_same_output_is_a_new_journal(tmp_path):
+    follower = Follower(tmp_path)
+    a = make_journal(tmp_path / "a.nc.part")
+    assert follower.poll() == ([a], [])
+    a.rename(tmp_path / "ended")  # the run ended (its folder kept aside: its inode stays taken) ...
+    make_journal(tmp_path / "a.nc.part")  # ... and another started on the same output before the next poll
+    assert follower.poll() == ([a], [a])
