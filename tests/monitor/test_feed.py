@@ -39,3 +39,36 @@ def test_viewers_get_the_points_after_theirs_and_a_new_one_gets_those_kept(tmp_p
     assert feed.since(400) == (400, None, False)
     shutil.rmtree(j)
     assert feed.update() == 0 and feed.finished
+
+
+def test_the_twin_beside_the_run_from_its_own_card(tmp_path):
+    """The predicted force is the twin's on the run's own stretch and voltage (TwinStream over the same rows,
+    so equal to rounding), block by block as the rows arrive."""
+    from rdea_lab.specs import dump_specimen, load_params, load_specimen
+    from rdea_lab.twin.simulate import TwinStream
+
+    card, params = load_specimen("specimen2"), load_params("paper2021_table3")
+    j = make_journal(tmp_path / "r.nc.part", attrs={"specimen": dump_specimen(card)})
+    feed = RunFeed(j, params=params, model="su")
+    t = np.arange(300) * 0.01
+    stretch, voltage = 1 + 0.3 * t / t[-1], np.full(t.shape, 1000.0)
+    for a in (0, 100, 200):
+        append(j, rows(t[a:a + 100], stretch=stretch[a:a + 100], voltage=voltage[a:a + 100]))
+        feed.update()
+    _, points, _ = feed.since(0)
+    expected = TwinStream(card, params, "su").step(t, stretch, voltage, summary=False)["force"]
+    np.testing.assert_allclose(points["force_pred"], expected, rtol=1e-9)
+    assert feed.prediction.model == "su" and not feed.prediction_error
+
+
+def test_auto_picks_the_model_on_the_runs_plan(tmp_path):
+    from rdea_lab.paths import resolve
+    from rdea_lab.specs import dump_specimen, load_params, load_specimen
+
+    attrs = {"specimen": dump_specimen(load_specimen("specimen2")),
+             "protocol": resolve("blocking_force", "protocols").read_text()}
+    j = make_journal(tmp_path / "r.nc.part", attrs=attrs)
+    feed = RunFeed(j, params=load_params("paper2021_table3"), model="auto")
+    append(j, rows(np.arange(10) * 0.001, stretch=1.0, voltage=0.0))  # the first rows say nothing of the plan
+    feed.update()
+    assert feed.prediction.model in ("su", "1r", "3r", "cr") and "CR" in feed.prediction.reason
