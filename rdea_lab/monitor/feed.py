@@ -28,7 +28,7 @@ COLUMNS_PER_UPDATE = 100
 #: points a headless chromium on a loaded 2-core machine fell behind (benchmarks/monitor_latency.py).
 KEEP = 10_000
 #: Rows of a journal joined late that are read at the start (the newest ones).
-START_ROWS = 2_000_000
+START_ROWS = 500_000
 
 
 def decimate(rows: np.ndarray, columns: list[str], max_columns: int = COLUMNS_PER_UPDATE) -> tuple[dict, np.ndarray]:

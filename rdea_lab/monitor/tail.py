@@ -18,8 +18,9 @@ import numpy as np
 
 from ..store.journal import walk_runs
 
-#: Rows read at most per `JournalTail.read` (a follower that fell behind skips to the newest rows).
-MAX_READ = 4_000_000
+#: Rows read at most per `JournalTail.read` (a follower that fell behind skips to the newest rows): half a
+#: second of the twin (about 1e6 samples/s), 32 MB of 8 columns.
+MAX_READ = 500_000
 
 
 class JournalTail:
