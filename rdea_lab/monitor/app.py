@@ -10,6 +10,7 @@ records ``paused``. Tab "Finished runs": the catalogue in a DataTable; a row sel
 from __future__ import annotations
 
 import functools
+from html import escape as esc  # every text from a journal, a run or an error: the page shows it, never runs it
 import time as _time
 
 import numpy as np
@@ -36,7 +37,6 @@ HELP = ("<b>Closing this page changes nothing for the run.</b> The run's heartbe
         "reads between blocks of samples; only the page opened with the monitor's <i>control URL</i> may press "
         "them (the server checks it again, whatever the page shows).")
 
-STYLE = ("<style>:host{font-family:system-ui,sans-serif}</style>")
 
 
 def refused_document(doc) -> None:
@@ -112,7 +112,7 @@ class LiveView:
 
     def _layout(self):
         title = Div(text=f"<h2 style='margin:4px 0'>rdea-lab monitor <span style='font-weight:normal;"
-                    f"font-size:60%'>{self.hub.folder}</span></h2>", sizing_mode="stretch_width")
+                    f"font-size:60%'>{esc(str(self.hub.folder))}</span></h2>", sizing_mode="stretch_width")
         badge = ("<span style='background:#2e7d32;color:white;padding:2px 8px;border-radius:3px'>controller"
                  "</span>" if self.role == "controller" else
                  "<span style='background:#777;color:white;padding:2px 8px;border-radius:3px'>viewer</span> "
@@ -182,6 +182,8 @@ class LiveView:
             self.catalog_version = self.hub.catalog_version
             if self.hub.catalog_rows is not None:
                 self.catalog.data = {c: self.hub.catalog_rows.get(c, []) for c in CATALOG_COLUMNS}
+            if self.hub.catalog_error:
+                self.finished_title.text = f"<span style='color:#a00'>{esc(self.hub.catalog_error)}</span>"
 
     def _chosen(self, attr, old, new) -> None:
         self.key = new or None
@@ -197,24 +199,27 @@ class LiveView:
             return
         if feed.finished:
             self.state.text = (f"<b>finished</b>: {feed.samples} samples followed; its dataset "
-                               f"<code>{feed.dataset.name}</code> is in the <i>Finished runs</i> tab")
+                               f"<code>{esc(feed.dataset.name)}</code> is in the <i>Finished runs</i> tab")
             for b in self.buttons.values():
                 b.disabled = True
             return
         s = self.hub.states.get(self.key) or {}
         state = s.get("state", "running (no state published)")
-        age = f", {(_time.time() - float(s['updated'])):.0f} s ago" if "updated" in s else ""
-        header = feed.header or {}
-        a = header.get("attrs", {})
-        text = (f"<b>{state}</b>{': ' + s['reason'] if s.get('reason') else ''}{age} &middot; "
-                f"{a.get('protocol_name', '?')} on {a.get('specimen_id', '?')} ({a.get('backend', '?')}, "
-                f"{float(a.get('sample_rate', 0) or 0):g} Hz) &middot; {feed.samples} samples")
+        try:
+            age = f", {(_time.time() - float(s['updated'])):.0f} s ago" if "updated" in s else ""
+        except (TypeError, ValueError):
+            age = ""
+        a = (feed.header or {}).get("attrs", {})
+        text = (f"<b>{esc(str(state))}</b>{': ' + esc(str(s['reason'])) if s.get('reason') else ''}{age} &middot; "
+                f"{esc(str(a.get('protocol_name', '?')))} on {esc(str(a.get('specimen_id', '?')))} "
+                f"({esc(str(a.get('backend', '?')))}, {esc(str(a.get('sample_rate', '?')))} Hz) &middot; "
+                f"{feed.samples} samples")
         if feed.tail.skipped:
             text += f" ({feed.tail.skipped} older ones not shown)"
         if feed.prediction is not None and feed.prediction.model:
             text += f" &middot; twin {feed.prediction.model.upper()}"
         if feed.prediction_error:
-            text += f"<br><span style='color:#a00'>{feed.prediction_error}</span>"
+            text += f"<br><span style='color:#a00'>{esc(feed.prediction_error)}</span>"
         self.state.text = text
         for b in self.buttons.values():
             b.disabled = self.role != "controller"
@@ -227,7 +232,7 @@ class LiveView:
         try:
             future = self.controls.press(self.given, self.hub.feeds[self.key].journal, action, self.reason.value)
         except NotController as exc:
-            self.message.text = f"<span style='color:#a00'>refused: {exc}</span>"
+            self.message.text = f"<span style='color:#a00'>refused: {esc(str(exc))}</span>"
             return
         self.message.text = f"{action}: sent, waiting for the run to answer ..."
         future.add_done_callback(lambda f: self.doc.add_next_tick_callback(functools.partial(self._answered,
@@ -237,12 +242,13 @@ class LiveView:
         try:
             state = future.result()
         except Exception as exc:  # noqa: BLE001 - the run's refusal or silence, said on the page
-            self.message.text = f"<span style='color:#a00'>{action}: {exc}</span>"
+            self.message.text = f"<span style='color:#a00'>{action}: {esc(str(exc))}</span>"
             return
         if state.get("refused"):
-            self.message.text = f"<span style='color:#a00'>{action} refused by the run: {state['refused']}</span>"
+            why = esc(str(state["refused"]))
+            self.message.text = f"<span style='color:#a00'>{action} refused by the run: {why}</span>"
         else:
-            self.message.text = f"{action}: the run is {state.get('state', '?')}"
+            self.message.text = f"{action}: the run is {esc(str(state.get('state', '?')))}"
         if self.key in self.hub.feeds and state.get("state"):  # its answer is its state now: shown at once
             self.hub.states[self.key] = state
             self._show_state(self.hub.feeds[self.key])
@@ -251,15 +257,16 @@ class LiveView:
         if not new:
             return
         path = self.catalog.data["file"][new[0]]
-        self.finished_title.text = f"reading {path} ..."
+        self.finished_title.text = f"reading {esc(path)} ..."
 
         def loaded(future):
             try:
                 data = future.result()
             except Exception as exc:  # noqa: BLE001
-                self.finished_title.text = f"<span style='color:#a00'>{path}: {type(exc).__name__}: {exc}</span>"
+                self.finished_title.text = (f"<span style='color:#a00'>{esc(path)}: {type(exc).__name__}: "
+                                            f"{esc(str(exc))}</span>")
                 return
-            self.finished_title.text = f"<b>{data.pop('title')}</b>"
+            self.finished_title.text = f"<b>{esc(data.pop('title'))}</b>"
             self.finished.data = shown(data, ("time", *CHANNELS))
             names = [c for c in CHANNELS if c in data and c != "paused" and np.isfinite(data[c]).any()]
             self.finished_plots.children = list(self._figures(self.finished, names or ["force"], height=150,

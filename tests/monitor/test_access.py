@@ -113,3 +113,21 @@ def test_sessions_without_the_token_are_refused(tmp_path):
         doc = Document()  # a session made without the page (no request arguments): nothing in it
         assert make_document(doc, mon.hub, mon.access, mon.controls) is None
         assert len(doc.roots) == 1 and "refused" in doc.roots[0].text and not doc.callbacks.session_callbacks
+
+
+def test_text_from_a_journal_is_shown_never_run(tmp_path):
+    """Whoever can write a journal below DIR must not get markup (a script) into the controller's page."""
+    from bokeh.document import Document
+
+    from rdea_lab.monitor.app import LiveView
+    from rdea_lab.monitor.hub import Hub
+
+    make_journal(tmp_path / "x.nc.part", attrs={"protocol_name": "<img src=x onerror=alert(1)>"})
+    hub = Hub(tmp_path)
+    try:
+        hub.update(force=True)
+        view = LiveView(Document(), hub, Controls(Access(), wait=0), {}, "viewer")
+        view._show_state(hub.feeds[view.key])
+        assert "<img" not in view.state.text and "&lt;img" in view.state.text
+    finally:
+        hub.close()
