@@ -15,8 +15,8 @@ import time as _time
 
 import numpy as np
 from bokeh.layouts import column, row
-from bokeh.models import (Button, ColumnDataSource, DataTable, Div, NumberFormatter, Select, TabPanel, Tabs,
-                          TableColumn, TextInput)
+from bokeh.models import (Button, ColumnDataSource, DataTable, Div, NumberFormatter, Range1d, Select, TabPanel,
+                          Tabs, TableColumn, TextInput)
 from bokeh.plotting import figure
 
 from .access import NotController, _argument
@@ -27,9 +27,14 @@ from .hub import CATALOG_COLUMNS, TICK
 PER_TICK = 4000
 #: (label, unit, scale) of each channel's axis.
 AXES = {"force": ("force", "N", 1.0), "stretch": ("stretch", "1", 1.0), "voltage": ("voltage", "kV", 1e-3),
-        "capacitance": ("capacitance", "nF", 1e9), "current": ("current", "uA", 1e6), "paused": ("paused", "", 1.0)}
+        "capacitance": ("capacitance", "nF", 1e9), "current": ("current", "uA", 1e6), "paused": ("pause", "", 1.0)}
+#: The values of a run's ``paused`` flag (the phase of each sample) and their labels.
+PHASES = {0: "running", 1: "ramping down", 2: "held", 3: "ramping up"}
 #: Colours: measured, predicted, paused shade.
 COLOURS = {"measured": "#1f5fa8", "predicted": "#e07b00", "paused": "#c8c8c8"}
+
+#: The columns of a finished run's source.
+FINISHED_KEYS = ("time", *CHANNELS, "paused_on")
 
 HELP = ("<b>Closing this page changes nothing for the run.</b> The run's heartbeat is the rig's (the run "
         "process's driver talking to the rig), not this page's: a lost or closed browser neither pauses nor "
@@ -63,7 +68,7 @@ class LiveView:
     role : {"controller", "viewer"}
     """
 
-    KEYS = ("time", *CHANNELS, "force_pred")
+    KEYS = ("time", *CHANNELS, "force_pred", "paused_on")
 
     def __init__(self, doc, hub, controls, arguments: dict, role: str):
         self.doc, self.hub, self.controls, self.role = doc, hub, controls, role
@@ -74,7 +79,7 @@ class LiveView:
         self.ticks = 0
         self.present: set[str] | None = None
         self.source = ColumnDataSource(_empty(self.KEYS), name="live")
-        self.finished = ColumnDataSource(_empty(("time", *CHANNELS)), name="finished")
+        self.finished = ColumnDataSource(_empty(FINISHED_KEYS), name="finished")
         self.catalog = ColumnDataSource({c: [] for c in CATALOG_COLUMNS}, name="catalog")
         doc.title = "rdea-lab monitor"
         doc.add_root(self._layout())
@@ -83,26 +88,39 @@ class LiveView:
 
     # -------------------------------------------------------------- layout
     def _figures(self, source, names, height=170, prediction=True):
+        """A figure per channel of ``names`` on one time axis; with ``paused`` among them, the paused spans
+        shaded across every figure and the pause's phase drawn below them."""
         figs, shared = {}, None
+        shade = "paused" in names
         for name in names:
             label, unit, _ = AXES[name]
-            f = figure(height=height if name != "paused" else 70, sizing_mode="stretch_width",
+            f = figure(height=height if name != "paused" else 110, sizing_mode="stretch_width",
                        tools="xpan,xwheel_zoom,box_zoom,reset,save", toolbar_location="right",
                        y_axis_label=f"{label} [{unit}]" if unit else label,
                        **({"x_range": shared} if shared is not None else {}))
             shared = f.x_range
             if name == "paused":
-                f.varea(x="time", y1=0.0, y2="paused", source=source, color=COLOURS["paused"])
-                f.yaxis.ticker = [0, 1]
-            elif name == "force" and prediction:
-                f.line(x="time", y="force", source=source, color=COLOURS["measured"], line_width=1.2,
-                       legend_label="measured")
-                f.line(x="time", y="force_pred", source=source, color=COLOURS["predicted"], line_width=1.2,
-                       line_dash="dashed", legend_label="twin")
+                f.step(x="time", y="paused", source=source, mode="after", color="#777", line_width=1.2)
+                f.y_range = Range1d(-0.3, 3.3)
+                f.yaxis.ticker = list(PHASES)
+                f.yaxis.major_label_overrides = dict(PHASES)
+                f.yaxis.axis_label = "pause"
+                figs[name] = f
+                continue
+            if name == "force" and prediction:
+                lines = [f.line(x="time", y="force", source=source, color=COLOURS["measured"], line_width=1.2,
+                                legend_label="measured"),
+                         f.line(x="time", y="force_pred", source=source, color=COLOURS["predicted"], line_width=1.2,
+                                line_dash="dashed", legend_label="twin")]
                 f.legend.location = "top_left"
                 f.legend.background_fill_alpha = 0.6
             else:
-                f.line(x="time", y=name, source=source, color=COLOURS["measured"], line_width=1.2)
+                lines = [f.line(x="time", y=name, source=source, color=COLOURS["measured"], line_width=1.2)]
+            if shade:  # the whole height, on a range of its own (the channel's range follows its lines only)
+                f.y_range.renderers = lines
+                f.extra_y_ranges = {"pause": Range1d(0, 1)}
+                f.varea(x="time", y1=0.0, y2="paused_on", source=source, y_range_name="pause",
+                        color=COLOURS["paused"], alpha=0.5, level="underlay")
             f.xaxis.visible = False
             figs[name] = f
         last = list(figs.values())[-1]
@@ -267,8 +285,8 @@ class LiveView:
                                             f"{esc(str(exc))}</span>")
                 return
             self.finished_title.text = f"<b>{esc(data.pop('title'))}</b>"
-            self.finished.data = shown(data, ("time", *CHANNELS))
-            names = [c for c in CHANNELS if c in data and c != "paused" and np.isfinite(data[c]).any()]
+            self.finished.data = shown(data, FINISHED_KEYS)
+            names = [c for c in CHANNELS if c in data and np.isfinite(data[c]).any()]
             self.finished_plots.children = list(self._figures(self.finished, names or ["force"], height=150,
                                                               prediction=False).values())
 
@@ -281,6 +299,10 @@ def shown(points: dict, keys) -> dict:
     n = points["time"].size
     out = {}
     for k in keys:
+        if k == "paused_on":  # 1 where the run is paused (any phase but running): the shade's height
+            v = points.get("paused")
+            out[k] = np.zeros(n) if v is None else np.where(np.nan_to_num(v) > 0, 1.0, 0.0)
+            continue
         scale = AXES.get("force" if k == "force_pred" else k, ("", "", 1.0))[2]
         v = points.get(k)
         out[k] = np.full(n, np.nan) if v is None else (v * scale if scale != 1.0 else v)

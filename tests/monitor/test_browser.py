@@ -112,13 +112,16 @@ def test_a_realtime_run_in_the_browser_and_pause_from_the_controller(tmp_path, m
         driver.get(mon.urls[1])
         journal = runs / "live.nc.part"
         assert wait_for(lambda: (journal / "samples.f8").exists(), 30), run.stderr.read() if run.poll() else ""
-        # STAND-IN for the engine, which in this branch does not read control requests yet: the run's
-        # RunControl attached to its journal folder as the engine will (requests folder, state.json). Once
-        # the engine honours requests (run_protocol(..., control=)), drop `engine` and its uses marked
-        # STAND-IN below and assert the run's own read_state(journal)["state"] in ("pausing", "paused").
-        engine = RunControl()
-        engine.attach(journal)
-        engine.publish("running")
+        # The engine answers requests once it reads them between blocks (it publishes state.json with its pid).
+        # Where it does not yet (the branch this test was written on), the test stands in for it: a RunControl
+        # attached to the run's journal folder as the engine does, taking the request and publishing the state.
+        # The lines marked STAND-IN go once every engine the test meets answers for itself.
+        own = wait_for(lambda: (read_state(journal) or {}).get("pid") == run.pid, 2)
+        engine = None
+        if not own:  # STAND-IN
+            engine = RunControl()
+            engine.attach(journal)
+            engine.publish("running")
 
         first = wait_for(lambda: (driver.execute_script(POINTS) or 0) > 0 and driver.execute_script(POINTS), 20)
         assert first and first > 0
@@ -132,17 +135,19 @@ def test_a_realtime_run_in_the_browser_and_pause_from_the_controller(tmp_path, m
         viewer = None
 
         click(driver, "pause")
-        requests = wait_for(lambda: [r for r in engine.poll() if r.action == "pause"], 10)  # STAND-IN
-        assert requests and requests[0].by == "monitor"
-        engine.handled(requests[0])  # STAND-IN
-        engine.publish("pausing", requests[0].reason)  # STAND-IN
-        assert read_state(journal)["state"] in ("pausing", "paused")
+        if engine is not None:  # STAND-IN: the request the page wrote, taken and answered as the engine does
+            requests = wait_for(lambda: [r for r in engine.poll() if r.action == "pause"], 10)
+            assert requests and requests[0].by == "monitor"
+            engine.handled(requests[0])
+            engine.publish("pausing", requests[0].reason)
+        assert wait_for(lambda: (read_state(journal) or {}).get("state") in ("pausing", "paused"), 10), \
+            read_state(journal)
         message = lambda: driver.execute_script(  # noqa: E731
             "return Bokeh.documents[0].get_model_by_name('message').text")
-        assert wait_for(lambda: "the run is pausing" in message(), 10), message()
+        assert wait_for(lambda: "the run is paus" in message(), 15), message()
         state = lambda: driver.execute_script(  # noqa: E731
             "return Bokeh.documents[0].get_model_by_name('state').text")
-        assert wait_for(lambda: "<b>pausing</b>" in state(), 10), state()  # the run's published state
+        assert wait_for(lambda: "<b>paus" in state(), 10), state()  # the run's published state, on the page
         assert run.poll() is None and journal.is_dir()  # the run goes on after its viewers left
         shot = os.environ.get("RDEA_LAB_MONITOR_SCREENSHOT")
         driver.save_screenshot(str(tmp_path / "monitor.png"))
