@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from ..api import _cli as api
+from ..specs import MODEL_CHOICES
 from .errors import EXIT_HELP, die
 
 
@@ -17,7 +18,7 @@ from .errors import EXIT_HELP, die
               help="File holding the token every page must carry (?token=); needed for a non-loopback --bind.")
 @click.option("--params", "params_path", type=click.Path(dir_okay=False),
               help="Parameter set: the twin's predicted force beside every run's measured force.")
-@click.option("--model", type=click.Choice(["su", "1r", "3r", "cr", "auto"]), default="su", show_default=True,
+@click.option("--model", type=click.Choice(MODEL_CHOICES), default="su", show_default=True,
               help="The twin's model for --params (auto: the cheapest within 1 % of CR on the run's plan).")
 @click.option("--no-browser", is_flag=True, help="Do not open a browser; only print the URLs.")
 def monitor(folder, port, bind, token_file, params_path, model, no_browser):

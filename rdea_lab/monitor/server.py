@@ -21,12 +21,12 @@ from bokeh.server.views.ws import WSHandler
 from tornado.ioloop import IOLoop
 from tornado.web import RequestHandler
 
-from ..specs import SpecError
+from ..specs import MODEL_CHOICES, SpecError
 from .access import Access, Controls, check_bind, websocket_origins
 from .app import make_document
 from .hub import Hub
 
-MODELS = ("su", "1r", "3r", "cr", "auto")
+MODELS = MODEL_CHOICES  # su, 1r, 3r, cr, auto
 
 
 class _Refused(RequestHandler):
