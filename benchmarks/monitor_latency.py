@@ -14,10 +14,10 @@ the largest part: a sample waits for the next tick, 50 ms on average), the webso
 the source. Measured, not asserted: the machine's load moves it. The JSON also gives the rig -> journal part
 (``journal_*``: a thread tailing the journal every 10 ms) and the server's time per viewer tick (``tick_*``).
 
-Measured here (shared 2-core machine, 1 kHz, 40 s, ~360 updates): median 97 ms, p99 287 ms (load average
-~2); median 202 ms, p99 946 ms (load ~3). Journal ~6 ms, tick ~2 ms: the rest is the 100 ms tick and the
-browser's redraw, which grows with the load and with the points kept (30000 points made the browser fall
-behind without bound; hence KEEP = 10000).
+Measured here (shared 2-core machine, 1 kHz, 40 s, ~370 updates), median / p99: 68 / 192 ms (load average
+~1.7), 97 / 287 ms (~2), 136 / 562 ms (~2.4; a run recording ``paused``, shaded), 202 / 946 ms (~3). Journal
+~6 ms, tick ~2 ms: the rest is the 100 ms tick and the browser's redraw, which grows with the load and with
+the points kept (30000 points made the browser fall behind without bound; hence KEEP = 10000).
 
 Usage::
 
