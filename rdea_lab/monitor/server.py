@@ -202,15 +202,39 @@ def monitor(folder=".", *, port: int = 5006, bind: str = "127.0.0.1", token: str
     URL and the control URL (the one that may pause, resume and abort runs) with ``echo``."""
     mon = Monitor(folder, port=port, bind=bind, token=token, params=params, model=model)
     view, control = mon.urls
+    kept = _keep_control_url(control, port)
     echo(f"rdea-lab monitor: following the runs below {Path(folder).resolve()}")
     echo(f"  view:    {view}")
-    echo(f"  control: {control}   (pause/resume/abort; keep it to yourself)")
+    echo(f"  control: {control}   (pause/resume/abort; keep it to yourself"
+         + (f"; also in {kept}, readable by you only)" if kept else ")"))
     echo("  a closed page changes nothing for a run; Ctrl-C stops the monitor, not the runs")
     if open_browser:
         import webbrowser
 
         threading.Timer(0.5, webbrowser.open, args=(control,)).start()
-    mon.serve_forever()
+    try:
+        mon.serve_forever()
+    finally:
+        if kept is not None:
+            kept.unlink(missing_ok=True)
+
+
+def _keep_control_url(url: str, port: int) -> Path | None:
+    """The control URL in ``$XDG_STATE_HOME/rdea-lab/monitor-<port>.url`` (``~/.local/state`` by default),
+    mode 0600 in a 0700 folder, for as long as the monitor serves; None where it cannot be written."""
+    import os
+
+    base = Path(os.environ.get("XDG_STATE_HOME") or Path.home() / ".local" / "state") / "rdea-lab"
+    path = base / f"monitor-{port}.url"
+    try:
+        base.mkdir(parents=True, exist_ok=True, mode=0o700)
+        path.unlink(missing_ok=True)  # a file of an earlier monitor (its mode unknown) is replaced, not reused
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(url + "\n")
+    except OSError:
+        return None
+    return path
 
 
 __all__ = ["MODELS", "Monitor", "monitor"]

@@ -131,3 +131,15 @@ def test_text_from_a_journal_is_shown_never_run(tmp_path):
         assert "<img" not in view.state.text and "&lt;img" in view.state.text
     finally:
         hub.close()
+
+
+def test_the_control_url_is_kept_for_its_user_only(tmp_path, monkeypatch):
+    import stat
+
+    from rdea_lab.monitor.server import _keep_control_url
+
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path))
+    kept = _keep_control_url("http://127.0.0.1:5006/?control=s3cret", 5006)
+    assert kept == tmp_path / "rdea-lab" / "monitor-5006.url"
+    assert kept.read_text() == "http://127.0.0.1:5006/?control=s3cret\n"
+    assert stat.S_IMODE(kept.stat().st_mode) == 0o600 and stat.S_IMODE(kept.parent.stat().st_mode) == 0o700
