@@ -6,6 +6,7 @@ extra      brings                                       for
 =========  ==========================================  =========================================
 fast       numba                                        compiled kernels, `rdea_lab.TwinStep`
 design     dask[distributed], bokeh, SALib              ``rdea-lab design`` (sweeps, Sobol, SLSQP)
+monitor    bokeh                                        ``rdea-lab monitor`` (live runs in the browser)
 import     npTDMS                                       importing LabVIEW TDMS files
 =========  ==========================================  =========================================
 """
@@ -26,19 +27,21 @@ EXTRAS = {"numba": ("numba", "fast"), "distributed": ("dask[distributed]", "desi
 class MissingExtra(UserError):
     """An optional dependency that a command needs is not installed (exit status 2)."""
 
-    def __init__(self, module: str, what: str):
-        dist, extra = EXTRAS.get(module, (module, "all"))
+    def __init__(self, module: str, what: str, extra: str | None = None):
+        dist, default = EXTRAS.get(module, (module, "all"))
+        extra = extra or default
         self.module, self.extra = module, extra
         super().__init__(f"{what} needs {dist}, which is not installed; install it with: "
                          f"python3 -m pip install 'rdea-lab[{extra}]'")
 
 
-def require(module: str, what: str):
-    """``import module``, or `MissingExtra` naming ``what`` needs it and the extra that brings it."""
+def require(module: str, what: str, extra: str | None = None):
+    """``import module``, or `MissingExtra` naming ``what`` needs it and the extra that brings it (``extra``:
+    that one, where several extras bring the module)."""
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise MissingExtra(module, what) from None
+        raise MissingExtra(module, what, extra) from None
 
 
 def available(module: str) -> bool:

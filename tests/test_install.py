@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-#: Every optional dependency of the base install (the extras [fast], [design], [import]).
+#: Every optional dependency of the base install (the extras [fast], [design], [monitor], [import]).
 EXTRA_MODULES = ("numba", "llvmlite", "dask", "distributed", "bokeh", "SALib", "nptdms")
 
 
@@ -42,6 +42,7 @@ def without_extras(argv, cwd, blocked=EXTRA_MODULES, timeout=600, then=None):
     (["design", "stroke_spring", "--synchronous"], "design"),
     (["import", "x.tdms", "--format", "tdms", "--map", "time=g/t,position=g/x,force=g/f", "--specimen", "specimen2",
       "--protocol-kind", "tensile"], "import"),
+    (["monitor", ".", "--no-browser"], "monitor"),
 ])
 def test_a_missing_extra_is_exit_2_with_the_pip_command(tmp_path, argv, extra):
     if extra == "import":

@@ -7,7 +7,7 @@ PKG = Path(__file__).resolve().parents[1] / "rdea_lab"
 #: Bottom to top. DESIGN.md's order, plus the emulator (below the backends that
 #: drive it) and the run engine (above backends and store: it couples the two).
 LAYERS = ["specs", "physics", "twin", "protocols", "emulator", "backends", "store", "runs", "calibration",
-          "design", "reports", "api", "cli"]
+          "design", "reports", "monitor", "api", "cli"]
 # the package root, the version, the path and extras helpers
 ANYWHERE = {"", "__version__", "_version", "paths", "extras", "signals"}
 

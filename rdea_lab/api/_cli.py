@@ -37,6 +37,7 @@ _EXPORTS = {
     "ImportOptions": "rdea_lab.store.importers", "EmptyJournal": "rdea_lab.store",
     "DEFAULT_TRUTH": "rdea_lab.runs.backend", "CURVE_MAX_FIELD": "rdea_lab.twin.curves",
     "CURVE_FIELDS": "rdea_lab.twin.curves",
+    "monitor": "rdea_lab.monitor", "Monitor": "rdea_lab.monitor",
     "rebuild_catalog": "rdea_lab.store.index", "check_catalog": "rdea_lab.store.index",
 }
 

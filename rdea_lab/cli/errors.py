@@ -28,7 +28,7 @@ OPTIONS = {"address": "--rig", "token": "--token-file", "address/token": "--rig/
            "method": "--method", "tare": "--tare", "estimator": "--estimator", "tau": "--tau",
            "reference": "--reference", "hyperelastic": "--hyperelastic", "stretches": "--stretches",
            "rates": "--rates", "holds": "--holds", "bands": "--bands",
-           "candidates": "--stretches/--rates/--holds/--max-stretch"}
+           "candidates": "--stretches/--rates/--holds/--max-stretch", "bind": "--bind", "port": "--port"}
 
 
 #: Options a user reaches for by another name (other tools', or rdea-lab's before): the name -> ours.

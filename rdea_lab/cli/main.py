@@ -37,6 +37,8 @@ COMMANDS = {
            "A table of the runs below FOLDER, from their attributes (with the user's metadata)."),
     "abort": ("rdea_lab.cli.operate", "abort", "End a run in progress now: voltage off, status aborted, every "
               "sample kept."),
+    "monitor": ("rdea_lab.cli.monitor", "monitor",
+                "A live view of the runs in progress below DIR in the browser, and the catalogue of finished ones."),
     "pause": ("rdea_lab.cli.operate", "pause", "Pause a run in progress: the voltage to 0 at its protocol's ramp "
               "rate, the stretch held."),
     "resume": ("rdea_lab.cli.operate", "resume", "Resume a paused run: back to the plan's setpoints at the pause, "
