@@ -11,7 +11,8 @@ import numpy as np
 
 from .._version import __version__
 from ..physics.models import three_ring
-from ..protocols.pause import HELD, PausedSetpoints, pause_spec_of
+from ..protocols.pause import PausedSetpoints, pause_spec_of
+from .base import PauseRefused
 from ..physics.selection import select_model
 from ..specs import as_params, as_specimen, dump_params
 from ..twin.simulate import TwinStream, as_geometry
@@ -151,11 +152,13 @@ class TwinBackend:
             if kept:
                 self._advance(taken.stretch[:kept], taken.voltage[:kept], self._setpoints.taken - kept)
             self._pending.clear()
-        self._setpoints.pause()
+        if not self._setpoints.pause():
+            raise PauseRefused("the twin has driven every sample of its plan: nothing is left to pause")
 
     def resume(self) -> None:
         """Back to the plan's setpoints at the pause, then on with the plan."""
-        self._setpoints.resume()
+        if not self._setpoints.resume():
+            raise PauseRefused("the twin is not paused")
 
     def conditions(self) -> dict:
         """The twin has no rig channels (no interlock, amplifier or load cell): none."""

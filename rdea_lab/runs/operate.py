@@ -65,6 +65,7 @@ class Operator:
         self.pausing = False  # asked to pause (or paused by the rig itself), not yet resumed
         self.reason = ""  # of the pause going on
         self._polled = self._published = -float("inf")
+        self._answered = False  # a request was acted on (or refused) since the last publication
         self._state = None
 
     # ------------------------------------------------------------------ the block
@@ -81,7 +82,8 @@ class Operator:
         # suspenders after every block: a backend faster than the wall clock (the twin, the emulator in
         # virtual time) must not run through a condition between two looks
         ended = self._requests(look) or self._suspenders()
-        self.publish(samples, force=ended is not None)
+        self.publish(samples, force=ended is not None or self._answered)
+        self._answered = False
         return ended
 
     def _follow(self, phase: np.ndarray, first: int) -> None:
@@ -102,6 +104,7 @@ class Operator:
     # ------------------------------------------------------------------ requests
     def _requests(self, folder: bool):
         for req in self.control.poll(folder):
+            self._answered = True  # published at once: the asker waits for it
             if req.action == "abort":
                 reason = req.reason or f"aborted by the user ({req.by})"
                 self.control.handled(req)

@@ -5,7 +5,6 @@ and the question a first Ctrl-C asks."""
 from __future__ import annotations
 
 import io
-import json
 import os
 import signal
 import subprocess
@@ -14,14 +13,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
 import xarray as xr
 
 import rdea_lab
 from rdea_lab.protocols import load_plan
 from rdea_lab.protocols.pause import HELD, RUNNING, pause_intervals
 from rdea_lab.runs.control import RunControl, read_state
-from rdea_lab.store import journal_path
 
 ROOT = Path(__file__).resolve().parents[2]
 CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
