@@ -105,8 +105,13 @@ def references(tree, name: str):
     field declared under it is not the function."""
     modules = {(a.asname or a.name).split(".")[0] for node in ast.walk(tree)
                if isinstance(node, (ast.Import, ast.ImportFrom)) for a in node.names}
+    # a name the module binds itself (a local variable, an argument: a pause's ``stretch_rate``) is not the
+    # function, unless the module imports it
+    bound = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
+    bound |= {a.arg for a in ast.walk(tree) if isinstance(a, ast.arg)}
+    local = name in bound and name not in modules
     for node in ast.walk(tree):
-        if (isinstance(node, ast.Name) and node.id == name and isinstance(node.ctx, ast.Load)) or (
+        if (isinstance(node, ast.Name) and node.id == name and isinstance(node.ctx, ast.Load) and not local) or (
                 isinstance(node, ast.Attribute) and node.attr == name and isinstance(node.value, ast.Name)
                 and node.value.id in modules):
             yield node.lineno

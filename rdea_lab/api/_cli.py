@@ -39,6 +39,8 @@ _EXPORTS = {
     "CURVE_FIELDS": "rdea_lab.twin.curves",
     "monitor": "rdea_lab.monitor", "Monitor": "rdea_lab.monitor",
     "rebuild_catalog": "rdea_lab.store.index", "check_catalog": "rdea_lab.store.index",
+    "RunControl": "rdea_lab.runs.control", "request": "rdea_lab.runs.control",
+    "ControlError": "rdea_lab.runs.control",
 }
 
 

@@ -8,20 +8,13 @@ import threading
 
 import click
 
+from ..api import _cli as api
 from .errors import EXIT_HELP
 
-RUN_HELP = ("RUN is the run's dataset as `rdea-lab run --out` names it (or its journal folder, RUN.part); "
-            "the run must be going.")
-
-
 def _ask(action: str, run: str, reason: str, wait: float) -> None:
-    from ..runs.control import request
-
-    state = request(run, action, reason, by=f"rdea-lab {action}", wait=wait)
+    state = api.request(run, action, reason, by=f"rdea-lab {action}", wait=wait)
     if state.get("refused"):
-        from ..runs.control import ControlError
-
-        raise ControlError(run, f"the run refused to {action}: {state['refused']}")
+        raise api.ControlError(run, f"the run refused to {action}: {state['refused']}")
     if wait <= 0:
         click.echo(f"{run}: {action} asked")
         return
@@ -29,46 +22,62 @@ def _ask(action: str, run: str, reason: str, wait: float) -> None:
     click.echo(f"{run}: {action} acted on; the run is {said}, {state.get('samples', '?')} samples")
 
 
-def _command(action: str, doc: str):
-    @click.command(name=action, epilog=EXIT_HELP + " 2 also when no run is going at RUN, or it refused.")
-    @click.argument("run", type=click.Path())
-    @click.option("--reason", default="", help=f"Why (recorded in the dataset with the {action}).")
-    @click.option("--wait", type=click.FloatRange(0, 600), default=10.0, show_default=True,
-                  help="Seconds to wait for the run to act on it (0: ask and return).")
-    def command(run, reason, wait):
-        _ask(action, run, reason, wait)
-
-    command.__doc__ = doc
-    return command
+_RUN = click.argument("run", type=click.Path())
+_WAIT = click.option("--wait", type=click.FloatRange(0, 600), default=10.0, show_default=True,
+                     help="Seconds to wait for the run to act on it (0: ask and return).")
+_EPILOG = EXIT_HELP + " 2 also when no run is going at RUN, or it refused."
 
 
-pause = _command("pause", """Pause a run in progress: the voltage to 0 at its protocol's ramp rate, the stretch held.
+@click.command(epilog=_EPILOG)
+@_RUN
+@click.option("--reason", default="", help="Why (recorded in the dataset with the pause).")
+@_WAIT
+def pause(run, reason, wait):
+    """Pause a run in progress: the voltage to 0 at its protocol's ramp rate, the stretch held.
 
-    The run keeps measuring while paused (the samples are flagged ``paused`` in its dataset, with the reason);
+    The run keeps measuring while paused (its samples flagged ``paused`` in the dataset, with the reason);
     ``rdea-lab resume RUN`` goes back to the plan where it left it; ``rdea-lab abort RUN`` ends it, every
-    sample kept. RUN_HELP
+    sample kept. RUN is the run's dataset as ``rdea-lab run --out`` names it (or its journal folder,
+    RUN.part); the run must be going.
 
     \b
     Example:
       rdea-lab pause datasets/long.nc --reason "look at the electrode"
-    """.replace("RUN_HELP", RUN_HELP))
-resume = _command("resume", """Resume a paused run: back to the plan's setpoints at the pause, then on with the plan.
+    """
+    _ask("pause", run, reason, wait)
+
+
+@click.command(epilog=_EPILOG)
+@_RUN
+@click.option("--reason", default="", help="Why (recorded in the run's state).")
+@_WAIT
+def resume(run, reason, wait):
+    """Resume a paused run: back to the plan's setpoints at the pause, then on with the plan.
 
     Refused while a suspender still holds the run (its condition has not cleared) or the rig's interlock is
-    open. RUN_HELP
+    open. RUN is the run's dataset (or its journal folder, RUN.part).
 
     \b
     Example:
       rdea-lab resume datasets/long.nc
-    """.replace("RUN_HELP", RUN_HELP))
-abort = _command("abort", """End a run in progress now: voltage off, status aborted, every sample kept.
+    """
+    _ask("resume", run, reason, wait)
 
-    RUN_HELP
+
+@click.command(epilog=_EPILOG)
+@_RUN
+@click.option("--reason", default="", help="Why (the dataset's status_reason).")
+@_WAIT
+def abort(run, reason, wait):
+    """End a run in progress now: voltage off, status aborted, every sample kept.
+
+    RUN is the run's dataset (or its journal folder, RUN.part).
 
     \b
     Example:
       rdea-lab abort datasets/long.nc --reason "electrode torn"
-    """.replace("RUN_HELP", RUN_HELP))
+    """
+    _ask("abort", run, reason, wait)
 
 
 class AskOnCtrlC:

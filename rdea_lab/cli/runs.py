@@ -143,10 +143,9 @@ def run(protocol, card_path, backend, rig_address, token_file, truth_path, fault
     with contextlib.ExitStack() as stack:
         subs = subscribers(live, quiet, plan.samples, f"{plan.name} on {setup.card.id}",
                            plan.duration if paced else plan.samples / 1e5, stack)
-        from ..runs.control import RunControl
         from .operate import AskOnCtrlC
 
-        control = RunControl()
+        control = api.RunControl()
         ask = on_ctrl_c == "ask" or (on_ctrl_c is None and sys.stdin.isatty() and sys.stderr.isatty())
         result = api.execute_setup(setup, callbacks=subs, metadata=metadata, command=_command_line(),
                                    control=control, on_interrupt=AskOnCtrlC(control) if ask else None)
