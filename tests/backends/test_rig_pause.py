@@ -74,6 +74,7 @@ def assert_plan_driven_once(rows, plan):
     np.testing.assert_allclose(rows["time"], np.arange(rows["time"].size) / plan.sample_rate, rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_pause_and_resume_through_the_driver_and_the_stall_detector_waits_out_a_hold(server, card, plan):
     backend = RigBackend(server.url, card, stall_timeout=0.5)
     backend.start(plan)

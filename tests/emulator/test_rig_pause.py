@@ -407,7 +407,7 @@ def paused_run(card, truth, x, v, sizes):
     return np.concatenate(rows)
 
 
-@pytest.mark.parametrize("sizes", [[1, 7, 333], [3] * 50])
+@pytest.mark.parametrize("sizes", [[1, 7, 333], pytest.param([3] * 50, marks=pytest.mark.slow)])
 def test_a_pause_acts_from_the_next_sample_and_any_chunking_gives_the_same_data(card, truth, sizes):
     x, v = slow_trajectory(3001)
     rows = paused_run(card, truth, x, v, [10_000])

@@ -13,6 +13,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 import xarray as xr
 
 import rdea_lab
@@ -160,6 +161,7 @@ def wait_state(out, wanted, seconds=20.0):
     raise AssertionError(f"the run did not become {wanted}: {read_state(out)}")
 
 
+@pytest.mark.slow
 def test_pause_resume_abort_from_another_terminal(tmp_path):
     out = tmp_path / "live.nc"
     with start(out) as proc:
@@ -181,6 +183,7 @@ def test_pause_resume_abort_from_another_terminal(tmp_path):
     assert gone.returncode == 2 and "no run in progress" in gone.stderr
 
 
+@pytest.mark.slow
 def test_first_ctrl_c_pauses_and_asks_a_second_interrupts(tmp_path):
     out = tmp_path / "ask.nc"
     with start(out, "--on-ctrl-c", "ask", stdin=subprocess.PIPE) as proc:

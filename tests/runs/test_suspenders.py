@@ -5,9 +5,6 @@ the injected fault's times."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -104,12 +101,9 @@ def test_an_overheated_amplifier_pauses_until_it_cools_below_the_resume_conditio
 
 def test_a_drift_that_outlasts_its_wait_aborts_the_run_keeping_every_sample(tmp_path):
     path = protocol(tmp_path, '{name: zero, when: "|force_offset_drift| > 5 mN", wait: 1 s}')
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    done = subprocess.run([sys.executable, "-m", "rdea_lab.cli.main", "run", str(path), "--specimen", str(CARD),
-                           "--backend", "emulator", "--fault", "drift-at=2", "--stall-timeout", "30", "--quiet",
-                           "--out", str(tmp_path / "drift.nc")], cwd=tmp_path, env=env, capture_output=True,
-                          text=True, timeout=300)
-    assert done.returncode == 3, done.stderr
+    result = rdea_lab.runs.execute_setup(rdea_lab.prepare_run(
+        path, CARD, rdea_lab.Emulator(faults=["drift-at=2"], stall_timeout=30), out=tmp_path / "drift.nc"))
+    assert result.exit_code == 3  # the CLI's exit status of an aborted run
     ds = read(tmp_path / "drift.nc")
     assert ds.attrs["status"] == "aborted"
     assert "suspender 'zero'" in ds.attrs["status_reason"] and "waited longer" in ds.attrs["status_reason"]
