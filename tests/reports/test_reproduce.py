@@ -13,6 +13,7 @@ from rdea_lab.store import open_run
 ROOT = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.slow  # ~50 s on one core, a quarter of the default suite's wall time; CI runs it with the slow step
 def test_reproduce_on_a_short_campaign(capsys, tmp_path, read_page):
     campaign = tmp_path / "short.yaml"
     campaign.write_text(f"""name: short
