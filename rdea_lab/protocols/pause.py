@@ -263,6 +263,8 @@ class PausedSetpoints:
             return Setpoints(np.empty(0), np.empty(0), np.empty(0, np.int8), np.empty(0, np.int64))
         if self.phase != HELD and self.phase != RUNNING and not self._queue:  # a ramp just ended
             self.phase = HELD if self.phase == RAMPING_DOWN else RUNNING
+        if len(parts) == 1:  # one phase (running on, the common case): the arrays as they are
+            return Setpoints(*parts[0])
         return Setpoints(*(np.concatenate(column) for column in zip(*parts)))
 
 

@@ -111,9 +111,11 @@ class RunControl:
     def poll(self, folder: bool = True) -> list[Request]:
         """Every request not yet read, oldest first (this process's, then the folder's by the time sent;
         ``folder=False``: this process's only, without a look at the folder)."""
-        with self._lock:
-            out = list(self._queue)
-            self._queue.clear()
+        out = []
+        if self._queue:  # (read without the lock: a request put in meanwhile is read next time)
+            with self._lock:
+                out = list(self._queue)
+                self._queue.clear()
         if self.folder is None or not folder:
             return out
         found = []

@@ -88,6 +88,10 @@ class Operator:
 
     def _follow(self, phase: np.ndarray, first: int) -> None:
         """Note each pause that begins in the block (a non-running sample after a running one)."""
+        if self.phase == RUNNING and not phase.any():  # the common case: running on, nothing to note
+            if not self.pausing:
+                self.by_user = False
+            return
         running = phase == RUNNING
         before = np.concatenate(([self.phase == RUNNING], running[:-1]))
         for i in np.flatnonzero(before & ~running):
