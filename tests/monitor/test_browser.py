@@ -44,7 +44,10 @@ def browser():
 
     for path in (CHROMIUM, CHROMEDRIVER):
         if not os.access(path, os.X_OK):
-            pytest.skip(f"{path} not installed (apt-get install chromium chromium-driver)")
+            missing = f"{path} not installed (apt-get install chromium chromium-driver)"
+            if os.environ.get("RDEA_LAB_REQUIRE_BROWSER"):  # CI, where .ci/run installed them: a failure
+                pytest.fail(missing)
+            pytest.skip(missing)
     options = webdriver.ChromeOptions()
     options.binary_location = CHROMIUM
     for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1200,1000"):
