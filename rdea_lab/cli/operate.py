@@ -3,8 +3,11 @@ first Ctrl-C asks in ``rdea-lab run``."""
 
 from __future__ import annotations
 
+import os
+import signal
 import sys
 import threading
+import time
 
 import click
 
@@ -100,11 +103,25 @@ class AskOnCtrlC:
             if self.open:
                 return False  # the second Ctrl-C: interrupt
             self.open = True
-        self.control.pause("paused at the terminal (Ctrl-C)", by="Ctrl-C")
+        request = self.control.pause("paused at the terminal (Ctrl-C)", by="Ctrl-C")
         self.echo("\nrdea-lab: pausing (voltage ramping to 0, stretch held). Type r + Enter to resume, a + Enter "
                   "to abort (every sample kept); Ctrl-C again interrupts at once.")
         threading.Thread(target=self._answer, daemon=True, name="rdea-lab ctrl-c question").start()
+        threading.Thread(target=self._refused, args=(request,), daemon=True, name="rdea-lab ctrl-c pause").start()
         return True
+
+    def _refused(self, request, wait: float = 5.0) -> None:
+        """A pause the run refused (its plan driven to the end, a rig that will not): the Ctrl-C interrupts
+        after all, as it did before it asked: the signal again, with the question open."""
+        end = time.monotonic() + wait
+        while time.monotonic() < end:
+            done = self.control.outcome(request)
+            if done is not None:
+                if done.get("refused"):
+                    self.echo(f"rdea-lab: the run did not pause ({done['refused']}): interrupting it")
+                    os.kill(os.getpid(), signal.SIGINT)
+                return
+            time.sleep(0.02)
 
     def _answer(self) -> None:
         while True:

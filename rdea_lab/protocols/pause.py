@@ -143,6 +143,8 @@ class PausedSetpoints:
         self._current = None  # (stretch, voltage) last driven
         self._return = None  # (stretch, voltage) the plan had at the pause
         self._held_since = None  # (wall time, samples taken then) when the hold began
+        self._tail = 0  # plan samples at the end of the last take
+        self._before_tail = None  # (stretch, voltage) driven before them
         self.pauses = 0
 
     # ---------------------------------------------------------- requests
@@ -227,6 +229,7 @@ class PausedSetpoints:
         wall clock allows (maybe none)."""
         parts = []
         left = int(m)
+        self._tail = 0  # plan samples at the end of this take (what `untake` may give back)
         while left > 0:
             if self._want is not None:
                 self._act()
@@ -238,6 +241,7 @@ class PausedSetpoints:
                 s, v = np.asarray(s, float), np.asarray(v, float)
                 parts.append((s, v, np.zeros(n, np.int8), np.arange(self.next, self.next + n)))
                 self.next += n
+                self._before_tail, self._tail = self._current, n  # driven before them (None: nothing yet)
                 self._current = (float(s[-1]), float(v[-1]))
             elif self.phase == HELD:
                 n = min(left, self.held_due())
@@ -257,6 +261,8 @@ class PausedSetpoints:
                     self._queue.pop(0)
                 else:
                     self._queue[0] = (x[n:], y[n:], phase)
+            if self.phase != RUNNING:
+                self._tail = 0
             left -= n
             self.taken += n
         if not parts:
@@ -269,21 +275,23 @@ class PausedSetpoints:
 
 
     def untake(self, m: int) -> bool:
-        """Give back the last ``m`` samples taken, when they were plan samples taken while running (a
-        backend that computed ahead and had not driven them yet: the next `take` starts with them again);
-        False, and nothing changes, otherwise."""
+        """Give back the last ``m`` samples of the last `take`, when all of them were plan samples taken while
+        running (a backend that computed ahead and had not driven them yet: the next `take` starts with them
+        again); False, and nothing changes, otherwise (some of them were a ramp or held: those were driven
+        as they come, and a pause then acts after them)."""
         m = int(m)
         if m <= 0:
             return m == 0
-        if self.phase != RUNNING or self._want is not None or m > self.next:
+        if self.phase != RUNNING or self._want is not None or m > self._tail:
             return False
         self.next -= m
         self.taken -= m
-        if self.next:
+        self._tail -= m
+        if self._tail:  # the sample before the given-back ones was a plan sample of the same take
             s, v = self._window(self.next - 1, self.next)
             self._current = (float(np.asarray(s, float)[-1]), float(np.asarray(v, float)[-1]))
-        else:
-            self._current = None
+        else:  # what was driven before this take's plan samples (the end of a ramp, or a plan sample)
+            self._current = self._before_tail
         return True
 
 

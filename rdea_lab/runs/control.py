@@ -138,6 +138,13 @@ class RunControl:
                                                                     str(data.get("id", "")))))
         return out + [req for _, req in sorted(found, key=lambda x: x[0])]
 
+    def outcome(self, request: Request) -> dict | None:
+        """How the run answered `request` (``{"id", "action", "refused"}``), or None while it has not."""
+        for done in list(self._handled):
+            if done["id"] == request.id:
+                return done
+        return None
+
     def handled(self, request: Request, refused: str = "") -> None:
         """`request` was acted on (or refused, saying why); published with the next `publish`."""
         self._handled.append({"id": request.id, "action": request.action, "refused": refused})
@@ -205,10 +212,13 @@ def request(run, action: str, reason: str = "", *, by: str = "another process", 
     """
     if action not in ACTIONS:
         raise SpecError("arguments", "action", f"{action!r}; allowed: {', '.join(ACTIONS)}")
+    if not Path(run).name:
+        raise ControlError(run, "not a run: give the run's dataset (RUN.nc, as rdea-lab run --out named it) or "
+                                "its journal folder (RUN.nc.part)")
     folder = journal_folder(run)
     if not (folder / REQUESTS).is_dir():
         raise ControlError(run, f"no run in progress there (no {folder / REQUESTS}); a run that has ended "
-                                "cannot be paused")
+                                f"cannot {action}")
     req = Request(action, reason, by)
     _write_whole(folder / REQUESTS / f"{req.id}.json",
                  {"id": req.id, "action": action, "reason": reason, "by": by, "sent": _time.time()})

@@ -194,7 +194,12 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
     # while the run starts and acquires, the first signal raises RunInterrupted; from then on, and from the
     # moment the loop is left however it ends, the run is closing: a signal waits until the dataset is closed
     control = control if control is not None else RunControl()
-    with Signals(RunInterrupted, once=True, first=on_interrupt) as signals:
+
+    def first() -> bool:  # a Ctrl-C is taken as a pause only by a backend that can pause; else it interrupts
+        return (callable(getattr(backend, "pause", None)) and bool(getattr(backend, "pausable", True))
+                and bool(on_interrupt()))
+
+    with Signals(RunInterrupted, once=True, first=first if on_interrupt is not None else None) as signals:
         result = _execute(plan, card, backend, out, seed, command, subscribers, metadata, signals, control,
                           suspenders)
         _raise_pending(signals, result)

@@ -92,9 +92,11 @@ class Operator:
             if not self.pausing:
                 self.by_user = False
             return
-        running = phase == RUNNING
-        before = np.concatenate(([self.phase == RUNNING], running[:-1]))
-        for i in np.flatnonzero(before & ~running):
+        # a pause begins where a sample ramps down or is held after one running or ramping back up (a rig
+        # that pauses by itself while a resume ramps up begins a pause too: the table keeps one interval)
+        down = (phase == RAMPING_DOWN) | (phase == HELD)
+        before = np.concatenate(([self.phase in (RUNNING, RAMPING_UP)], ~down[:-1]))
+        for i in np.flatnonzero(before & down):
             if self.asked is None:  # the rig paused by itself (its interlock opened): resumable as any pause
                 self.pausing, self.by_user = True, False
                 self.reason = "paused by the rig itself (e.g. its interlock opened)"
@@ -123,6 +125,9 @@ class Operator:
         if not self.can_pause:
             return f"the backend {getattr(self.backend, 'name', '?')} cannot pause (it has no pause())"
         if self.pausing:
+            if user and not self.by_user:  # held by a suspender or the rig: the user's now, resumed by the user
+                self.by_user, self.reason = True, reason
+                return None
             return "the run is paused already"
         from ..backends.base import PauseRefused
 
@@ -166,11 +171,16 @@ class Operator:
             if self.pausing:  # paused already (by the rig itself, or the user: the watch knows whose)
                 return None
             refused = self._pause(action.reason, "suspender", user=False)
-            if refused is not None:  # a condition that must stop the run, which cannot pause: it ends
-                return "aborted", f"{action.reason}; the run could not pause ({refused}), so it was aborted"
+            if refused is not None and not self.pausable():  # a condition that must stop a run that cannot
+                return "aborted", f"{action.reason}; the run cannot pause ({refused}), so it was aborted"
+            # a pausable run that refuses now has driven its whole plan: it ends complete within a block
         elif action.kind == "resume" and self.pausing and not self.by_user:
             self._resume(user=False)
         return None
+
+    def pausable(self) -> bool:
+        """Whether the backend can pause at all (a rig of an older protocol says ``pausable = False``)."""
+        return self.can_pause and bool(getattr(self.backend, "pausable", True))
 
     # ------------------------------------------------------------------ state
     def publish(self, samples: int, force: bool = False) -> None:

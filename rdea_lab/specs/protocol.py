@@ -53,6 +53,12 @@ from .suspenders import Suspender, suspenders_problem
 from .units import format_quantity
 
 
+#: Longest a pause's ramp may take (the voltage from ``max_voltage`` to 0, the stretch to ``hold_stretch``) [s],
+#: and in samples (the rig holds a ramp in memory, as a trajectory: `rdea_lab.specs.rigwire.MAX_POINTS`).
+MAX_PAUSE_RAMP = 600.0
+MAX_PAUSE_RAMP_SAMPLES = 1e7
+
+
 # ---------------------------------------------------------------- YAML dumper
 class _Flow(dict):
     """A mapping written on one line (``{kind: hold, duration: 2 s}``)."""
@@ -253,6 +259,19 @@ class ProtocolSpec(SpecModel):
             raise SpecError("", "pause.hold_stretch", f"stretch {hold:g} is above the limit max_stretch = "
                             f"{self.limits.max_stretch:g}; allowed: 1 <= hold_stretch <= {self.limits.max_stretch:g} "
                             "(limits.max_stretch)")
+        if self.pause is not None:  # a ramp the run (and the rig, which holds it in memory) can drive
+            ramps = [("ramp_rate", self.limits.max_voltage / self.pause.ramp_rate, "V/s",
+                      f"takes max_voltage {self.limits.max_voltage:g} V to 0", self.limits.max_voltage)]
+            if hold is not None:
+                travel = max(self.limits.max_stretch - hold, hold - 1.0)
+                ramps.append(("stretch_rate", travel / self.pause.stretch_rate, "/s",
+                              f"takes the stretch to hold_stretch {hold:g} from as far as the limits allow", travel))
+            for name, seconds, unit, what, distance in ramps:
+                most = min(MAX_PAUSE_RAMP, MAX_PAUSE_RAMP_SAMPLES / self.sample_rate)
+                if seconds > most:
+                    raise SpecError("", f"pause.{name}", f"{getattr(self.pause, name):.4g} {unit} {what} in "
+                                    f"{seconds:.4g} s; allowed: a ramp of at most {most:.4g} s (at least "
+                                    f"{distance / most:.4g} {unit})")
         problem = suspenders_problem(self.suspend)
         if problem is not None:
             raise problem

@@ -18,7 +18,7 @@ import pytest
 from rdea_lab.runs.control import read_state
 
 ROOT = Path(__file__).resolve().parents[2]
-CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
+CHROMIUM, CHROMEDRIVER = shutil.which("chromium"), shutil.which("chromedriver")  # as .ci/run finds them
 PROTOCOL = """name: monitor_test
 kind: custom
 description: a short realtime run for the monitor's browser test
@@ -39,15 +39,19 @@ POINTS = ("const s = Bokeh.documents.length ? Bokeh.documents[0].get_model_by_na
 
 def browser():
     """A headless chromium driven by selenium, or a skip saying what is missing."""
-    webdriver = pytest.importorskip("selenium.webdriver", reason="selenium not installed (pip install selenium)")
-    from selenium.webdriver.chrome.service import Service
+    def missing(what):
+        if os.environ.get("RDEA_LAB_REQUIRE_BROWSER"):  # CI, where .ci/run installed the browser: a failure
+            pytest.fail(what)
+        pytest.skip(what)
 
+    try:
+        from selenium import webdriver
+        from selenium.webdriver.chrome.service import Service
+    except ImportError:
+        missing("selenium not installed (pip install selenium)")
     for path in (CHROMIUM, CHROMEDRIVER):
-        if not os.access(path, os.X_OK):
-            missing = f"{path} not installed (apt-get install chromium chromium-driver)"
-            if os.environ.get("RDEA_LAB_REQUIRE_BROWSER"):  # CI, where .ci/run installed them: a failure
-                pytest.fail(missing)
-            pytest.skip(missing)
+        if not path or not os.access(path, os.X_OK):
+            missing("chromium or chromedriver not installed (apt-get install chromium chromium-driver)")
     options = webdriver.ChromeOptions()
     options.binary_location = CHROMIUM
     for arg in ("--headless=new", "--no-sandbox", "--disable-gpu", "--window-size=1200,1000"):

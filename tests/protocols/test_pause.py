@@ -110,3 +110,36 @@ def test_a_pause_before_the_first_sample_starts_from_zero_volts_and_requests_are
     back = c.take(10)
     assert back.paused.tolist() == [RUNNING] * 10 and np.array_equal(back.voltage, v[:10])
     assert pause_intervals(np.array([0, 1, 2, 2, 3, 0, 0, 1])) == [(1, 5), (7, 8)]
+
+
+def test_untake_gives_back_only_the_plan_samples_at_the_end_of_the_last_take():
+    """A backend that computed ahead gives back what it has not driven; only the plan samples at the end of
+    the last take can be taken again (a ramp was driven as it came), and a pause then ramps down from what
+    was driven last. Checked against the plan: every plan sample is driven once, in order."""
+    from rdea_lab.protocols.pause import Setpoints
+
+    n = 1000
+    stretch, volt = 1 + np.arange(n) * 1e-4, np.full(n, 500.0)
+    now = [0.0]
+    sp = PausedSetpoints(lambda a, b: (stretch[a:b], volt[a:b]), n, 100.0, PauseSpec(ramp_rate=1000.0),
+                         clock=lambda: now[0])
+    driven = [sp.take(100)]
+    sp.pause()
+    driven.append(sp.take(100))  # the ramp down (50 samples), then held: none yet
+    now[0] = 1.0
+    driven.append(sp.take(1000))  # 100 held
+    sp.resume()
+    c = sp.take(100)  # 50 ramping up, then 50 plan samples
+    assert np.bincount(c.paused).tolist() == [50, 0, 0, 50]
+    assert not sp.untake(80)  # 30 of them were the ramp, driven as they came: nothing given back
+    assert sp.untake(50)  # the plan samples: given back
+    driven.append(Setpoints(*(x[:50] for x in c)))
+    sp.pause()  # from where the ramp up ended (the plan's voltage at the pause), not the plan's next sample
+    down = sp.take(10)
+    assert down.paused[0] == 1 and down.voltage[0] == 500.0 - 10.0
+    sp.resume()
+    now[0] = 2.0
+    rest = sp.take(100000)
+    driven += [down, rest]
+    plan = np.concatenate([d.plan_index[d.paused == 0] for d in driven])
+    assert np.array_equal(plan, np.arange(n))

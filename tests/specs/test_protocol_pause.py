@@ -163,3 +163,16 @@ def test_the_packaged_example_and_its_description():
     assert ("  suspend (hot): pause while amplifier_temperature > 60 degC; resume once amplifier_temperature "
             "< 50 degC; abort if not resumed within 10 min\n") in text
     assert "pause:" not in expand(load_protocol("custom_example")).describe()
+
+
+@pytest.mark.parametrize("pause, match", [
+    ("{ramp_rate: 1 V/s}", r"pause\.ramp_rate: 1 V/s takes max_voltage 3000 V to 0 in 3000 s; allowed: a ramp of "
+                           r"at most 600 s \(at least 5 V/s\)"),
+    ("{hold_stretch: 1.05, stretch_rate: 1e-4 /s}", r"pause\.stretch_rate: .* in 5500 s; allowed: a ramp of at most "
+                                                    r"600 s"),
+])
+def test_a_pause_ramp_longer_than_ten_minutes_is_refused_where_the_protocol_is_read(pause, match):
+    # BASE's limits: max_voltage 3 kV (the default), max_stretch 1.6. 3 kV at 1 V/s: 3000 s; the stretch from
+    # 1.6 to 1.05 at 1e-4 /s: 5500 s
+    with pytest.raises(SpecError, match=rf"^x\.yaml: {match}"):
+        protocol_from_yaml(BASE + f"pause: {pause}\n", "x.yaml")
