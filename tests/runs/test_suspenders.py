@@ -116,3 +116,26 @@ def test_a_drift_that_outlasts_its_wait_aborts_the_run_keeping_every_sample(tmp_
     # the last fetch before the abort had not yet taken (the driver polls every 20 ms)
     assert t[-1] - t[a] >= 0.9
     assert np.all(ds["voltage_setpoint"].values[-3:] == 0.0)
+
+
+def test_a_campaigns_suspenders_are_added_to_each_protocols_own(tmp_path):
+    """A campaign's ``suspend:`` applies to every run besides the protocol's own: the plan each experiment runs
+    (and so its dataset's ``protocol`` attribute) holds both, the protocol's first, a shared one once."""
+    from rdea_lab.runs import experiments
+    from rdea_lab.specs.campaign import load_campaign
+
+    protocol(tmp_path, "{name: door, when: interlock == open, wait: 30 s}")
+    (tmp_path / "c.yaml").write_text(f"""name: c
+root: .
+backend: emulator
+out: {tmp_path / 'out'}
+specimens: [{CARD}]
+protocols: [suspend_check.yaml]
+suspend:
+  - {{name: door, when: interlock == open, wait: 30 s}}
+  - {{name: hot, when: amplifier_temperature > 60 degC, resume: amplifier_temperature < 50 degC}}
+""")
+    spec, folder = load_campaign(tmp_path / "c.yaml")
+    run, = experiments(spec, folder)
+    assert [s.name for s in run.plan.spec.suspend] == ["door", "hot"]
+    assert "amplifier_temperature > 60 degC" in run.plan.yaml
