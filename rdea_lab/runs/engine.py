@@ -195,11 +195,13 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
     # moment the loop is left however it ends, the run is closing: a signal waits until the dataset is closed
     control = control if control is not None else RunControl()
 
-    def first() -> bool:  # a Ctrl-C is taken as a pause only by a backend that can pause; else it interrupts
-        return (callable(getattr(backend, "pause", None)) and bool(getattr(backend, "pausable", True))
-                and bool(on_interrupt()))
+    def first() -> bool:  # a Ctrl-C is taken as a pause only while acquiring, by a backend that can pause
+        return (guard.acquiring and callable(getattr(backend, "pause", None))
+                and bool(getattr(backend, "pausable", True)) and bool(on_interrupt()))
 
-    with Signals(RunInterrupted, once=True, first=first if on_interrupt is not None else None) as signals:
+    guard = Signals(RunInterrupted, once=True, first=first if on_interrupt is not None else None)
+    guard.acquiring = False  # set once the loop runs: a Ctrl-C while the run starts interrupts it
+    with guard as signals:
         result = _execute(plan, card, backend, out, seed, command, subscribers, metadata, signals, control,
                           suspenders)
         _raise_pending(signals, result)
@@ -262,6 +264,7 @@ def _execute(plan, card, backend, out, seed, command, subscribers, metadata, sig
         try:
             max_force = plan.limits.max_force
             planned = plan.samples
+            signals.acquiring = True
             while True:
                 block = backend.read_block()
                 if block is None:
