@@ -1,7 +1,7 @@
 """The monitor in a real (headless) browser: a realtime emulated run streams into the page, the controller's
 Pause reaches the run's journal folder, and the run answers.
 
-Needs selenium, chromium and chromedriver (skipped without them; .ci/run installs the two where it can).
+Needs selenium, chromium and chromedriver (skipped without them, a failure where .ci/run installed them: RDEA_LAB_REQUIRE_BROWSER); bokeh comes with the test extra.
 Set RDEA_LAB_MONITOR_SCREENSHOT=docs/img/monitor.png to keep the page's screenshot.
 """
 
@@ -97,7 +97,6 @@ def click(driver, name):
 
 @pytest.mark.slow  # 20-30 s on a loaded 2-core machine (two browsers, a realtime run, the twin beside it)
 def test_a_realtime_run_in_the_browser_and_pause_from_the_controller(tmp_path, monkeypatch):
-    pytest.importorskip("bokeh", reason="the monitor needs bokeh (pip install 'rdea-lab[monitor]')")
     driver = browser()
     from rdea_lab.monitor import Monitor
 
