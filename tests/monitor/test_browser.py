@@ -1,7 +1,8 @@
 """The monitor in a real (headless) browser: a realtime emulated run streams into the page, the controller's
 Pause reaches the run's journal folder, and the run answers.
 
-Needs selenium, chromium and chromedriver (skipped without them, a failure where .ci/run installed them: RDEA_LAB_REQUIRE_BROWSER); bokeh comes with the test extra.
+Needs selenium, chromium and chromedriver: skipped without them, a failure where .ci/run installed them
+(RDEA_LAB_REQUIRE_BROWSER); bokeh comes with the test extra.
 Set RDEA_LAB_MONITOR_SCREENSHOT=docs/img/monitor.png to keep the page's screenshot.
 """
 
