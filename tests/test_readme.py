@@ -3,8 +3,8 @@
 The table's examples run in the order written, in one empty folder (later rows use what earlier rows
 wrote), in process through `rdea_lab.cli.errors.run`; the rows that keep running (`rig serve`, a paced
 `run --realtime`, `monitor`) as processes of their own, for the rows after them. Left out here: the install
-and test lines and `rdea-lab reproduce` (tests/reports cover reproduce). The longer examples (a whole campaign, the speed
-study, a design study, bench) run alone, each in its own folder: none of them uses another row's
+and test lines and `rdea-lab reproduce` (tests/reports cover reproduce). The longer examples (a whole
+campaign, the speed study, a design study, bench) run alone, each in its own folder: none of them uses another row's
 output; those over about 15 s on a loaded 2-core machine (design, bench: 20-30 s) are marked slow. The
 `import` example needs the VHB 4910 files beside the checkout (docs/vhb4910.md); without them it skips
 and says where.
