@@ -41,6 +41,7 @@ the catalogue lists it as ``running``.
 """
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import json
@@ -77,6 +78,9 @@ READ_ROWS = 1 << 16
 #: Journal rows from which a background thread writes the netCDF file while the run goes (shorter runs are
 #: converted at the end, in well under a second).
 SHADOW_FROM = 1 << 17
+#: Seconds a new claim waits for its lock held by another (a look that takes milliseconds), or for its folder to
+#: go (a recover removing it as abandoned), before it is refused.
+CLAIM_WAIT = 2.0
 
 
 class RunInProgress(UserError):
@@ -142,12 +146,20 @@ def _note_status(folder: Path, status: str, reason: str) -> None:
         pass
 
 
-def _try_lock(folder: Path):
-    """An exclusive, non-blocking lock on a journal's ``writer.lock``: its file descriptor, or None if a
-    live process holds it. Journals older than the lock have none: None is never returned for them."""
-    fd = os.open(Path(folder) / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+def _try_lock(folder: Path, create: bool = True):
+    """An exclusive, non-blocking lock on a journal's ``writer.lock``: its file descriptor, or None if another
+    process (or another call here) holds it. Journals older than the lock have none: with ``create`` the file is
+    made, and None is never returned for them.
+
+    The protocol: whoever removes a journal holds its lock and unlinks ``writer.lock`` last (`_remove_journal`),
+    so a lock taken on a file that is no longer the one at its path belongs to a journal being removed:
+    FileNotFoundError, as for a lock file missing when ``create`` is False."""
+    path = Path(folder) / LOCK
+    fd = os.open(path, os.O_RDWR | (os.O_CREAT if create else 0), 0o644)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        if not os.path.samestat(os.fstat(fd), os.stat(path)):  # (os.stat: FileNotFoundError once unlinked)
+            raise FileNotFoundError(errno.ENOENT, "the journal was removed while its lock was taken", str(path))
     except BlockingIOError:
         os.close(fd)
         return None
@@ -157,12 +169,46 @@ def _try_lock(folder: Path):
     return fd
 
 
+def _remove_journal(folder: Path, ignore_errors: bool = False) -> None:
+    """Remove a journal whose lock the caller holds: its files, then ``writer.lock``, then the folder (so a lock
+    another process takes meanwhile is on a file gone from its path: `_try_lock` says so). A lock file a recover
+    made meanwhile (a journal older than the lock) is removed on a second pass."""
+    folder = Path(folder)
+    for attempt in range(3):
+        try:
+            for entry in os.scandir(folder):
+                if entry.name == LOCK:
+                    continue
+                if entry.is_dir(follow_symlinks=False):
+                    shutil.rmtree(entry.path)
+                else:
+                    os.unlink(entry.path)
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(folder / LOCK)
+            os.rmdir(folder)
+            return
+        except FileNotFoundError:
+            if not folder.exists():
+                return
+            if attempt == 2 and not ignore_errors:
+                raise
+        except OSError as exc:
+            if exc.errno != errno.ENOTEMPTY and not ignore_errors:
+                raise
+            if attempt == 2 and not ignore_errors:
+                raise
+            _time.sleep(0.01)
+
+
 def journal_writer(folder: Path) -> dict | None:
     """The live writer of a journal (``pid``, ``host``, ``started``), or None when no process holds it."""
     folder = Path(folder)
     if not (folder / LOCK).exists():
         return None
-    fd = _try_lock(folder)
+    try:
+        fd = _try_lock(folder, create=False)
+    except FileNotFoundError:  # the journal went meanwhile
+        return None
     if fd is not None:
         os.close(fd)  # nobody held it: the writer is gone (the lock goes with the descriptor)
         return None
@@ -223,18 +269,42 @@ class JournalWriter:
         self.samples = 0
         self.background = background
         self.out.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            self.dir.mkdir(exist_ok=False)
-        except FileExistsError:
-            raise JournalInUse(str(self.out), "out", f"another run is writing it (its journal {self.dir} "
-                               "exists); choose another output") from None
-        self._lock = _try_lock(self.dir)  # held until the dataset is written and the journal gone
+        self._lock = self._claim()  # held until the dataset is written and the journal gone
         self.writer = {"pid": os.getpid(), "host": socket.gethostname(), "started": utc_now()}
         self._fd = None
         self._synced = _time.monotonic()
         self._shadow = None
         if attrs is not None:
             self.begin(attrs)
+
+    def _claim(self) -> int:
+        """Make the journal folder and take its lock: the lock's file descriptor. The lock may be busy for a
+        moment (a catalogue or `recover` looking whether a writer holds it): tried again for `CLAIM_WAIT`. A
+        `recover` that looks in between (the folder made, its lock not yet taken) takes it for the claim of a
+        run killed before it began and removes it, holding its lock: the claim is then made again."""
+        for _ in range(20):
+            try:
+                self.dir.mkdir(exist_ok=False)
+            except FileExistsError:
+                raise JournalInUse(str(self.out), "out", f"another run is writing it (its journal {self.dir} "
+                                   "exists); choose another output") from None
+            deadline = _time.monotonic() + CLAIM_WAIT
+            while True:
+                try:
+                    lock = _try_lock(self.dir)
+                except FileNotFoundError:  # removed under us
+                    break
+                if lock is not None:
+                    return lock
+                if _time.monotonic() > deadline:
+                    raise JournalInUse(str(self.out), "out", f"its journal {self.dir} is held by another "
+                                       "process; choose another output")
+                _time.sleep(0.005)
+            deadline = _time.monotonic() + CLAIM_WAIT
+            while self.dir.exists() and _time.monotonic() < deadline:  # its removal under way: let it end
+                _time.sleep(0.005)
+        raise JournalInUse(str(self.out), "out", f"its journal {self.dir} keeps being removed; choose another "
+                           "output")
 
     def begin(self, attrs: dict) -> None:
         """Write the header (the attributes known once the run starts) and open the sample file."""
@@ -257,7 +327,7 @@ class JournalWriter:
             os.close(self._fd)
             self._fd = None
         if self.samples == 0:
-            shutil.rmtree(self.dir, ignore_errors=True)
+            _remove_journal(self.dir, ignore_errors=True)
         self._release()
 
     def append(self, block: dict) -> int:
@@ -372,7 +442,7 @@ class JournalWriter:
                 if converter is not None:
                     converter.discard()
                 raise
-            shutil.rmtree(self.dir)
+            _remove_journal(self.dir)
         finally:
             self._release()
         return self.out
@@ -693,16 +763,31 @@ def recover(path: Path, out: Path | None = None) -> Path:
     folder = path if path.name.endswith(".part") else journal_path(path)
     if not (folder / "header.json").is_file():
         if folder.is_dir() and (folder / LOCK).exists() and not (folder / "samples.f8").exists():
-            if journal_writer(folder) is not None:
+            try:
+                claim, removed = _try_lock(folder, create=False), False
+            except FileNotFoundError:  # removed meanwhile
+                claim, removed = None, True
+            if claim is None and not removed:
                 raise RunInProgress(f"{folder}: a run is starting on it; left alone")
-            shutil.rmtree(folder, ignore_errors=True)  # a claim whose run never began (killed before it started)
-            raise EmptyJournal(f"{folder}: the claim of a run that never started (no samples); removed")
+            if claim is not None:
+                try:  # a claim whose run never began (killed before it started): removed holding its lock
+                    _remove_journal(folder, ignore_errors=True)
+                finally:
+                    os.close(claim)
+                raise EmptyJournal(f"{folder}: the claim of a run that never started (no samples); removed")
         raise FileNotFoundError(f"{path}: no run journal here (expected {folder}/header.json)")
-    lock = _try_lock(folder)
+    gone = FileNotFoundError(f"{path}: no run journal here (its run closed it meanwhile)")
+    try:
+        lock = _try_lock(folder, create=not (folder / LOCK).exists())
+    except FileNotFoundError:
+        raise gone from None
     if lock is None:
         w = journal_writer(folder) or {}
         raise RunInProgress(f"{folder}: a run is still writing it (pid {w.get('pid', '?')} on "
                             f"{w.get('host', '?')} since {w.get('started', '?')}); left alone")
+    if not (folder / "header.json").is_file():  # the run closed it between the look and the lock
+        os.close(lock)
+        raise gone
     from .outputs import OutputError, check_dataset_name, check_writable, shown
 
     try:
@@ -744,7 +829,7 @@ def recover(path: Path, out: Path | None = None) -> Path:
                 if _is_full(exc, out, n * 8 * len(_read_header(folder)["columns"])):
                     raise _disk_full(exc, out, folder, n) from None
             raise
-        shutil.rmtree(folder)
+        _remove_journal(folder)
     finally:
         os.close(lock)
     from .index import index_quietly

@@ -267,3 +267,107 @@ def test_netcdfs_hdf_error_on_a_full_file_system_is_a_full_disk(tmp_path, monkey
     with pytest.raises(RuntimeError, match="HDF error"):
         recover(journal_path(out))
     assert journal_path(out).is_dir()  # kept, for a later recover
+
+
+def _other_process_lock(folder):
+    """A lock on the journal's ``writer.lock`` from another open file description, as another process's."""
+    import fcntl
+
+    fd = os.open(Path(folder) / "writer.lock", os.O_RDWR)
+    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    return fd
+
+
+def test_a_recover_between_a_claims_folder_and_its_lock_cannot_leave_the_run_unlocked(tmp_path, monkeypatch):
+    """The race of the interrupt soak: a recover looks at a journal folder its writer has made but not yet
+    locked. It takes it for the claim of a run killed before it began and removes it; the writer must then
+    claim again and hold the lock on the file at the path, so a later recover leaves the live run alone (it used
+    to go on without any lock, and a recover then converted the live run's journal beside its writer)."""
+    from rdea_lab.store import journal as jr
+
+    out = tmp_path / "run.nc"
+    real, looked = jr._try_lock, []
+
+    def racing(folder, create=True):
+        if not looked:  # the writer's first attempt: the folder is made, its lock file too, not yet held
+            looked.append(True)
+            os.close(os.open(Path(folder) / jr.LOCK, os.O_RDWR | os.O_CREAT, 0o644))
+            with pytest.raises(jr.EmptyJournal):
+                recover(folder)
+            assert not Path(folder).exists()
+        return real(folder, create)
+
+    monkeypatch.setattr(jr, "_try_lock", racing)
+    w = JournalWriter(out, ATTRS)
+    monkeypatch.setattr(jr, "_try_lock", real)
+    assert looked
+    st_held, st_path = os.fstat(w._lock), os.stat(journal_path(out) / jr.LOCK)
+    assert os.path.samestat(st_held, st_path)  # the writer's lock is the journal's
+    w.append(block(0.0, 10))
+    with pytest.raises(RunInProgress):
+        recover(out)
+    w.finish("complete", "")
+    assert open_run(out).sizes["time"] == 10
+
+
+def test_a_claim_waits_out_a_lock_held_for_a_moment_and_refuses_one_held_for_good(tmp_path, monkeypatch):
+    """A catalogue looking whether a writer holds a journal holds its lock for a moment: a writer locking just
+    then waits it out (it used to go on without a lock). A lock that stays held is refused, not ignored."""
+    import threading
+
+    from rdea_lab.store import journal as jr
+
+    out = tmp_path / "run.nc"
+    real, held = jr._try_lock, []
+
+    def probed(folder, create=True):
+        if not held:  # someone else holds the fresh lock file for 50 ms just as the writer tries it
+            os.close(os.open(Path(folder) / jr.LOCK, os.O_RDWR | os.O_CREAT, 0o644))
+            held.append(_other_process_lock(folder))
+            threading.Timer(0.05, os.close, (held[0],)).start()
+        return real(folder, create)
+
+    monkeypatch.setattr(jr, "_try_lock", probed)
+    w = JournalWriter(out, ATTRS)
+    assert held
+    with pytest.raises(RunInProgress):  # the claim is held by its writer
+        recover(out)
+    w.abandon()
+    assert not journal_path(out).exists()
+
+    held.clear()
+    monkeypatch.setattr(jr, "CLAIM_WAIT", 0.2)
+    monkeypatch.setattr(jr.threading, "Timer", lambda *a: type("Never", (), {"start": lambda self: None})())
+    with pytest.raises(JournalInUse, match="held by another process"):
+        JournalWriter(out, ATTRS)
+    os.close(held[0])
+
+
+def test_a_lock_taken_on_a_journal_being_removed_is_no_lock(tmp_path, monkeypatch):
+    """A writer removes its journal holding the lock, the lock file last. A recover that opened the lock file
+    just before it went and locks it once released holds a file no longer at its path: the journal is gone
+    (FileNotFoundError), never converted a second time beside its writer's dataset."""
+    import fcntl
+
+    from rdea_lab.store import journal as jr
+
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS)
+    w.append(block(0.0, 5))
+    w._close_fd()
+    real_flock = fcntl.flock
+
+    class Racing:
+        LOCK_EX, LOCK_NB = fcntl.LOCK_EX, fcntl.LOCK_NB
+
+        @staticmethod
+        def flock(fd, op):  # between the recover's open and its lock, the writer removes the lock file and lets go
+            os.unlink(journal_path(out) / jr.LOCK)
+            w._release()
+            return real_flock(fd, op)
+
+    monkeypatch.setattr(jr, "fcntl", Racing)
+    with pytest.raises(FileNotFoundError):
+        jr._try_lock(journal_path(out))
+    monkeypatch.setattr(jr, "fcntl", fcntl)
+    assert not out.exists()
