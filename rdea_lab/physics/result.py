@@ -227,9 +227,12 @@ def finish(model, geom, l1, bad, shape, raw, fields, status, critical_voltage, r
     if np.may_share_memory(out["tension"], out["sigma1"]):
         out["tension"] = out["tension"].copy()  # two fields, two arrays
     out["force"] = (force if all_ok else out["sigma1"].reshape(-1) * geom.area / l1).reshape(shape)
-    critical_voltage, range_voltage = np.asarray(critical_voltage, float), np.asarray(range_voltage, float)
-    crit = np.where((status == LIMIT_POINT) | (status == SNAPPED), critical_voltage, np.nan)
-    rng = np.where(status == OUTSIDE_RANGE, range_voltage, np.nan)
+    # None: no sample has a fold or a range end (SU): one read-only NaN view, nothing allocated
+    nan = np.broadcast_to(np.nan, (n,))
+    crit = nan if critical_voltage is None else np.where((status == LIMIT_POINT) | (status == SNAPPED),
+                                                         np.asarray(critical_voltage, float), np.nan)
+    rng = nan if range_voltage is None else np.where(status == OUTSIDE_RANGE, np.asarray(range_voltage, float),
+                                                     np.nan)
     free_stretch = np.asarray(free_stretch, float)
     return ModelResult(
         model=model, stretch=raw[0].reshape(shape), voltage=raw[1].reshape(shape),

@@ -52,7 +52,7 @@ class Evaluation:
     ``fields``: ``sigma1`` (the equilibrium's axial stress at the given
     stretch, signed), ``lambda2a``, ``lambda2b``, ``lambda2c``,
     ``capacitance``, ``r_i``. ``critical_voltage`` / ``range_voltage`` as in
-    ModelResult; ``end`` the path's last coordinate.
+    ModelResult (None: NaN for every sample); ``end`` the path's last coordinate.
     """
 
     status: np.ndarray
@@ -185,9 +185,18 @@ def solve_model(name, evaluate, geom, material, stretch=None, voltage=None, *, p
         sig[slack] = 0.0
         fields["sigma1"] = sig
         found = st_f == SLACK
+        at, written = slack[found], {}
         for key in ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i"):
-            arr = np.array(np.broadcast_to(np.asarray(fields[key], float), l1.shape))
-            arr[slack[found]] = f_free[key][found]
+            arr = fields[key]
+            prev = written.get(id(arr))
+            if prev is not None and f_free[key] is f_free[prev[0]]:  # one array for equal fields (SU, 1R)
+                fields[key] = prev[1]
+                continue
+            if (prev is not None or not isinstance(arr, np.ndarray) or arr.shape != l1.shape
+                    or arr.dtype != float or not arr.flags.writeable):
+                arr = np.array(np.broadcast_to(np.asarray(arr, float), l1.shape))
+            written[id(fields[key])] = (key, arr)
+            arr[at] = f_free[key][found]  # the evaluation's own arrays: written in place
             fields[key] = arr
         free[slack] = lam_f
     end = None
@@ -307,6 +316,8 @@ def _take(material, idx):
 def _expand(ev: Evaluation, good, n, start) -> Evaluation:
     """An evaluation of the samples ``good`` spread back over ``n`` samples (NaN elsewhere)."""
     def spread(a, fill):
+        if a is None:
+            return None
         out = np.full(n, fill, dtype=np.asarray(a).dtype if fill is not np.nan else float)
         out[good] = a
         return out

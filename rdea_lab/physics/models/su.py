@@ -76,7 +76,7 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     n = l1.size
     fields = {"sigma1": sigma1, "lambda2a": l2, "lambda2b": l2, "lambda2c": l2,
               "capacitance": capacitance, "r_i": geom.Ri * l2}
-    return Evaluation(np.full(n, OK, np.int8), np.full(n, np.nan), np.full(n, np.nan), fields, None)
+    return Evaluation(np.full(n, OK, np.int8), None, None, fields, None)  # no fold, no range end
 
 
 def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,
