@@ -276,17 +276,17 @@ def format_text(r: dict) -> str:
             lines.append(f"  {label}: {x['seconds']:.2f} s ({x['seconds_spread'][0]:.2f}-{x['seconds_spread'][1]:.2f}, "
                          f"{x['runs']} runs), {x['evaluations']} evaluations, objective {x['objective']:.4g}")
     lines.append("per scene [samples/s, median (slowest-fastest); x: against the plain numpy expression]:")
-    lines.append(" " * 16 + "".join(f"{m:>30}" for m in MODELS))
+    lines.append(" " * 16 + " |".join(f"{m:>32}" for m in MODELS))
     for name, rates in r["scenes_samples_per_s"].items():
         cells = []
         for m in MODELS:
             x = rates.get(m)
             if isinstance(x, dict):
                 cells.append(f"{x['samples_per_s']:9.3e} ({x['spread'][0]:.2g}-{x['spread'][1]:.2g}) "
-                             f"{x['plain_numpy_ratio']:5.2f}x")
+                             f"{x['plain_numpy_ratio']:4.2f}x")
             elif x is not None:  # an older result: the median alone
                 cells.append(f"{x:.3e}")
-        lines.append(f"  {name:<14}" + "".join(f"{c:>30}" for c in cells))
+        lines.append(f"  {name:<14}" + " |".join(f"{c:>32}" for c in cells))
     if "kernels" in r:
         lines.append(bench_kernels.format_text(r))
     return "\n".join(lines)

@@ -506,7 +506,8 @@ def su_state(l1, v, C, kap, C0, out=None):
     v = _arr(v, l1.shape)
     if out is None:
         out = (np.empty_like(l1), np.empty_like(l1), np.empty_like(l1))
-    _su[_parallel(l1.size)](l1.ravel(), v.ravel(), C[0], C[1], C[2], kap, C0, *(o.reshape(-1) for o in out))
+    # one thread, as `su_solve`: memory-bound, and threads on a loaded machine made it slower than numpy
+    _su[0](l1.ravel(), v.ravel(), C[0], C[1], C[2], kap, C0, *(o.reshape(-1) for o in out))
     return out
 
 
