@@ -14,7 +14,10 @@ passive cores. The fsolve baseline solves the corrected six-equation system
 (27) sample by sample (``baseline_3r_fsolve.py``); speed-up and agreement are
 measured on the hollow core, where the baseline's first stationary point is
 the physical one. Rates are the median of ``repeat`` timed runs after one
-warm-up, with their spread (slowest and fastest run) beside them. The compiled
+warm-up, with their spread (slowest and fastest run) beside them, and beside
+each the ratio to a plain numpy expression of the model's stress equation on
+the same arrays, timed in the same process (`plain_numpy`; for SU also on
+specimen 2 at 2.6 kV, where a few percent of the samples are slack). The compiled
 kernels against the numpy reference, `TwinStep`'s latency and numba's start-up
 are `bench_kernels.py`'s (keys ``kernels``, ``step_latency_us``, ``compile_s``).
 """
@@ -31,7 +34,9 @@ import numpy as np
 
 from rdea_lab import __version__
 from rdea_lab.physics.geometry import RollGeometry, geometry_from_card
-from rdea_lab.physics.models import solve
+from rdea_lab.physics.models import continuum, one_ring, solve, three_ring
+from rdea_lab.physics.models._common import kappa
+from rdea_lab.physics.result import SLACK
 from rdea_lab.specs import load_params, load_specimen
 
 import bench_kernels
@@ -74,25 +79,65 @@ def _envelope(n, stretch_max, voltage_max, seed=0):
     return rng.uniform(1.0, stretch_max, n), rng.uniform(0.0, voltage_max, n)
 
 
+def plain_numpy(model, geom, material, l1, v):
+    """The plain numpy expression of ``model``'s stress equation on the same arrays, a callable: for SU
+    eq. (39) written out (no slack, no status, no result), for 1R, 3R and CR their stress equation
+    (33), (27) row 1 and CR's evaluated once at the equilibrium coordinate (solved beforehand, not
+    timed): what a whole `solve` call is measured against (``plain_numpy_ratio``)."""
+    kap = kappa(geom, material)
+    C10, C20, C30 = material.C10, material.C20, material.C30
+    if model == "su":
+        def su_plain():
+            x = l1 * l1 + 2.0 / l1 - 3.0
+            return 2.0 * (l1 * l1 - 1.0 / l1) * (C10 + 2.0 * C20 * x + 3.0 * C30 * x * x) - kap * l1 * v * v
+        return su_plain
+    res = solve(model, geom, material, l1, v, slack=False)
+    if model == "1r":
+        l2 = res.lambda2b
+        return lambda: one_ring.stress(l2, l1, v, C10, C20, C30, kap)
+    xi = res.r_i / geom.Ro
+    if model == "3r":
+        R = three_ring._Rings(geom, l1).constants
+        return lambda: three_ring.ring_state(xi, l1, v, R, C10, C20, C30, kap)[0]
+    roll = continuum._Roll(geom, l1)
+    mechanics = continuum._mechanics(roll, (C10, C20, C30))
+    return lambda: continuum._by_blocks(mechanics, xi, l1, roll.xi0, roll.x0, roll.lx0p)[0] - kap * v * v * l1 * (
+        1.0 + l1 * roll.Lb * (roll.opening(xi, roll.xi0) + xi * xi))
+
+
+def _scene(geom, material, l1, v, repeat, models=MODELS):
+    """Per model: whole-call samples/s of `solve` (median, slowest, fastest of ``repeat``), the plain
+    numpy expression's (`plain_numpy`) and their ratio, timed in turn in this process."""
+    out = {}
+    for m in models:
+        rate, lo, hi = _rate(l1.size, _times(lambda: solve(m, geom, material, l1, v), repeat))
+        plain = _rate(l1.size, _times(plain_numpy(m, geom, material, l1, v), repeat))
+        out[m] = {"samples_per_s": rate, "spread": [lo, hi], "plain_numpy": plain[0],
+                  "plain_numpy_spread": [plain[1], plain[2]], "plain_numpy_ratio": rate / plain[0]}
+    return out
+
+
 def run(samples=100_000, baseline_samples=1000, repeat=5, vhb=True, steps=20_000, compile_probe=True) -> dict:
     """Measure and return the figures as a JSON-able dict (``vhb=False``: without the VHB calibrations)."""
     l1, v = _envelope(samples, 1.75, 3500.0)
     hollow = _core("hollow-core")
-    rate, spread = {}, {}
-    for model in MODELS:
-        rate[model], *spread[model] = _rate(samples, _times(lambda: solve(model, hollow, RIZZELLO, l1, v), repeat))
+    headline = _scene(hollow, RIZZELLO, l1, v, repeat)
+    rate = {m: x["samples_per_s"] for m, x in headline.items()}
+    spread = {m: x["spread"] for m, x in headline.items()}
 
     scenes = {}
     table3 = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
     pl1, pv = _envelope(samples, 1.5, 2600.0, seed=1)
+    spec2 = geometry_from_card(load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"))
+    # the slack scene: specimen 2 at 2.6 kV over stretch 1-1.5 (a few percent of the samples slack)
+    v26 = np.full(samples, 2600.0)
+    slack_scene = _scene(spec2, table3, pl1, v26, repeat, ("su",))["su"]
+    slack_scene["slack_samples"] = int(np.count_nonzero(solve("su", spec2, table3, pl1, v26).status == SLACK))
     for i in (1, 2, 3):
         geom = geometry_from_card(load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / f"specimen{i}.yaml"))
-        scenes[f"specimen-{i}"] = {m: _rate(samples, _times(lambda: solve(m, geom, table3, pl1, pv), repeat))[0]
-                                   for m in MODELS}
+        scenes[f"specimen-{i}"] = _scene(geom, table3, pl1, pv, repeat)
     for name in ("active-core", "passive-core"):
-        geom = _core(name)
-        scenes[name] = {m: _rate(samples, _times(lambda: solve(m, geom, RIZZELLO, l1, v), repeat))[0]
-                        for m in MODELS}
+        scenes[name] = _scene(_core(name), RIZZELLO, l1, v, repeat)
 
     bl1, bv = l1[:baseline_samples], v[:baseline_samples]
     Ri, Rie, Roe, Ro = CORES["hollow-core"]
@@ -113,6 +158,9 @@ def run(samples=100_000, baseline_samples=1000, repeat=5, vhb=True, steps=20_000
         "calibration": calibration,
         "samples_per_s": {m: float(r) for m, r in rate.items()},
         "samples_per_s_spread": {m: [float(a), float(b)] for m, (a, b) in spread.items()},
+        "plain_numpy_samples_per_s": {m: x["plain_numpy"] for m, x in headline.items()},
+        "plain_numpy_ratio": {m: x["plain_numpy_ratio"] for m, x in headline.items()},
+        "su_slack_scene": slack_scene,
         "speedup_3r_vs_fsolve": float(rate["3r"] / (baseline_samples / t_base)),
         "speedup_3r_vs_fsolve_spread": [float(spread["3r"][0] / speedups[2]), float(spread["3r"][1] / speedups[1])],
         "max_rel_diff_3r_vs_fsolve": max_rel,
@@ -197,7 +245,17 @@ def format_text(r: dict) -> str:
              "median (slowest-fastest) of the runs:"]
     for m, x in r["samples_per_s"].items():
         lo, hi = r["samples_per_s_spread"][m]
-        lines.append(f"  {m:<3} {x:12.3e} samples/s ({lo:.3g}-{hi:.3g})")
+        extra = ""
+        if "plain_numpy_ratio" in r:
+            extra = (f"; plain numpy {r['plain_numpy_samples_per_s'][m]:.3e}: "
+                     f"{r['plain_numpy_ratio'][m]:.2f}x")
+        lines.append(f"  {m:<3} {x:12.3e} samples/s ({lo:.3g}-{hi:.3g}){extra}")
+    if "su_slack_scene" in r:
+        x = r["su_slack_scene"]
+        lines.append(f"  su on specimen 2, stretch 1-1.5 at 2.6 kV ({x['slack_samples']} slack): "
+                     f"{x['samples_per_s']:.3e} samples/s ({x['spread'][0]:.3g}-{x['spread'][1]:.3g}); plain numpy "
+                     f"{x['plain_numpy']:.3e} ({x['plain_numpy_spread'][0]:.3g}-{x['plain_numpy_spread'][1]:.3g}): "
+                     f"{x['plain_numpy_ratio']:.2f}x")
     lo, hi = r["speedup_3r_vs_fsolve_spread"]
     lines.append(f"3R vs per-sample fsolve of (27) on {r['baseline_samples']} samples: "
                  f"{r['speedup_3r_vs_fsolve']:.0f}x faster ({lo:.0f}-{hi:.0f}x; fsolve "
@@ -217,10 +275,18 @@ def format_text(r: dict) -> str:
             x = c[key]
             lines.append(f"  {label}: {x['seconds']:.2f} s ({x['seconds_spread'][0]:.2f}-{x['seconds_spread'][1]:.2f}, "
                          f"{x['runs']} runs), {x['evaluations']} evaluations, objective {x['objective']:.4g}")
-    lines.append("per scene [samples/s]:")
-    lines.append(" " * 16 + "".join(f"{m:>12}" for m in MODELS))
+    lines.append("per scene [samples/s, median (slowest-fastest); x: against the plain numpy expression]:")
+    lines.append(" " * 16 + " |".join(f"{m:>32}" for m in MODELS))
     for name, rates in r["scenes_samples_per_s"].items():
-        lines.append(f"  {name:<14}" + "".join(f"{rates[m]:12.3e}" for m in MODELS if m in rates))
+        cells = []
+        for m in MODELS:
+            x = rates.get(m)
+            if isinstance(x, dict):
+                cells.append(f"{x['samples_per_s']:9.3e} ({x['spread'][0]:.2g}-{x['spread'][1]:.2g}) "
+                             f"{x['plain_numpy_ratio']:4.2f}x")
+            elif x is not None:  # an older result: the median alone
+                cells.append(f"{x:.3e}")
+        lines.append(f"  {name:<14}" + " |".join(f"{c:>32}" for c in cells))
     if "kernels" in r:
         lines.append(bench_kernels.format_text(r))
     return "\n".join(lines)

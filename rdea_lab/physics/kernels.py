@@ -374,6 +374,123 @@ def _su_loop(l1, v, C10, C20, C30, kap, C0, sigma, l2, cap):
         cap[i] = C0 * lam
 
 
+_basis_inline = _jit(su.basis, inline="always")
+_slope_inline = _jit(yeoh.slope, inline="always")
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _su_stress(lam, v, C10, C20, C30, kap):
+    b, x = _basis_inline(lam)
+    W1, _ = _slope_inline(x, (C10, C20, C30))
+    return b * W1 - kap * (lam * v ** 2)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_free(l1, v, s1, C10, C20, C30, kap, free_max):
+    """The SU free (F = 0) stretch above ``l1`` (stress ``s1 < 0`` there), NaN where there is none:
+    `models._common.free_state` for one sample, the same steps in the same order (bracketing by 25 %
+    steps, the Illinois iteration, the final check), so that the two agree to the last bit."""
+    lo, s_lo, hi = l1, s1, l1
+    s_hi = -np.inf
+    while True:
+        trial = min(hi * 1.25, free_max)
+        sig = _su_stress(trial, v, C10, C20, C30, kap)
+        if not np.isfinite(sig):
+            return np.nan
+        if sig >= 0.0:
+            hi, s_hi = trial, sig
+            break
+        lo, s_lo = trial, sig
+        if trial >= free_max:
+            return np.nan
+        hi = trial
+    a, b, fa, fb = lo, hi, s_lo, s_hi
+    tol = 1e-10 * abs(s1)
+    side = 0
+    x = b
+    done = False
+    for _ in range(200):
+        xn = (a * fb - b * fa) / (fb - fa)
+        if not (xn > a and xn < b):
+            xn = 0.5 * (a + b)
+        yn = _su_stress(xn, v, C10, C20, C30, kap)
+        if not np.isfinite(yn):
+            return np.nan
+        x = xn
+        if yn < 0.0:
+            fb = 0.5 * fb if side == -1 else fb
+            a, fa = xn, yn
+            side = -1
+        else:
+            fa = 0.5 * fa if side == 1 else fa
+            b, fb = xn, yn
+            side = 1
+        if abs(yn) <= tol or b - a <= 1e-13 * b:
+            done = True
+            break
+    if not done:
+        return np.nan
+    if not (abs(_su_stress(x, v, C10, C20, C30, kap)) <= 1e-6 * abs(s1) + 1e-6):
+        return np.nan
+    return x
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_solve_loop(l1, v, bad, C10, C20, C30, kap, C0, Ri, area, slack, free_max, codes,
+                   sigma, tension, force, l2, cap, r_i, free, status, converged):
+    OK_, SLACK_, BAD_, OVER_ = codes[0], codes[1], codes[2], codes[3]
+    n = l1.size
+    for start in range(0, n, _SU_BLOCK):
+        stop = min(start + _SU_BLOCK, n)
+        # the taut state of every sample (a loop without branches: the compiler vectorizes it) ...
+        for i in range(start, stop):
+            lam = l1[i]
+            s = _su_stress(lam, v[i], C10, C20, C30, kap)
+            q = 1.0 / np.sqrt(lam)
+            sigma[i] = s
+            tension[i] = s
+            force[i] = s * area / lam
+            l2[i] = q
+            cap[i] = C0 * lam
+            r_i[i] = Ri * q
+            free[i] = lam
+            status[i] = OK_
+            converged[i] = True
+        # ... then the few that are not: bad inputs, slack rolls (their free state), overflow
+        for i in range(start, stop):
+            s = sigma[i]
+            if not bad[i] and (s >= 0.0 or not slack) and np.isfinite(s) and np.isfinite(force[i]):
+                continue
+            if bad[i]:
+                sigma[i] = tension[i] = force[i] = l2[i] = cap[i] = r_i[i] = free[i] = np.nan
+                status[i] = BAD_
+                converged[i] = False
+                continue
+            lam = l1[i]
+            st = OK_
+            at = lam
+            lf = lam
+            if slack and s < 0.0:
+                st = SLACK_
+                lf = _su_free(lam, v[i], s, C10, C20, C30, kap, free_max)
+                if lf == lf:
+                    at = lf
+            sig = 0.0 if st == SLACK_ else s
+            f = sig * area / lam
+            if not (np.isfinite(sig) and np.isfinite(f) and np.isfinite(s)):
+                sigma[i] = tension[i] = force[i] = l2[i] = cap[i] = r_i[i] = free[i] = np.nan
+                status[i] = OVER_
+                converged[i] = False
+                continue
+            q = 1.0 / np.sqrt(at)
+            sigma[i], force[i], l2[i], cap[i], r_i[i], free[i] = sig, f, q, C0 * at, Ri * q, lf
+            status[i] = st
+
+
+#: Samples per block of `su_solve`: its second pass reads them back from cache.
+_SU_BLOCK = 1024
+
+
 _roots = _variants(_roots_loop)
 _roots_cr = _variants(_roots_cr_loop)
 _su = _variants(_su_loop)
@@ -389,8 +506,28 @@ def su_state(l1, v, C, kap, C0, out=None):
     v = _arr(v, l1.shape)
     if out is None:
         out = (np.empty_like(l1), np.empty_like(l1), np.empty_like(l1))
-    _su[_parallel(l1.size)](l1.ravel(), v.ravel(), C[0], C[1], C[2], kap, C0, *(o.reshape(-1) for o in out))
+    # one thread, as `su_solve`: memory-bound, and threads on a loaded machine made it slower than numpy
+    _su[0](l1.ravel(), v.ravel(), C[0], C[1], C[2], kap, C0, *(o.reshape(-1) for o in out))
     return out
+
+
+def su_solve(l1, v, bad, C, kap, C0, Ri, area, slack, free_max, codes):
+    """The whole SU solve of clean 1-D inputs in one pass: the stress, the slack roll's free state
+    (`models._common.free_state`'s steps, compiled), the status and every field of the result.
+
+    ``codes``: ``(OK, SLACK, BAD_INPUT, OVERFLOW)``. Returns ``(fields, status, converged)`` with
+    ``fields`` a (7, n) array of rows ``sigma1, tension, force, lambda2, capacitance, r_i,
+    free_stretch`` (NaN where not converged).
+    """
+    n = l1.size
+    fields = np.empty((7, n))
+    status = np.empty(n, np.int8)
+    converged = np.empty(n, np.bool_)
+    # one thread: the pass is memory-bound, and a shared machine's busy cores made the threaded
+    # form up to 10x slower than this one
+    _su_solve_loop(l1, v, bad, C[0], C[1], C[2], kap, C0, Ri, area, bool(slack), free_max,
+                   np.asarray(codes, np.int8), *fields, status, converged)
+    return fields, status, converged
 
 
 @numba.njit(cache=True, error_model="numpy")

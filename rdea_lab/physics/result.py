@@ -39,7 +39,7 @@ class StretchBelowOneError(UserError):
 
 
 def prepare_inputs(stretch, voltage):
-    """Broadcast and check stretch and voltage.
+    """Broadcast and check stretch and voltage (once per solve).
 
     Parameters
     ----------
@@ -58,7 +58,9 @@ def prepare_inputs(stretch, voltage):
     shape : tuple
         Broadcast shape of the inputs (results are reshaped to it).
     raw : tuple of numpy.ndarray
-        The flattened inputs as given, for the result.
+        The flattened inputs as given, for the result: the caller's own arrays (not copies) where they
+        are float64 of the broadcast shape and contiguous; ``l1`` and ``v`` are those too where no
+        sample is bad (nothing is copied that the solve does not change).
 
     Raises
     ------
@@ -66,21 +68,28 @@ def prepare_inputs(stretch, voltage):
         If any finite stretch is below 1 (Assumption 1 of [1]: the roll is
         always in tension, ``l1 >= L1``).
     """
-    l1, v = np.broadcast_arrays(np.asarray(stretch, dtype=float), np.asarray(voltage, dtype=float))
+    l1, v = np.asarray(stretch, dtype=float), np.asarray(voltage, dtype=float)
+    if l1.shape != v.shape:
+        l1, v = (np.ascontiguousarray(a) for a in np.broadcast_arrays(l1, v))
     shape = l1.shape
-    l1 = l1.ravel().copy()
-    v = v.ravel().copy()
-    bad = ~(np.isfinite(l1) & np.isfinite(v))
-    low = np.flatnonzero(~bad & (l1 < 1.0))
-    if low.size:
-        i = int(low[0])
-        raise StretchBelowOneError(
-            f"stretch {l1[i]:.12g} at sample {i} is below 1 ({low.size} samples in all): "
-            "the roll must stay in tension (Assumption 1 of Prechtl et al. 2021)"
-        )
-    raw = (l1.copy(), v.copy())
-    l1[bad] = 1.0
-    v[bad] = 0.0
+    l1, v = l1.reshape(-1), v.reshape(-1)
+    with np.errstate(invalid="ignore"):
+        finite = np.isfinite(l1)
+        finite &= np.isfinite(v)
+    bad = ~finite
+    if (l1 < 1.0).any():
+        low = np.flatnonzero(finite & (l1 < 1.0))
+        if low.size:
+            i = int(low[0])
+            raise StretchBelowOneError(
+                f"stretch {l1[i]:.12g} at sample {i} is below 1 ({low.size} samples in all): "
+                "the roll must stay in tension (Assumption 1 of Prechtl et al. 2021)"
+            )
+    raw = (l1, v)
+    if not finite.all():
+        l1, v = l1.copy(), v.copy()
+        l1[bad] = 1.0
+        v[bad] = 0.0
     return l1, v, bad, shape, raw
 
 
@@ -103,7 +112,7 @@ class ModelResult:
         where taut, negative where slack (what a clamp would have to push with);
         the quasi-static stress a viscoelastic overstress adds to.
     lambda2a, lambda2b, lambda2c : numpy.ndarray
-        Circumferential stretch of rings a, b, c [-] (all equal for SU, 1R).
+        Circumferential stretch of rings a, b, c [-] (all equal for SU, 1R, where they may be one array).
     capacitance : numpy.ndarray
         Capacitance, eqs. (29), (34), (41) [F].
     converged : numpy.ndarray of bool
@@ -190,26 +199,45 @@ def finish(model, geom, l1, bad, shape, raw, fields, status, critical_voltage, r
     """Assemble a :class:`ModelResult`: force from stress, NaN where not converged.
 
     ``fields`` holds ``sigma1`` (0 where slack), ``tension``, ``lambda2a``,
-    ``lambda2b``, ``lambda2c``, ``capacitance`` and ``r_i`` per sample.
+    ``lambda2b``, ``lambda2c``, ``capacitance`` and ``r_i`` per sample. The
+    arrays given are the solve's own: where every sample converged they are
+    the result's as they are (no copies); ``status`` may be changed in place.
     """
-    status = np.where(bad, BAD_INPUT, status).astype(np.int8)
+    n = l1.size
+    status = np.asarray(status).astype(np.int8, copy=False)
+    if bad.any():
+        status = np.where(bad, BAD_INPUT, status).astype(np.int8)
     sigma1 = np.asarray(fields["sigma1"], float)
     with np.errstate(invalid="ignore", over="ignore"):
         force = sigma1 * geom.area / l1
-    unrepresentable = is_valid(status) & ~(np.isfinite(sigma1) & np.isfinite(force)
-                                                 & np.isfinite(fields["tension"]))
-    status = np.where(unrepresentable, OVERFLOW, status).astype(np.int8)
-    ok = is_valid(status)
+        finite = np.isfinite(sigma1)
+        finite &= np.isfinite(force)
+        finite &= np.isfinite(np.asarray(fields["tension"], float))
+    valid = is_valid(status)
+    ok = valid & finite
+    all_ok = bool(ok.all())
+    if not all_ok:
+        status = np.where(valid & ~finite, OVERFLOW, status).astype(np.int8)
     out = {}
     for name in ("sigma1", "tension", "lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i"):
-        arr = np.broadcast_to(np.asarray(fields[name], float), l1.shape)
-        out[name] = np.where(ok, arr, np.nan).reshape(shape)
-    out["force"] = out["sigma1"] * geom.area / l1.reshape(shape)
-    crit = np.where((status == LIMIT_POINT) | (status == SNAPPED), np.asarray(critical_voltage, float), np.nan)
-    rng = np.where(status == OUTSIDE_RANGE, np.asarray(range_voltage, float), np.nan)
+        arr = np.asarray(fields[name], float)
+        if arr.shape != (n,):
+            arr = np.broadcast_to(arr, (n,))
+        out[name] = (arr if all_ok else np.where(ok, arr, np.nan)).reshape(shape)
+    if np.may_share_memory(out["tension"], out["sigma1"]):
+        out["tension"] = out["tension"].copy()  # two fields, two arrays
+    out["force"] = (force if all_ok else out["sigma1"].reshape(-1) * geom.area / l1).reshape(shape)
+    # None: no sample has a fold or a range end (SU): one read-only NaN view, nothing allocated
+    nan = np.broadcast_to(np.nan, (n,))
+    crit = nan if critical_voltage is None else np.where((status == LIMIT_POINT) | (status == SNAPPED),
+                                                         np.asarray(critical_voltage, float), np.nan)
+    rng = nan if range_voltage is None else np.where(status == OUTSIDE_RANGE, np.asarray(range_voltage, float),
+                                                     np.nan)
+    free_stretch = np.asarray(free_stretch, float)
     return ModelResult(
         model=model, stretch=raw[0].reshape(shape), voltage=raw[1].reshape(shape),
         converged=ok.reshape(shape), status=status.reshape(shape),
         critical_voltage=crit.reshape(shape), range_voltage=rng.reshape(shape),
-        free_stretch=np.where(ok, free_stretch, np.nan).reshape(shape), end=end, **out,
+        free_stretch=(free_stretch if all_ok else np.where(ok, free_stretch, np.nan)).reshape(shape), end=end,
+        **out,
     )

@@ -9,7 +9,7 @@ import numpy as np
 from ..branch import BranchResult, PathResult, follow_branch, follow_path
 from ..constants import EPS0
 from .._backend import compiled
-from ..result import NOT_CONVERGED, OK, SLACK, SNAPPED, VALID, PathEnd, finish, is_valid, prepare_inputs
+from ..result import NOT_CONVERGED, OK, SLACK, SNAPPED, PathEnd, finish, is_valid, prepare_inputs
 
 #: Upper end of the admissible range of the active ring's circumferential
 #: stretch, as a multiple of the uniaxial value ``lambda1**-0.5``. States
@@ -52,7 +52,7 @@ class Evaluation:
     ``fields``: ``sigma1`` (the equilibrium's axial stress at the given
     stretch, signed), ``lambda2a``, ``lambda2b``, ``lambda2c``,
     ``capacitance``, ``r_i``. ``critical_voltage`` / ``range_voltage`` as in
-    ModelResult; ``end`` the path's last coordinate.
+    ModelResult (None: NaN for every sample); ``end`` the path's last coordinate.
     """
 
     status: np.ndarray
@@ -130,8 +130,20 @@ def _path_certified(fast, problem, y_start, label):
     return PathResult(y, status, K_crit, K_range, end)
 
 
-def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False, start=None, slack=True,
-                kernel="auto"):
+def check_start(name, path, start):
+    """``(y, label)`` of a path's ``start`` (a `PathEnd` of model ``name``), None without one."""
+    if start is None:
+        return None
+    if not path:
+        raise ValueError("start: a path's end continues a path; give path=True (without it every sample "
+                         "is solved from the unloaded roll)")
+    if not isinstance(start, PathEnd) or start.model != name:
+        raise ValueError(f"start: expected the end of a {name} path (ModelResult.end), got {start!r}")
+    return (start.y, start.label)
+
+
+def solve_model(name, evaluate, geom, material, stretch=None, voltage=None, *, path=False, start=None, slack=True,
+                kernel="auto", prepared=None):
     """The solve of every model: inputs checked, equilibria, slack, one ModelResult.
 
     ``evaluate(geom, material, l1, v, path=, start=)`` returns an
@@ -141,15 +153,11 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
     ``slack=False`` the equilibrium at the given stretch is returned as it is,
     a negative stress and force included (the paper's equations with
     Assumption 1 taken as given: for comparing models and checking equations).
+    ``prepared``: `prepare_inputs`' result, where the caller has it already (instead of ``stretch``,
+    ``voltage``).
     """
-    l1, v, bad, shape, raw = prepare_inputs(stretch, voltage)
-    if start is not None:
-        if not path:
-            raise ValueError("start: a path's end continues a path; give path=True (without it every sample "
-                             "is solved from the unloaded roll)")
-        if not isinstance(start, PathEnd) or start.model != name:
-            raise ValueError(f"start: expected the end of a {name} path (ModelResult.end), got {start!r}")
-        start = (start.y, start.label)
+    l1, v, bad, shape, raw = prepare_inputs(stretch, voltage) if prepared is None else prepared
+    start = check_start(name, path, start)
     if path and bad.any():  # a NaN sample has no state: the path runs on across it
         good = np.flatnonzero(~bad)
         ev = _expand(evaluate(geom, _take(material, good), l1[good], v[good], path=True, start=start, kernel=kernel),
@@ -165,8 +173,10 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
     if len(slack):
         # a path's free state continues the branch the clamped state is on
         origin = ev.y[slack] if (path and ev.y is not None) else None
+        # the free state's trials are solved as the call's samples were (compiled or not), however few
+        sub_kernel = kernel if kernel != "auto" else ("numba" if compiled(kernel, l1.size) is not None else "numpy")
         lam_f, st_f, f_free = free_state(evaluate, geom, _take(material, slack), l1[slack], v[slack],
-                                         fields["sigma1"][slack], origin=origin, kernel=kernel)
+                                         fields["sigma1"][slack], origin=origin, kernel=sub_kernel)
         # slack either way (force 0: the clamped state pushes); a snap-through stays the event it is.
         # Where the free state lies beyond what the model solves (outside its range, past a fold, or
         # past FREE_STRETCH_MAX) the stretches and capacitance stay the clamped state's, free_stretch NaN.
@@ -175,9 +185,18 @@ def solve_model(name, evaluate, geom, material, stretch, voltage, *, path=False,
         sig[slack] = 0.0
         fields["sigma1"] = sig
         found = st_f == SLACK
+        at, written = slack[found], {}
         for key in ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i"):
-            arr = np.array(np.broadcast_to(np.asarray(fields[key], float), l1.shape))
-            arr[slack[found]] = f_free[key][found]
+            arr = fields[key]
+            prev = written.get(id(arr))
+            if prev is not None and f_free[key] is f_free[prev[0]]:  # one array for equal fields (SU, 1R)
+                fields[key] = prev[1]
+                continue
+            if (prev is not None or not isinstance(arr, np.ndarray) or arr.shape != l1.shape
+                    or arr.dtype != float or not arr.flags.writeable):
+                arr = np.array(np.broadcast_to(np.asarray(arr, float), l1.shape))
+            written[id(fields[key])] = (key, arr)
+            arr[at] = f_free[key][found]  # the evaluation's own arrays: written in place
             fields[key] = arr
         free[slack] = lam_f
     end = None
@@ -222,8 +241,8 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
         trial = np.minimum(hi[open_] * 1.25, FREE_STRETCH_MAX)
         ev = _trial(kernel, evaluate, geom, material, trial, v[open_], origin, open_)
         sig = ev.fields["sigma1"]
-        ok = np.isin(ev.status, VALID) & np.isfinite(sig)
-        status[open_[~ok]] = np.where(np.isin(ev.status[~ok], VALID), NOT_CONVERGED, ev.status[~ok])
+        ok = is_valid(ev.status) & np.isfinite(sig)
+        status[open_[~ok]] = np.where(is_valid(ev.status[~ok]), NOT_CONVERGED, ev.status[~ok])
         got = ok & (sig >= 0.0)
         hi[open_[got]] = trial[got]
         s_hi[open_[got]] = sig[got]
@@ -249,7 +268,7 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
         xn = np.where((xn > xa) & (xn < xb), xn, 0.5 * (xa + xb))
         ev = _trial(kernel, evaluate, geom, material, xn, v[work[active]], origin, work[active])
         yn = ev.fields["sigma1"]
-        bad = ~(np.isin(ev.status, VALID) & np.isfinite(yn))
+        bad = ~(is_valid(ev.status) & np.isfinite(yn))
         yn = np.where(bad, 0.0, yn)  # treat as the root: flagged below
         status[work[active[bad]]] = NOT_CONVERGED
         x[active] = xn
@@ -283,8 +302,8 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
 def _trial(kernel, evaluate, geom, material, l1, v, origin, idx):
     material = _take(material, idx)
     if origin is None:
-        return evaluate(geom, material, l1, v)
-    return evaluate(geom, material, l1, v, origin=origin[idx])
+        return evaluate(geom, material, l1, v, kernel=kernel)
+    return evaluate(geom, material, l1, v, origin=origin[idx], kernel=kernel)
 
 
 def _take(material, idx):
@@ -297,6 +316,8 @@ def _take(material, idx):
 def _expand(ev: Evaluation, good, n, start) -> Evaluation:
     """An evaluation of the samples ``good`` spread back over ``n`` samples (NaN elsewhere)."""
     def spread(a, fill):
+        if a is None:
+            return None
         out = np.full(n, fill, dtype=np.asarray(a).dtype if fill is not np.nan else float)
         out[good] = a
         return out

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from .. import yeoh
-from ..result import OK, ModelResult
+from ..result import BAD_INPUT, OK, OVERFLOW, SLACK, ModelResult, PathEnd, prepare_inputs
 from .._backend import compiled
-from ._common import Evaluation, kappa, solve_model, yeoh_coefficients
+from ._common import FREE_STRETCH_MAX, Evaluation, check_start, kappa, solve_model, yeoh_coefficients
 
 
 def enthalpy(geom, material, stretch, voltage):
@@ -76,7 +76,7 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     n = l1.size
     fields = {"sigma1": sigma1, "lambda2a": l2, "lambda2b": l2, "lambda2c": l2,
               "capacitance": capacitance, "r_i": geom.Ri * l2}
-    return Evaluation(np.full(n, OK, np.int8), np.full(n, np.nan), np.full(n, np.nan), fields, None)
+    return Evaluation(np.full(n, OK, np.int8), None, None, fields, None)  # no fold, no range end
 
 
 def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,
@@ -112,6 +112,30 @@ def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=Tru
     would be negative the roll is slack (force 0) in its free state, the
     stretch where eq. (39) vanishes.
     """
-    return solve_model("su", evaluate, geom, material, stretch, voltage,
-                       path=path, start=start, slack=slack,
-                       kernel=kernel)
+    C = yeoh_coefficients(material)
+    prepared = None
+    if all(isinstance(c, float) for c in C) and np.ndim(geom.Ri) == 0 and np.ndim(material.eps_r) == 0:
+        prepared = prepare_inputs(stretch, voltage)
+        fast = compiled(kernel, prepared[0].size)
+        if fast is not None:
+            return _solve_compiled(fast, geom, material, C, *prepared, path, start, slack)
+    return solve_model("su", evaluate, geom, material, stretch, voltage, path=path, start=start, slack=slack,
+                       kernel=kernel, prepared=prepared)
+
+
+def _solve_compiled(fast, geom, material, C, l1, v, bad, shape, raw, path, start, slack) -> ModelResult:
+    """`solve` in one compiled pass (`rdea_lab.physics.kernels.su_solve`): the same result as
+    `solve_model`'s (the tests hold them to 1e-12 and identical statuses)."""
+    end = check_start("su", path, start)
+    if path:  # SU has no coordinate: a path ends where it started only when it had no sample to solve
+        end = PathEnd("su", *(end if (end is not None and bad.size and bad.all()) else (None, None)))
+    fields, status, ok = fast.su_solve(np.ascontiguousarray(l1), np.ascontiguousarray(v), bad, C,
+                                       float(kappa(geom, material)), float(geom.C0(material.eps_r)),
+                                       float(geom.Ri), float(geom.area), slack, FREE_STRETCH_MAX,
+                                       (OK, SLACK, BAD_INPUT, OVERFLOW))
+    sigma, tension, force, l2, cap, r_i, free = (f.reshape(shape) for f in fields)
+    nan = np.broadcast_to(np.nan, shape)  # SU has no fold and no range end
+    return ModelResult(model="su", stretch=raw[0].reshape(shape), voltage=raw[1].reshape(shape), sigma1=sigma,
+                       force=force, lambda2a=l2, lambda2b=l2, lambda2c=l2, capacitance=cap,
+                       converged=ok.reshape(shape), status=status.reshape(shape), critical_voltage=nan,
+                       r_i=r_i, tension=tension, range_voltage=nan, free_stretch=free, end=end)

@@ -1,0 +1,118 @@
+"""The fast whole-call paths of `solve` against the generic numpy reference.
+
+The reference is `models._common.solve_model` with the model's numpy `evaluate`
+(equilibria, then the slack roll's free state by `free_state`, then `finish`),
+the path every model took before the fused ones; it is itself checked against
+closed forms and brute force (test_models, test_random_cases). The fused SU
+pass (`kernels.su_solve`: stress, free state, status and fields in one
+compiled loop) must give its statuses exactly and its numbers to 1e-12 of
+each field's largest magnitude (test_kernels' `assert_same`), on random rolls,
+materials and inputs that reach slack (near 1 and far beyond the free-stretch
+search's end), overflow, NaN and infinite samples, broadcast shapes and paths.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rdea_lab.physics.models import solve, su
+from rdea_lab.physics.models._common import FREE_STRETCH_MAX, solve_model
+from rdea_lab.physics.result import BAD_INPUT, OVERFLOW, SLACK
+
+from conftest import RIZZELLO, TABLE3, core
+from test_kernels import assert_same
+
+pytest.importorskip("numba")
+
+
+def reference(geom, mat, l1, v, **kw):
+    with np.errstate(over="ignore", invalid="ignore"):  # the overflowing samples (OVERFLOW)
+        return solve_model("su", su.evaluate, geom, mat, l1, v, kernel="numpy", **kw)
+
+
+def random_family(seed, n=3000):
+    """A random roll and material and ``n`` (stretch, voltage) samples: most in the working range, some
+    just above 1, some slack at voltages that push the free state past `FREE_STRETCH_MAX`, and NaN,
+    infinite and overflowing samples."""
+    rng = np.random.default_rng(seed)
+    Ro = rng.uniform(0.5e-3, 3e-3)
+    rho_i = 0.0 if rng.random() < 0.5 else rng.uniform(0.01, 0.9)
+    rho_ie = rho_i + (1.0 - rho_i) * rng.uniform(0.001, 0.5)
+    rho_oe = rho_ie + (1.0 - rho_ie) * rng.uniform(0.2, 1.0)
+    L1 = rng.uniform(10e-3, 80e-3)
+    geom = core((rho_i * Ro, rho_ie * Ro, min(rho_oe, 1.0) * Ro, Ro), L1=L1, L1e=L1 * rng.uniform(0.5, 1.0),
+                L3=rng.uniform(20e-6, 80e-6))
+    C10 = rng.uniform(20e3, 400e3)
+    # every other family softens for good (C30 = 0, C20 < 0): its stretched rolls have no free state
+    C30 = 0.0 if seed % 2 else C10 * rng.uniform(0.0, 0.3)
+    mat = type(TABLE3)(C10=C10, C20=C10 * rng.uniform(-0.4, 0.1 if C30 else -0.1), C30=C30,
+                       eps_r=rng.uniform(2.0, 5.0))
+    l1 = np.where(rng.random(n) < 0.2, 1.0 + 10.0 ** rng.uniform(-14, -2, n), rng.uniform(1.0, 2.5, n))
+    v = rng.uniform(0.0, 6000.0, n) * np.where(rng.random(n) < 0.05, 50.0, 1.0)
+    k = rng.choice(n, 12, replace=False)
+    l1[k[:3]], v[k[3:5]], l1[k[5]] = np.nan, np.inf, np.inf
+    l1[k[6:8]], v[k[8]] = 1e120, 1e200  # the stress overflows; a slack roll that cannot be represented
+    return geom, mat, l1, v
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("slack", [True, False])
+def test_su_fused_pass_equals_reference_on_random_families(seed, slack):
+    geom, mat, l1, v = random_family(seed)
+    ref = reference(geom, mat, l1, v, slack=slack)
+    assert_same(ref, solve("su", geom, mat, l1, v, slack=slack, kernel="numba"), f"seed {seed}")
+    with np.errstate(over="ignore", invalid="ignore"):
+        assert_same(ref, solve("su", geom, mat, l1, v, slack=slack, kernel="numpy"), f"seed {seed} numpy")
+    # the families reach what the fused pass handles apart from the plain state
+    assert np.any(ref.status == BAD_INPUT) and np.any(ref.status == OVERFLOW)
+    if slack:
+        assert np.any((ref.status == SLACK) & (ref.free_stretch < FREE_STRETCH_MAX))
+        assert np.any((ref.status == SLACK) & np.isnan(ref.free_stretch)) or mat.C30 > 0.0
+
+
+def test_su_fused_pass_on_the_bench_scene_and_shapes():
+    """Specimen-like material, stretch 1-1.5 at 2.6 kV (about 3 % slack), as 1-D, 2-D and broadcast inputs."""
+    geom = core("hollow")
+    rng = np.random.default_rng(1)
+    l1 = rng.uniform(1.0, 1.5, (40, 50))
+    ref = reference(geom, TABLE3, l1, 2600.0)
+    fast = solve("su", geom, TABLE3, l1, 2600.0, kernel="numba")
+    assert fast.sigma1.shape == (40, 50) and np.any(ref.status == SLACK)
+    assert_same(ref, fast, "2-D, scalar voltage")
+    assert_same(reference(geom, RIZZELLO, l1[:, :1], np.linspace(0, 4e3, 7)),
+                solve("su", geom, RIZZELLO, l1[:, :1], np.linspace(0, 4e3, 7), kernel="numba"), "broadcast")
+    assert_same(reference(geom, RIZZELLO, 1.2, 1000.0), solve("su", geom, RIZZELLO, 1.2, 1000.0, kernel="numba"),
+                "scalars")
+
+
+def test_su_fused_pass_paths_and_their_ends():
+    geom = core("active")
+    lam = np.linspace(1.0, 1.4, 60)
+    ref = reference(geom, TABLE3, lam, 2600.0, path=True)
+    fast = solve("su", geom, TABLE3, lam, 2600.0, path=True, kernel="numba")
+    assert_same(ref, fast, "path")
+    assert fast.end == ref.end
+    nan = np.full(3, np.nan)  # a block without a solvable sample carries the previous end on
+    assert (solve("su", geom, TABLE3, nan, 1.0, path=True, start=fast.end, kernel="numba").end
+            == reference(geom, TABLE3, nan, 1.0, path=True, start=ref.end).end)
+    with pytest.raises(ValueError, match="start"):
+        solve("su", geom, TABLE3, lam, 1.0, start=fast.end, kernel="numba")
+    with pytest.raises(ValueError, match="start"):
+        solve("su", geom, TABLE3, lam, 1.0, path=True, start=solve("1r", geom, TABLE3, lam, 1.0, path=True).end,
+              kernel="numba")
+
+
+@pytest.mark.parametrize("kernel", ["numpy", "numba"])
+def test_inputs_are_not_copied_nor_changed(kernel):
+    """The result's stretch and voltage are the caller's float arrays (no copy), and a bad sample,
+    which the solvers see as the unloaded state, leaves the caller's array as it was."""
+    geom = core("hollow")
+    l1 = np.linspace(1.0, 1.5, 20000)
+    v = np.full(l1.size, 2000.0)
+    res = solve("su", geom, TABLE3, l1, v, kernel=kernel)
+    assert np.shares_memory(res.stretch, l1) and np.shares_memory(res.voltage, v)
+    l1[5] = np.nan
+    res = solve("1r", geom, TABLE3, l1, v, kernel=kernel)
+    assert np.isnan(l1[5]) and np.isnan(res.stretch[5]) and res.status[5] == BAD_INPUT
+    assert not np.shares_memory(res.tension, res.sigma1)
