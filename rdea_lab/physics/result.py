@@ -226,6 +226,11 @@ def finish(model, geom, l1, bad, shape, raw, fields, status, critical_voltage, r
         out[name] = (arr if all_ok else np.where(ok, arr, np.nan)).reshape(shape)
     if np.may_share_memory(out["tension"], out["sigma1"]):
         out["tension"] = out["tension"].copy()  # two fields, two arrays
+    if np.may_share_memory(out["lambda2a"], out["lambda2b"]):  # one array for the three rings (SU, 1R):
+        for name in ("lambda2a", "lambda2b", "lambda2c"):  # read-only, so no write to one changes another
+            view = out[name].view()
+            view.flags.writeable = False
+            out[name] = view
     out["force"] = (force if all_ok else out["sigma1"].reshape(-1) * geom.area / l1).reshape(shape)
     # None: no sample has a fold or a range end (SU): one read-only NaN view, nothing allocated
     nan = np.broadcast_to(np.nan, (n,))
