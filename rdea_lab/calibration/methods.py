@@ -149,7 +149,7 @@ class Objective:
         self._last_report = self.t0
         self._build = _fast_builder(start, start.M)
         self.ndata = int(sum(r.n for r in runs))
-        self.scale = residual_scale(runs)  # of the data alone: once, not per evaluation
+        self.scale = residual_scale(runs) if runs else []  # of the data alone: once, not per evaluation
         self._last = None
 
     # ---- variables
