@@ -78,11 +78,11 @@ def kernel_rates(samples=100_000, repeat=7) -> dict:
                                       lambda: solve(name, hollow, RIZZELLO, l1, v, kernel="numpy"), samples, repeat)
     t = np.cumsum(rng.uniform(1e-4, 2e-3, samples))
     lam = 1.0 + 0.4 * np.sin(3.0 * t) ** 2
-    a, b = viscoelastic._linear_coefficients(np.diff(t), np.diff(lam) / np.diff(t), np.array([1e-3, 1.5]))
+    dt, slope, tau = np.diff(t), np.diff(lam) / np.diff(t), np.array([1e-3, 1.5])
     q = np.empty((2, samples))
     result["linear_branches"] = _pair(
-        lambda: viscoelastic._linear_recurrence(a, b, np.zeros(2), q, kernel="numba"),
-        lambda: viscoelastic._linear_recurrence(a, b, np.zeros(2), q, kernel="numpy"), samples, repeat)
+        lambda: viscoelastic._linear_branches(dt, slope, tau, np.zeros(2), q, kernel="numba"),
+        lambda: viscoelastic._linear_branches(dt, slope, tau, np.zeros(2), q, kernel="numpy"), samples, repeat)
     return result
 
 

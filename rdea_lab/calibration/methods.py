@@ -18,7 +18,7 @@ from scipy.optimize import least_squares, minimize
 
 from ..specs import ParameterSet, SpecError
 from ..specs.params import yeoh_slope_nonpositive_at
-from .objective import residuals
+from .objective import residual_scale, residuals
 from .parameters import values_of, with_values
 
 #: The methods `calibrate` offers.
@@ -149,6 +149,7 @@ class Objective:
         self._last_report = self.t0
         self._build = _fast_builder(start, start.M)
         self.ndata = int(sum(r.n for r in runs))
+        self.scale = residual_scale(runs) if runs else []  # of the data alone: once, not per evaluation
         self._last = None
 
     # ---- variables
@@ -218,7 +219,8 @@ class Objective:
 
     def score(self, params) -> float:
         """The objective of a parameter set (not counted)."""
-        return self.score_residuals(None if params is None else residuals(self.runs, params, self.model))
+        return self.score_residuals(None if params is None
+                                    else residuals(self.runs, params, self.model, self.scale))
 
     def evaluate(self, values, x=None):
         """One counted evaluation: ``(objective, residuals or None)``; raises OutOfBudget first if spent.
@@ -229,7 +231,7 @@ class Objective:
             raise OutOfBudget
         self.nfev += 1
         params = self.paramset(values)
-        r = None if params is None else residuals(self.runs, params, self.model)
+        r = None if params is None else residuals(self.runs, params, self.model, self.scale)
         f = self.score_residuals(r)
         if f < self.best_f:
             self.best_f, self.best_values, self.best_x = f, values, np.array(x, float) if x is not None else None

@@ -234,11 +234,12 @@ def residual_scale(runs) -> list[np.ndarray]:
     return [np.sqrt(n_mean * r.weights()) / r.peak for r in runs]
 
 
-def residuals(runs, params, model) -> np.ndarray:
+def residuals(runs, params, model, scale=None) -> np.ndarray:
     """Normalized, weighted residuals: ``e_rt sqrt(n_mean w_rt)`` with ``e = (F_model - F) / peak`` (`residual_scale`).
 
     Every run counts equally; within a run a hold longer than its ramps weighs as much as they do, its samples
     per decade of hold time (:mod:`rdea_lab.calibration.phases`); otherwise its samples weigh alike.
+    ``scale``: `residual_scale` of ``runs``, for a caller that evaluates them many times (the objective).
     """
     return np.concatenate([(predict_force(r, params, model) - r.force) * s
-                           for r, s in zip(runs, residual_scale(runs))])
+                           for r, s in zip(runs, residual_scale(runs) if scale is None else scale)])

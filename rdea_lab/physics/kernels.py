@@ -19,7 +19,8 @@ the work around them, fused per sample with no temporaries:
   construction. With ``whole=False`` (the rising-ramp rule) the scan stops at
   the bracketing node, as the reference's does; with ``whole=True`` (a path)
   it covers the whole range, which certifies the sample's single basin.
-- `linear_strains`: eq. (44)'s exact update as the sequential recurrence.
+- `linear_strains`: eq. (44)'s exact update as the sequential recurrence, its coefficients
+  (`viscoelastic._linear_update`) computed once per distinct interval length.
 
 Importing this module imports numba and loads the cached machine code
 (about 1.5 s); the first call in a fresh install compiles (about 25 s for
@@ -40,7 +41,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from . import yeoh
+from . import viscoelastic, yeoh
 from .models import continuum, su, three_ring
 
 
@@ -530,19 +531,43 @@ def su_solve(l1, v, bad, C, kap, C0, Ri, area, slack, free_max, codes):
     return fields, status, converged
 
 
+_update = _jit(viscoelastic._linear_update, inline="always")
+
+
 @numba.njit(cache=True, error_model="numpy")
-def _linear(a, b, q0, q):
-    for j in range(a.shape[0]):
+def _linear(lengths, index, slope, tau, q0, q):
+    a = np.empty(lengths.size)
+    c = np.empty(lengths.size)
+    for j in range(tau.size):
+        for k in range(lengths.size):  # the coefficients of each distinct interval, b per unit slope
+            a[k], c[k] = _update(lengths[k], 1.0, tau[j])
         x = q0[j]
         q[j, 0] = x
-        for i in range(a.shape[1]):
-            x = a[j, i] * x + b[j, i]
+        for i in range(index.size):
+            k = index[i]
+            x = a[k] * x + slope[i] * c[k]
             q[j, i + 1] = x
 
 
-def linear_recurrence(a, b, q0, q):
-    """``q[:, 0] = q0``, ``q_{n+1} = a_n q_n + b_n`` into ``q[:, 1:]``: eq. (44)'s exact update, in sequence."""
-    _linear(_arr(a), _arr(b), _arr(q0), q)
+def _readonly(x, dtype):
+    """``x`` as a C-contiguous read-only array of ``dtype``, not copied where it is one (a `History`'s):
+    `linear_strains` then has one compiled variant (numba compiles one per writability)."""
+    x = np.ascontiguousarray(x, dtype)
+    if x.flags.writeable:
+        x = x.view()
+        x.flags.writeable = False
+    return x
+
+
+def linear_strains(lengths, index, slope, tau, q0, q):
+    """``q[:, 0] = q0``, then eq. (44)'s exact update ``q_{n+1} = a_n q_n + b_n`` into ``q[:, 1:]``, in
+    sequence: ``(a_n, b_n)`` of `viscoelastic._linear_update` for the interval ``lengths[index[n]]`` [s],
+    the slope ``slope[n]`` [1/s] and each branch's relaxation time ``tau[j]`` [s] (``index`` None:
+    ``lengths`` are the intervals themselves). The exponentials are computed once per distinct length
+    (``b`` as the slope times that of a unit slope, which `_linear_update` gives to the last bit)."""
+    if index is None:
+        index = np.arange(np.size(lengths))
+    _linear(_readonly(lengths, float), _readonly(index, np.intp), _readonly(slope, float), _arr(tau), _arr(q0), q)
 
 
 def enabled() -> bool:

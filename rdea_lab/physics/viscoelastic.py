@@ -51,15 +51,24 @@ Two laws, chosen by the parameter set (``law``):
     where ``tau/dt >= 100``).
 
 The linear law's update is the affine recurrence ``q_{n+1} = a_n q_n + b_n``
-(``a_n = exp(-dt_n / tau)``, ``b_n = s_n tau (1 - a_n)``, ``_linear_coefficients``),
-evaluated for all samples at once by a parallel prefix scan over the
-composition of affine maps (``log2(n)`` vectorized numpy passes). A
-precomputed `History` (the calibration's: its runs' time axes never change)
-spares the data-only work of each evaluation. The finite-strain branches run
+(``a_n = exp(-dt_n / tau)``, ``b_n = s_n tau (1 - a_n)``, `_linear_update`).
+The reference evaluates it for all samples at once by a parallel prefix scan
+over the composition of affine maps (``log2(n)`` vectorized numpy passes);
+with numba it runs in sequence, compiled (`rdea_lab.physics.kernels.linear_strains`,
+the same `_linear_update` compiled as it is, 1e-12 of the scan): for calls
+of `AUTO_MIN_SAMPLES` samples or more, and for a `History`. A precomputed
+`History` (the calibration's: its runs' time axes never change) spares the
+data-only work of each evaluation, down to the distinct interval lengths
+(a run sampled at a fixed rate has a few: the exponentials are computed for
+those alone); it is evaluated for many parameter sets, so it pays numba's
+loading (about 0.5-1.5 s once per process) back within a few hundred
+evaluations (the prefix scan over a 5401-sample run took about 0.25 ms, the
+compiled update 0.02 ms). Plain arrays of a single short call keep the scan
+and import no numba. The finite-strain branches run
 sequentially in time, compiled with numba (``rdea_lab.physics._branch_kernels``, ``cache=True``):
 the first call in a fresh install compiles for about 5 s, and every later
 process pays about 2.5 s once (importing numba, loading the cached machine
-code), so nothing of the linear law imports numba.
+code).
 """
 
 from __future__ import annotations
@@ -69,7 +78,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._backend import compiled
+from ._backend import AUTO_MIN_SAMPLES, compiled
 
 #: The viscoelastic laws a parameter set can choose.
 LAWS = ("linear", "finite_strain")
@@ -113,13 +122,23 @@ def _rate(slope):
     return np.concatenate([slope[:1], slope])
 
 
-def _linear_coefficients(dt, slope, tau):
-    """``(a, b)`` of eq. (44)'s exact update ``q_{n+1} = a_n q_n + b_n`` over each interval, per branch.
+def _linear_update(dt, slope, tau):
+    """``(a, b)`` of eq. (44)'s exact update ``q_{n+1} = a q_n + b`` over an interval ``dt`` [s] whose
+    stretch slope is ``slope`` [1/s], for the relaxation time ``tau`` [s]: ``a = exp(-dt / tau)``,
+    ``b = slope tau (1 - a)``.
 
-    ``a_n = exp(-dt_n / tau)``, ``b_n = s_n tau (1 - a_n)`` (``s_n`` the interval's slope).
+    Elementwise: numpy arrays (broadcast) here, scalars in the compiled recurrence
+    (`rdea_lab.physics.kernels.linear_strains` compiles this very function). ``b`` is the slope times
+    ``b`` of a unit slope, to the last bit (the compiled update takes it so, per distinct interval).
     """
-    decay = -np.expm1(-dt / tau[:, None])  # 1 - a_n, without cancellation; a_n from it (one exponential)
-    return 1.0 - decay, slope * tau[:, None] * decay
+    decay = -np.expm1(-dt / tau)  # 1 - a, without cancellation; a from it (one exponential)
+    return 1.0 - decay, slope * (tau * decay)
+
+
+def _linear_coefficients(dt, slope, tau):
+    """``(a, b)`` of eq. (44)'s exact update ``q_{n+1} = a_n q_n + b_n`` over each interval, per branch
+    (`_linear_update` with ``tau`` along the first axis: shape (M, n - 1))."""
+    return _linear_update(dt, slope, tau[:, None])
 
 
 def affine_recurrence(a, b, q0):
@@ -133,24 +152,27 @@ def affine_recurrence(a, b, q0):
     return A * np.asarray(q0, float)[..., None] + B
 
 
-def _linear_recurrence(a, b, q0, q, kernel="auto"):
-    """``q[:, 0] = q0`` and ``q_{n+1} = a_n q_n + b_n`` into ``q[:, 1:]`` (the prefix scan, or compiled:
-    the recurrence in sequence, `rdea_lab.physics.kernels.linear_recurrence`)."""
-    fast = compiled(kernel, q.shape[1])
+def _linear_branches(dt, slope, tau, q0, q, kernel="auto", distinct=None):
+    """Eq. (44)'s exact update over the intervals ``dt`` [s] (stretch slopes ``slope`` [1/s]) for the
+    relaxation times ``tau`` [s]: ``q[:, 0] = q0`` and ``q_{n+1} = a_n q_n + b_n`` into ``q[:, 1:]``.
+
+    The reference: the coefficients of `_linear_coefficients` composed by the prefix scan
+    (`affine_recurrence`). Compiled (``kernel`` as `rdea_lab.physics.models.solve`'s): the same update
+    in sequence (`rdea_lab.physics.kernels.linear_strains`), with the coefficients of `_linear_update`
+    computed once per distinct interval length: ``distinct``, ``(lengths, index)`` with
+    ``dt == lengths[index]`` (`History.lengths`, `History.length_index`; without it every interval is
+    its own). ``auto`` compiles a call of `AUTO_MIN_SAMPLES` samples or more, and one with ``distinct``
+    (a `History`'s, evaluated for many parameter sets: the calibration's thousands of evaluations add
+    up past that whatever the run's length, and pay numba's loading once).
+    """
+    repeated = distinct is not None
+    fast = compiled(kernel, max(q.shape[1], AUTO_MIN_SAMPLES) if repeated else q.shape[1])
     if fast is not None:
-        fast.linear_recurrence(a, b, q0, q)
+        fast.linear_strains(*(distinct if repeated else (dt, None)), slope, tau, q0, q)
         return
     q[:, 0] = q0
-    q[:, 1:] = affine_recurrence(a, b, q[:, 0])
-
-
-def _linear_strains(t, lam, tau, q0, q):
-    """Eq. (44)'s exact update for all samples at once (the affine recurrence as a prefix scan), into ``q``."""
-    q[:, 0] = q0
-    if t.size < 2:
-        return
-    a, b = _linear_coefficients(*_intervals(t, lam), tau)
-    _linear_recurrence(a, b, q0, q)
+    if dt.size:
+        q[:, 1:] = affine_recurrence(*_linear_coefficients(dt, slope, tau), q[:, 0])
 
 
 def _kernels():
@@ -165,6 +187,16 @@ def prepare(law: str) -> None:
     disk cache), so that a caller with a deadline (a rig server's first reply) does not pay it later."""
     if law != "linear":
         overstress_step(np.array([0.0, 1e-3]), np.array([1.0, 1.001]), np.array([1.0]), np.array([1.0]), law=law)
+
+
+def _stiffness_sum(k, q):
+    """``sum_j k_j q_j`` [Pa], the linear branches' stress (``k @ q``), one vector operation per branch: a
+    few branches over many samples are a matrix product BLAS does no faster than these (five times
+    slower for one branch)."""
+    out = k[0] * q[0]
+    for j in range(1, k.size):
+        out += k[j] * q[j]
+    return out
 
 
 def stress_of(law, modulus, q):
@@ -224,6 +256,11 @@ class History:
         Intervals between them [s] and the stretch's slope over each [1/s].
     rate : numpy.ndarray, shape (m,)
         ``d lambda1 / dt`` [1/s] at each finite sample (:func:`stretch_rate`).
+    lengths : numpy.ndarray, shape (d,)
+        The distinct interval lengths [s], ascending (a run sampled at a fixed rate has a few:
+        eq. (44)'s exponentials are computed for these alone).
+    length_index : numpy.ndarray of intp, shape (m - 1,)
+        Each interval's position in ``lengths`` (``dt == lengths[length_index]``).
     """
 
     t: np.ndarray
@@ -234,6 +271,8 @@ class History:
     dt: np.ndarray
     slope: np.ndarray
     rate: np.ndarray
+    lengths: np.ndarray
+    length_index: np.ndarray
 
     @property
     def all_finite(self) -> bool:
@@ -248,9 +287,11 @@ class History:
         tt, ll = np.ascontiguousarray(t[finite]), np.ascontiguousarray(lam[finite])
         dt, slope = _intervals(tt, ll)
         rate = _rate(slope) if tt.size > 1 else np.zeros_like(ll)
-        for x in (t, lam, finite, tt, ll, dt, slope, rate):
+        lengths, index = np.unique(dt, return_inverse=True)
+        index = np.ascontiguousarray(index.reshape(dt.shape), np.intp)
+        for x in (t, lam, finite, tt, ll, dt, slope, rate, lengths, index):
             x.setflags(write=False)
-        return cls(t, lam, finite, tt, ll, dt, slope, rate)
+        return cls(t, lam, finite, tt, ll, dt, slope, rate, lengths, index)
 
 
 def branch_strains(t, stretch, tau, q0=None, law="linear"):
@@ -294,9 +335,10 @@ def branch_strains(t, stretch, tau, q0=None, law="linear"):
     start = np.zeros(tau.size) if q0 is None else np.ascontiguousarray(np.broadcast_to(np.asarray(q0, float),
                                                                                         tau.shape))
     if law == "linear" and history is not None:
-        _linear_recurrence(*_linear_coefficients(history.dt, history.slope, tau), start, q)
+        _linear_branches(history.dt, history.slope, tau, start, q,
+                         distinct=(history.lengths, history.length_index))
     elif law == "linear":
-        _linear_strains(t, lam, tau, start, q)
+        _linear_branches(*_intervals(t, lam), tau, start, q)
     else:  # (a History's arrays are read-only: numba would compile the kernel again for those)
         t, lam = (np.array(t), np.array(lam)) if history is not None else (t, lam)
         _kernels()["finite_strain"](t, lam, tau, start, q, _FS_STEP, _FS_GROW, _FS_STRETCH_STEP)
@@ -427,13 +469,14 @@ def overstress_step(t, stretch, k, eta, eta_v0=0.0, *, q0=None, state=None, law=
         lam, ok, tt, ll = history.stretch, history.finite, history.t_finite, history.stretch_finite
     k = np.atleast_1d(np.asarray(k, float))
     eta = np.atleast_1d(np.asarray(eta, float))
-    part = np.zeros(tt.size)
     q = None
     if k.size and tt.size:
         q = branch_strains(*((tt, ll) if history is None else (history, None)), eta / k, q0, law)
-        part = k @ q if law == "linear" else stress_of(law, k, q).sum(axis=0)
+        part = _stiffness_sum(k, q) if law == "linear" else stress_of(law, k, q).sum(axis=0)
+    else:
+        part = np.zeros(tt.size)
     if eta_v0 and tt.size > 1:
-        part = part + eta_v0 * (stretch_rate(tt, ll) if history is None else history.rate)
+        part += eta_v0 * (stretch_rate(tt, ll) if history is None else history.rate)
     if history is not None and history.all_finite:
         sigma = part
     else:

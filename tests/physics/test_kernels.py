@@ -185,19 +185,76 @@ def test_kernel_choice_is_checked():
         solve("su", core("hollow"), RIZZELLO, 1.2, 0.0, kernel="gpu")
 
 
-def test_linear_recurrence_compiled_equals_prefix_scan():
-    """Eq. (44)'s exact update in sequence (compiled) against the prefix scan, on a stiff and a slow branch
-    over 50000 uneven intervals; 1e-12 of the largest strain (the scan re-associates the products)."""
+def _random_history(rng, n):
+    """Uneven sampling (intervals over four decades), a stretch that walks, jumps and holds."""
+    t = np.cumsum(10.0 ** rng.uniform(-5.0, -1.0, n))
+    steps = rng.normal(0.0, 1e-3, n) + (rng.random(n) < 0.01) * rng.normal(0.0, 0.2, n)
+    steps[rng.random(n) < 0.2] = 0.0  # holds
+    return t, 1.0 + np.abs(np.cumsum(steps))
+
+
+def _sequential(t, lam, tau, q0):
+    """A slow straightforward reference: eq. (44)'s exact update, one sample at a time in Python."""
+    q = np.empty((tau.size, t.size))
+    for j, tj in enumerate(tau):
+        q[j, 0] = x = q0[j]
+        for n in range(t.size - 1):
+            dt = t[n + 1] - t[n]
+            x = x * np.exp(-dt / tj) + (lam[n + 1] - lam[n]) / dt * tj * -np.expm1(-dt / tj)
+            q[j, n + 1] = x
+    return q
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_linear_strains_compiled_equals_prefix_scan(seed):
+    """Eq. (44)'s update in sequence (compiled, coefficients fused) against the numpy reference (the
+    prefix scan) on random histories, branches from far stiffer than the sampling to far slower, to
+    1e-12 of each branch's largest strain (the scan re-associates the products); and against the
+    sequential reference in Python."""
     from rdea_lab.physics import viscoelastic
 
-    rng = np.random.default_rng(7)
-    t = np.cumsum(rng.uniform(1e-4, 2e-3, 50_001))
-    lam = 1.0 + 0.4 * np.sin(3.0 * t) ** 2
-    tau = np.array([1e-3, 1.5])
-    a, b = viscoelastic._linear_coefficients(np.diff(t), np.diff(lam) / np.diff(t), tau)
-    q_ref, q_fast = np.empty((2, t.size)), np.empty((2, t.size))
-    viscoelastic._linear_recurrence(a, b, np.array([0.01, -0.02]), q_ref, kernel="numpy")
-    viscoelastic._linear_recurrence(a, b, np.array([0.01, -0.02]), q_fast, kernel="numba")
-    assert np.max(np.abs(q_ref - q_fast)) <= 1e-12 * np.max(np.abs(q_ref))
+    rng = np.random.default_rng(seed)
+    t, lam = _random_history(rng, 20_000)
+    tau = 10.0 ** rng.uniform(-6.0, 4.0, 4)
+    q0 = rng.normal(0.0, 0.05, tau.size)
+    dt, slope = np.diff(t), np.diff(lam) / np.diff(t)
+    q_ref, q_fast = np.empty((tau.size, t.size)), np.empty((tau.size, t.size))
+    viscoelastic._linear_branches(dt, slope, tau, q0, q_ref, kernel="numpy")
+    viscoelastic._linear_branches(dt, slope, tau, q0, q_fast, kernel="numba")
+    scale = np.max(np.abs(q_ref), axis=1, keepdims=True)
+    assert np.all(np.abs(q_fast - q_ref) <= 1e-12 * scale)
+    m = 2000
+    q_seq = _sequential(t[:m], lam[:m], tau, q0)
+    assert np.all(np.abs(q_fast[:, :m] - q_seq) <= 1e-12 * np.max(np.abs(q_seq), axis=1, keepdims=True))
     with pytest.raises(ValueError, match="kernel 'x'"):
-        viscoelastic._linear_recurrence(a, b, np.zeros(2), q_ref, kernel="x")
+        viscoelastic._linear_branches(dt, slope, tau, q0, q_ref, kernel="x")
+
+
+@pytest.mark.parametrize("sampling", ["uneven", "fixed rate"])
+def test_history_takes_the_compiled_update(monkeypatch, sampling):
+    """A `History` (evaluated for many parameter sets: the calibration's) takes the compiled update under
+    ``auto`` however short, with the exponentials once per distinct interval (a fixed rate has a few: the
+    time axis's rounding, and lost samples), and gives the numbers of the plain arrays' (the numpy prefix
+    scan at this length); with ``RDEA_LAB_KERNELS=numpy`` it takes the scan."""
+    from rdea_lab.physics import viscoelastic
+
+    rng = np.random.default_rng(11)
+    t, lam = _random_history(rng, 3000)
+    if sampling == "fixed rate":
+        t = np.delete(np.arange(3100) * 0.01, rng.choice(3100, 100, replace=False))
+        assert np.unique(np.diff(t)).size < 30
+    tau, q0 = np.array([1e-4, 0.05, 30.0]), np.array([0.0, 0.01, -0.02])
+    calls = []
+    real = kernels.linear_strains
+    monkeypatch.setattr(kernels, "linear_strains", lambda *a: calls.append(1) or real(*a))
+    plain = viscoelastic.branch_strains(t, lam, tau, q0)
+    assert not calls  # 3000 samples once: numpy (loading numba would cost more than it saves)
+    history = viscoelastic.History.of(t, lam)
+    assert np.array_equal(history.lengths[history.length_index], np.diff(t))
+    q = viscoelastic.branch_strains(history, None, tau, q0)
+    assert calls
+    assert np.all(np.abs(q - plain) <= 1e-12 * np.max(np.abs(plain), axis=1, keepdims=True))
+    monkeypatch.setenv("RDEA_LAB_KERNELS", "numpy")
+    calls.clear()
+    assert np.array_equal(viscoelastic.branch_strains(history, None, tau, q0), plain)
+    assert not calls

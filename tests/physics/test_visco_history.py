@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from rdea_lab.physics import _backend
 from rdea_lab.physics.viscoelastic import History, branch_strains, overstress_step
 
 
@@ -54,8 +55,17 @@ def test_history_and_stretch_together_is_refused():
 
 @pytest.mark.parametrize("seed", range(4))
 @pytest.mark.parametrize("uniform", [True, False])
-def test_a_history_gives_the_plain_arrays_numbers_bit_for_bit(seed, uniform):
-    """The same coefficients and the same scan from precomputed parts: identical, NaN where the stretch is."""
+@pytest.mark.parametrize("kernel", ["numpy", "numba"])
+def test_a_history_gives_the_plain_arrays_numbers_bit_for_bit(seed, uniform, kernel, monkeypatch):
+    """The same coefficients and the same update from precomputed parts: identical, NaN where the stretch
+    is; with the numpy scan for both, and with the compiled update for both (a History takes it under auto,
+    plain arrays of this length only when told: here the threshold is lowered; the two kernels agree to
+    1e-12, test_kernels.py)."""
+    if kernel == "numpy":
+        monkeypatch.setenv("RDEA_LAB_KERNELS", "numpy")
+    else:
+        pytest.importorskip("numba")
+        monkeypatch.setattr(_backend, "AUTO_MIN_SAMPLES", 1)
     rng = np.random.default_rng(100 + seed)
     t, lam = random_history(rng, 2000, uniform=uniform)
     lam[rng.integers(0, 2000, 5)] = np.nan
