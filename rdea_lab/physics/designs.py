@@ -22,7 +22,10 @@ does not certify (a fold, a snap, the pitchfork of a solid 3R roll near its
 bifurcation, NaN input), and every CR roll with a hollow core, is solved by
 the model's own `solve` for that design alone (on a path, each run of such
 samples continues from the state before it, as `solve` itself does). So the
-result is a loop over `solve` per design, to the kernels' 1e-12.
+result is a loop over `solve` per design, to the kernels' 1e-12. SU calls
+large enough for the compiled kernels (`solve`'s ``auto`` rule on designs x
+samples: a study's protocol) take the same loop, its closed form with each
+design's own ``kappa`` and its free states compiled with it.
 
 Material arrays: ``eps_r`` enters only ``kappa`` and ``C0`` (so any model);
 per-design Yeoh coefficients enter the SU closed form sample by sample
@@ -157,7 +160,7 @@ def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *,
         raise ValueError(f"solve_designs: stretch {stretch.shape} and voltage {voltage.shape} do not broadcast "
                          f"against {n} designs as (samples,) or ({n}, samples)")
     mat = Material.of(material)
-    if model not in MAPPED:
+    if model not in MAPPED or (model == "su" and compiled(kernel, n * shape[1]) is not None):
         return _solve_rolls(model, geom, mat, stretch, voltage, shape, slack=slack, path=path, kernel=kernel)
     ref = _entry(geom, 0)
     eps_ref = float(np.ravel(mat.eps_r)[0])
@@ -202,7 +205,8 @@ _FIELDS = ("force", "sigma1", "tension", "capacitance", "lambda2b", "free_stretc
 
 
 def _solve_rolls(model, geom, mat, stretch, voltage, shape, *, slack, path, kernel) -> DesignResult:
-    """3R or CR: each design with its own radii (module docstring)."""
+    """Each design with its own radii and material (module docstring): 3R, CR, and SU on calls large enough
+    for the compiled kernels (one pass over designs x samples, the free states of slack samples with it)."""
     n, m = shape
     l1 = np.broadcast_to(stretch, shape)
     v = np.broadcast_to(voltage, shape)
@@ -217,8 +221,8 @@ def _solve_rolls(model, geom, mat, stretch, voltage, shape, *, slack, path, kern
     # "auto": the compiled states whatever the call's size (a study solves its designs many times)
     fast = compiled(kernel, max(n * m, AUTO_MIN_SAMPLES))
     todo = np.ones(shape, bool)
-    # the compiled states: every 3R design, and the solid CR rolls (r_i = 0 pinned: the SU state exactly)
-    mine = np.ones(n, bool) if model == "3r" else cols[0] == 0.0
+    # the compiled states: every SU and 3R design, and the solid CR rolls (r_i = 0 pinned: the SU state exactly)
+    mine = cols[0] == 0.0 if model == "cr" else np.ones(n, bool)
     if fast is not None and mine.any():
         from .design_kernels import rolls
 
