@@ -7,8 +7,9 @@ voltage. The roll's operating points are quasi-static equilibria with the bias,
 once (the roll's force rises with stretch at fixed voltage; a bias that pulls
 less as the roll lengthens keeps the root unique). The roll's force is
 `rdea_lab.physics.designs.solve_designs`: the models' own solve over designs
-(SU and 1R mapped onto one roll, 3R and CR each design with its own radii). A protocol, when the study gives one, runs on every design through
-the twin's composition (`rdea_lab.twin.simulate.compose`: the quasi-static
+(SU and 1R mapped onto one roll, 3R and CR each design with its own radii).
+A protocol, when the study gives one, runs on every design through the twin's
+composition (`rdea_lab.twin.simulate.compose`: the quasi-static
 stress plus the viscoelastic overstress of the parameter set).
 """
 
