@@ -216,29 +216,41 @@ def _solve_rolls(model, geom, mat, stretch, voltage, shape, *, slack, path, kern
     cols = [np.broadcast_to(np.asarray(getattr(geom, k), float), (n,)) for k in _GEOMETRY]
     cols += [np.broadcast_to(np.asarray(getattr(mat, k), float), (n,)) for k in _MATERIAL]
     rows = list(zip(*(c.tolist() for c in cols)))
-    out = {k: np.full(shape, np.nan) for k in _FIELDS}
-    status = np.zeros(shape, np.int8)
     # "auto": the compiled states whatever the call's size (a study solves its designs many times)
     fast = compiled(kernel, max(n * m, AUTO_MIN_SAMPLES))
-    todo = np.ones(shape, bool)
     # the compiled states: every SU and 3R design, and the solid CR rolls (r_i = 0 pinned: the SU state exactly)
     mine = cols[0] == 0.0 if model == "cr" else np.ones(n, bool)
-    if fast is not None and mine.any():
+    y = None
+    if fast is not None and mine.all():  # the compiled loop's arrays are the result's (no copies)
         from .design_kernels import rolls
 
-        idx = np.flatnonzero(mine)
-        got = rolls(model, [rows[i] for i in idx], l1[idx], v[idx], path=path, slack=slack)
-        area = np.broadcast_to(geom.area, (n,))[idx]
-        ok = got["ok"]
-        sub = {"sigma1": got["sigma1"], "tension": got["tension"], "capacitance": got["capacitance"],
-               "lambda2b": got["lambda2b"], "free_stretch": got["free_stretch"],
-               "force": got["sigma1"] * area[:, None] / l1[idx]}
-        for k, a in sub.items():
-            out[k][idx] = np.where(ok, a, np.nan)
-        status[idx] = got["status"]
-        todo[idx] = ~ok
-        y = np.full(shape, np.nan)
-        y[idx] = got["y"]
+        out = rolls(model, rows, l1, v, path=path, slack=slack)
+        todo = ~out.pop("ok")
+        y = out.pop("y")
+        out["force"] = out["sigma1"] * np.broadcast_to(geom.area, (n,))[:, None] / l1
+        if todo.any():
+            for k in _FIELDS[:6]:
+                out[k][todo] = np.nan
+        out["critical_voltage"] = np.full(shape, np.nan)
+        out["range_voltage"] = np.full(shape, np.nan)
+        status = out.pop("status")
+    else:
+        out = {k: np.full(shape, np.nan) for k in _FIELDS}
+        status = np.zeros(shape, np.int8)
+        todo = np.ones(shape, bool)
+        if fast is not None and mine.any():
+            from .design_kernels import rolls
+
+            idx = np.flatnonzero(mine)
+            got = rolls(model, [rows[i] for i in idx], l1[idx], v[idx], path=path, slack=slack)
+            ok = got["ok"]
+            got["force"] = got["sigma1"] * np.broadcast_to(geom.area, (n,))[idx, None] / l1[idx]
+            for k in _FIELDS[:6]:
+                out[k][idx] = np.where(ok, got[k], np.nan)
+            status[idx] = got["status"]
+            todo[idx] = ~ok
+            y = np.full(shape, np.nan)
+            y[idx] = got["y"]
     kd = "numba" if fast is not None else kernel
     for d in np.flatnonzero(todo.any(axis=1)).tolist():
         g = RollGeometry(**dict(zip(_GEOMETRY, rows[d][:7])))
