@@ -82,7 +82,7 @@ def rolls(model, rows, l1, v, *, path, slack):
     """
     consts = [_constants(model, *r) for r in rows]
     n = len(consts)
-    code = consts[0][0] if n else step_kernel.CODES[model]
+    code = consts[0][0] if n else 0  # no design: nothing runs
     P = np.ascontiguousarray([c[1][:6] for c in consts], float).reshape(n, 6)
     R = np.ascontiguousarray([c[2] for c in consts], float).reshape(n, 9)
     B = np.ascontiguousarray([c[3] for c in consts], float).reshape(n, 4)
