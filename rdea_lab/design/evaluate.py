@@ -6,9 +6,10 @@ voltage. The roll's operating points are quasi-static equilibria with the bias,
 ``F_roll(lambda, v) = F_bias(lambda)``, found by bisection over all designs at
 once (the roll's force rises with stretch at fixed voltage; a bias that pulls
 less as the roll lengthens keeps the root unique). The roll's force is
-`rdea_lab.physics.designs.solve_designs`: the models' own solve, mapped over
-designs. A protocol, when the study gives one, runs on every design through
-the twin's composition (`rdea_lab.twin.simulate.compose`: the quasi-static
+`rdea_lab.physics.designs.solve_designs`: the models' own solve over designs
+(SU and 1R mapped onto one roll, 3R and CR each design with its own radii).
+A protocol, when the study gives one, runs on every design through the twin's
+composition (`rdea_lab.twin.simulate.compose`: the quasi-static
 stress plus the viscoelastic overstress of the parameter set).
 """
 
@@ -298,7 +299,7 @@ def _take_bias(bias, idx):
 def _protocol(study, history, geom, mat, L1, L3) -> dict:
     """Protocol metrics: the twin's force and capacitance over the protocol's history, every design."""
     t, stretch, voltage, _ = history
-    res = solve_designs(study.model, geom, mat, stretch, voltage, path=True)  # the twin's path (1R: per design)
+    res = solve_designs(study.model, geom, mat, stretch, voltage, path=True)  # the twin's path, each design's own
     col = RollGeometry(**{k: np.asarray(getattr(geom, k))[:, None] for k in ("Ri", "Rie", "Roe", "Ro", "L1",
                                                                                 "L1e", "L3")})
     _, _, force, _ = compose(col, viscous(study.params), t, stretch, res.tension)

@@ -11,13 +11,27 @@ voltage ``v`` is the reference roll at the *effective voltage*
 (41)). :func:`solve_designs` flattens designs x samples into one call of the
 models' own `~rdea_lab.physics.models.solve` (its compiled kernels, its
 branch certification, its slack free states), so no equation is written a
-second time. The 3R and CR models see the ring fractions and radii
-themselves and are not mapped (a study runs them one roll at a time).
+second time.
+
+The 3R and CR models see the ring fractions and radii themselves and are not
+mapped: each design is solved with its own radii. Where numba is installed the
+states of every design and sample come from one compiled loop
+(`rdea_lab.physics.design_kernels.rolls`: the twin's certified per-sample
+state and free state, each design with its own ring constants); a sample it
+does not certify (a fold, a snap, the pitchfork of a solid 3R roll near its
+bifurcation, NaN input), and every CR roll with a hollow core, is solved by
+the model's own `solve` for that design alone (on a path, each run of such
+samples continues from the state before it, as `solve` itself does). So the
+result is a loop over `solve` per design, to the kernels' 1e-12. SU calls
+large enough for the compiled kernels (`solve`'s ``auto`` rule on designs x
+samples: a study's protocol) take the same loop, its closed form with each
+design's own ``kappa`` and its free states compiled with it.
 
 Material arrays: ``eps_r`` enters only ``kappa`` and ``C0`` (so any model);
 per-design Yeoh coefficients enter the SU closed form sample by sample
 (:class:`SampleMaterial`, the numpy form of `su.evaluate`); the 1R branch
-solver takes one material, so a 1R study varies geometry and ``eps_r`` only.
+solver takes one material, so a 1R study varies geometry and ``eps_r`` only; 3R and CR, solved per
+design, take any material per design.
 """
 
 from __future__ import annotations
@@ -26,13 +40,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._backend import AUTO_MIN_SAMPLES, compiled
 from .geometry import RollGeometry
 from .models import solve
-from .models._common import kappa
-from .result import LIMIT_POINT, OUTSIDE_RANGE, SNAPPED
+from .models._common import MAX_FALLBACK_RUNS, kappa
+from .result import LIMIT_POINT, OUTSIDE_RANGE, SNAPPED, PathEnd, prepare_inputs
 
-#: The models :func:`solve_designs` maps (geometry only through kappa).
-DESIGN_MODELS = ("su", "1r")
+#: The models :func:`solve_designs` solves over designs.
+DESIGN_MODELS = ("su", "1r", "3r", "cr")
+#: The models it maps onto one reference roll (geometry only through kappa).
+MAPPED = ("su", "1r")
 _GEOMETRY = ("Ri", "Rie", "Roe", "Ro", "L1", "L1e", "L3")
 _MATERIAL = ("C10", "C20", "C30", "eps_r")
 
@@ -105,16 +122,17 @@ def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *,
 
     Parameters
     ----------
-    model : {"su", "1r"}
+    model : {"su", "1r", "3r", "cr"}
     geom : RollGeometry
         Fields 1-D arrays over ``n`` designs (:func:`design_geometry`), or scalars (one roll).
     material : parameter set or Material
         ``C10, C20, C30`` [Pa] and ``eps_r`` [-]: floats, or arrays of length ``n`` (Yeoh
-        coefficients per design with the SU model only).
+        coefficients per design with SU, 3R and CR, not 1R).
     stretch, voltage : array_like
         Shape ``(samples,)`` (one history for every roll) or ``(n, samples)``.
     slack, kernel
-        As `~rdea_lab.physics.models.solve`.
+        As `~rdea_lab.physics.models.solve`; with 3R and CR, ``auto`` takes the compiled states
+        whenever numba is installed (a study solves the same designs many times).
     path : bool
         Each row a time series continuing from the previous sample's state (`solve`'s ``path=True``):
         one call per design (a path cannot run across designs); SU, which has no path, stays one call.
@@ -122,13 +140,12 @@ def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *,
     Returns
     -------
     DesignResult
-        Equal to solving each roll on its own (to rounding: the effective voltage is
-        ``v sqrt(kappa_d / kappa_ref)``), see the module docstring.
+        Equal to solving each roll on its own (SU and 1R to rounding: the effective voltage is
+        ``v sqrt(kappa_d / kappa_ref)``; 3R and CR to the kernels' 1e-12), see the module docstring.
     """
     model = model.lower()
     if model not in DESIGN_MODELS:
-        raise ValueError(f"solve_designs: model {model!r} sees the rings' radii, not only kappa; allowed: "
-                         f"{', '.join(DESIGN_MODELS)} (solve a 3R or CR roll one at a time)")
+        raise ValueError(f"solve_designs: unknown model {model!r}; allowed: {', '.join(DESIGN_MODELS)}")
     n = int(np.size(geom.Ro))
     if np.ndim(geom.Ro) == 0:
         geom = design_geometry(**{k: getattr(geom, k) for k in _GEOMETRY})
@@ -143,6 +160,8 @@ def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *,
         raise ValueError(f"solve_designs: stretch {stretch.shape} and voltage {voltage.shape} do not broadcast "
                          f"against {n} designs as (samples,) or ({n}, samples)")
     mat = Material.of(material)
+    if model not in MAPPED or (model == "su" and compiled(kernel, n * shape[1]) is not None):
+        return _solve_rolls(model, geom, mat, stretch, voltage, shape, slack=slack, path=path, kernel=kernel)
     ref = _entry(geom, 0)
     eps_ref = float(np.ravel(mat.eps_r)[0])
     ref_mat = Material(*(np.ravel(getattr(mat, k))[0] for k in ("C10", "C20", "C30")), eps_ref)
@@ -179,3 +198,76 @@ def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *,
     rng = np.where(status == OUTSIDE_RANGE, grid(res.range_voltage) / gain, np.nan)
     return DesignResult(model, grid(res.force) * area, grid(res.sigma1), grid(res.tension),
                         grid(res.capacitance) * c0, grid(res.lambda2b), grid(res.free_stretch), status, crit, rng)
+
+
+_FIELDS = ("force", "sigma1", "tension", "capacitance", "lambda2b", "free_stretch", "critical_voltage",
+           "range_voltage")
+
+
+def _solve_rolls(model, geom, mat, stretch, voltage, shape, *, slack, path, kernel) -> DesignResult:
+    """Each design with its own radii and material (module docstring): 3R, CR, and SU on calls large enough
+    for the compiled kernels (one pass over designs x samples, the free states of slack samples with it)."""
+    n, m = shape
+    l1 = np.broadcast_to(stretch, shape)
+    v = np.broadcast_to(voltage, shape)
+    with np.errstate(invalid="ignore"):
+        if np.any(l1 < 1.0):
+            prepare_inputs(l1, v)  # the error `solve` raises for a stretch below 1
+    cols = [np.broadcast_to(np.asarray(getattr(geom, k), float), (n,)) for k in _GEOMETRY]
+    cols += [np.broadcast_to(np.asarray(getattr(mat, k), float), (n,)) for k in _MATERIAL]
+    rows = list(zip(*(c.tolist() for c in cols)))
+    # "auto": the compiled states whatever the call's size (a study solves its designs many times)
+    fast = compiled(kernel, max(n * m, AUTO_MIN_SAMPLES))
+    # the compiled states: every SU and 3R design, and the solid CR rolls (r_i = 0 pinned: the SU state exactly)
+    mine = cols[0] == 0.0 if model == "cr" else np.ones(n, bool)
+    y = None
+    if fast is not None and mine.all():  # the compiled loop's arrays are the result's (no copies)
+        from .design_kernels import rolls
+
+        out = rolls(model, rows, l1, v, path=path, slack=slack)
+        todo = ~out.pop("ok")
+        y = out.pop("y")
+        out["force"] = out["sigma1"] * np.broadcast_to(geom.area, (n,))[:, None] / l1
+        if todo.any():
+            for k in _FIELDS[:6]:
+                out[k][todo] = np.nan
+        out["critical_voltage"] = np.full(shape, np.nan)
+        out["range_voltage"] = np.full(shape, np.nan)
+        status = out.pop("status")
+    else:
+        out = {k: np.full(shape, np.nan) for k in _FIELDS}
+        status = np.zeros(shape, np.int8)
+        todo = np.ones(shape, bool)
+        if fast is not None and mine.any():
+            from .design_kernels import rolls
+
+            idx = np.flatnonzero(mine)
+            got = rolls(model, [rows[i] for i in idx], l1[idx], v[idx], path=path, slack=slack)
+            ok = got["ok"]
+            got["force"] = got["sigma1"] * np.broadcast_to(geom.area, (n,))[idx, None] / l1[idx]
+            for k in _FIELDS[:6]:
+                out[k][idx] = np.where(ok, got[k], np.nan)
+            status[idx] = got["status"]
+            todo[idx] = ~ok
+            y = np.full(shape, np.nan)
+            y[idx] = got["y"]
+    kd = "numba" if fast is not None else kernel
+    for d in np.flatnonzero(todo.any(axis=1)).tolist():
+        g = RollGeometry(**dict(zip(_GEOMETRY, rows[d][:7])))
+        md = Material(*rows[d][7:])
+        if not path:
+            parts = [(np.flatnonzero(todo[d]), None)]
+        else:
+            edges = np.flatnonzero(np.diff(np.r_[0, todo[d].astype(np.int8), 0])).reshape(-1, 2)
+            if len(edges) > MAX_FALLBACK_RUNS or fast is None:
+                parts = [(np.arange(m), None)]
+            else:
+                parts = [(np.arange(a, b), PathEnd(model, float(y[d, a - 1])) if a else None)
+                         for a, b in edges.tolist()]
+        for sel, start in parts:
+            r = solve(model, g, md, l1[d, sel], v[d, sel], path=path, start=start, slack=slack, kernel=kd)
+            for k in _FIELDS:
+                out[k][d, sel] = getattr(r, k)
+            status[d, sel] = r.status
+    return DesignResult(model, out["force"], out["sigma1"], out["tension"], out["capacitance"], out["lambda2b"],
+                        out["free_stretch"], status, out["critical_voltage"], out["range_voltage"])

@@ -145,20 +145,20 @@ def _state(code, P, R, B, offsets, pitchfork, l1, v, y_prev, prev_ok):
 def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
     """The free (F = 0) state of a slack roll: `models._common.free_state` for one sample (the same
     bracketing by 25 % steps and Illinois iteration, each trial the path's state descending from
-    ``origin``). ``(capacitance, lambda2b, ok)``."""
+    ``origin``). ``(capacitance, lambda2b, ok, free stretch)``."""
     lo, s_lo, hi = l1, sigma_l1, l1
     s_hi = -math.inf
     while True:
         trial = min(hi * 1.25, _FREE_MAX)
         sig, _, _, _, ok = _state(code, P, R, B, offsets, pitchfork, trial, v, origin, True)
         if not (ok and sig == sig):
-            return math.nan, math.nan, False
+            return math.nan, math.nan, False, math.nan
         if sig >= 0.0:
             hi, s_hi = trial, sig
             break
         lo, s_lo = trial, sig
         if trial >= _FREE_MAX:
-            return math.nan, math.nan, False
+            return math.nan, math.nan, False, math.nan
         hi = trial
     a, b, fa, fb = lo, hi, s_lo, s_hi
     tol = 1e-10 * abs(sigma_l1)
@@ -171,7 +171,7 @@ def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
             xn = 0.5 * (a + b)
         yn, _, _, _, ok = _state(code, P, R, B, offsets, pitchfork, xn, v, origin, True)
         if not (ok and yn == yn):
-            return math.nan, math.nan, False
+            return math.nan, math.nan, False, math.nan
         x = xn
         if yn < 0.0:
             fb = 0.5 * fb if side == -1 else fb
@@ -185,11 +185,11 @@ def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
             done = True
             break
     if not done:
-        return math.nan, math.nan, False
+        return math.nan, math.nan, False, math.nan
     sig, cap, l2b, _, ok = _state(code, P, R, B, offsets, pitchfork, x, v, origin, True)
     if not (ok and abs(sig) <= 1e-6 * abs(sigma_l1) + 1e-6):
-        return math.nan, math.nan, False
-    return cap, l2b, True
+        return math.nan, math.nan, False, math.nan
+    return cap, l2b, True, x
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -208,7 +208,7 @@ def step(code, S, P, R, B, offsets, pitchfork, t, l1, v, out):
         return NEEDS_REFERENCE
     status = OK
     if sigma < 0.0:  # slack: the roll's own state is its free one
-        cap, l2b, ok = _free(code, P, R, B, offsets, pitchfork, l1, v, sigma, y)
+        cap, l2b, ok, _ = _free(code, P, R, B, offsets, pitchfork, l1, v, sigma, y)
         if not ok:
             return NEEDS_REFERENCE
         status = SLACK

@@ -3,7 +3,7 @@
 A study is YAML; paths are relative to its folder::
 
     name: stroke_spring
-    model: su                                  # su | 1r (the models mapped over designs)
+    model: su                                  # su | 1r | 3r | cr (the quasi-static model)
     params: ../params/paper2021_table3.yaml    # the material (fixed unless a variable)
     specimen: ../specimens/specimen2.yaml      # what the variables leave as it is
     variables:                                 # name: [low, high] with units, or {range: [...], levels: 5}
@@ -24,7 +24,7 @@ A study is YAML; paths are relative to its folder::
 Variables (`VARIABLES`): the membrane ``L1, L1e, L2, L2e, Lp1, Lp2, L3`` (what is not varied keeps the
 card's passive lengths: the ends ``L1 - L1e``, ``Lp1`` and ``Lp2 = L2 - Lp1 - L2e``); the bias
 ``stiffness, preload, mass`` or ``prestretch`` (the preload or mass that holds the roll at that stretch
-at 0 V); the operating ``voltage``; the material ``C10, C20, C30`` (SU) and ``eps_r``.
+at 0 V); the operating ``voltage``; the material ``C10, C20, C30`` (not 1R) and ``eps_r``.
 Biases: ``none`` (free stroke), ``mass``, ``spring`` (as in target files), and ``curve``: a user's
 force [N] against the extension ``(lambda1 - 1) L1`` of the roll, linear between points, its end values
 beyond them.

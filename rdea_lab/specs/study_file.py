@@ -202,8 +202,7 @@ class _StudyFile(BaseModel):
     @classmethod
     def _model(cls, model, info: ValidationInfo):
         if model not in DESIGN_MODELS:
-            raise SpecError(info.context["source"], "model", f"{show(model)}; allowed: {', '.join(DESIGN_MODELS)} "
-                            "(the models a study maps over designs; 3R and CR see the ring radii themselves)")
+            raise SpecError(info.context["source"], "model", f"{show(model)}; allowed: {', '.join(DESIGN_MODELS)}")
         return model
 
     @field_validator("params")
@@ -231,9 +230,9 @@ class _StudyFile(BaseModel):
             raise SpecError(source, "variables", "empty; give at least one, e.g. L1: [20 mm, 60 mm]")
         var = tuple(_variable(k, v, source) for k, v in variables.items())
         names = {v.name for v in var}
-        if names & {"C10", "C20", "C30"} and info.data.get("model", "su") != "su":
+        if names & {"C10", "C20", "C30"} and info.data.get("model", "su") == "1r":
             raise SpecError(source, "variables", f"{sorted(names & {'C10', 'C20', 'C30'})[0]}: the 1R branch "
-                            "solver takes one material; vary Yeoh coefficients with model: su")
+                            "solver takes one material; vary Yeoh coefficients with model: su, 3r or cr")
         if {"L2", "L2e", "Lp1", "Lp2"} <= names:
             raise SpecError(source, "variables", "L2, L2e, Lp1 and Lp2: L2 = Lp1 + L2e + Lp2; vary three of them")
         return var, variables

@@ -25,8 +25,8 @@ MATERIAL = ("C10", "C20", "C30", "eps_r")
 BIAS_VARIABLES = {"none": (), "mass": ("mass", "prestretch"), "spring": ("stiffness", "preload", "prestretch"),
                   "curve": ()}
 SAMPLINGS = ("sobol", "lhs", "grid")
-#: the models a study maps over designs (`rdea_lab.physics.designs.DESIGN_MODELS`, which a test keeps equal)
-DESIGN_MODELS = ("su", "1r")
+#: the models a study solves over designs (`rdea_lab.physics.designs.DESIGN_MODELS`, which a test keeps equal)
+DESIGN_MODELS = ("su", "1r", "3r", "cr")
 #: metric -> (unit SI, display unit, description); `rdea_lab.design.evaluate` computes them
 METRICS = {
     "stroke": ("m", "mm", "lengthening from the 0 V equilibrium with the bias to the one at the voltage"),

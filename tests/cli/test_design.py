@@ -117,7 +117,7 @@ def test_a_malformed_scheduler_address_exits_2(tmp_path, capsys):
     assert code == 2 and "tcp://HOST:PORT" in err, err
 
 
-def test_the_study_file_allows_exactly_the_models_physics_maps_over_designs():
+def test_the_study_file_allows_exactly_the_models_physics_solves_over_designs():
     from rdea_lab.physics.designs import DESIGN_MODELS
     from rdea_lab.specs.study import DESIGN_MODELS as ALLOWED
     assert ALLOWED == DESIGN_MODELS

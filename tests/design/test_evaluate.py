@@ -256,3 +256,50 @@ def test_a_design_past_the_protocols_field_limit_is_flagged(root, params, card):
     assert list(got["design_status"]) == [5, OK]
     assert np.isnan(got["stroke"][0]) and np.isfinite(got["stroke"][1])
     assert got["limit_field"][1] == pytest.approx(worst / L3[1], rel=1e-12)
+
+
+@pytest.mark.parametrize("model", [pytest.param("3r", marks=pytest.mark.slow), "cr"])  # 3R: ~10 s (simulate)
+def test_3r_and_cr_studies_of_a_hollow_core_equal_one_roll_at_a_time(root, params, card, tmp_path, model):
+    """A roll wound on a 0.5 mm mandrel (hollow core), its 3R / CR equilibria with a spring (brentq on the
+    model's own solve) and, for 3R, the protocol's metrics against `rdea_lab.simulate` of each design."""
+    hollow = card.model_copy(update={"membrane": card.membrane.model_copy(update={"Ri": 0.5e-3}),
+                                     "id": "hollow"})
+    path = tmp_path / "hollow.yaml"
+    path.write_text("id: hollow\nkind: roll\nmembrane: {L1: 34 mm, L2: 99 mm, L3: 48 um, L1e: 29 mm, Lp1: 10 mm, "
+                    "L2e: 76 mm, Ri: 0.5 mm}\n")
+    protocol = root / "protocols" / "tensile_ramp_sine_2.6kV.yaml"
+    extra = {"protocol": str(protocol)} if model == "3r" else {}
+    study = make_study(root, {"L1": ["20 mm", "60 mm"], "L3": ["30 um", "80 um"]},
+                       {"kind": "spring", "stiffness": "200 N/m", "preload": "1 N"}, model=model,
+                       specimen=str(path), **extra)
+    table = {"L1": np.array([25e-3, 52e-3]), "L3": np.array([70e-6, 44e-6])}
+    got = evaluate(Fixed.of(study), table)
+    assert np.all(got["design_status"] == OK)
+    plan = as_plan(protocol)
+    t, stretch, voltage = np.array(plan.time), np.array(plan.stretch), np.array(plan.voltage)
+    for i, row in enumerate(rows(table)):
+        geom, _ = roll_of(hollow, row)
+        assert geom.Ri == 0.5e-3
+
+        def spring(lam):
+            return 1.0 - 200.0 * (lam - 1.0) * row["L1"]
+
+        def excess(lam, v):
+            return float(solve(model, geom, params, [lam], [v]).force[0]) - spring(lam)
+
+        for key, v in (("rest_stretch", 0.0), ("on_stretch", V)):
+            lam = brentq(excess, 1.0, MAX_STRETCH, args=(v,), xtol=1e-15, rtol=4 * np.finfo(float).eps)
+            assert got[key][i] == pytest.approx(lam, abs=STRETCH_TOL, rel=0), key
+        lam0 = got["rest_stretch"][i]
+        assert got["capacitance"][i] == pytest.approx(solve(model, geom, params, [lam0], [0.0]).capacitance[0],
+                                                      rel=1e-11)
+        if model != "3r":
+            continue
+        m = hollow.membrane.model_copy(update={"L1": row["L1"], "L1e": row["L1"] - 5e-3, "L3": row["L3"]})
+        ds = rdea_lab.simulate(hollow.model_copy(update={"membrane": m}), params, t, stretch, voltage, model="3r")
+        f = ds["force"].values
+        assert np.all(np.isfinite(f)) and f.max() > 0.1
+        assert got["peak_force"][i] == pytest.approx(f.max(), rel=1e-9)
+        assert got["peak_capacitance"][i] == pytest.approx(ds["capacitance"].values.max(), rel=1e-9)
+        loop = np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(stretch * row["L1"]))
+        assert got["hysteresis"][i] == pytest.approx(loop, rel=1e-9)

@@ -12,6 +12,10 @@ Histories reach the hard states on purpose: slack (low stretch, high
 voltage), and for 1R voltages a hair below and above each roll's own fold and
 range end.
 
+3R and CR are not mapped: each roll is solved with its own radii (the compiled
+per-sample states over designs x samples, the rest by `solve` per roll); the
+same per-roll loop is their reference, with the numpy solver (kernel="numpy").
+
 Also here: `radii_from_membrane` over arrays (entry by entry equal to the
 scalar call; NaN or ValueError for membranes that roll into no roll; the
 rolled volume equals the flat one) and `RollGeometry` with array fields.
@@ -19,6 +23,7 @@ rolled volume equals the flat one) and `RollGeometry` with array fields.
 
 from __future__ import annotations
 
+import importlib.util
 from types import SimpleNamespace
 
 import numpy as np
@@ -213,7 +218,8 @@ def test_solve_designs_su_with_yeoh_coefficients_per_design():
     voltage = np.concatenate([np.broadcast_to(SHARED_VOLTAGE, (n, SHARED_VOLTAGE.size)),
                               rng.uniform(0.0, 10e3, (n, 20))], axis=1)
     refs = per_roll("su", rolls, material_list(mat, n, C10=C10, C20=C20, C30=C30, eps_r=eps_r), stretch, voltage)
-    for kernel in ("numpy", "auto"):
+    # numba: each design's own kappa and Yeoh coefficients in the compiled per-sample loop (design_kernels)
+    for kernel in ("numpy", "auto", "numba") if importlib.util.find_spec("numba") else ("numpy", "auto"):
         assert_same_as_per_roll(solve_designs("su", geom, mat, stretch, voltage, kernel=kernel), refs,
                                 f"su per-design Yeoh kernel={kernel}")
     assert {OK, SLACK} <= set(np.concatenate([r.status for r in refs]).tolist())
@@ -280,13 +286,11 @@ def test_solve_designs_one_scalar_roll_is_the_ordinary_solve():
     assert_same_as_per_roll(res, [solve("su", roll, TABLE3, SHARED_STRETCH, SHARED_VOLTAGE)], "one roll")
 
 
-def test_solve_designs_refuses_what_it_cannot_map():
+def test_solve_designs_refuses_what_it_cannot_solve():
     rng = np.random.default_rng(3)
     geom, _ = random_rolls(rng, 3)
-    with pytest.raises(ValueError, match=r"'3r' sees the rings' radii.*allowed: su, 1r"):
-        solve_designs("3r", geom, TABLE3, [1.1], [1e3])
-    with pytest.raises(ValueError, match=r"allowed: su, 1r"):
-        solve_designs("cr", geom, TABLE3, [1.1], [1e3])
+    with pytest.raises(ValueError, match=r"unknown model '2r'; allowed: su, 1r, 3r, cr"):
+        solve_designs("2r", geom, TABLE3, [1.1], [1e3])
     with pytest.raises(ValueError, match=r"1R branch solver takes one material"):
         solve_designs("1r", geom, Material.of(TABLE3, C10=[200e3, 240e3, 260e3]), [1.1], [1e3])
     with pytest.raises(ValueError, match=r"do not broadcast against 3 designs"):
@@ -297,3 +301,64 @@ def test_solve_designs_names_a_history_of_the_wrong_number_of_designs():
     geom, _ = random_rolls(np.random.default_rng(3), 3)
     with pytest.raises(ValueError, match=r"do not broadcast against 3 designs"):
         solve_designs("su", geom, TABLE3, np.full((2, 4), 1.1), [1e3])
+
+
+# ------------------------------------------------------------------ 3R and CR: each roll its own radii
+def path_history(rng, n, samples=30):
+    """Per roll (n, samples): a stretch up and down between 1 and 1.8 while the voltage ramps to a random
+    peak of 4-14 kV and back (slack at the low stretches, and for 3R solid rolls past the hole's opening)."""
+    u = np.linspace(0.0, 1.0, samples)
+    tri = 1.0 - np.abs(2.0 * u - 1.0)
+    stretch = 1.0 + rng.uniform(0.3, 0.8, (n, 1)) * np.sin(np.pi * 3 * u) ** 2
+    voltage = rng.uniform(4e3, 14e3, (n, 1)) * tri
+    return stretch, voltage
+
+
+@pytest.mark.parametrize("model,kernel", [("3r", "auto"), ("cr", "auto"), ("cr", "numpy")])
+def test_solve_designs_3r_cr_equal_per_roll_with_own_radii_and_material(model, kernel):
+    """Random rolls (half solid, half on a hollow core), each with its own Yeoh coefficients and eps_r:
+    every field to 1e-12, statuses identical, with the rising-ramp rule and on a path, slack or not."""
+    rng = np.random.default_rng([41, len(model), len(kernel)])
+    n = 6
+    geom, rolls = random_rolls(rng, n)
+    C10 = rng.uniform(150e3, 300e3, n)
+    C20 = C10 * rng.uniform(-0.3, 0.0, n)
+    C30 = 1.2 * C20**2 / (3 * C10) + C10 * rng.uniform(0.0, 0.1, n)  # dW/dI1 > 0
+    eps_r = rng.uniform(2.0, 5.0, n)
+    mat = Material(C10, C20, C30, eps_r)
+    mats = material_list(mat, n, C10=C10, C20=C20, C30=C30, eps_r=eps_r)
+    stretch, voltage = path_history(rng, n)
+    seen = set()
+    for path in (False, True):
+        s, v = (stretch, voltage) if path else (np.broadcast_to(SHARED_STRETCH, (n, SHARED_STRETCH.size)),
+                                                np.broadcast_to(SHARED_VOLTAGE, (n, SHARED_VOLTAGE.size)))
+        for slack in (True, False):
+            refs = per_roll(model, rolls, mats, s, v, slack=slack, path=path, kernel="numpy")
+            res = solve_designs(model, geom, mat, s, v, slack=slack, path=path, kernel=kernel)
+            assert_same_as_per_roll(res, refs, f"{model} path={path} slack={slack} kernel={kernel}")
+            seen |= set(np.concatenate([r.status for r in refs]).tolist())
+    assert {OK, SLACK} <= seen, seen
+    assert (geom.Ri == 0).any() and (geom.Ri > 0).any()
+
+
+def test_solve_designs_3r_hands_uncertified_samples_to_solve():
+    """Solid 3R rolls at voltages around their hole's opening (the pitchfork): the compiled states leave
+    samples to `solve`, on a path in runs continued from the state before; the result is still the loop."""
+    pytest.importorskip("numba")
+    from rdea_lab.physics.design_kernels import rolls as compiled_rolls
+
+    rng = np.random.default_rng(5)
+    n = 4
+    geom, rolls = random_rolls(rng, 3 * n)
+    solid = [i for i in range(len(rolls)) if rolls[i].Ri == 0.0][:n]
+    geom = design_geometry(**{k: np.asarray(getattr(geom, k))[solid] for k in ("Ri", "Rie", "Roe", "Ro", "L1",
+                                                                              "L1e", "L3")})
+    rolls = [rolls[i] for i in solid]
+    stretch, voltage = path_history(rng, len(rolls), samples=60)
+    voltage = voltage * 1.5
+    rows = [(*(float(getattr(geom, k)[d]) for k in ("Ri", "Rie", "Roe", "Ro", "L1", "L1e", "L3")),
+             TABLE3.C10, TABLE3.C20, TABLE3.C30, TABLE3.eps_r) for d in range(len(rolls))]
+    got = compiled_rolls("3r", rows, stretch, voltage, path=True, slack=True)
+    assert not got["ok"].all() and got["ok"].any()  # both kinds of sample are there
+    refs = per_roll("3r", rolls, [TABLE3] * len(rolls), stretch, voltage, path=True, kernel="numpy")
+    assert_same_as_per_roll(solve_designs("3r", geom, TABLE3, stretch, voltage, path=True), refs, "3r pitchfork")
