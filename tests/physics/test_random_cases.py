@@ -140,7 +140,8 @@ def _case(rng, family, k):
     v_c = np.sqrt(mat.C10 / kappa(geom, mat)) / l1  # the neo-Hookean 1R asymptote
     v = [rng.uniform(0.0, 1.5) * v_c, 10.0 ** rng.uniform(-3.0, np.log10(1.5)) * v_c]
     if family in ("small core", "hollow micro-core"):
-        # around the voltage where the hole opens (a hollow micro-core folds near the solid roll's), 2 sqrt(W1 rho_ie rho_oe / kappa) / l1 (at C10)
+        # around the voltage where the hole opens, 2 sqrt(W1 rho_ie rho_oe / kappa) / l1 (at C10); a hollow
+        # micro-core folds near the solid roll's
         v.append(2.0 * np.sqrt(mat.C10 * rho_ie * rho_oe / kappa(geom, mat)) / l1 * 10.0 ** rng.uniform(-0.3, 0.3))
     else:
         v.append(rng.uniform(0.5, 1.5) * v_c)
