@@ -63,7 +63,8 @@ def both(model, geom, mat, l1, v, **kw):
 def test_random_cases_ramp_rule_equal_reference(model, family):
     """The rising-ramp rule on the random families, folds and all (slack on and off)."""
     n_hard = 0
-    for case in cases(family, N_CASES):
+    # a micro-core's reference scans some 40 more nodes (graded toward its core): half as many cases
+    for case in cases(family, N_CASES // 2 if family == "hollow micro-core" else N_CASES):
         if model == "cr" and case.geom.Ri == 0.0:
             continue
         v = np.r_[case.voltage, 3.0 * np.max(case.voltage)]  # and far past the folds
