@@ -140,8 +140,14 @@ def solve_designs(model: str, geom: RollGeometry, material, stretch, voltage, *,
     Returns
     -------
     DesignResult
-        Equal to solving each roll on its own (SU and 1R to rounding: the effective voltage is
-        ``v sqrt(kappa_d / kappa_ref)``; 3R and CR to the kernels' 1e-12), see the module docstring.
+        Equal to solving each roll on its own (3R and CR to the kernels' 1e-12; SU and 1R up to the
+        rounding of the load, see the module docstring): the call sees roll ``d``'s load ``K = kappa_d
+        l1**2 v**2`` as ``kappa_ref l1**2 (v gain)**2``, a few ulps apart, and a state ``y`` moves by
+        ``dK / h'(y)`` (``h = psi_y / c_y``, the load at which ``y`` is an equilibrium). Away from folds
+        that is rounding (4e-16 relative seen); at a fold ``h'`` vanishes as ``sqrt(K_fold - K)``, so
+        within 1e-12 of a fold's load a 1R state differs by up to about 1e-9 relative (7.9e-10 seen).
+        Bound (tested): ``|d lambda2| <= 16 eps K / |h'(lambda2)| + 4 eps lambda2``; statuses agree from
+        1e-14 of a fold's load on (nearer, within the load's rounding, a sample may fall on either side).
     """
     model = model.lower()
     if model not in DESIGN_MODELS:

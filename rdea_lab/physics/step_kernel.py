@@ -65,8 +65,9 @@ def constants(model, geom, material, modulus, tau, eta_v0, law):
         rings = three_ring._Rings(geom, np.ones(1))
         R, B = rings.constants, rings.bound_constants
         pitchfork = bool(rings.rho_i == 0.0 and rings.has_a)
-        if pitchfork:  # the scale nodes up to any span the hoop-stretch cap allows (< 1e3 Ro)
-            probe = Problem(None, np.zeros(1), np.ones(1), np.zeros(1), np.ones(1), True, rings.rho_ie,
+        scale = three_ring.core_scale(rings)  # the reference problem's own (solid or hollow core)
+        if scale:  # the scale nodes up to any span the hoop-stretch cap allows (< 1e3 Ro)
+            probe = Problem(None, np.zeros(1), np.ones(1), np.zeros(1), np.ones(1), pitchfork, scale,
                             span_max=1e3)
             offsets = np.ascontiguousarray(scale_offsets(probe), float)
     return code, P, R, B, offsets, pitchfork

@@ -31,8 +31,10 @@ from .units import format_quantity, quantity
 
 #: Specimen lengths: above 1 um and up to 10 m, thicknesses from 100 nm to 10 mm (anything outside is a
 #: unit mistake, and a value near 0 would divide by almost zero in the geometry).
-Length = quantity("length", "mm", gt=0.0, tiny=1e-6, le=10.0)
-Thickness = quantity("length", "um", gt=0.0, tiny=1e-7, le=1e-2)
+#: The smallest nonzero length and thickness a card (or a design study varying its membrane) accepts [m].
+SMALLEST_LENGTH, SMALLEST_THICKNESS = 1e-6, 1e-7
+Length = quantity("length", "mm", gt=0.0, tiny=SMALLEST_LENGTH, le=10.0)
+Thickness = quantity("length", "um", gt=0.0, tiny=SMALLEST_THICKNESS, le=1e-2)
 Radius = quantity("length", "mm", ge=0.0, tiny=1e-9, le=10.0)
 
 #: unit each length is written with

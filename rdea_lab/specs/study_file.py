@@ -15,9 +15,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validat
 from .errors import SpecError, show
 from .params import load_params
 from .protocol import load_protocol
-from .specimen import load_specimen
-from .study_terms import (BIAS_VARIABLES, DENSITY_METRICS, DESIGN_MODELS, METRICS, PROTOCOL_METRICS, SAMPLINGS,
-                          VARIABLES, Bound, CurveBias, Goal, Variable, _KEYS)
+from .specimen import SMALLEST_LENGTH, SMALLEST_THICKNESS, load_specimen
+from .study_terms import (BIAS_VARIABLES, DENSITY_METRICS, DESIGN_MODELS, MEMBRANE, METRICS, PROTOCOL_METRICS,
+                          SAMPLINGS, VARIABLES, Bound, CurveBias, Goal, Variable, _KEYS)
 from .target import BIAS_KINDS, bias_from_mapping
 from .units import _dimension_of, format_quantity, parse_quantity
 
@@ -61,6 +61,14 @@ def _variable(name, value, source) -> Variable:
     if not low > floor or not high <= ceiling:
         raise SpecError(source, where, f"{shown} leaves the physical range ({format_quantity(max(floor, 0.0), unit)}"
                         f" exclusive to {format_quantity(ceiling, unit)}); check the units")
+    if name in MEMBRANE:  # a membrane length the designs' cards carry: the card's own smallest (L3 = 1e-200 m
+        # would divide by L3**2 = 0 in the electrical factor)
+        tiny = SMALLEST_THICKNESS if name == "L3" else SMALLEST_LENGTH
+        for i, x in enumerate((low, high)):
+            if 0.0 < abs(x) < tiny:
+                raise SpecError(source, f"{where}[{i}]", f"{format_quantity(x, unit)} is smaller than any real "
+                                f"{name} ({format_quantity(tiny, unit)} at least, as in a specimen card); "
+                                "check the unit")
     levels = _int(opts.get("levels", 5), source, f"{where}.levels", 2, 1000)
     scale = opts.get("scale", "linear")
     if scale not in ("linear", "log"):

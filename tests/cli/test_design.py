@@ -60,6 +60,8 @@ BAD = {
     "unknown variable": ("  L1: [25 mm, 45 mm]", "  L9: [25 mm, 45 mm]", "variables.L9"),
     "empty range": ("  L1: [25 mm, 45 mm]", "  L1: [25 mm, 25 mm]", "variables.L1"),
     "inverted bounds": ("  L1: [25 mm, 45 mm]", "  L1: [45 mm, 25 mm]", "variables.L1"),
+    # a thickness no card accepts (was a ZeroDivisionError: L3**2 underflows to 0 in the electrical factor)
+    "a thickness below any real one": ("  L3: [40 um, 70 um]", "  L3: [1e-200 m, 70 um]", "variables.L3[0]"),
     "a range without units": ("  L1: [25 mm, 45 mm]", "  L1: [25, 45]", "variables.L1[0]"),
     "unknown metric": ("[{maximize: stroke}, {minimize: volume}]", "[{maximize: strokes}]", "objectives[0]"),
     "unknown key": ("chunk: 8", "chunks: 8", "chunks"),

@@ -5,6 +5,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from rdea_lab.physics.geometry import RollGeometry
 from rdea_lab.physics.models import solve, three_ring
 from rdea_lab.physics.models._common import HOOP_STRETCH_CAP, kappa
 from rdea_lab.physics.result import (BAD_INPUT, LIMIT_POINT, OK, OUTSIDE_RANGE, SLACK, SNAPPED,
@@ -271,3 +272,35 @@ def test_viscoelastic_stress_of_empty_or_all_nan_input():
     assert branch_strains([], [], [1.0, 2.0]).shape == (2, 0)
     sigma = overstress([0.0, 1.0], [np.nan, np.nan], [1e5], [1e5], 10.0)
     assert sigma.shape == (2,) and np.all(np.isnan(sigma))
+
+
+# ------------------------------------------------------------- a hollow micro-core's fold (issue 30, item 1)
+#: A hollow roll with a 40 nm hole (Ri/Ro = 2e-5) and a 2.2 um ring a, on a softening Yeoh material: h rises
+#: from 0 at r_i = Ri l1**-0.5 and folds at r_i ~ 0.6 um, 1/3500 of the range's first regular scan node.
+MICRO = RollGeometry(40e-9, 2.2e-6, 0.56e-3, 2e-3, L1=30e-3, L1e=30e-3, L3=50e-6)
+MICRO_MAT = SimpleNamespace(C10=180e3, C20=-37e3, C30=6.3e3, eps_r=4.0)
+
+
+@pytest.mark.parametrize("l1", [1.0, 1.1])
+def test_hollow_micro_core_fold_is_seen(l1):
+    """Below the fold (0.5, 0.9, 0.999 of its voltage) the state is the near minimum; past it (1.001,
+    1.5) the roll snapped to the far one, critical voltage the fold's. Against brute force, on the rising
+    ramp rule and on a rising path. (The scan, graded toward the core only for solid rolls, stepped over
+    the fold: the far state, 2.8x out at 0.999, was returned as OK, and past the fold OK for SNAPPED.)"""
+    import brute_force as bf
+
+    land = bf.landscape("3r", MICRO, MICRO_MAT, l1)
+    assert land.fold_index is not None and land.fold_y * MICRO.Ro < 1e-6  # the fold, within 1 um of the axis
+    v_f = np.sqrt(land.fold_h)
+    v = v_f * np.array([0.5, 0.9, 0.999, 1.001, 1.5])
+    ref = [land.rising_state(x) for x in v]
+    assert [s.expected for s in ref] == [OK, OK, OK, SNAPPED, SNAPPED] and not any(s.ambiguous for s in ref)
+    ramp = solve("3r", MICRO, MICRO_MAT, np.full(v.size, l1), v, slack=False)
+    path = solve("3r", MICRO, MICRO_MAT, np.full(v.size, l1), v, slack=False, path=True)
+    assert list(ramp.status) == [OK, OK, OK, SNAPPED, SNAPPED]
+    assert list(path.status) == [OK, OK, OK, SNAPPED, OK]  # a path flags the snap where it happens
+    for res in (ramp, path):
+        for k, s in enumerate(ref):
+            assert abs(float(res.r_i[k]) - s.r_i) <= s.tol * MICRO.Ro, (k, float(res.r_i[k]), s.r_i)
+    for res in (ramp, path):
+        assert float(res.critical_voltage[3]) == pytest.approx(v_f, rel=1e-6, abs=0)

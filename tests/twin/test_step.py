@@ -132,3 +132,20 @@ def test_unknown_model_and_strip_refused():
     strip = load_specimen(PROJECT / "specimens" / "vhb4910_strip.yaml")
     with pytest.raises(Exception, match="3R model describes a roll"):
         TwinStep(strip, TABLE3, "3r")
+
+
+#: A hollow roll with a 40 nm hole (Ri/Ro = 2e-5) on a softening material: its 3R branch folds within
+#: 1 um of the axis (at about 545-600 V), far below the regular scan nodes; the step scans the nodes graded
+#: toward the core that the reference scans (`three_ring.core_scale`), and hands the fold's samples over.
+MICRO = RollGeometry(40e-9, 2.2e-6, 0.56e-3, 2e-3, L1=30e-3, L1e=30e-3, L3=50e-6)
+MICRO_MAT = ParameterSet(name="soft", C10=180e3, C20=-37e3, C30=6.3e3, eps_r=4.0,
+                         branches=(ViscoBranch(k=1e5, eta=1e4),))
+
+
+def test_stepped_equals_block_across_a_micro_core_fold():
+    up = np.linspace(0.0, 900.0, 31)
+    v = np.tile(np.r_[up, up[::-1]], 2)
+    lam = np.repeat([1.1, 1.3], 2 * up.size)
+    t = np.arange(v.size) * 1e-2
+    status = assert_equal_to_block(MICRO, MICRO_MAT, "3r", t, lam, v)["model_status"]
+    assert np.count_nonzero(status == SNAPPED) >= 2  # the fold is crossed (up and down)

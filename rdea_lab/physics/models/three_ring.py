@@ -206,6 +206,22 @@ def enthalpy(geom, material, stretch, voltage, r_i):
     return g - kappa(geom, material) * (l1 * l2b * np.asarray(voltage, float)) ** 2
 
 
+def core_scale(rings) -> float | None:
+    """The length [Ro] of the structure of ``h`` next to the unloaded state, graded toward by the scan
+    (`rdea_lab.physics.branch.scale_offsets`); None where there is none below the regular nodes.
+
+    - ``Ri = 0`` with a ring a: the hole opens at a pitchfork at ``xi = 0`` and ``h`` bends on the scale of
+      ring a, ``Rie / Ro``.
+    - ``Ri > 0``: ``h`` rises from 0 at ``y0 = rho_i l1**-0.5`` to about the pitchfork's value over a few
+      ``y0`` (``psi_y`` grows as ``xi - y0``, ``c_y`` as ``xi``), and a subcritical pitchfork of the solid roll
+      becomes a fold there, between ``rho_i`` and ``rho_ie``: ``rho_i``. (A micro-core of 1e-6 Ro folds far
+      below the first regular node, ``span / 576``, which the scan stepped over before.)
+    """
+    if rings.rho_i > 0.0:
+        return float(rings.rho_i)
+    return float(rings.rho_ie) if rings.has_a else None
+
+
 def problem(geom, material, l1, v) -> Problem:
     """The 3R equilibrium in ``xi = r_i / Ro`` at clean 1-D inputs."""
     rings = _Rings(geom, l1)
@@ -213,7 +229,7 @@ def problem(geom, material, l1, v) -> Problem:
     pitchfork = rings.rho_i == 0.0 and rings.has_a
     C = yeoh_coefficients(material)
     return Problem(_terms(rings, C), y0, y_max, load * v * v, load, pitchfork=pitchfork,
-                   scale=rings.rho_ie if pitchfork else None,
+                   scale=core_scale(rings),
                    kernel=(3, {"l1": np.ascontiguousarray(l1, float), "R": rings.constants, "C": C}))
 
 
