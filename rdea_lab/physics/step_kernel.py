@@ -137,24 +137,41 @@ def _state(code, P, R, B, offsets, pitchfork, l1, v, y_prev, label, label_status
     if pitchfork:
         _, p_yy, _, c_yy = _terms(code, y0, l1, R, _Q, C10, C20, C30)
         h0 = p_yy / c_yy
-    first = (1.0 / _N_SCAN) ** 2 * (y_max - y0)
-    n_off = 0
-    while n_off < offsets.size and offsets[n_off] < first:
-        n_off += 1
-    off = offsets[:n_off]
-    y, cert = _one(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, off, True, 1e-14, 100, _N_SCAN, pitchfork)
-    status, K_crit, lost = OK, math.nan, False
-    if cert == 0 or (cert == 2 and not (not label and (y_prev != y_prev or y_prev <= y0))):
-        start = y0 if y_prev != y_prev else y_prev
-        y, status, K_crit, _, lost = path_rule(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, off, _N_SCAN,
-                                               pitchfork, start, label, label_status, label_K, origin, 1e-14,
-                                               100)
+    if K <= h0 and (y_prev != y_prev or y_prev <= y0):
+        # y0 is a minimum of g (g_y >= 0 there, or g_yy >= 0 at a pitchfork) and the state before is not
+        # above it: descent stays at y0 and crosses no fold, whatever h does beyond (the reference scans it
+        # all and finds the same, unless refining a crossing beyond failed: NOT_CONVERGED there)
+        y = y0
+    else:
+        y, status, K_crit, lost = _path_state(code, l1, y0, y_max, K, h0, R, C10, C20, C30, offsets, pitchfork,
+                                              y_prev, label, label_status, label_K, origin)
         if not (status == OK or status == SNAPPED):  # no state: the reference's fields are NaN
             return math.nan, math.nan, math.nan, y, status, K_crit, lost
     if code == 1:
         return _stress1(y, l1, v, C10, C20, C30, kap), C0 * (l1 * y) ** 2, y, y, status, K_crit, lost
     sigma, _, l2b, _ = _state3(y, l1, v, R, C10, C20, C30, kap)
     return sigma, C0 * (l1 * l2b) ** 2, l2b, y, status, K_crit, lost
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _path_state(code, l1, y0, y_max, K, h0, R, C10, C20, C30, offsets, pitchfork, y_prev, label, label_status,
+                label_K, origin):
+    """``(y, status, K_crit, lost)``: the certified root of `kernels._one` where it applies, else the
+    reference's full scan (`scan_kernel.path_rule`)."""
+    first = (1.0 / _N_SCAN) ** 2 * (y_max - y0)
+    n_off = 0
+    while n_off < offsets.size and offsets[n_off] < first:
+        n_off += 1
+    off = offsets[:n_off]
+    if K > h0:  # (at or below h0 `_one` certifies only the state y0 from below it, which `_state` took)
+        y, cert = _one(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, off, True, 1e-14, 100, _N_SCAN,
+                       pitchfork)
+        if cert == 1:
+            return y, OK, math.nan, False
+    start = y0 if y_prev != y_prev else y_prev
+    y, status, K_crit, _, lost = path_rule(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, off, _N_SCAN,
+                                           pitchfork, start, label, label_status, label_K, origin, 1e-14, 100)
+    return y, status, K_crit, lost
 
 
 @numba.njit(cache=True, error_model="numpy")
