@@ -317,3 +317,53 @@ def path_rule(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan, 
     if bad_root and not lost:
         status = NOT_CONVERGED
     return y, status, K_crit, K_range, lost
+
+
+@_jit
+def _runs(code, l1, y0, y_max, K, h0, R, xi0, x0, Q, C10, C20, C30, offsets, n_scan, pitchfork, y, ok, y_start,
+          label, label_status, label_K, status, K_crit, K_range, rtol, max_iter):
+    # the samples not certified (ok False), in time order, each from the state before it; returns whether
+    # the last sample was lost, and its label
+    lost = label
+    prev = y_start
+    for i in range(y.size):
+        if ok[i]:
+            lost, prev = False, y[i]
+            continue
+        Ri = R
+        if code == 4:  # CR: the unloaded state and x0 are the sample's own
+            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        y[i], status[i], K_crit[i], K_range[i], was_lost = path_rule(
+            code, l1[i], y0[i], y_max[i], K[i], h0[i], Ri, Q, C[0], C[1], C[2], offsets, n_scan, pitchfork,
+            y0[i] if prev != prev else prev, lost, label_status, label_K, False, rtol, max_iter)
+        if was_lost:
+            label_status, label_K = status[i], K_crit[i]
+        lost, prev = was_lost, y[i]
+    return lost, label_status, label_K
+
+
+def follow_runs(problem, y, ok, y_start, label, status, K_crit, K_range, rtol=1e-14, max_iter=100):
+    """`branch.follow_path` of a problem with a compiled ``kernel`` at the samples ``ok`` does not certify (the
+    others keep their state ``y``): ``y``, ``status``, ``K_crit``, ``K_range`` written in place. Returns
+    the path's end ``(y, label)`` as `follow_path`'s."""
+    from .branch import N_SCAN, scale_offsets
+    from .kernels import _EMPTY_Q, _NO_RING, _arr
+
+    code, consts = problem.kernel
+    n = y.size
+    h0 = problem.h_start(np.arange(n))
+    C = tuple(np.atleast_1d(_arr(c)) for c in consts["C"])
+    if code == 4:
+        R, xi0, x0, Q = (0.0, 0.0, consts["Lb"]) + (0.0,) * 6, _arr(consts["xi0"], (n,)), _arr(consts["x0"], (n,)), \
+            _arr(consts["Q"])
+    else:
+        R, xi0, x0, Q = consts.get("R", _NO_RING), np.zeros(0), np.zeros(0), _EMPTY_Q
+    has_label = label is not None
+    lab_s, lab_k = label if has_label else (0, np.nan)
+    start = np.nan if y_start is None else float(y_start)
+    lost, lab_s, lab_k = _runs(code, _arr(consts["l1"], (n,)), _arr(problem.y0, (n,)), _arr(problem.y_max, (n,)),
+                               _arr(problem.K, (n,)), _arr(h0, (n,)), tuple(float(r) for r in R), xi0, x0, Q, *C,
+                               _arr(scale_offsets(problem)), N_SCAN, bool(problem.pitchfork), y, ok, start,
+                               has_label, int(lab_s), float(lab_k), status, K_crit, K_range, rtol, max_iter)
+    return float(y[-1]), ((int(lab_s), float(lab_k)) if lost else None)
