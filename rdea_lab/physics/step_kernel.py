@@ -1,17 +1,27 @@
 """The compiled per-sample step of the twin (numba): quasi-static state, branches and force in one call.
 
 `rdea_lab.twin.TwinStep` calls `step` once per sample with its state and
-parameter arrays (nothing is allocated per call). The equations are the
-reference's own functions compiled (`kernels._jit`); the state follows the
-path rule of `rdea_lab.physics.branch.follow_path` through the certified
-root of `kernels._one` (one basin, or ``h`` above the load everywhere with
-the previous state not above ``y0``). Where that does not hold, or the roll
-would push (slack: the free state is a root search of its own), `step`
-returns ``NEEDS_REFERENCE`` without touching the state, and the caller solves
-the sample with the reference solver and hands the quasi-static state to
-`advance` (branches and force, compiled).
+parameter arrays. The equations are the reference's own functions compiled
+(`kernels._jit`); the state follows the path rule of
+`rdea_lab.physics.branch.follow_path`: ``y0`` where the load is at most
+``h(y0)`` and the previous state is not above ``y0`` (no scan needed), the
+certified root of `kernels._one` where ``h`` rises everywhere (one basin),
+and otherwise the reference's full scan and path rule compiled
+(`scan_kernel.path_rule`: folds, snaps, pull-in, the range's end and the
+label a run of lost samples keeps). A slack roll's free state is
+`models._common.free_state`'s search, each trial the same path rule. So
+every 1R and 3R sample with a finite stretch >= 1 and voltage stays
+compiled; `step` returns ``NEEDS_REFERENCE`` (state untouched) only for a
+CR roll with a core (no compiled CR state) and for bad inputs, which the
+caller hands to the reference solver and then to `advance` (branches and
+force, compiled).
 
-State ``S``: ``[started, t, stretch, y, has_state, q_1 .. q_M]``; parameters
+Cost: bounded by the scan's (see `scan_kernel`) times the free state's
+trials (at most ``200 + log(100) / log(1.25) + 2`` of them, in practice
+below 15); measured by ``benchmarks/step_worst_case.py``.
+
+State ``S``: ``[started, t, stretch, y, has_state, label_status, label_K_crit, q_1 .. q_M]`` (the label:
+status and fold of the last sample where it had no state, ``has_state`` 0); parameters
 ``P``: ``[C10, C20, C30, kappa, C0, area, eta_v0, law, M, k_1 .. k_M,
 tau_1 .. tau_M]`` (law 0 linear, 1 finite strain; ``k`` the branch moduli);
 output ``out``: ``[force, capacitance, sigma1, sigma1_irr, lambda2b, status]``.

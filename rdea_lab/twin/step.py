@@ -21,10 +21,11 @@ class TwinStep:
     rounding (tested to 1e-12), except ``eta_v0``'s rate at the very first
     sample, which a stepper cannot know yet and takes as 0 (the series takes
     the first interval's slope). Each call is one compiled function
-    (:mod:`rdea_lab.physics.step_kernel`) on preallocated state; a sample the
-    kernel cannot certify (a fold, a snap, pull-in, a slack roll's free state it
-    cannot find, a bad input; every CR sample of a roll with a core) is solved by the reference solver
-    from the same state, which costs milliseconds to tens of milliseconds instead of microseconds. The
+    (:mod:`rdea_lab.physics.step_kernel`) on preallocated state. 1R and 3R samples stay compiled however
+    hard (folds, snaps, pull-in, the range's end, slack: the reference's full scan and path rule compiled,
+    `rdea_lab.physics.scan_kernel`), a few microseconds, at most a few hundred on a landscape with folds;
+    a CR sample of a roll with a core, a NaN stretch and a stretch below 1 are solved by the reference
+    solver from the same state (milliseconds). The
     reference grades its scan near a small core to the largest span of the block it solves, so where a
     fold hides between its nodes the label can depend on how the series is cut into blocks: there a
     stepped run can differ from a whole-series run, as two block sizes already could.
