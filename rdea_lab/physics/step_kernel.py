@@ -61,7 +61,7 @@ _N_SCAN = N_SCAN
 _FREE_MAX = FREE_STRETCH_MAX
 _Q = np.zeros((4, 0))
 #: Where the branches' strains start in ``S``.
-_Q0 = 7
+Q_START = 7
 
 
 def constants(model, geom, material, modulus, tau, eta_v0, law):
@@ -101,14 +101,14 @@ def advance(S, P, t, l1, sigma_rev, capacitance, lambda2b, status, out):
     irr = 0.0
     for j in range(M):
         k, tau = P[9 + j], P[9 + M + j]
-        q = S[_Q0 + j] if started else 0.0
+        q = S[Q_START + j] if started else 0.0
         if started:
             if law == 0.0:
                 r = dt / tau
                 q = math.exp(-r) * q + rate * tau * -math.expm1(-r)
             else:
                 q = _bk.interval(q, S[1], t, S[2], l1, tau, _FS_STEP, _FS_GROW, _FS_STRETCH_STEP)
-        S[_Q0 + j] = q
+        S[Q_START + j] = q
         irr += k * q if law == 0.0 else k * (math.expm1(2.0 * q) - math.expm1(-q))
     if eta_v0 != 0.0:
         irr += eta_v0 * rate

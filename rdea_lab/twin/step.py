@@ -79,7 +79,7 @@ class TwinStep:
         k, eta, eta_v0, law = viscous(self.params)
         self._code, self._P, self._R, self._B, self._offsets, self._pitchfork = step_kernel.constants(
             model, self.geom, self.params, k, eta / k, eta_v0, law)
-        self._S = np.zeros(step_kernel._Q0 + k.size)
+        self._S = np.zeros(step_kernel.Q_START + k.size)
         self._out = np.full(len(FIELDS), np.nan)
         self._kernel = step_kernel.step
         self._advance = step_kernel.advance
