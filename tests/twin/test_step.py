@@ -93,6 +93,18 @@ def test_stepped_equals_block_where_a_solid_rolls_hole_opens():
     assert np.any(status == SNAPPED)
 
 
+#: a hollow roll with a micro-core (Ri / Ro 1e-5): where the reference grades its scan toward the core, the
+#: step must take the same nodes
+MICRO = RollGeometry(1.8e-8, 0.3e-3, 1.62e-3, 1.8e-3, L1=34e-3, L1e=29e-3, L3=48e-6)
+
+
+def test_stepped_equals_block_on_a_micro_core():
+    up = np.linspace(0.0, 12000.0, 40)
+    v = np.tile(np.r_[up, up[::-1]], 2)
+    lam = np.repeat([1.0, 1.6], 2 * up.size)
+    assert_equal_to_block(MICRO, TABLE3, "3r", np.arange(v.size) * 1e-2, lam, v)
+
+
 @pytest.mark.parametrize(("model", "case"), [("1r", "folds"), ("3r", "folds"), ("3r", "pitchfork")])
 def test_no_finite_sample_leaves_the_compiled_step(model, case, monkeypatch):
     """Folds, snaps, pull-in, states beyond the range, slack: the compiled step decides every sample with a
