@@ -9,9 +9,11 @@ force the roll carries under 1.8 kV + 0.8 kV sin(2 pi 1 Hz t), computed
 offline, which the controller does not know. A tick whose work ends after
 its deadline (the start of the next tick) is missed; the loop then goes on
 at the next tick on the clock (no catching up: the samples stay in order,
-later), as a real-time loop would. A sample `TwinStep` cannot certify (a
-fold near the path, a bad input) is solved by the reference solver, which
-takes milliseconds to tens of milliseconds: those are the misses.
+later), as a real-time loop would. Every 1R/3R sample stays in compiled
+code (`benchmarks/step_worst_case.py` measures its worst case on folds and
+slack); a CR sample of a roll with a core is the reference solver's
+(milliseconds: misses). A missed deadline otherwise is the machine's (another
+process preempting the loop: run it on an idle machine).
 
 The loop waits by spinning on ``time.perf_counter_ns`` (a sleep's wake-up on
 a general-purpose kernel is 50-100 us late): it takes one core for the run.

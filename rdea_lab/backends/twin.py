@@ -26,8 +26,8 @@ REALTIME_BLOCK = 0.1
 #: Longest a held (paused) twin waits for wall time before it hands out the held samples due [s]: the
 #: engine reads a resume request between two blocks, so this bounds how late a resume acts.
 HELD_WAIT = 0.05
-#: ... and at most this many periods of the plan's fastest oscillation in one step: the path solver sends a
-#: step with many uncertified stretches of samples to its serial reference whole (`MAX_FALLBACK_RUNS`).
+#: ... and at most this many periods of the plan's fastest oscillation in one step: the path solver decides
+#: the samples it cannot certify one after another (`rdea_lab.physics.scan_kernel`), in time order.
 STEP_CYCLES = 16
 
 

@@ -33,19 +33,22 @@ def _rolls_loop(code, P, R, B, offsets, n_off, pitchfork, l1, v, path, slack, si
         Pd = P[d]
         fork = pitchfork[d]
         y_prev = math.nan
-        prev_ok = True
+        handed = False  # on a path: a sample went to the reference, so do the ones after it (from its state)
         for i in range(l1.shape[1]):
             lam, u = l1[d, i], v[d, i]
-            good = lam >= 1.0 and lam < math.inf and abs(u) < math.inf
+            good = not handed and lam >= 1.0 and lam < math.inf and abs(u) < math.inf
             s, c, l2, yy = math.nan, math.nan, math.nan, math.nan
             if good:
-                yp, po = (y_prev, prev_ok) if path else (math.nan, True)
+                yp = y_prev if path else math.nan
                 # SU's code as a constant: the compiler drops the branch solver from its calls (6x faster)
                 if code == 0:
-                    s, c, l2, yy, good = step_kernel._state(0, Pd, Rd, Bd, off, fork, lam, u, yp, po)
+                    s, c, l2, yy, st, _, _ = step_kernel._state(0, Pd, Rd, Bd, off, fork, lam, u, yp, False, 0,
+                                                                math.nan, False)
                 else:
-                    s, c, l2, yy, good = step_kernel._state(code, Pd, Rd, Bd, off, fork, lam, u, yp, po)
-                good = good and s == s and abs(s) < math.inf
+                    s, c, l2, yy, st, _, _ = step_kernel._state(code, Pd, Rd, Bd, off, fork, lam, u, yp, False, 0,
+                                                                math.nan, False)
+                # a fold, a snap, the range's end: the reference says which, with its voltage
+                good = st == OK and s == s and abs(s) < math.inf
             st, f, t = OK, lam, s
             if good and slack and s < 0.0:
                 if code == 0:
@@ -56,7 +59,8 @@ def _rolls_loop(code, P, R, B, offsets, n_off, pitchfork, l1, v, path, slack, si
             sigma[d, i], tension[d, i], cap[d, i], l2b[d, i], y[d, i], free[d, i] = s, t, c, l2, yy, f
             status[d, i] = st
             ok[d, i] = good
-            y_prev, prev_ok = yy, good
+            y_prev = yy
+            handed = handed or (path and not good)
 
 
 _rolls = _variants(_rolls_loop)
@@ -78,7 +82,8 @@ def rolls(model, rows, l1, v, *, path, slack):
     ``rows``: ``n`` tuples ``(Ri, Rie, Roe, Ro, L1, L1e, L3, C10, C20, C30, eps_r)``. Returns a dict of
     ``(n, samples)`` arrays: ``sigma1`` (0 where slack), ``tension``, ``capacitance``, ``lambda2b``, ``y``
     (the free coordinate), ``free_stretch``, ``status`` (OK or SLACK) and ``ok`` (False: not certified,
-    the reference must solve the sample; on a path, the samples after it until one is certified on its own).
+    the reference must solve the sample; on a path, every sample after it too, continued from the state
+    before the first).
     """
     consts = [_constants(model, *r) for r in rows]
     n = len(consts)

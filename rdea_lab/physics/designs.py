@@ -43,7 +43,7 @@ import numpy as np
 from ._backend import AUTO_MIN_SAMPLES, compiled
 from .geometry import RollGeometry
 from .models import solve
-from .models._common import MAX_FALLBACK_RUNS, kappa
+from .models._common import kappa
 from .result import LIMIT_POINT, OUTSIDE_RANGE, SNAPPED, PathEnd, prepare_inputs
 
 #: The models :func:`solve_designs` solves over designs.
@@ -265,7 +265,7 @@ def _solve_rolls(model, geom, mat, stretch, voltage, shape, *, slack, path, kern
             parts = [(np.flatnonzero(todo[d]), None)]
         else:
             edges = np.flatnonzero(np.diff(np.r_[0, todo[d].astype(np.int8), 0])).reshape(-1, 2)
-            if len(edges) > MAX_FALLBACK_RUNS or fast is None:
+            if fast is None:
                 parts = [(np.arange(m), None)]
             else:
                 parts = [(np.arange(a, b), PathEnd(model, float(y[d, a - 1])) if a else None)

@@ -1,17 +1,27 @@
 """The compiled per-sample step of the twin (numba): quasi-static state, branches and force in one call.
 
 `rdea_lab.twin.TwinStep` calls `step` once per sample with its state and
-parameter arrays (nothing is allocated per call). The equations are the
-reference's own functions compiled (`kernels._jit`); the state follows the
-path rule of `rdea_lab.physics.branch.follow_path` through the certified
-root of `kernels._one` (one basin, or ``h`` above the load everywhere with
-the previous state not above ``y0``). Where that does not hold, or the roll
-would push (slack: the free state is a root search of its own), `step`
-returns ``NEEDS_REFERENCE`` without touching the state, and the caller solves
-the sample with the reference solver and hands the quasi-static state to
-`advance` (branches and force, compiled).
+parameter arrays. The equations are the reference's own functions compiled
+(`kernels._jit`); the state follows the path rule of
+`rdea_lab.physics.branch.follow_path`: ``y0`` where the load is at most
+``h(y0)`` and the previous state is not above ``y0`` (no scan needed), the
+certified root of `kernels._one` where ``h`` rises everywhere (one basin),
+and otherwise the reference's full scan and path rule compiled
+(`scan_kernel.path_rule`: folds, snaps, pull-in, the range's end and the
+label a run of lost samples keeps). A slack roll's free state is
+`models._common.free_state`'s search, each trial the same path rule. So
+every 1R and 3R sample with a finite stretch >= 1 and voltage stays
+compiled; `step` returns ``NEEDS_REFERENCE`` (state untouched) only for a
+CR roll with a core (no compiled CR state) and for bad inputs, which the
+caller hands to the reference solver and then to `advance` (branches and
+force, compiled).
 
-State ``S``: ``[started, t, stretch, y, has_state, q_1 .. q_M]``; parameters
+Cost: bounded by the scan's (see `scan_kernel`) times the free state's
+trials (at most ``200 + log(100) / log(1.25) + 2`` of them, in practice
+below 15); measured by ``benchmarks/step_worst_case.py``.
+
+State ``S``: ``[started, t, stretch, y, has_state, label_status, label_K_crit, q_1 .. q_M]`` (the label:
+status and fold of the last sample where it had no state, ``has_state`` 0); parameters
 ``P``: ``[C10, C20, C30, kappa, C0, area, eta_v0, law, M, k_1 .. k_M,
 tau_1 .. tau_M]`` (law 0 linear, 1 finite strain; ``k`` the branch moduli);
 output ``out``: ``[force, capacitance, sigma1, sigma1_irr, lambda2b, status]``.
@@ -19,6 +29,7 @@ output ``out``: ``[force, capacitance, sigma1, sigma1_irr, lambda2b, status]``.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numba
@@ -28,9 +39,10 @@ from . import _branch_kernels as _bk
 from . import yeoh
 from .kernels import _jit, _basis, _one, _slope, _terms
 from .models import one_ring, three_ring
-from .branch import Problem, scale_offsets
+from .branch import N_SCAN, scale_offsets
 from .models._common import FREE_STRETCH_MAX, kappa, yeoh_coefficients
-from .result import OK, SLACK
+from .result import OK, OVERFLOW, SLACK, SNAPPED
+from .scan_kernel import path_rule
 from .viscoelastic import _FS_GROW, _FS_STEP, _FS_STRETCH_STEP
 
 _gradient = _jit(yeoh.gradient_terms, _invariant_terms=_jit(yeoh._invariant_terms), slope=_slope)
@@ -45,9 +57,11 @@ _bounds3 = _jit(three_ring.bounds, xi_at_hoop_stretch=_xi_hoop)
 CODES = {"su": 0, "1r": 1, "3r": 3}
 #: `step` results.
 DONE, NEEDS_REFERENCE, TIME_NOT_INCREASING = 0, 1, -1
-_N_SCAN = 24
+_N_SCAN = N_SCAN
 _FREE_MAX = FREE_STRETCH_MAX
 _Q = np.zeros((4, 0))
+#: Where the branches' strains start in ``S``.
+Q_START = 7
 
 
 def constants(model, geom, material, modulus, tau, eta_v0, law):
@@ -61,15 +75,17 @@ def constants(model, geom, material, modulus, tau, eta_v0, law):
     P = np.array([*yeoh_coefficients(material), kappa(geom, material), geom.C0(material.eps_r), geom.area,
                   float(eta_v0), 0.0 if law == "linear" else 1.0, modulus.size, *modulus, *tau], float)
     R, B, offsets, pitchfork = (0.0,) * 9, (0.0,) * 4, np.zeros(0), False
-    if model == "3r":
+    if code in (1, 3):
+        # the reference's own problem (at one stretch) says whether it is a pitchfork and what scale its scan
+        # is graded to: its scale offsets up to any span the hoop-stretch cap allows (< 1e3 Ro), of which
+        # `_state` takes those the sample's own span takes (`branch.scan_nodes`)
+        module = three_ring if code == 3 else one_ring
+        probe = module.problem(geom, material, np.ones(1), np.zeros(1))
+        pitchfork = bool(probe.pitchfork)
+        offsets = np.ascontiguousarray(scale_offsets(dataclasses.replace(probe, span_max=1e3)), float)
+    if code == 3:
         rings = three_ring._Rings(geom, np.ones(1))
         R, B = rings.constants, rings.bound_constants
-        pitchfork = bool(rings.rho_i == 0.0 and rings.has_a)
-        scale = three_ring.core_scale(rings)  # the reference problem's own (solid or hollow core)
-        if scale:  # the scale nodes up to any span the hoop-stretch cap allows (< 1e3 Ro)
-            probe = Problem(None, np.zeros(1), np.ones(1), np.zeros(1), np.ones(1), pitchfork, scale,
-                            span_max=1e3)
-            offsets = np.ascontiguousarray(scale_offsets(probe), float)
     return code, P, R, B, offsets, pitchfork
 
 
@@ -85,14 +101,14 @@ def advance(S, P, t, l1, sigma_rev, capacitance, lambda2b, status, out):
     irr = 0.0
     for j in range(M):
         k, tau = P[9 + j], P[9 + M + j]
-        q = S[5 + j] if started else 0.0
+        q = S[Q_START + j] if started else 0.0
         if started:
             if law == 0.0:
                 r = dt / tau
                 q = math.exp(-r) * q + rate * tau * -math.expm1(-r)
             else:
                 q = _bk.interval(q, S[1], t, S[2], l1, tau, _FS_STEP, _FS_GROW, _FS_STRETCH_STEP)
-        S[5 + j] = q
+        S[Q_START + j] = q
         irr += k * q if law == 0.0 else k * (math.expm1(2.0 * q) - math.expm1(-q))
     if eta_v0 != 0.0:
         irr += eta_v0 * rate
@@ -111,14 +127,17 @@ def advance(S, P, t, l1, sigma_rev, capacitance, lambda2b, status, out):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _state(code, P, R, B, offsets, pitchfork, l1, v, y_prev, prev_ok):
-    """``(sigma_rev, capacitance, lambda2b, y, ok)`` of the path's state at ``(l1, v)`` coming from
-    ``y_prev`` (``prev_ok``: that state exists); ``ok`` False where the reference must decide."""
+def _state(code, P, R, B, offsets, pitchfork, l1, v, y_prev, label, label_status, label_K, origin):
+    """The path's state at ``(l1, v)`` coming from ``y_prev`` (NaN: the unloaded roll) as
+    `branch.follow_path` finds it: ``(sigma_rev, capacitance, lambda2b, y, status, K_crit, lost)``.
+    ``label``: the sample before had no state (``label_status``, ``label_K``: its status and fold);
+    ``origin``: descent from ``y_prev`` alone (the free state's trials). The certified root of
+    `kernels._one` where it applies, else the reference's full scan (`scan_kernel.path_rule`)."""
     C10, C20, C30, kap, C0 = P[0], P[1], P[2], P[3], P[4]
     if code == 0:
         b, x = _basis(l1)
         W1, _ = _slope(x, (C10, C20, C30))
-        return b * W1 - kap * (l1 * v ** 2), C0 * l1, 1.0 / np.sqrt(l1), math.nan, True
+        return b * W1 - kap * (l1 * v ** 2), C0 * l1, 1.0 / np.sqrt(l1), math.nan, OK, math.nan, False
     if code == 1:
         y0, y_max, load = _bounds1(l1, kap)
     else:
@@ -128,31 +147,54 @@ def _state(code, P, R, B, offsets, pitchfork, l1, v, y_prev, prev_ok):
     if pitchfork:
         _, p_yy, _, c_yy = _terms(code, y0, l1, R, _Q, C10, C20, C30)
         h0 = p_yy / c_yy
+    if K <= h0 and (y_prev != y_prev or y_prev <= y0):
+        # y0 is a minimum of g (g_y >= 0 there, or g_yy >= 0 at a pitchfork) and the state before is not
+        # above it: descent stays at y0 and crosses no fold, whatever h does beyond (the reference scans it
+        # all and finds the same, unless refining a crossing beyond failed: NOT_CONVERGED there)
+        y = y0
+    else:
+        y, status, K_crit, lost = _path_state(code, l1, y0, y_max, K, h0, R, C10, C20, C30, offsets, pitchfork,
+                                              y_prev, label, label_status, label_K, origin)
+        if not (status == OK or status == SNAPPED):  # no state: the reference's fields are NaN
+            return math.nan, math.nan, math.nan, y, status, K_crit, lost
+    if code == 1:
+        return _stress1(y, l1, v, C10, C20, C30, kap), C0 * (l1 * y) ** 2, y, y, status, K_crit, lost
+    sigma, _, l2b, _ = _state3(y, l1, v, R, C10, C20, C30, kap)
+    return sigma, C0 * (l1 * l2b) ** 2, l2b, y, status, K_crit, lost
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _path_state(code, l1, y0, y_max, K, h0, R, C10, C20, C30, offsets, pitchfork, y_prev, label, label_status,
+                label_K, origin):
+    """``(y, status, K_crit, lost)``: the certified root of `kernels._one` where it applies, else the
+    reference's full scan (`scan_kernel.path_rule`)."""
     first = (1.0 / _N_SCAN) ** 2 * (y_max - y0)
     n_off = 0
     while n_off < offsets.size and offsets[n_off] < first:
         n_off += 1
-    y, cert = _one(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, offsets[:n_off], True, 1e-14, 100, _N_SCAN,
-                   pitchfork)
-    if cert == 0 or (cert == 2 and not (prev_ok and (y_prev != y_prev or y_prev <= y0))):
-        return math.nan, math.nan, math.nan, y0, False
-    if code == 1:
-        return _stress1(y, l1, v, C10, C20, C30, kap), C0 * (l1 * y) ** 2, y, y, True
-    sigma, _, l2b, _ = _state3(y, l1, v, R, C10, C20, C30, kap)
-    return sigma, C0 * (l1 * l2b) ** 2, l2b, y, True
+    off = offsets[:n_off]
+    if K > h0:  # (at or below h0 `_one` certifies only the state y0 from below it, which `_state` took)
+        y, cert = _one(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, off, True, 1e-14, 100, _N_SCAN,
+                       pitchfork)
+        if cert == 1:
+            return y, OK, math.nan, False
+    start = y0 if y_prev != y_prev else y_prev
+    y, status, K_crit, _, lost = path_rule(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, off, _N_SCAN,
+                                           pitchfork, start, label, label_status, label_K, origin, 1e-14, 100)
+    return y, status, K_crit, lost
 
 
 @numba.njit(cache=True, error_model="numpy")
 def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
     """The free (F = 0) state of a slack roll: `models._common.free_state` for one sample (the same
     bracketing by 25 % steps and Illinois iteration, each trial the path's state descending from
-    ``origin``). ``(capacitance, lambda2b, ok, free stretch)``."""
+    ``origin``). ``(capacitance, lambda2b, found, free stretch)``."""
     lo, s_lo, hi = l1, sigma_l1, l1
     s_hi = -math.inf
     while True:
         trial = min(hi * 1.25, _FREE_MAX)
-        sig, _, _, _, ok = _state(code, P, R, B, offsets, pitchfork, trial, v, origin, True)
-        if not (ok and sig == sig):
+        sig, _, _, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, trial, v, origin, False, 0, 0.0, True)
+        if not ((st == OK or st == SNAPPED) and abs(sig) < math.inf):
             return math.nan, math.nan, False, math.nan
         if sig >= 0.0:
             hi, s_hi = trial, sig
@@ -170,8 +212,8 @@ def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
         xn = (a * fb - b * fa) / (fb - fa)
         if not (xn > a and xn < b):
             xn = 0.5 * (a + b)
-        yn, _, _, _, ok = _state(code, P, R, B, offsets, pitchfork, xn, v, origin, True)
-        if not (ok and yn == yn):
+        yn, _, _, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, xn, v, origin, False, 0, 0.0, True)
+        if not ((st == OK or st == SNAPPED) and abs(yn) < math.inf):
             return math.nan, math.nan, False, math.nan
         x = xn
         if yn < 0.0:
@@ -187,8 +229,8 @@ def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
             break
     if not done:
         return math.nan, math.nan, False, math.nan
-    sig, cap, l2b, _, ok = _state(code, P, R, B, offsets, pitchfork, x, v, origin, True)
-    if not (ok and abs(sig) <= 1e-6 * abs(sigma_l1) + 1e-6):
+    sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, x, v, origin, False, 0, 0.0, True)
+    if not ((st == OK or st == SNAPPED) and abs(sig) <= 1e-6 * abs(sigma_l1) + 1e-6):
         return math.nan, math.nan, False, math.nan
     return cap, l2b, True, x
 
@@ -203,16 +245,20 @@ def step(code, S, P, R, B, offsets, pitchfork, t, l1, v, out):
         return NEEDS_REFERENCE
     if not (l1 >= 1.0 and l1 < math.inf and abs(v) < math.inf):
         return NEEDS_REFERENCE
-    sigma, cap, l2b, y, ok = _state(code, P, R, B, offsets, pitchfork, l1, v, S[3] if started else math.nan,
-                                    S[4] != 0.0 or not started)
-    if not (ok and sigma == sigma):
-        return NEEDS_REFERENCE
-    status = OK
-    if sigma < 0.0:  # slack: the roll's own state is its free one
-        cap, l2b, ok, _ = _free(code, P, R, B, offsets, pitchfork, l1, v, sigma, y)
-        if not ok:
-            return NEEDS_REFERENCE
-        status = SLACK
+    label = started and S[4] == 0.0
+    sigma, cap, l2b, y, status, K_crit, lost = _state(code, P, R, B, offsets, pitchfork, l1, v,
+                                                      S[3] if started else math.nan, label, int(S[5]), S[6],
+                                                      False)
+    if status == OK or status == SNAPPED:
+        if not (abs(sigma) < math.inf and abs(sigma * P[5] / l1) < math.inf):
+            sigma, cap, l2b, status = math.nan, math.nan, math.nan, OVERFLOW
+        elif sigma < 0.0:  # slack: the roll's own state is its free one (the clamped one's where none is found)
+            cap_f, l2b_f, found, _ = _free(code, P, R, B, offsets, pitchfork, l1, v, sigma, y)
+            if found:
+                cap, l2b = cap_f, l2b_f
+            if status != SNAPPED:
+                status = SLACK
     advance(S, P, t, l1, sigma, cap, l2b, status, out)
-    S[3], S[4] = y, 1.0
+    S[3], S[4] = y, 0.0 if lost else 1.0
+    S[5], S[6] = (status, K_crit) if lost else (0.0, math.nan)
     return DONE

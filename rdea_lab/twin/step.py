@@ -21,10 +21,11 @@ class TwinStep:
     rounding (tested to 1e-12), except ``eta_v0``'s rate at the very first
     sample, which a stepper cannot know yet and takes as 0 (the series takes
     the first interval's slope). Each call is one compiled function
-    (:mod:`rdea_lab.physics.step_kernel`) on preallocated state; a sample the
-    kernel cannot certify (a fold, a snap, pull-in, a slack roll's free state it
-    cannot find, a bad input; every CR sample of a roll with a core) is solved by the reference solver
-    from the same state, which costs milliseconds to tens of milliseconds instead of microseconds. The
+    (:mod:`rdea_lab.physics.step_kernel`) on preallocated state. 1R and 3R samples stay compiled however
+    hard (folds, snaps, pull-in, the range's end, slack: the reference's full scan and path rule compiled,
+    `rdea_lab.physics.scan_kernel`), a few microseconds, at most a few hundred on a landscape with folds;
+    a CR sample of a roll with a core, a NaN stretch and a stretch below 1 are solved by the reference
+    solver from the same state (milliseconds). The
     reference grades its scan near a small core to the largest span of the block it solves, so where a
     fold hides between its nodes the label can depend on how the series is cut into blocks: there a
     stepped run can differ from a whole-series run, as two block sizes already could.
@@ -78,9 +79,8 @@ class TwinStep:
         k, eta, eta_v0, law = viscous(self.params)
         self._code, self._P, self._R, self._B, self._offsets, self._pitchfork = step_kernel.constants(
             model, self.geom, self.params, k, eta / k, eta_v0, law)
-        self._S = np.zeros(5 + k.size)
+        self._S = np.zeros(step_kernel.Q_START + k.size)
         self._out = np.full(len(FIELDS), np.nan)
-        self._label = None
         self._kernel = step_kernel.step
         self._advance = step_kernel.advance
         self._time_error = step_kernel.TIME_NOT_INCREASING
@@ -89,7 +89,6 @@ class TwinStep:
         """Back to the unloaded, relaxed roll before its first sample."""
         self._S[:] = 0.0
         self._out[:] = np.nan
-        self._label = None
 
     def step(self, t, stretch, voltage) -> np.ndarray:
         """Advance to time ``t`` [s] at ``stretch`` [-] and ``voltage`` [V].
@@ -118,7 +117,6 @@ class TwinStep:
         r = self._kernel(self._code, self._S, self._P, self._R, self._B, self._offsets, self._pitchfork, t, stretch,
                          voltage, self._out)
         if r == 0:
-            self._label = None
             return self._out
         if r == self._time_error:
             if not np.isfinite(t):
@@ -134,13 +132,15 @@ class TwinStep:
             return out
         start = None
         if S[0] != 0.0:
-            start = PathEnd(self.model, None if np.isnan(S[3]) else float(S[3]), self._label)
+            label = None if S[4] != 0.0 else (int(S[5]), float(S[6]))
+            start = PathEnd(self.model, None if np.isnan(S[3]) else float(S[3]), label)
         res = solve(self.model, self.geom, self.params, np.array([stretch]), np.array([voltage]), path=True,
                     start=start)
         self._advance(S, self._P, t, stretch, float(res.tension[0]), float(res.capacitance[0]),
                       float(res.lambda2b[0]), int(res.status[0]), out)
         y = res.end.y
         S[3] = np.nan if y is None else y
-        S[4] = 1.0 if res.end.label is None else 0.0
-        self._label = res.end.label
+        label = res.end.label
+        S[4] = 1.0 if label is None else 0.0
+        S[5], S[6] = (0.0, np.nan) if label is None else label
         return out

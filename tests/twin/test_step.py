@@ -69,7 +69,7 @@ def test_stepped_equals_block_finite_strain_and_damper(model):
     assert_equal_to_block(CARD, FINITE, model, t, lam, v, first=1)
 
 
-@pytest.mark.parametrize("model", ["1r", pytest.param("3r", marks=pytest.mark.slow), "cr"])
+@pytest.mark.parametrize("model", ["1r", "3r", "cr"])
 def test_stepped_equals_block_across_folds_and_slack(model):
     """The hollow core: voltage loops to 15 kV and back at two stretches (snaps, states beyond the solved
     range, hysteresis, slack): the reference's samples inside a stepped run."""
@@ -79,6 +79,48 @@ def test_stepped_equals_block_across_folds_and_slack(model):
     t = np.arange(v.size) * 1e-2
     status = assert_equal_to_block(HOLLOW, WEAK, model, t, lam, v)["model_status"]
     assert np.any(status == SLACK) and np.any(np.isin(status, (SNAPPED, OUTSIDE_RANGE)))  # the hard cases
+
+
+#: a solid roll (Ri = 0) past its pitchfork: the hole opens (a snap where it is subcritical) and closes again
+SOLID = RollGeometry(0.0, 0.6026e-3, 1.6211e-3, 1.7393e-3, L1=34e-3, L1e=29e-3, L3=48e-6)
+
+
+def test_stepped_equals_block_where_a_solid_rolls_hole_opens():
+    up = np.linspace(0.0, 12000.0, 40)
+    v = np.tile(np.r_[up, up[::-1]], 3)
+    lam = np.repeat([1.0, 1.3, 2.0], 2 * up.size)
+    status = assert_equal_to_block(SOLID, TABLE3, "3r", np.arange(v.size) * 1e-2, lam, v)["model_status"]
+    assert np.any(status == SNAPPED)
+
+
+#: a hollow roll with a micro-core (Ri / Ro 1e-5): where the reference grades its scan toward the core, the
+#: step must take the same nodes
+MICRO = RollGeometry(1.8e-8, 0.3e-3, 1.62e-3, 1.8e-3, L1=34e-3, L1e=29e-3, L3=48e-6)
+
+
+def test_stepped_equals_block_on_a_micro_core():
+    up = np.linspace(0.0, 12000.0, 40)
+    v = np.tile(np.r_[up, up[::-1]], 2)
+    lam = np.repeat([1.0, 1.6], 2 * up.size)
+    assert_equal_to_block(MICRO, TABLE3, "3r", np.arange(v.size) * 1e-2, lam, v)
+
+
+@pytest.mark.parametrize(("model", "case"), [("1r", "folds"), ("3r", "folds"), ("3r", "pitchfork")])
+def test_no_finite_sample_leaves_the_compiled_step(model, case, monkeypatch):
+    """Folds, snaps, pull-in, states beyond the range, slack: the compiled step decides every sample with a
+    finite stretch >= 1 and voltage (the reference solver is not called); the numbers are the block's
+    (the tests above)."""
+    if case == "folds":
+        geom, params, up = HOLLOW, WEAK, np.linspace(0.0, 15000.0, 25)
+        lam = np.repeat([1.0, 1.5, 3.0], 2 * up.size)
+    else:
+        geom, params, up = SOLID, TABLE3, np.linspace(0.0, 12000.0, 40)
+        lam = np.repeat([1.0, 1.3, 2.0], 2 * up.size)
+    v = np.tile(np.r_[up, up[::-1]], 3)
+    twin = TwinStep(geom, params, model)
+    monkeypatch.setattr(twin, "_reference", lambda *a: pytest.fail(f"the reference solved sample {a}"))
+    status = [int(twin.step(t, a, b)[-1]) for t, a, b in zip(np.arange(v.size) * 1e-2, lam, v)]
+    assert len(set(status)) >= 3  # not one easy outcome
 
 
 def test_nan_sample_is_bad_input_and_the_branches_carry_on():

@@ -63,10 +63,6 @@ class Evaluation:
     y: np.ndarray | None = None
 
 
-#: A path whose uncertified samples (see `rdea_lab.physics.kernels`) fall into more runs than this is
-#: solved by the reference as a whole (each run is one reference call).
-MAX_FALLBACK_RUNS = 32
-
 
 def evaluate_free(problem, state, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
     """Solve a one-coordinate problem (rising-ramp rule, the path, or descent from
@@ -107,26 +103,19 @@ def _branch_certified(fast, problem):
 
 def _path_certified(fast, problem, y_start, label):
     """`follow_path` with the compiled kernel's certified samples: a single-basin sample's state is its
-    one root whatever came before, so only the runs of other samples go to the reference, each from the
-    state before it."""
+    one root whatever came before; the other samples take the reference's full scan and path rule compiled
+    (`rdea_lab.physics.scan_kernel`), each from the state before it."""
     y, ok = fast.branch_roots(problem, whole=True, start=y_start)
     n = y.size
     status = np.full(n, OK, dtype=np.int8)
     K_crit, K_range = np.full(n, np.nan), np.full(n, np.nan)
     if n == 0:
         return PathResult(y, status, K_crit, K_range, (y_start, label))
-    edges = np.flatnonzero(np.diff(np.r_[0, (~ok).astype(np.int8), 0]))
-    runs = edges.reshape(-1, 2)
-    if len(runs) > MAX_FALLBACK_RUNS:
-        return follow_path(problem, y_start, start_label=label)
-    end = (float(y[-1]), None)
-    for a, b in runs.tolist():
-        sel = np.arange(a, b)
-        prev, lab = (float(y[a - 1]), None) if a else (y_start, label)
-        sub = follow_path(problem.subset(sel), prev, start_label=lab)
-        y[sel], status[sel], K_crit[sel], K_range[sel] = sub.y, sub.status, sub.K_crit, sub.K_range
-        if b == n:
-            end = sub.end
+    if ok.all():
+        return PathResult(y, status, K_crit, K_range, (float(y[-1]), None))
+    from ..scan_kernel import follow_runs  # the reference's full scan and path rule, compiled
+
+    end = follow_runs(problem, y, ok, y_start, label, status, K_crit, K_range)
     return PathResult(y, status, K_crit, K_range, end)
 
 

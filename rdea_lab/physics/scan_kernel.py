@@ -1,0 +1,369 @@
+"""The reference's full scan and path rule for one sample, compiled (numba, ``cache=True``).
+
+`rdea_lab.physics.branch.follow_path` decides a sample the certified kernel
+(`rdea_lab.physics.kernels._one`) cannot (a fold, a snap, pull-in, the end of the
+range) from `branch._full_scan`: ``h`` at the scan nodes, its extrema refined by
+golden section, the crossings of the load refined by Newton's method, the basin
+the previous state lies in. This module is that code for one sample, step by step
+in the same order and the same floating-point operations (the equations are the
+compiled `kernels._terms`), so that a stepped sample never leaves compiled code:
+
+- `scan`: the knots ``kx, kh`` (nodes and extrema in order of ``y``) and the
+  extrema ``ext_y, ext_h, ext_max`` of `branch._full_scan` (without its padding);
+- `path_rule`: `branch.follow_path`'s state, status, ``K_crit`` and ``K_range`` of
+  one sample coming from ``y_prev`` (a series, with the previous sample's label where
+  it had no state, or an ``origin``).
+
+The scan's nodes are the reference's: ``y0``, then `branch.scan_nodes`' regular
+nodes merged with the scale offsets the caller takes from `branch.scale_offsets`
+(tests compare the knots with `branch._full_scan`'s on the random hard-case families).
+
+Cost, bounded: with ``m`` nodes (``1 + N_SCAN`` plus the scale offsets, at most
+``1 + 24 + 60``) the scan evaluates the terms ``m`` times, twice more per hidden dip
+hinted, ``82`` times per extremum (at most ``4 m`` extrema, in practice 0-4) and at
+most ``max_iter`` (100) times per crossing of the load (at most one per knot); a
+3R evaluation takes about 40 ns.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from .kernels import _terms
+from .result import LIMIT_POINT, NOT_CONVERGED, OK, OUTSIDE_RANGE, SNAPPED
+
+_GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)  # as `branch._GOLDEN`
+_EPS = float(np.finfo(float).eps)
+_jit = numba.njit(cache=True, error_model="numpy")
+
+
+@_jit
+def nodes(y0, y_max, offsets, n_scan, Y):
+    """``Y[0] = y0``, then the nodes of `branch.scan_nodes` (``offsets``: its scale offsets); returns their
+    number. ``Y`` holds at least ``1 + offsets.size + n_scan``."""
+    span = y_max - y0
+    Y[0] = y0
+    i, j, k = 1, 0, 1
+    while k <= n_scan or j < offsets.size:
+        reg = y0 + span * (k / n_scan) ** 2 if k <= n_scan else math.inf
+        if j < offsets.size:
+            ext = y0 + min(offsets[j], 0.999 * span)
+            if ext <= reg:
+                Y[i] = ext
+                j += 1
+                i += 1
+                continue
+        Y[i] = reg
+        k += 1
+        i += 1
+    return i
+
+
+@_jit
+def _h(code, y, l1, R, Q, C10, C20, C30):
+    p_y, _, c_y, _ = _terms(code, y, l1, R, Q, C10, C20, C30)
+    return p_y / c_y
+
+
+@_jit
+def _slope(code, y, l1, R, Q, C10, C20, C30):
+    p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
+    return (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+
+
+@_jit
+def _extremum(code, l1, R, Q, C10, C20, C30, lo, hi, y_node, h_node, is_max, y0, pitchfork):
+    """`branch._extremum` for one extremum: ``(y, h)``."""
+    s = 1.0 if is_max else -1.0
+    a = lo
+    if pitchfork and lo <= y0:
+        a = lo + 1e-12 * (hi - lo)
+    b = hi
+    c = b - _GOLDEN * (b - a)
+    d = a + _GOLDEN * (b - a)
+    fc = s * _h(code, c, l1, R, Q, C10, C20, C30)
+    fd = s * _h(code, d, l1, R, Q, C10, C20, C30)
+    for _ in range(80):
+        if fc > fd:
+            b = d
+            c_new = b - _GOLDEN * (b - a)
+            c, d = c_new, c
+            fc, fd = s * _h(code, c_new, l1, R, Q, C10, C20, C30), fc
+        else:
+            a = c
+            d_new = a + _GOLDEN * (b - a)
+            c, d = d, d_new
+            fc, fd = fd, s * _h(code, d_new, l1, R, Q, C10, C20, C30)
+    if fc >= fd:
+        y_top, f_top = c, fc
+    else:
+        y_top, f_top = d, fd
+    if s * h_node > f_top:  # the scan node itself (golden section can only improve on it)
+        return y_node, s * (s * h_node)
+    return y_top, s * f_top
+
+
+@_jit
+def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
+    """`branch._refine_root` for one root: ``(y, ok)``."""
+    y = 0.5 * (lo + hi)
+    tol = rtol * scale
+    for _ in range(max_iter):
+        p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
+        g1 = p_y - K * c_y
+        g2 = p_yy - K * c_yy
+        if sgn * g1 < 0.0:
+            lo = y
+        else:
+            hi = y
+        y_new = y - g1 / g2
+        floor = abs(g1) <= 64.0 * _EPS * (abs(p_y) + abs(K * c_y))
+        if floor:
+            y_new = y
+        elif not ((y_new >= lo) and (y_new <= hi)):
+            y_new = 0.5 * (lo + hi)
+        if floor or abs(y_new - y) <= tol or hi - lo <= tol:
+            return y_new, True
+        y = y_new
+    return y, False
+
+
+@_jit
+def _less(a, b):
+    """numpy's sort order: NaN last."""
+    return a < b or (b != b and a == a)
+
+
+@_jit
+def scan(code, l1, y0, y_max, h0, R, Q, C10, C20, C30, offsets, n_scan, pitchfork, kx, kh, ext_y, ext_h,
+         ext_max):
+    """`branch._full_scan` for one sample: fills ``kx, kh`` (knots, sorted) and ``ext_y, ext_h, ext_max``
+    (extrema, in the reference's order); returns ``(n_knots, n_ext)``. The arrays hold at least ``5 m``
+    (knots) and ``4 m`` (extrema) with ``m = 1 + offsets.size + n_scan``."""
+    m_cap = 1 + offsets.size + n_scan
+    Y = np.empty(m_cap)
+    m = nodes(y0, y_max, offsets, n_scan, Y)
+    H = np.empty(m)
+    S = np.empty(m)  # h' at the nodes (NaN at y0)
+    H[0], S[0] = h0, math.nan
+    for k in range(1, m):
+        p_y, p_yy, c_y, c_yy = _terms(code, Y[k], l1, R, Q, C10, C20, C30)
+        H[k] = p_y / c_y
+        S[k] = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+    # the extrema to refine, in the reference's order: node extrema, dips' maxima, dips' minima,
+    # pairs' first, pairs' second, the pitchfork's
+    cap = 4 * m
+    lo_y, hi_y, node_y, node_h = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
+    is_max = np.empty(cap, dtype=np.bool_)
+    ne = 0
+    for k in range(1, m - 1):
+        inc_a, inc_b = H[k] - H[k - 1] >= 0.0, H[k + 1] - H[k] >= 0.0
+        if inc_a != inc_b:
+            lo_y[ne], hi_y[ne], node_y[ne], node_h[ne], is_max[ne] = Y[k - 1], Y[k + 1], Y[k], H[k], inc_a
+            ne += 1
+    n_dip = 0
+    dip_c = np.empty(m)
+    dip_y = np.empty(m)
+    for c in range(m - 1):
+        if not (H[c + 1] - H[c] >= 0.0):
+            continue
+        dy = Y[c + 1] - Y[c]
+        m0, m1, d = S[c] * dy, S[c + 1] * dy, H[c + 1] - H[c]
+        b = 6.0 * d - 4.0 * m0 - 2.0 * m1
+        a = 3.0 * m0 + 3.0 * m1 - 6.0 * d
+        if (b < 0.0) and (-b < 2.0 * a) and (b * b > 4.0 * a * m0) and (m0 >= 0.0) and (m1 >= 0.0):
+            y_mid = Y[c] + (-b / (2.0 * a)) * (Y[c + 1] - Y[c])
+            if _slope(code, y_mid, l1, R, Q, C10, C20, C30) < 0.0:  # a fit is only a hint
+                dip_c[n_dip], dip_y[n_dip] = c, y_mid
+                n_dip += 1
+    for i in range(n_dip):
+        c = int(dip_c[i])
+        lo_y[ne], hi_y[ne], node_y[ne], node_h[ne], is_max[ne] = Y[c], dip_y[i], Y[c], H[c], True
+        ne += 1
+    for i in range(n_dip):
+        c = int(dip_c[i])
+        lo_y[ne], hi_y[ne], node_y[ne], node_h[ne], is_max[ne] = dip_y[i], Y[c + 1], Y[c + 1], H[c + 1], False
+        ne += 1
+    n_pair = 0
+    pair_c = np.empty(m)
+    for k in range(1, m - 1):
+        inc_a, inc_b = H[k] - H[k - 1] >= 0.0, H[k + 1] - H[k] >= 0.0
+        rising = not (S[k] < 0.0)
+        if (inc_a and inc_b and not rising) or (not inc_a and not inc_b and rising):
+            pair_c[n_pair] = k
+            n_pair += 1
+    for second in (False, True):
+        for i in range(n_pair):
+            k = int(pair_c[i])
+            first_max = S[k] < 0.0
+            if second:
+                lo_y[ne], hi_y[ne], is_max[ne] = Y[k], Y[k + 1], not first_max
+            else:
+                lo_y[ne], hi_y[ne], is_max[ne] = Y[k - 1], Y[k], first_max
+            node_y[ne], node_h[ne] = Y[k], H[k]
+            ne += 1
+    for i in range(ne):
+        ext_y[i], ext_h[i] = _extremum(code, l1, R, Q, C10, C20, C30, lo_y[i], hi_y[i], node_y[i], node_h[i],
+                                       is_max[i], y0, pitchfork)
+        ext_max[i] = is_max[i]
+    if pitchfork and m > 1 and not (H[1] - H[0] >= 0.0):  # a subcritical pitchfork: a maximum at y0
+        ext_y[ne], ext_h[ne], ext_max[ne] = np.nextafter(y0, math.inf), H[0], True
+        ne += 1
+    # knots: nodes, then extrema (a NaN one stands at the last node), sorted stably
+    for k in range(m):
+        kx[k], kh[k] = Y[k], H[k]
+    for i in range(ne):
+        finite = abs(ext_y[i]) < math.inf
+        kx[m + i] = ext_y[i] if finite else Y[m - 1]
+        kh[m + i] = ext_h[i] if finite else H[m - 1]
+    nk = m + ne
+    for i in range(1, nk):  # insertion sort: stable, and the extrema are few
+        x, h = kx[i], kh[i]
+        j = i - 1
+        while j >= 0 and _less(x, kx[j]):
+            kx[j + 1], kh[j + 1] = kx[j], kh[j]
+            j -= 1
+        kx[j + 1], kh[j + 1] = x, h
+    return nk, ne
+
+
+@_jit
+def path_rule(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan, pitchfork, y_prev, label,
+              label_status, label_K, origin, rtol, max_iter):
+    """`branch.follow_path` for one sample coming from ``y_prev`` (the state before it; ``label``: the sample
+    before had no state, with ``(label_status, label_K)``; ``origin``: descent from ``y_prev`` alone, no
+    label). Returns ``(y, status, K_crit, K_range, lost)``; ``y`` is ``y_max`` where ``lost``."""
+    m = 1 + offsets.size + n_scan
+    kx, kh = np.empty(5 * m), np.empty(5 * m)
+    ext_y, ext_h = np.empty(4 * m), np.empty(4 * m)
+    ext_max = np.empty(4 * m, dtype=np.bool_)
+    nk, ne = scan(code, l1, y0, y_max, h0, R, Q, C10, C20, C30, offsets, n_scan, pitchfork, kx, kh, ext_y,
+                  ext_h, ext_max)
+    scale = y_max - y0
+    # crossings of K between knots: up = a stable root, down = an unstable one, in order of y
+    at_start = K <= kh[0]
+    stable = np.empty(nk)
+    unstable = np.empty(nk)
+    n_s, n_u = 0, 0
+    if at_start:
+        stable[0] = y0
+        n_s = 1
+    bad_root = False
+    for j in range(nk - 1):
+        a_h, b_h = kh[j], kh[j + 1]
+        up = (a_h < K) and (b_h >= K)
+        down = (a_h >= K) and (b_h < K)
+        if up or down:
+            r, ok = _root(code, l1, R, Q, C10, C20, C30, kx[j], kx[j + 1], K, scale, rtol, max_iter,
+                          1.0 if up else -1.0)
+            bad_root = bad_root or not ok
+            if up:
+                stable[n_s] = r
+                n_s += 1
+            else:
+                unstable[n_u] = r
+                n_u += 1
+    lost = False
+    if n_s == 0:
+        y, lost = y_max, True
+    elif n_u == 0:
+        y = stable[0]
+    else:
+        j = 0  # the basin y_prev lies in: np.searchsorted(U, y_prev, side="right")
+        while j < n_u and unstable[j] <= y_prev:
+            j += 1
+        if j < n_s:
+            y = stable[j]
+        else:
+            y, lost = y_max, True
+    status, K_crit, K_range = OK, math.nan, math.nan
+    if not lost:  # snap-through: the first fold strictly between y_prev and y in the direction of travel
+        lo, hi = min(y_prev, y), max(y_prev, y)
+        rising = y >= y_prev
+        best = math.inf
+        for i in range(ne):
+            if ext_y[i] > lo and ext_y[i] < hi:
+                dist = ext_y[i] - y_prev if rising else y_prev - ext_y[i]
+                if dist < best:
+                    best = dist
+                    status, K_crit = SNAPPED, ext_h[i]
+    else:  # past a limit point (the highest load ahead is a fold's) or outside the range (the range end's)
+        start = min(y_prev, y_max)
+        top, best = 0, -math.inf
+        for j in range(nk):
+            v = kh[j] if kx[j] >= start else -math.inf
+            if v != v:  # np.argmax stops at the first NaN
+                top, best = j, v
+                break
+            if j == 0 or v > best:
+                top, best = j, v
+        if kx[top] >= y_max:
+            status = OUTSIDE_RANGE
+            K_range = -math.inf
+            for j in range(nk):  # np.max: NaN wins
+                if kh[j] != kh[j]:
+                    K_range = math.nan
+                    break
+                K_range = max(K_range, kh[j])
+        else:
+            status, K_crit = LIMIT_POINT, best
+        if label and not origin:  # a run of lost samples keeps the label (and fold) of its first
+            status = label_status
+            K_crit = label_K if label_status == LIMIT_POINT else math.nan
+            K_range = K_range if label_status == OUTSIDE_RANGE else math.nan
+    if bad_root and not lost:
+        status = NOT_CONVERGED
+    return y, status, K_crit, K_range, lost
+
+
+@_jit
+def _runs(code, l1, y0, y_max, K, h0, R, xi0, x0, Q, C10, C20, C30, offsets, n_scan, pitchfork, y, ok, y_start,
+          label, label_status, label_K, status, K_crit, K_range, rtol, max_iter):
+    # the samples not certified (ok False), in time order, each from the state before it; returns whether
+    # the last sample was lost, and its label
+    lost = label
+    prev = y_start
+    for i in range(y.size):
+        if ok[i]:
+            lost, prev = False, y[i]
+            continue
+        Ri = R
+        if code == 4:  # CR: the unloaded state and x0 are the sample's own
+            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        y[i], status[i], K_crit[i], K_range[i], was_lost = path_rule(
+            code, l1[i], y0[i], y_max[i], K[i], h0[i], Ri, Q, C[0], C[1], C[2], offsets, n_scan, pitchfork,
+            y0[i] if prev != prev else prev, lost, label_status, label_K, False, rtol, max_iter)
+        if was_lost:
+            label_status, label_K = status[i], K_crit[i]
+        lost, prev = was_lost, y[i]
+    return lost, label_status, label_K
+
+
+def follow_runs(problem, y, ok, y_start, label, status, K_crit, K_range, rtol=1e-14, max_iter=100):
+    """`branch.follow_path` of a problem with a compiled ``kernel`` at the samples ``ok`` does not certify (the
+    others keep their state ``y``): ``y``, ``status``, ``K_crit``, ``K_range`` written in place. Returns
+    the path's end ``(y, label)`` as `follow_path`'s."""
+    from .branch import N_SCAN, scale_offsets
+    from .kernels import _EMPTY_Q, _NO_RING, _arr
+
+    code, consts = problem.kernel
+    n = y.size
+    h0 = problem.h_start(np.arange(n))
+    C = tuple(np.atleast_1d(_arr(c)) for c in consts["C"])
+    if code == 4:
+        R, xi0, x0, Q = (0.0, 0.0, consts["Lb"]) + (0.0,) * 6, _arr(consts["xi0"], (n,)), _arr(consts["x0"], (n,)), \
+            _arr(consts["Q"])
+    else:
+        R, xi0, x0, Q = consts.get("R", _NO_RING), np.zeros(0), np.zeros(0), _EMPTY_Q
+    has_label = label is not None
+    lab_s, lab_k = label if has_label else (0, np.nan)
+    start = np.nan if y_start is None else float(y_start)
+    lost, lab_s, lab_k = _runs(code, _arr(consts["l1"], (n,)), _arr(problem.y0, (n,)), _arr(problem.y_max, (n,)),
+                               _arr(problem.K, (n,)), _arr(h0, (n,)), tuple(float(r) for r in R), xi0, x0, Q, *C,
+                               _arr(scale_offsets(problem)), N_SCAN, bool(problem.pitchfork), y, ok, start,
+                               has_label, int(lab_s), float(lab_k), status, K_crit, K_range, rtol, max_iter)
+    return float(y[-1]), ((int(lab_s), float(lab_k)) if lost else None)
