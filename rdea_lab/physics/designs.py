@@ -18,10 +18,11 @@ mapped: each design is solved with its own radii. Where numba is installed the
 states of every design and sample come from one compiled loop
 (`rdea_lab.physics.design_kernels.rolls`: the twin's certified per-sample
 state and free state, each design with its own ring constants); a sample it
-does not certify (a fold, a snap, the pitchfork of a solid 3R roll near its
-bifurcation, NaN input), and every CR roll with a hollow core, is solved by
-the model's own `solve` for that design alone (on a path, each run of such
-samples continues from the state before it, as `solve` itself does). So the
+does not take as an ordinary state (a fold, a snap, the end of the model's
+range, NaN input), and every CR roll with a hollow core, is solved by the
+model's own `solve` for that design alone, which gives its status and
+voltage (on a path, that sample and every one after it, continued from the
+state before it, as `solve` itself does). So the
 result is a loop over `solve` per design, to the kernels' 1e-12. SU calls
 large enough for the compiled kernels (`solve`'s ``auto`` rule on designs x
 samples: a study's protocol) take the same loop, its closed form with each
