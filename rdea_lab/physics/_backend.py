@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 #: Kernel choices of `rdea_lab.physics.models.solve` and the branch updates.
@@ -30,6 +31,8 @@ def compiled(kernel, n=None):
         raise ValueError(f"kernel {kernel!r}; allowed: {', '.join(KERNELS)}")
     if kernel == "numpy" or (kernel == "auto" and (n is None or n < AUTO_MIN_SAMPLES)):
         return None
+    if kernel == "auto" and os.environ.get("RDEA_LAB_KERNELS", "numba").lower() == "numpy":
+        return None  # turned off (`kernels.enabled`): numba is not even loaded
     try:
         from . import kernels
     except ImportError:  # numba missing: the reference is the fallback

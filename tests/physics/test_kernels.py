@@ -260,3 +260,20 @@ def test_history_takes_the_compiled_update(monkeypatch, sampling):
     calls.clear()
     assert np.array_equal(viscoelastic.branch_strains(history, None, tau, q0), plain)
     assert not calls
+
+
+def test_kernels_turned_off_load_no_numba():
+    """``RDEA_LAB_KERNELS=numpy`` turns the compiled kernels off before numba is loaded: a calibration's
+    `History` (``auto`` at any length) runs the numpy scan in a process that never imports numba."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import sys\nimport numpy as np\nfrom rdea_lab.physics import viscoelastic\n"
+            "h = viscoelastic.History.of(np.arange(50) * 0.01, 1 + 0.001 * np.arange(50))\n"
+            "viscoelastic.branch_strains(h, None, np.array([0.1]), np.array([0.0]))\n"
+            "print('numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "RDEA_LAB_KERNELS": "numpy"},
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
