@@ -169,13 +169,23 @@ def _try_lock(folder: Path, create: bool = True):
     return fd
 
 
-def _remove_journal(folder: Path, ignore_errors: bool = False) -> None:
-    """Remove a journal whose lock the caller holds: its files, then ``writer.lock``, then the folder (so a lock
-    another process takes meanwhile is on a file gone from its path: `_try_lock` says so). A lock file a recover
-    made meanwhile (a journal older than the lock) is removed on a second pass."""
+def _remove_journal(folder: Path, held: int | None = None, ignore_errors: bool = False) -> None:
+    """Remove a journal whose lock the caller holds (``held``, its descriptor): its files, then
+    ``writer.lock``, then the folder (so a lock another process takes meanwhile is on a file gone from its
+    path: `_try_lock` says so). Something written into the folder meanwhile (a pause request, a lock file a
+    recover made for a journal older than the lock) is removed on a second pass, unless the folder's lock
+    file is no longer the one held: then another claim owns the folder and it is left to it."""
     folder = Path(folder)
+    lock = folder / LOCK
     for attempt in range(3):
         try:
+            if held is not None:
+                try:
+                    if not os.path.samestat(os.stat(lock), os.fstat(held)):
+                        return  # a new claim's folder now
+                except FileNotFoundError:
+                    if attempt:
+                        held = None  # ours is gone already (first pass): a lock file made since is no claim's
             for entry in os.scandir(folder):
                 if entry.name == LOCK:
                     continue
@@ -184,7 +194,7 @@ def _remove_journal(folder: Path, ignore_errors: bool = False) -> None:
                 else:
                     os.unlink(entry.path)
             with contextlib.suppress(FileNotFoundError):
-                os.unlink(folder / LOCK)
+                os.unlink(lock)
             os.rmdir(folder)
             return
         except FileNotFoundError:
@@ -193,9 +203,7 @@ def _remove_journal(folder: Path, ignore_errors: bool = False) -> None:
             if attempt == 2 and not ignore_errors:
                 raise
         except OSError as exc:
-            if exc.errno != errno.ENOTEMPTY and not ignore_errors:
-                raise
-            if attempt == 2 and not ignore_errors:
+            if (exc.errno != errno.ENOTEMPTY or attempt == 2) and not ignore_errors:
                 raise
             _time.sleep(0.01)
 
@@ -278,20 +286,25 @@ class JournalWriter:
             self.begin(attrs)
 
     def _claim(self) -> int:
-        """Make the journal folder and take its lock: the lock's file descriptor. The lock may be busy for a
-        moment (a catalogue or `recover` looking whether a writer holds it): tried again for `CLAIM_WAIT`. A
-        `recover` that looks in between (the folder made, its lock not yet taken) takes it for the claim of a
-        run killed before it began and removes it, holding its lock: the claim is then made again."""
+        """Make the journal folder and its lock file (once, right after the folder) and take the lock: its
+        file descriptor. The lock may be busy for a moment (a catalogue or `recover` looking whether a writer
+        holds it): tried again for `CLAIM_WAIT`, never making the file again. A `recover` that looks in
+        between (the folder made, its lock not yet taken) takes it for the claim of a run killed before it
+        began and removes it, holding its lock: once the folder is gone the claim is made again."""
         for _ in range(20):
             try:
                 self.dir.mkdir(exist_ok=False)
             except FileExistsError:
                 raise JournalInUse(str(self.out), "out", f"another run is writing it (its journal {self.dir} "
                                    "exists); choose another output") from None
+            try:
+                os.close(os.open(self.dir / LOCK, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644))
+            except (FileNotFoundError, FileExistsError):  # removed under us already, or being removed
+                pass
             deadline = _time.monotonic() + CLAIM_WAIT
             while True:
                 try:
-                    lock = _try_lock(self.dir)
+                    lock = _try_lock(self.dir, create=False)
                 except FileNotFoundError:  # removed under us
                     break
                 if lock is not None:
@@ -327,7 +340,7 @@ class JournalWriter:
             os.close(self._fd)
             self._fd = None
         if self.samples == 0:
-            _remove_journal(self.dir, ignore_errors=True)
+            _remove_journal(self.dir, self._lock, ignore_errors=True)
         self._release()
 
     def append(self, block: dict) -> int:
@@ -442,7 +455,7 @@ class JournalWriter:
                 if converter is not None:
                     converter.discard()
                 raise
-            _remove_journal(self.dir)
+            _remove_journal(self.dir, self._lock)
         finally:
             self._release()
         return self.out
@@ -771,7 +784,7 @@ def recover(path: Path, out: Path | None = None) -> Path:
                 raise RunInProgress(f"{folder}: a run is starting on it; left alone")
             if claim is not None:
                 try:  # a claim whose run never began (killed before it started): removed holding its lock
-                    _remove_journal(folder, ignore_errors=True)
+                    _remove_journal(folder, claim, ignore_errors=True)
                 finally:
                     os.close(claim)
                 raise EmptyJournal(f"{folder}: the claim of a run that never started (no samples); removed")
@@ -829,7 +842,7 @@ def recover(path: Path, out: Path | None = None) -> Path:
                 if _is_full(exc, out, n * 8 * len(_read_header(folder)["columns"])):
                     raise _disk_full(exc, out, folder, n) from None
             raise
-        _remove_journal(folder)
+        _remove_journal(folder, lock)
     finally:
         os.close(lock)
     from .index import index_quietly

@@ -371,3 +371,41 @@ def test_a_lock_taken_on_a_journal_being_removed_is_no_lock(tmp_path, monkeypatc
         jr._try_lock(journal_path(out))
     monkeypatch.setattr(jr, "fcntl", fcntl)
     assert not out.exists()
+
+
+def test_a_claim_never_makes_its_lock_file_again_in_a_folder_being_removed(tmp_path, monkeypatch):
+    """A recover removing what looks like an abandoned claim has unlinked its lock file and not yet removed
+    the folder when the writer tries its lock again: the writer must not make a new lock file there (the
+    recover's second pass would remove it with the writer's files); it waits for the folder to go and claims
+    again, and ends holding the lock on its own new folder's file."""
+    import threading
+
+    from rdea_lab.store import journal as jr
+
+    out = tmp_path / "run.nc"
+    folder = journal_path(out)
+    real, calls, removing = jr._try_lock, [], []
+
+    def contested(f, create=True):
+        calls.append(create)
+        if len(calls) == 1:  # a recover holds the new claim's lock and starts removing it
+            removing.append(_other_process_lock(f))
+            os.unlink(Path(f) / jr.LOCK)
+
+            def finish_removal():
+                jr._remove_journal(folder, removing[0])
+                os.close(removing[0])
+
+            threading.Timer(0.05, finish_removal).start()
+        return real(f, create)
+
+    monkeypatch.setattr(jr, "_try_lock", contested)
+    w = JournalWriter(out, ATTRS)
+    monkeypatch.setattr(jr, "_try_lock", real)
+    assert not any(calls)  # every attempt without making the lock file
+    assert os.path.samestat(os.fstat(w._lock), os.stat(folder / jr.LOCK))
+    w.append(block(0.0, 3))
+    with pytest.raises(RunInProgress):
+        recover(out)
+    w.finish("complete", "")
+    assert open_run(out).sizes["time"] == 3
