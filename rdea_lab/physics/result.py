@@ -102,7 +102,8 @@ class ModelResult:
     model : str
         ``"su"``, ``"1r"``, ``"3r"`` or ``"cr"``.
     stretch, voltage : numpy.ndarray
-        The inputs [-], [V].
+        The inputs [-], [V]: read-only views of the caller's own arrays where those are contiguous
+        float64 of the result's shape (not copied: a later change to the caller's array shows here).
     sigma1 : numpy.ndarray
         Axial true stress, eq. (16) [Pa]; 0 where slack; NaN where ``converged`` is False.
     force : numpy.ndarray
@@ -194,6 +195,14 @@ class PathEnd:
     label: tuple | None = None
 
 
+def read_only(a: np.ndarray) -> np.ndarray:
+    """A read-only view of ``a`` (``a`` itself keeps its flags): a result's array that is shared (the
+    caller's input, one array for several fields) cannot be changed through the result."""
+    view = a.view()
+    view.flags.writeable = False
+    return view
+
+
 def finish(model, geom, l1, bad, shape, raw, fields, status, critical_voltage, range_voltage, free_stretch,
            end=None) -> ModelResult:
     """Assemble a :class:`ModelResult`: force from stress, NaN where not converged.
@@ -228,9 +237,7 @@ def finish(model, geom, l1, bad, shape, raw, fields, status, critical_voltage, r
         out["tension"] = out["tension"].copy()  # two fields, two arrays
     if np.may_share_memory(out["lambda2a"], out["lambda2b"]):  # one array for the three rings (SU, 1R):
         for name in ("lambda2a", "lambda2b", "lambda2c"):  # read-only, so no write to one changes another
-            view = out[name].view()
-            view.flags.writeable = False
-            out[name] = view
+            out[name] = read_only(out[name])
     out["force"] = (force if all_ok else out["sigma1"].reshape(-1) * geom.area / l1).reshape(shape)
     # None: no sample has a fold or a range end (SU): one read-only NaN view, nothing allocated
     nan = np.broadcast_to(np.nan, (n,))
@@ -240,7 +247,7 @@ def finish(model, geom, l1, bad, shape, raw, fields, status, critical_voltage, r
                                                      np.nan)
     free_stretch = np.asarray(free_stretch, float)
     return ModelResult(
-        model=model, stretch=raw[0].reshape(shape), voltage=raw[1].reshape(shape),
+        model=model, stretch=read_only(raw[0].reshape(shape)), voltage=read_only(raw[1].reshape(shape)),
         converged=ok.reshape(shape), status=status.reshape(shape),
         critical_voltage=crit.reshape(shape), range_voltage=rng.reshape(shape),
         free_stretch=(free_stretch if all_ok else np.where(ok, free_stretch, np.nan)).reshape(shape), end=end,

@@ -151,7 +151,7 @@ def _state(code, P, R, B, offsets, pitchfork, l1, v, y_prev, label, label_status
         # y0 is a minimum of g (g_y >= 0 there, or g_yy >= 0 at a pitchfork) and the state before is not
         # above it: descent stays at y0 and crosses no fold, whatever h does beyond (the reference scans it
         # all and finds the same, unless refining a crossing beyond failed: NOT_CONVERGED there)
-        y = y0
+        y, status, K_crit, lost = y0, OK, math.nan, False
     else:
         y, status, K_crit, lost = _path_state(code, l1, y0, y_max, K, h0, R, C10, C20, C30, offsets, pitchfork,
                                               y_prev, label, label_status, label_K, origin)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import yeoh
-from ..result import BAD_INPUT, OK, OVERFLOW, SLACK, ModelResult, PathEnd, prepare_inputs
+from ..result import BAD_INPUT, OK, OVERFLOW, SLACK, ModelResult, PathEnd, prepare_inputs, read_only
 from .._backend import compiled
 from ._common import FREE_STRETCH_MAX, Evaluation, check_start, kappa, solve_model, yeoh_coefficients
 
@@ -135,7 +135,8 @@ def _solve_compiled(fast, geom, material, C, l1, v, bad, shape, raw, path, start
                                        (OK, SLACK, BAD_INPUT, OVERFLOW))
     sigma, tension, force, l2, cap, r_i, free = (f.reshape(shape) for f in fields)
     nan = np.broadcast_to(np.nan, shape)  # SU has no fold and no range end
-    return ModelResult(model="su", stretch=raw[0].reshape(shape), voltage=raw[1].reshape(shape), sigma1=sigma,
-                       force=force, lambda2a=l2, lambda2b=l2, lambda2c=l2, capacitance=cap,
+    l2 = read_only(l2)  # one array for the three rings: read-only, so no write to one changes another
+    return ModelResult(model="su", stretch=read_only(raw[0].reshape(shape)), voltage=read_only(raw[1].reshape(shape)),
+                       sigma1=sigma, force=force, lambda2a=l2, lambda2b=l2, lambda2c=l2, capacitance=cap,
                        converged=ok.reshape(shape), status=status.reshape(shape), critical_voltage=nan,
                        r_i=r_i, tension=tension, range_voltage=nan, free_stretch=free, end=end)
