@@ -23,7 +23,10 @@ range, NaN input), and every CR roll with a hollow core, is solved by the
 model's own `solve` for that design alone, which gives its status and
 voltage (on a path, that sample and every one after it, continued from the
 state before it, as `solve` itself does). So the
-result is a loop over `solve` per design, to the kernels' 1e-12. SU calls
+result is a loop over `solve` per design, to the kernels' 1e-12, but for one
+case: the reference grades its 1R/3R scan to the largest span of the call's
+samples, the compiled state to each sample's own, so a fold lying between
+the nodes of one and not the other may be seen by one only. SU calls
 large enough for the compiled kernels (`solve`'s ``auto`` rule on designs x
 samples: a study's protocol) take the same loop, its closed form with each
 design's own ``kappa`` and its free states compiled with it.
