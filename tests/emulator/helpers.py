@@ -1,5 +1,6 @@
 """Helpers of the emulator tests: paths, a truth with other instrument values, a raw-socket client."""
 
+import multiprocessing
 import socket
 from pathlib import Path
 
@@ -135,3 +136,62 @@ def crc_of_what_was_sent(sent, x, v) -> str:
     TRAJ:STR and TRAJ:VOLT, as <f8."""
     data = np.array(sent, "<f8").tobytes() + np.asarray(x, "<f8").tobytes() + np.asarray(v, "<f8").tobytes()
     return f"{zlib.crc32(data):08x}"
+
+
+def _serve_apart(card, truth, options, pipe) -> None:
+    """The child of `ServerProcess`: serve, answer ``"voltage_on"`` on the pipe, stop on ``"stop"``."""
+    from rdea_lab.emulator import RigServer
+
+    with RigServer(card, truth, port=0, **options) as srv:
+        pipe.send(srv.address)
+        while True:
+            request = pipe.recv()
+            if request == "stop":
+                break
+            pipe.send(srv.controller.voltage_on)
+
+
+class _RemoteController:
+    def __init__(self, pipe):
+        self._pipe = pipe
+
+    @property
+    def voltage_on(self) -> bool:
+        self._pipe.send("voltage_on")
+        return self._pipe.recv()
+
+
+class ServerProcess:
+    """A `RigServer` in a process of its own, started fresh (``spawn``), as ``rdea-lab rig serve`` runs it.
+
+    What a latency figure measures is the server: served in the test's own process it would share the
+    interpreter lock and the garbage collector with whatever the test session holds (after the other slow
+    tests, a heap whose full collection alone takes longer than the e-stop budget). ``controller.voltage_on``
+    asks the server process, as `RigServer.controller` answers in process.
+    """
+
+    def __init__(self, card, truth, **options):
+        context = multiprocessing.get_context("spawn")
+        self._pipe, child = context.Pipe()
+        self._process = context.Process(target=_serve_apart, args=(card, truth, options, child), daemon=True)
+        self._process.start()
+        child.close()
+        if not self._pipe.poll(120):
+            self._process.kill()
+            raise RuntimeError("the rig server process did not start")
+        self.address = tuple(self._pipe.recv())
+        self.controller = _RemoteController(self._pipe)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        try:
+            self._pipe.send("stop")
+        except OSError:
+            pass
+        self._process.join(30)
+        if self._process.is_alive():
+            self._process.kill()
+            self._process.join()
+        self._pipe.close()
