@@ -386,17 +386,24 @@ def _su_stress(lam, v, C10, C20, C30, kap):
     return b * W1 - kap * (lam * v ** 2)
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _su_free(l1, v, s1, C10, C20, C30, kap, free_max):
-    """The SU free (F = 0) stretch above ``l1`` (stress ``s1 < 0`` there), NaN where there is none:
-    `models._common.free_state` for one sample, the same steps in the same order (bracketing by 25 %
-    steps, the Illinois iteration, the final check), so that the two agree to the last bit."""
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def free_stretch(stress, args, l1, s1, free_max):
+    """The free (F = 0) stretch above ``l1`` of one slack sample (stress ``s1 < 0`` at ``l1``), NaN where
+    none is found: `models._common.free_state`'s steps for one sample, in the same order (bracketing by
+    25 % steps, the Illinois iteration and its stopping rule), the one compiled form of them.
+
+    ``stress(stretch, args)`` is the compiled model at a trial stretch, ``(stress [Pa], valid)``; a trial
+    that is not valid (not converged, non-finite) ends the search with NaN. The caller checks the stress
+    at the returned stretch (the reference's final check), with the model's fields there in hand.
+    Inlined into each caller at numba's level: a call would pass ``stress`` as a pointer to the Python
+    object, which numba cannot cache.
+    """
     lo, s_lo, hi = l1, s1, l1
     s_hi = -np.inf
     while True:
         trial = min(hi * 1.25, free_max)
-        sig = _su_stress(trial, v, C10, C20, C30, kap)
-        if not np.isfinite(sig):
+        sig, valid = stress(trial, args)
+        if not (valid and np.isfinite(sig)):
             return np.nan
         if sig >= 0.0:
             hi, s_hi = trial, sig
@@ -409,13 +416,12 @@ def _su_free(l1, v, s1, C10, C20, C30, kap, free_max):
     tol = 1e-10 * abs(s1)
     side = 0
     x = b
-    done = False
     for _ in range(200):
         xn = (a * fb - b * fa) / (fb - fa)
         if not (xn > a and xn < b):
             xn = 0.5 * (a + b)
-        yn = _su_stress(xn, v, C10, C20, C30, kap)
-        if not np.isfinite(yn):
+        yn, valid = stress(xn, args)
+        if not (valid and np.isfinite(yn)):
             return np.nan
         x = xn
         if yn < 0.0:
@@ -427,69 +433,82 @@ def _su_free(l1, v, s1, C10, C20, C30, kap, free_max):
             b, fb = xn, yn
             side = 1
         if abs(yn) <= tol or b - a <= 1e-13 * b:
-            done = True
-            break
-    if not done:
-        return np.nan
-    if not (abs(_su_stress(x, v, C10, C20, C30, kap)) <= 1e-6 * abs(s1) + 1e-6):
+            return x
+    return np.nan
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_trial(lam, args):
+    v, C10, C20, C30, kap = args
+    return _su_stress(lam, v, C10, C20, C30, kap), True
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_free(l1, v, s1, C10, C20, C30, kap, free_max):
+    """The SU free stretch above ``l1`` (`free_stretch`), NaN where there is none or where the stress
+    there fails the reference's final check."""
+    x = free_stretch(_su_trial, (v, C10, C20, C30, kap), l1, s1, free_max)
+    if x == x and not (abs(_su_stress(x, v, C10, C20, C30, kap)) <= 1e-6 * abs(s1) + 1e-6):
         return np.nan
     return x
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_taut(l1, v, C10, C20, C30, kap, C0, Ri, area, sigma, tension, force, l2, cap, r_i, free):
+    """The taut state of every sample: one loop without branches over whole arrays, which the compiler
+    vectorizes (a loop over a block's index range, or one that also writes the int8 status, it did not)."""
+    for i in range(l1.size):
+        lam = l1[i]
+        s = _su_stress(lam, v[i], C10, C20, C30, kap)
+        q = 1.0 / np.sqrt(lam)
+        sigma[i] = s
+        tension[i] = s
+        force[i] = s * area / lam
+        l2[i] = q
+        cap[i] = C0 * lam
+        r_i[i] = Ri * q
+        free[i] = lam
 
 
 @numba.njit(cache=True, error_model="numpy")
 def _su_solve_loop(l1, v, bad, C10, C20, C30, kap, C0, Ri, area, slack, free_max, codes,
                    sigma, tension, force, l2, cap, r_i, free, status, converged):
     OK_, SLACK_, BAD_, OVER_ = codes[0], codes[1], codes[2], codes[3]
-    n = l1.size
-    for start in range(0, n, _SU_BLOCK):
-        stop = min(start + _SU_BLOCK, n)
-        # the taut state of every sample (a loop without branches: the compiler vectorizes it) ...
-        for i in range(start, stop):
-            lam = l1[i]
-            s = _su_stress(lam, v[i], C10, C20, C30, kap)
-            q = 1.0 / np.sqrt(lam)
-            sigma[i] = s
-            tension[i] = s
-            force[i] = s * area / lam
-            l2[i] = q
-            cap[i] = C0 * lam
-            r_i[i] = Ri * q
-            free[i] = lam
-            status[i] = OK_
-            converged[i] = True
-        # ... then the few that are not: bad inputs, slack rolls (their free state), overflow
-        for i in range(start, stop):
-            s = sigma[i]
-            if not bad[i] and (s >= 0.0 or not slack) and np.isfinite(s) and np.isfinite(force[i]):
-                continue
-            if bad[i]:
-                sigma[i] = tension[i] = force[i] = l2[i] = cap[i] = r_i[i] = free[i] = np.nan
-                status[i] = BAD_
-                converged[i] = False
-                continue
-            lam = l1[i]
-            st = OK_
-            at = lam
-            lf = lam
-            if slack and s < 0.0:
-                st = SLACK_
-                lf = _su_free(lam, v[i], s, C10, C20, C30, kap, free_max)
-                if lf == lf:
-                    at = lf
-            sig = 0.0 if st == SLACK_ else s
-            f = sig * area / lam
-            if not (np.isfinite(sig) and np.isfinite(f) and np.isfinite(s)):
-                sigma[i] = tension[i] = force[i] = l2[i] = cap[i] = r_i[i] = free[i] = np.nan
-                status[i] = OVER_
-                converged[i] = False
-                continue
-            q = 1.0 / np.sqrt(at)
-            sigma[i], force[i], l2[i], cap[i], r_i[i], free[i] = sig, f, q, C0 * at, Ri * q, lf
-            status[i] = st
+    # the taut state of every sample (vectorized) ...
+    _su_taut(l1, v, C10, C20, C30, kap, C0, Ri, area, sigma, tension, force, l2, cap, r_i, free)
+    # ... then the few that are not: bad inputs, slack rolls (their free state), overflow
+    for i in range(l1.size):
+        status[i] = OK_
+        converged[i] = True
+        s = sigma[i]
+        if not bad[i] and (s >= 0.0 or not slack) and np.isfinite(s) and np.isfinite(force[i]):
+            continue
+        if bad[i]:
+            sigma[i] = tension[i] = force[i] = l2[i] = cap[i] = r_i[i] = free[i] = np.nan
+            status[i] = BAD_
+            converged[i] = False
+            continue
+        lam = l1[i]
+        st = OK_
+        at = lam
+        lf = lam
+        if slack and s < 0.0:
+            st = SLACK_
+            lf = _su_free(lam, v[i], s, C10, C20, C30, kap, free_max)
+            if lf == lf:
+                at = lf
+        sig = 0.0 if st == SLACK_ else s
+        f = sig * area / lam
+        if not (np.isfinite(sig) and np.isfinite(f) and np.isfinite(s)):
+            sigma[i] = tension[i] = force[i] = l2[i] = cap[i] = r_i[i] = free[i] = np.nan
+            status[i] = OVER_
+            converged[i] = False
+            continue
+        q = 1.0 / np.sqrt(at)
+        sigma[i], force[i], l2[i], cap[i], r_i[i], free[i] = sig, f, q, C0 * at, Ri * q, lf
+        status[i] = st
 
 
-#: Samples per block of `su_solve`: its second pass reads them back from cache.
-_SU_BLOCK = 1024
 
 
 _roots = _variants(_roots_loop)

@@ -37,7 +37,7 @@ import numpy as np
 
 from . import _branch_kernels as _bk
 from . import yeoh
-from .kernels import _jit, _basis, _one, _slope, _terms
+from .kernels import _jit, _basis, _one, _slope, _terms, free_stretch
 from .models import one_ring, three_ring
 from .branch import N_SCAN, scale_offsets
 from .models._common import FREE_STRETCH_MAX, kappa, yeoh_coefficients
@@ -185,49 +185,20 @@ def _path_state(code, l1, y0, y_max, K, h0, R, C10, C20, C30, offsets, pitchfork
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _free_trial(lam, args):
+    """A trial of `_free`: the path's state at stretch ``lam`` descending from ``origin``, ``(stress, valid)``."""
+    code, P, R, B, offsets, pitchfork, v, origin = args
+    sig, _, _, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, lam, v, origin, False, 0, 0.0, True)
+    return sig, (st == OK or st == SNAPPED)
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
-    """The free (F = 0) state of a slack roll: `models._common.free_state` for one sample (the same
-    bracketing by 25 % steps and Illinois iteration, each trial the path's state descending from
-    ``origin``). ``(capacitance, lambda2b, found, free stretch)``."""
-    lo, s_lo, hi = l1, sigma_l1, l1
-    s_hi = -math.inf
-    while True:
-        trial = min(hi * 1.25, _FREE_MAX)
-        sig, _, _, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, trial, v, origin, False, 0, 0.0, True)
-        if not ((st == OK or st == SNAPPED) and abs(sig) < math.inf):
-            return math.nan, math.nan, False, math.nan
-        if sig >= 0.0:
-            hi, s_hi = trial, sig
-            break
-        lo, s_lo = trial, sig
-        if trial >= _FREE_MAX:
-            return math.nan, math.nan, False, math.nan
-        hi = trial
-    a, b, fa, fb = lo, hi, s_lo, s_hi
-    tol = 1e-10 * abs(sigma_l1)
-    side = 0
-    x = b
-    done = False
-    for _ in range(200):
-        xn = (a * fb - b * fa) / (fb - fa)
-        if not (xn > a and xn < b):
-            xn = 0.5 * (a + b)
-        yn, _, _, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, xn, v, origin, False, 0, 0.0, True)
-        if not ((st == OK or st == SNAPPED) and abs(yn) < math.inf):
-            return math.nan, math.nan, False, math.nan
-        x = xn
-        if yn < 0.0:
-            fb = 0.5 * fb if side == -1 else fb
-            a, fa = xn, yn
-            side = -1
-        else:
-            fa = 0.5 * fa if side == 1 else fa
-            b, fb = xn, yn
-            side = 1
-        if abs(yn) <= tol or b - a <= 1e-13 * b:
-            done = True
-            break
-    if not done:
+    """The free (F = 0) state of a slack roll: `kernels.free_stretch` (the steps of
+    `models._common.free_state`), each trial the path's state descending from ``origin``, then the
+    reference's final check. ``(capacitance, lambda2b, found, free stretch)``."""
+    x = free_stretch(_free_trial, (code, P, R, B, offsets, pitchfork, v, origin), l1, sigma_l1, _FREE_MAX)
+    if x != x:
         return math.nan, math.nan, False, math.nan
     sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, x, v, origin, False, 0, 0.0, True)
     if not ((st == OK or st == SNAPPED) and abs(sig) <= 1e-6 * abs(sigma_l1) + 1e-6):
