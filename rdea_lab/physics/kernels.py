@@ -89,6 +89,10 @@ _basis = _jit(su.basis)
 _radius = _jit(three_ring._radius)
 _ring = _jit(three_ring.ring_terms, inline="always", _radius=_radius, psi2_terms=_psi2, psi2_first=_psi2_first)
 _node = _jit(continuum.node_terms, inline="always", slope=_slope)
+_gradient = _jit(yeoh.gradient_terms, _invariant_terms=_jit(yeoh._invariant_terms), slope=_slope)
+_radii = _jit(three_ring.radii)
+_state3 = _jit(three_ring.ring_state, radii=_radii, gradient_terms=_gradient)
+_fields3 = _jit(three_ring.ring_fields, inline="always", ring_state=_state3)
 
 #: Model codes of `branch_roots`.
 CODES = {"1r": 1, "3r": 3, "cr": 4}
@@ -270,18 +274,31 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
     return y0, 0
 
 
-def _roots_loop(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
-                pitchfork, y, ok):
+@numba.njit(cache=True, error_model="numpy")
+def _h_start(code, y0, l1, R, Q, C10, C20, C30, pitchfork):
+    """`branch.Problem.h_start` of one sample: 0, or at a pitchfork the bifurcation load ``psi_yy / c_yy``."""
+    if not pitchfork:
+        return 0.0
+    _, p_yy, _, c_yy = _terms(code, y0, l1, R, Q, C10, C20, C30)
+    return p_yy / c_yy
+
+
+def _roots_loop(code, l1, y0, y_max, K, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
+                pitchfork, y, ok, h0):
     for i in prange(l1.size):
-        y[i], ok[i] = _one(code, l1[i], y0[i], y_max[i], K[i], h0[i], R, Q, C10, C20, C30, offsets, whole,
+        h = _h_start(code, y0[i], l1[i], R, Q, C10, C20, C30, pitchfork)
+        h0[i] = h
+        y[i], ok[i] = _one(code, l1[i], y0[i], y_max[i], K[i], h, R, Q, C10, C20, C30, offsets, whole,
                            rtol, max_iter, n_scan, pitchfork)
 
 
-def _roots_cr_loop(l1, y0, y_max, K, h0, xi0, x0, Lb, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
-                   pitchfork, y, ok):
+def _roots_cr_loop(l1, y0, y_max, K, xi0, x0, Lb, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
+                   pitchfork, y, ok, h0):
     for i in prange(l1.size):
         R = (xi0[i], x0[i], Lb, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        y[i], ok[i] = _one(4, l1[i], y0[i], y_max[i], K[i], h0[i], R, Q, C10, C20, C30, offsets, whole,
+        h = _h_start(4, y0[i], l1[i], R, Q, C10, C20, C30, pitchfork)
+        h0[i] = h
+        y[i], ok[i] = _one(4, l1[i], y0[i], y_max[i], K[i], h, R, Q, C10, C20, C30, offsets, whole,
                            rtol, max_iter, n_scan, pitchfork)
 
 
@@ -346,11 +363,11 @@ def branch_roots(problem, *, whole, start=None, rtol=1e-14, max_iter=100):
     ok = np.zeros(n, dtype=np.int8)
     if n == 0:
         return y, ok.astype(bool)
-    h0 = problem.h_start(np.arange(n))
     offsets = _arr(scale_offsets(problem))
-    args = (_arr(problem.y0, (n,)), _arr(problem.y_max, (n,)), _arr(problem.K, (n,)), _arr(h0, (n,)))
+    args = (_arr(problem.y0, (n,)), _arr(problem.y_max, (n,)), _arr(problem.K, (n,)))
     C = consts["C"]
-    tail = (offsets, bool(whole), rtol, max_iter, N_SCAN, bool(problem.pitchfork), y, ok)
+    h0 = np.empty(n)  # `Problem.h_start`, computed in the loop (in numpy it was most of a solid roll's call)
+    tail = (offsets, bool(whole), rtol, max_iter, N_SCAN, bool(problem.pitchfork), y, ok, h0)
     if code == CODES["cr"]:
         _roots_cr[_parallel(n)](_arr(consts["l1"]), *args, _arr(consts["xi0"]), _arr(consts["x0"]), consts["Lb"],
                                 _arr(consts["Q"]), *C, *tail)
@@ -514,6 +531,23 @@ def _su_solve_loop(l1, v, bad, C10, C20, C30, kap, C0, Ri, area, slack, free_max
 _roots = _variants(_roots_loop)
 _roots_cr = _variants(_roots_cr_loop)
 _su = _variants(_su_loop)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _ring_fields_loop(y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
+    for i in range(y.size):
+        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = _fields3(
+            y[i], l1[i], v[i], R, C10, C20, C30, kap, C0, Ro)
+
+
+def ring_fields(y, l1, v, R, C, kap, C0, Ro):
+    """`three_ring.ring_fields` of every sample (1-D ``y``, ``l1``, ``v``), compiled: six arrays, the rows of
+    one block."""
+    y = _arr(y)
+    out = np.empty((6, y.size))
+    _ring_fields_loop(y, _arr(l1, y.shape), _arr(v, y.shape), tuple(float(r) for r in R), float(C[0]),
+                      float(C[1]), float(C[2]), float(kap), float(C0), float(Ro), out)
+    return tuple(out)
 
 
 def su_state(l1, v, C, kap, C0, out=None):

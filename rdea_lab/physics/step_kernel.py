@@ -36,8 +36,7 @@ import numba
 import numpy as np
 
 from . import _branch_kernels as _bk
-from . import yeoh
-from .kernels import _jit, _basis, _one, _slope, _terms, free_stretch
+from .kernels import _gradient, _jit, _basis, _one, _slope, _state3, _terms, free_stretch
 from .models import one_ring, three_ring
 from .branch import N_SCAN, scale_offsets
 from .models._common import FREE_STRETCH_MAX, kappa, yeoh_coefficients
@@ -45,11 +44,8 @@ from .result import OK, OVERFLOW, SLACK, SNAPPED
 from .scan_kernel import path_rule
 from .viscoelastic import _FS_GROW, _FS_STEP, _FS_STRETCH_STEP
 
-_gradient = _jit(yeoh.gradient_terms, _invariant_terms=_jit(yeoh._invariant_terms), slope=_slope)
 _stress1 = _jit(one_ring.stress, gradient_terms=_gradient)
 _bounds1 = _jit(one_ring.bounds)
-_radii = _jit(three_ring.radii)
-_state3 = _jit(three_ring.ring_state, radii=_radii, gradient_terms=_gradient)
 _xi_hoop = _jit(three_ring.xi_at_hoop_stretch)
 _bounds3 = _jit(three_ring.bounds, xi_at_hoop_stretch=_xi_hoop)
 

@@ -32,6 +32,7 @@ from .. import yeoh
 from ..yeoh import gradient_terms, psi2_first, psi2_terms
 from ..branch import Problem
 from ..result import ModelNotApplicable, ModelResult
+from .._backend import compiled
 from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
 
 
@@ -170,6 +171,14 @@ def ring_state(xi, l1, v, R, C10, C20, C30, kap):
     return l1 * dg - 2.0 * kap * v * v * l1 * l1 * l2b * (l2b + l1 * dl2b), l2a, l2b, l2c
 
 
+def ring_fields(xi, l1, v, R, C10, C20, C30, kap, C0, Ro):
+    """``(sigma1 [Pa], lambda2a, lambda2b, lambda2c, capacitance [F], r_i [m])`` at the equilibrium ``xi``:
+    `ring_state` and eq. (29), ``C = C0 lambda1**2 lambda2b**2``. Scalar or array arguments (compiled too:
+    `rdea_lab.physics.kernels.ring_fields` runs it per sample)."""
+    sigma1, l2a, l2b, l2c = ring_state(xi, l1, v, R, C10, C20, C30, kap)
+    return sigma1, l2a, l2b, l2c, C0 * (l1 * l2b) ** 2, xi * Ro
+
+
 def _terms(rings, C):
     """``terms(xi, idx, second)`` for :func:`follow_branch`: derivatives of psi and c = lambda2b**2."""
     R = rings.constants
@@ -240,11 +249,16 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     rings = _Rings(geom, l1)
 
     C0 = geom.C0(material.eps_r)
+    # the rule `evaluate_free` follows too; per-sample coefficients (a design study's sweep) stay in numpy
+    scalar = all(isinstance(c, float) for c in C) and np.ndim(kap) == 0 and np.ndim(C0) == 0
+    fast = compiled(kernel, l1.size) if scalar else None
 
     def state(xi):
-        sigma1, l2a, l2b, l2c = ring_state(xi, l1, v, rings.constants, *C, kap)
-        return {"sigma1": sigma1, "lambda2a": l2a, "lambda2b": l2b, "lambda2c": l2c,
-                "capacitance": C0 * (l1 * l2b) ** 2, "r_i": xi * geom.Ro}
+        if fast is not None:
+            fields = fast.ring_fields(xi, l1, v, rings.constants, C, kap, C0, geom.Ro)
+        else:
+            fields = ring_fields(xi, l1, v, rings.constants, *C, kap, C0, geom.Ro)
+        return dict(zip(("sigma1", "lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i"), fields))
 
     return evaluate_free(problem(geom, material, l1, v), state, path=path, start=start, origin=origin,
                          kernel=kernel)
