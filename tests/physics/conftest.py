@@ -1,27 +1,8 @@
-"""Shared fixtures of the physics tests: the paper's materials and geometries (SI)."""
-
-from types import SimpleNamespace
+"""Shared fixtures of the physics tests (the materials and geometries: `physics_cases`)."""
 
 import pytest
 
-from rdea_lab.physics.geometry import RollGeometry
-
-#: Material of ref. [36], used in Section 3.4 of the paper.
-RIZZELLO = SimpleNamespace(C10=241e3, C20=-33.2e3, C30=20.1e3, eps_r=2.8)
-#: Table 3 of the paper as corrected in ERRATA.
-TABLE3 = SimpleNamespace(C10=242e3, C20=-69e3, C30=47e3, eps_r=2.8)
-
-#: The three rolls of Section 3.4 [m]; L3 = 48 um and alpha_e1 = 1.
-CORES = {
-    "hollow": (0.86e-3, 0.88e-3, 1.76e-3, 1.8e-3),
-    "active": (0.0, 0.088e-3, 1.76e-3, 1.8e-3),
-    "passive": (0.0, 0.81e-3, 1.76e-3, 1.8e-3),
-}
-
-
-def core(name_or_radii, L1=34e-3, L1e=34e-3, L3=48e-6):
-    radii = CORES[name_or_radii] if isinstance(name_or_radii, str) else name_or_radii
-    return RollGeometry(*radii, L1=L1, L1e=L1e, L3=L3)
+from physics_cases import CORES, core
 
 
 @pytest.fixture(params=sorted(CORES))

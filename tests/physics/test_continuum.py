@@ -18,7 +18,7 @@ from rdea_lab.physics.models import solve as _solve
 from rdea_lab.physics.result import OK, SNAPPED, ModelNotApplicable
 from rdea_lab.physics.selection import select_model
 
-from conftest import CORES, RIZZELLO, TABLE3, core
+from physics_cases import CORES, RIZZELLO, TABLE3, core
 
 #: The equations' stresses (Assumption 1 taken as given): no slack clipping.
 solve = functools.partial(_solve, slack=False)

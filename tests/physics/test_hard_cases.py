@@ -11,7 +11,7 @@ from rdea_lab.physics.models._common import HOOP_STRETCH_CAP, kappa
 from rdea_lab.physics.result import (BAD_INPUT, LIMIT_POINT, OK, OUTSIDE_RANGE, SLACK, SNAPPED,
                                      StretchBelowOneError)
 
-from conftest import RIZZELLO, TABLE3, core
+from physics_cases import RIZZELLO, TABLE3, core
 
 MODELS = ("su", "1r", "3r")
 SPECIMEN2 = (0.0, 0.6026e-3, 1.6211e-3, 1.7393e-3)  # our appendix radii of specimen 2

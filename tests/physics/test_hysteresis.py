@@ -53,7 +53,7 @@ from scipy.optimize import brentq
 
 from rdea_lab.physics.models import solve
 
-from conftest import RIZZELLO, TABLE3, core
+from physics_cases import RIZZELLO, TABLE3, core
 from sequential_reference import H_TOL, Reference
 
 OK, SNAPPED, SLACK = 0, 4, 7

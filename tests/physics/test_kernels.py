@@ -25,7 +25,7 @@ from rdea_lab.physics.geometry import RollGeometry
 from rdea_lab.physics.models import solve
 from rdea_lab.physics.result import SNAPPED
 
-from conftest import RIZZELLO, TABLE3, core
+from physics_cases import RIZZELLO, TABLE3, core
 from test_random_cases import cases
 
 FIELDS = ("sigma1", "tension", "force", "lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i",

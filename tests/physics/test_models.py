@@ -12,7 +12,7 @@ from rdea_lab.physics.models import one_ring, su, three_ring
 from rdea_lab.physics.models import solve as _solve
 from rdea_lab.physics.result import OK, SNAPPED
 
-from conftest import RIZZELLO, TABLE3, core
+from physics_cases import RIZZELLO, TABLE3, core
 
 from rdea_lab.reports.baseline_3r_fsolve import solve_3r_fsolve  # independent reference
 

@@ -57,7 +57,7 @@ from rdea_lab.physics.geometry import RollGeometry
 from rdea_lab.physics.models import solve, three_ring
 
 import brute_force as bf
-from conftest import RIZZELLO, TABLE3, core
+from physics_cases import RIZZELLO, TABLE3, core
 
 OK, LIMIT_POINT, BAD_INPUT, NOT_CONVERGED = _result.OK, _result.LIMIT_POINT, _result.BAD_INPUT, _result.NOT_CONVERGED
 SNAPPED, OVERFLOW, OUTSIDE_RANGE, SLACK = _result.SNAPPED, _result.OVERFLOW, _result.OUTSIDE_RANGE, _result.SLACK

@@ -23,7 +23,7 @@ from rdea_lab.physics.geometry import RollGeometry  # noqa: E402
 from rdea_lab.physics.models import continuum, one_ring, three_ring  # noqa: E402
 from rdea_lab.physics.result import LIMIT_POINT, OK, OUTSIDE_RANGE, SNAPPED  # noqa: E402
 
-from conftest import RIZZELLO, TABLE3, core  # noqa: E402
+from physics_cases import RIZZELLO, TABLE3, core  # noqa: E402
 from test_hard_cases import NEO, SOFT, SPECIMEN2, WEAK  # noqa: E402
 from test_random_cases import GENERAL, SMALL  # noqa: E402
 

@@ -20,7 +20,7 @@ from rdea_lab.physics.models import solve, su
 from rdea_lab.physics.models._common import FREE_STRETCH_MAX, solve_model
 from rdea_lab.physics.result import BAD_INPUT, OVERFLOW, SLACK
 
-from conftest import RIZZELLO, TABLE3, core
+from physics_cases import RIZZELLO, TABLE3, core
 from test_kernels import assert_same
 
 pytest.importorskip("numba")

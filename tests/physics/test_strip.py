@@ -13,7 +13,7 @@ from rdea_lab.physics.selection import select_model
 from rdea_lab.specs import SpecError, dump_specimen, specimen_from_yaml
 from rdea_lab.twin import simulate
 
-from conftest import RIZZELLO
+from physics_cases import RIZZELLO
 
 #: The strip's equations (its slack force is the twin's concern: carried_force).
 solve = functools.partial(_solve, slack=False)
