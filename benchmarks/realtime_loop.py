@@ -13,7 +13,9 @@ later), as a real-time loop would. Every 1R/3R sample stays in compiled
 code (`benchmarks/step_worst_case.py` measures its worst case on folds and
 slack); a CR sample of a roll with a core is the reference solver's
 (milliseconds: misses). A missed deadline otherwise is the machine's (another
-process preempting the loop: run it on an idle machine).
+process preempting the loop: run it on an idle machine; or, in a virtual
+machine, the host taking the core away: the run reports the steal time the
+kernel counted meanwhile, ``/proc/stat``).
 
 The loop waits by spinning on ``time.perf_counter_ns`` (a sleep's wake-up on
 a general-purpose kernel is 50-100 us late): it takes one core for the run.
@@ -32,6 +34,7 @@ from __future__ import annotations
 import argparse
 import gc
 import json
+import os
 import time
 from pathlib import Path
 
@@ -42,6 +45,16 @@ from rdea_lab.twin import TwinStep
 from rdea_lab.twin.step import FORCE
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def _steal_ms() -> float | None:
+    """The time the hypervisor took the cores away so far [ms] (``/proc/stat``, all cores; None where unknown)."""
+    try:
+        with open("/proc/stat") as f:
+            fields = f.readline().split()
+        return 1e3 * int(fields[8]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return None
 
 
 def loop(seconds=5.0, model="su", rate=10_000.0, gain=(2e3, 2e5)) -> dict:
@@ -61,8 +74,10 @@ def loop(seconds=5.0, model="su", rate=10_000.0, gain=(2e3, 2e5)) -> dict:
     work = np.empty(n)
     force = np.full(n, np.nan)
     missed = 0
+    started_late = 0  # missed ticks whose work fit in a period: the loop was not running at the tick
     tl = t.tolist()
     period = int(round(dt * 1e9))
+    steal0 = _steal_ms()
     gc.disable()
     try:
         deadline = time.perf_counter_ns() + 2 * period
@@ -79,16 +94,20 @@ def loop(seconds=5.0, model="su", rate=10_000.0, gain=(2e3, 2e5)) -> dict:
             force[i] = f
             if t1 > deadline:  # missed: the next tick is the next one on the clock (no catching up)
                 missed += 1
+                started_late += t1 - t0 <= period  # the work would have fit a tick: it started late
                 deadline += period * ((t1 - deadline) // period + 1)
             deadline += period
     finally:
         gc.enable()
+    steal1 = _steal_ms()
     err = np.asarray(f_ref) - force
     swing = float(np.max(f_ref) - np.min(f_ref))
     settled = slice(int(0.5 * rate), None)  # after the first half second
     return {"model": model, "rate_hz": rate, "ticks": n, "missed": int(missed), "missed_share": missed / n,
+            "missed_started_late": int(started_late),
             "work_us": {"median": float(np.median(work)), "p99": float(np.percentile(work, 99)),
                         "p99.9": float(np.percentile(work, 99.9)), "max": float(work.max())},
+            "steal_ms": None if steal0 is None or steal1 is None else steal1 - steal0,
             "tracking_rms_N": float(np.sqrt(np.mean(err[settled] ** 2))),
             "tracking_max_N": float(np.max(np.abs(err[settled]))),
             "tracking_rms_percent_of_swing": 100 * float(np.sqrt(np.mean(err[settled] ** 2))) / swing}
@@ -107,9 +126,11 @@ def main():
         return
     w = r["work_us"]
     print(f"{r['model']} at {r['rate_hz']:.0f} Hz: {r['ticks']} ticks, {r['missed']} missed deadlines "
-          f"({100 * r['missed_share']:.3f} %); work per tick median {w['median']:.1f} us, p99 {w['p99']:.1f}, "
+          f"({100 * r['missed_share']:.3f} %; {r['missed_started_late']} of them started late, their work in time); "
+          f"work per tick median {w['median']:.1f} us, p99 {w['p99']:.1f}, "
           f"p99.9 {w['p99.9']:.1f}, max {w['max']:.0f}; force tracking (after 0.5 s) RMS {r['tracking_rms_N']:.4f} N "
-          f"({r['tracking_rms_percent_of_swing']:.2f} % of the swing), max {r['tracking_max_N']:.4f} N")
+          f"({r['tracking_rms_percent_of_swing']:.2f} % of the swing), max {r['tracking_max_N']:.4f} N"
+          + ("" if r["steal_ms"] is None else f"; the hypervisor took {r['steal_ms']:.0f} ms of the cores meanwhile"))
 
 
 if __name__ == "__main__":
