@@ -21,6 +21,10 @@ the work around them, fused per sample with no temporaries:
   it covers the whole range, which certifies the sample's single basin.
 - `linear_strains`: eq. (44)'s exact update as the sequential recurrence, its coefficients
   (`viscoelastic._linear_update`) computed once per distinct interval length.
+- `su_solve`: the whole SU solve (stress, status, every field, a slack roll's free state) in one call.
+- `ring_fields`: the 3R result fields at the equilibria (`three_ring.ring_fields`).
+- `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample, the one
+  compiled form of it (SU here, the step kernel's slack states).
 
 Importing this module imports numba and loads the cached machine code
 (about 1.5 s); the first call in a fresh install compiles (about 25 s for
