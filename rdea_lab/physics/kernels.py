@@ -530,8 +530,6 @@ def _su_solve_loop(l1, v, bad, C10, C20, C30, kap, C0, Ri, area, slack, free_max
         status[i] = st
 
 
-
-
 _roots = _variants(_roots_loop)
 _roots_cr = _variants(_roots_cr_loop)
 _su = _variants(_su_loop)

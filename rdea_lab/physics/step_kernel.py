@@ -36,7 +36,7 @@ import numba
 import numpy as np
 
 from . import _branch_kernels as _bk
-from .kernels import _gradient, _jit, _basis, _one, _slope, _state3, _terms, free_stretch
+from .kernels import _fields3, _gradient, _jit, _basis, _one, _slope, _terms, free_stretch
 from .models import one_ring, three_ring
 from .branch import N_SCAN, scale_offsets
 from .models._common import FREE_STRETCH_MAX, kappa, yeoh_coefficients
@@ -155,8 +155,8 @@ def _state(code, P, R, B, offsets, pitchfork, l1, v, y_prev, label, label_status
             return math.nan, math.nan, math.nan, y, status, K_crit, lost
     if code == 1:
         return _stress1(y, l1, v, C10, C20, C30, kap), C0 * (l1 * y) ** 2, y, y, status, K_crit, lost
-    sigma, _, l2b, _ = _state3(y, l1, v, R, C10, C20, C30, kap)
-    return sigma, C0 * (l1 * l2b) ** 2, l2b, y, status, K_crit, lost
+    sigma, _, l2b, _, cap, _ = _fields3(y, l1, v, R, C10, C20, C30, kap, C0, 0.0)  # (r_i is not needed)
+    return sigma, cap, l2b, y, status, K_crit, lost
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -58,7 +58,8 @@ def running(address, n=2000, rate=1000.0, token=None):
 def abor(address, token=None) -> tuple[float, str]:
     """Connect, send ABOR (first line: no authentication needed), return (seconds to the reply, reply).
 
-    This process's garbage collector waits while the clock runs: the time is the server's and the wire's.
+    This process's garbage collector waits while the clock runs. The time is the server's and the wire's,
+    and, where a test drives a load from this process (a ``FETC?`` reader, a slowloris), its threads' too.
     """
     s = socket.create_connection(address, timeout=30)
     collecting = gc.isenabled()

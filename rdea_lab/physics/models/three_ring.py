@@ -249,7 +249,8 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     rings = _Rings(geom, l1)
 
     C0 = geom.C0(material.eps_r)
-    # the rule `evaluate_free` follows too; per-sample coefficients (a design study's sweep) stay in numpy
+    # compiled fields from as many samples as `evaluate_free` compiles the roots (also for a free state's
+    # descent, whose roots are numpy's: the two agree to 1e-12); per-sample coefficients stay in numpy
     scalar = all(isinstance(c, float) for c in C) and np.ndim(kap) == 0 and np.ndim(C0) == 0
     fast = compiled(kernel, l1.size) if scalar else None
 
