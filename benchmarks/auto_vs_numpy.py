@@ -12,28 +12,20 @@ numba's start-up, which ``auto`` avoids below `rdea_lab.physics._backend.AUTO_MI
 from __future__ import annotations
 
 import argparse
-import time
-from pathlib import Path
 
 import numpy as np
 
-from rdea_lab.physics.geometry import RollGeometry, geometry_from_card
+from rdea_lab.physics.geometry import geometry_from_card
 from rdea_lab.physics.models import solve
 from rdea_lab.physics.result import SLACK
 from rdea_lab.specs import load_params, load_specimen
 
-ROOT = Path(__file__).resolve().parents[1]
-RIZZELLO = load_params(ROOT / "rdea_lab" / "data" / "params" / "rizzello2020.yaml")
+from bench_models import RIZZELLO, ROOT, _core, _times
 
 
 def _median(fn, repeat):
-    fn()
-    out = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t0)
-    return float(np.median(out))
+    """Median wall time [s] of ``repeat`` calls after a warm-up (`bench_models._times`)."""
+    return float(np.median(_times(fn, repeat)))
 
 
 def scenes(n, seed=0):
@@ -41,7 +33,7 @@ def scenes(n, seed=0):
     rng = np.random.default_rng(seed)
     table3 = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
     spec2 = geometry_from_card(load_specimen(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"))
-    hollow = RollGeometry(0.86e-3, 0.88e-3, 1.76e-3, 1.8e-3, L1=34e-3, L1e=34e-3, L3=48e-6)
+    hollow = _core("hollow-core")
     return {
         "specimen 2 taut": (spec2, table3, rng.uniform(1.05, 1.5, n), rng.uniform(0.0, 1500.0, n)),
         "specimen 2 mostly slack": (spec2, table3, rng.uniform(1.0, 1.02, n), np.full(n, 2600.0)),

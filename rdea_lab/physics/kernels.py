@@ -205,6 +205,32 @@ def _above(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, n_scan, pitc
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
+    """`branch._refine_root` for one root: ``(y, ok)``. Newton on ``g_y = psi_y - K c_y`` inside ``[lo, hi]``
+    (``sgn`` -1: a falling crossing), bisection where it strays, to ``rtol scale``."""
+    y = 0.5 * (lo + hi)
+    tol = rtol * scale
+    for _ in range(max_iter):
+        p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
+        g1 = p_y - K * c_y
+        g2 = p_yy - K * c_yy
+        if sgn * g1 < 0.0:
+            lo = y
+        else:
+            hi = y
+        y_new = y - g1 / g2
+        floor = abs(g1) <= 64.0 * _EPS * (abs(p_y) + abs(K * c_y))
+        if floor:
+            y_new = y
+        elif not ((y_new >= lo) and (y_new <= hi)):
+            y_new = 0.5 * (lo + hi)
+        if floor or abs(y_new - y) <= tol or hi - lo <= tol:
+            return y_new, True
+        y = y_new
+    return y, False
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan, pitchfork):
     """One sample: ``(y, certified)``, certified 1 (yes), 2 (if the previous state is not above y0) or 0;
     see the module docstring."""
@@ -257,25 +283,8 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
     if lo != lo:
         return y0, 0  # no crossing in the range: the reference says what it is
     # Newton on g_y inside [lo, hi], bisection where it strays: `branch._refine_root`
-    y = 0.5 * (lo + hi)
-    tol = rtol * span
-    for _ in range(max_iter):
-        p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
-        g1 = p_y - K * c_y
-        g2 = p_yy - K * c_yy
-        if g1 < 0.0:
-            lo = y
-        else:
-            hi = y
-        y_new = y - g1 / g2
-        if abs(g1) <= 64.0 * 2.220446049250313e-16 * (abs(p_y) + abs(K * c_y)):
-            return y, 1
-        if not (y_new >= lo and y_new <= hi):
-            y_new = 0.5 * (lo + hi)
-        if abs(y_new - y) <= tol or hi - lo <= tol:
-            return y_new, 1
-        y = y_new
-    return y0, 0
+    y, ok = _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, span, rtol, max_iter, 1.0)
+    return (y, 1) if ok else (y0, 0)
 
 
 @numba.njit(cache=True, error_model="numpy")

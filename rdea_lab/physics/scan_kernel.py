@@ -32,11 +32,10 @@ import math
 import numba
 import numpy as np
 
-from .kernels import _terms
+from .kernels import _root, _terms
 from .result import LIMIT_POINT, NOT_CONVERGED, OK, OUTSIDE_RANGE, SNAPPED
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)  # as `branch._GOLDEN`
-_EPS = float(np.finfo(float).eps)
 _jit = numba.njit(cache=True, error_model="numpy")
 
 
@@ -104,31 +103,6 @@ def _extremum(code, l1, R, Q, C10, C20, C30, lo, hi, y_node, h_node, is_max, y0,
     if s * h_node > f_top:  # the scan node itself (golden section can only improve on it)
         return y_node, s * (s * h_node)
     return y_top, s * f_top
-
-
-@_jit
-def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
-    """`branch._refine_root` for one root: ``(y, ok)``."""
-    y = 0.5 * (lo + hi)
-    tol = rtol * scale
-    for _ in range(max_iter):
-        p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
-        g1 = p_y - K * c_y
-        g2 = p_yy - K * c_yy
-        if sgn * g1 < 0.0:
-            lo = y
-        else:
-            hi = y
-        y_new = y - g1 / g2
-        floor = abs(g1) <= 64.0 * _EPS * (abs(p_y) + abs(K * c_y))
-        if floor:
-            y_new = y
-        elif not ((y_new >= lo) and (y_new <= hi)):
-            y_new = 0.5 * (lo + hi)
-        if floor or abs(y_new - y) <= tol or hi - lo <= tol:
-            return y_new, True
-        y = y_new
-    return y, False
 
 
 @_jit
