@@ -104,18 +104,36 @@ _EPS = float(np.finfo(float).eps)
 _NO_RING = (0.0,) * 9
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _terms1(y, l1, C10, C20, C30):
+    p, pp = _psi2(l1, y, C10, C20, C30)
+    return p, pp, 2.0 * y, 2.0
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _opening(y, xi0, l1):
+    """CR's ``(A, B)``: the opening ``A = y**2 - xi0**2`` and ``B = l1 A``."""
+    A = (y - xi0) * (y + xi0)
+    return A, l1 * A
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _cr_sums(y, l1, p_A, p_AA1, p_AA2, Lb):
+    """CR's ``(psi_y, psi_yy, c_y, c_yy)`` from the quadrature sums of `_node`'s three terms."""
+    p_AA = p_AA1 + 2.0 * l1 * p_AA2
+    return 2.0 * y * p_A, 4.0 * y * y * p_AA + 2.0 * p_A, 2.0 * Lb * y, 2.0 * Lb
+
+
 @numba.njit(cache=True, error_model="numpy")
 def _terms(code, y, l1, R, Q, C10, C20, C30):
     """``(psi_y, psi_yy, c_y, c_yy)`` of model ``code`` at one sample (see `CODES`)."""
     if code == 1:
-        p, pp = _psi2(l1, y, C10, C20, C30)
-        return p, pp, 2.0 * y, 2.0
+        return _terms1(y, l1, C10, C20, C30)
     if code == 3:
         return _ring(y, l1, R, C10, C20, C30, True)
     # CR: Q = (s, w / s, w / s**2, w) of the quadrature nodes; R = (xi0, x0, Lb, ...)
-    xi0, x0, Lb = R[0], R[1], R[2]
-    A = (y - xi0) * (y + xi0)
-    B = l1 * A
+    A, B = _opening(y, R[0], l1)
+    x0 = R[1]
     p_A = 0.0
     p_AA1 = 0.0
     p_AA2 = 0.0
@@ -124,8 +142,104 @@ def _terms(code, y, l1, R, Q, C10, C20, C30):
         p_A += a1 * Q[1, j]
         p_AA1 += a2 * Q[2, j]
         p_AA2 += a3 * Q[3, j]
-    p_AA = p_AA1 + 2.0 * l1 * p_AA2
-    return 2.0 * y * p_A, 4.0 * y * y * p_AA + 2.0 * p_A, 2.0 * Lb * y, 2.0 * Lb
+    return _cr_sums(y, l1, p_A, p_AA1, p_AA2, R[2])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _terms_block(code, na, Y, L, XI, X0, R, Q, C10, C20, C30, P, PP, CY, CYY, S2, S3):
+    """`_terms` at ``Y[a]`` for ``a < na`` (stretch ``L[a]``; CR: ``xi0 = XI[a]``, ``x0 = X0[a]``, ``Lb =
+    R[2]``) into ``P, PP, CY, CYY`` (``S2``, ``S3``: CR's scratch). One loop over the samples (for CR, one
+    per quadrature node) that the compiler vectorizes: the same operations in the same order as `_terms`,
+    so the same bits (no fastmath)."""
+    if code == 1:
+        for a in range(na):
+            P[a], PP[a], CY[a], CYY[a] = _terms1(Y[a], L[a], C10, C20, C30)
+    elif code == 3:
+        for a in range(na):
+            P[a], PP[a], CY[a], CYY[a] = _ring(Y[a], L[a], R, C10, C20, C30, True)
+    else:
+        for a in range(na):
+            P[a] = 0.0
+            S2[a] = 0.0
+            S3[a] = 0.0
+        for j in range(Q.shape[1]):
+            s, w1, w2, w3 = Q[0, j], Q[1, j], Q[2, j], Q[3, j]
+            for a in range(na):
+                A, B = _opening(Y[a], XI[a], L[a])
+                a1, a2, a3 = _node(A, B, X0[a], s, C10, C20, C30, True)
+                P[a] += a1 * w1
+                S2[a] += a2 * w2
+                S3[a] += a3 * w3
+        Lb = R[2]
+        for a in range(na):
+            P[a], PP[a], CY[a], CYY[a] = _cr_sums(Y[a], L[a], P[a], S2[a], S3[a], Lb)
+
+
+# --- the scan's steps, shared by the one-sample scan (`_one`) and the batched one (`_scan_block`)
+_GO, _FALL, _DIP, _CROSS = 0, 1, 2, 3
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _begin(span, K, h0, whole):
+    """The certificate decided before any node (0 or 1, the state ``y0``), or -1: scan."""
+    if not (span > 0.0) or not (K == K) or not (h0 == h0):
+        return 0
+    if not (K > h0) and not whole:
+        return 1
+    return -1
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _next_node(y0, span, offsets, j, k, n_scan):
+    """``(y, j, k)``: the next scan node after ``j`` scale offsets and ``k - 1`` regular nodes (`branch.scan_nodes`'
+    merge; the scan ends when ``k > n_scan``)."""
+    reg = y0 + span * (k / n_scan) ** 2
+    if j < offsets.size:
+        ext = y0 + min(offsets[j], 0.999 * span)
+        if ext <= reg:
+            return ext, j + 1, k
+    return reg, j, k + 1
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _h_slope(p_y, p_yy, c_y, c_yy):
+    """``h = psi_y / c_y`` and its slope in ``y``."""
+    return p_y / c_y, (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _verdict(y_prev, h_prev, s_prev, y, h, slope, K):
+    """A scan node's verdict: `_FALL` (``h`` not rising), `_DIP` (the reference's hidden-dip hint: a cubic
+    Hermite fit falls between two rising nodes), `_CROSS` (``h >= K``) or `_GO`."""
+    if not (slope > 0.0 and h >= h_prev):
+        return _FALL
+    dy = y - y_prev
+    m0, m1, d = s_prev * dy, slope * dy, h - h_prev
+    b = 6.0 * d - 4.0 * m0 - 2.0 * m1
+    a = 3.0 * m0 + 3.0 * m1 - 6.0 * d
+    if (b < 0.0) and (-b < 2.0 * a) and (b * b > 4.0 * a * m0) and (m0 >= 0.0) and (m1 >= 0.0):
+        return _DIP
+    if h >= K:
+        return _CROSS
+    return _GO
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn):
+    """One step of `_root`: ``(y_new, lo, hi, done)``."""
+    g1 = p_y - K * c_y
+    g2 = p_yy - K * c_yy
+    if sgn * g1 < 0.0:
+        lo = y
+    else:
+        hi = y
+    y_new = y - g1 / g2
+    floor = abs(g1) <= 64.0 * _EPS * (abs(p_y) + abs(K * c_y))
+    if floor:
+        y_new = y
+    elif not ((y_new >= lo) and (y_new <= hi)):
+        y_new = 0.5 * (lo + hi)
+    return y_new, lo, hi, floor or abs(y_new - y) <= tol or hi - lo <= tol
 
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)
@@ -144,16 +258,9 @@ def _above(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, n_scan, pitc
     Y[0], H[0], S[0] = y0, h0, np.nan
     j, k, i = 0, 1, 1
     while k <= n_scan:
-        reg = y0 + span * (k / n_scan) ** 2
-        if j < offsets.size and y0 + min(offsets[j], 0.999 * span) <= reg:
-            Y[i] = y0 + min(offsets[j], 0.999 * span)
-            j += 1
-        else:
-            Y[i] = reg
-            k += 1
+        Y[i], j, k = _next_node(y0, span, offsets, j, k, n_scan)
         p_y, p_yy, c_y, c_yy = _terms(code, Y[i], l1, R, Q, C10, C20, C30)
-        H[i] = p_y / c_y
-        S[i] = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+        H[i], S[i] = _h_slope(p_y, p_yy, c_y, c_yy)
         if not (H[i] > K) or S[i] != S[i]:
             return False
         i += 1
@@ -204,6 +311,16 @@ def _above(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, n_scan, pitc
     return True
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_scan, pitchfork):
+    """The certificate of a sample whose ``h`` stops rising: 2 (``y0``, if the previous state is not above
+    ``y0``: checked by the caller) where ``h`` stays above ``K <= h0`` (`_above`), else 0."""
+    if whole and not (K > h0) and _above(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, n_scan,
+                                         pitchfork):
+        return 2
+    return 0
+
+
 @numba.njit(cache=True, error_model="numpy")
 def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
     """`branch._refine_root` for one root: ``(y, ok)``. Newton on ``g_y = psi_y - K c_y`` inside ``[lo, hi]``
@@ -212,19 +329,8 @@ def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
     tol = rtol * scale
     for _ in range(max_iter):
         p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
-        g1 = p_y - K * c_y
-        g2 = p_yy - K * c_yy
-        if sgn * g1 < 0.0:
-            lo = y
-        else:
-            hi = y
-        y_new = y - g1 / g2
-        floor = abs(g1) <= 64.0 * _EPS * (abs(p_y) + abs(K * c_y))
-        if floor:
-            y_new = y
-        elif not ((y_new >= lo) and (y_new <= hi)):
-            y_new = 0.5 * (lo + hi)
-        if floor or abs(y_new - y) <= tol or hi - lo <= tol:
+        y_new, lo, hi, done = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn)
+        if done:
             return y_new, True
         y = y_new
     return y, False
@@ -233,47 +339,25 @@ def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
 @numba.njit(cache=True, error_model="numpy")
 def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan, pitchfork):
     """One sample: ``(y, certified)``, certified 1 (yes), 2 (if the previous state is not above y0) or 0;
-    see the module docstring."""
+    see the module docstring. `_scan_block` takes the same steps for a block of samples at once."""
     span = y_max - y0
-    if not (span > 0.0) or not (K == K) or not (h0 == h0):
-        return y0, 0
+    first = _begin(span, K, h0, whole)
+    if first >= 0:
+        return y0, first
     done_at_start = not (K > h0)
-    if done_at_start and not whole:
-        return y0, 1
     y_prev, h_prev, s_prev = y0, h0, np.nan
     lo, hi = np.nan, np.nan
     j = 0  # next scale offset
     k = 1  # next regular node
-    n_off = offsets.size
     while k <= n_scan:
-        reg = y0 + span * (k / n_scan) ** 2
-        if j < n_off:
-            ext = y0 + min(offsets[j], 0.999 * span)
-            if ext <= reg:
-                yk = ext
-                j += 1
-            else:
-                yk = reg
-                k += 1
-        else:
-            yk = reg
-            k += 1
-        p_y, p_yy, c_y, c_yy = _terms(code, yk, l1, R, Q, C10, C20, C30)
-        h = p_y / c_y
-        slope = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
-        if not (slope > 0.0 and h >= h_prev):
-            if whole and done_at_start and _above(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets,
-                                                  n_scan, pitchfork):
-                return y0, 2  # one state, y0, if the previous state is not above y0 (checked by the caller)
+        yk, j, k = _next_node(y0, span, offsets, j, k, n_scan)
+        h, slope = _h_slope(*_terms(code, yk, l1, R, Q, C10, C20, C30))
+        verdict = _verdict(y_prev, h_prev, s_prev, yk, h, slope, K)
+        if verdict == _FALL:
+            return y0, _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_scan, pitchfork)
+        if verdict == _DIP:
             return y0, 0
-        # the reference's hidden-dip hint (a cubic Hermite fit falls between two rising nodes)
-        dy = yk - y_prev
-        m0, m1, d = s_prev * dy, slope * dy, h - h_prev
-        b = 6.0 * d - 4.0 * m0 - 2.0 * m1
-        a = 3.0 * m0 + 3.0 * m1 - 6.0 * d
-        if (b < 0.0) and (-b < 2.0 * a) and (b * b > 4.0 * a * m0) and (m0 >= 0.0) and (m1 >= 0.0):
-            return y0, 0
-        if lo != lo and h >= K and not done_at_start:
+        if verdict == _CROSS and lo != lo and not done_at_start:
             lo, hi = y_prev, yk
             if not whole:
                 break
@@ -296,23 +380,145 @@ def _h_start(code, y0, l1, R, Q, C10, C20, C30, pitchfork):
     return p_yy / c_yy
 
 
-def _roots_loop(code, l1, y0, y_max, K, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
+@numba.njit(cache=True, error_model="numpy")
+def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
+                pitchfork, y, ok, h0, b0, b1):
+    """`_h_start` and `_one` of the samples ``b0 <= i < b1``, node by node for all of them at once: at each
+    node the terms of every sample still scanning in one vectorized call (`_terms_block`), then each sample's
+    steps (`_begin`, `_next_node`, `_verdict`, `_fallen`) as `_one` takes them, so the same nodes, verdicts
+    and brackets; the samples that end drop out. The Newton refinement likewise (`_newton`, as `_root`).
+    CR: ``xi0``, ``x0`` per sample, ``R = (0, 0, Lb, ...)``; the others ignore them."""
+    nb = b1 - b0
+    span = np.empty(nb)
+    y_prev = np.empty(nb)
+    h_prev = np.empty(nb)
+    s_prev = np.empty(nb)
+    lo = np.empty(nb)
+    hi = np.empty(nb)
+    jj = np.empty(nb, np.int64)
+    kk = np.empty(nb, np.int64)
+    at_start = np.empty(nb, np.bool_)
+    act = np.empty(nb, np.int64)  # the samples still scanning (block indices)
+    ref = np.empty(nb, np.int64)  # the samples to refine
+    # per sample still in play, compacted: the node, its arguments and terms
+    Y = np.empty(nb)
+    L = np.empty(nb)
+    XI = np.empty(nb)
+    X0 = np.empty(nb)
+    P = np.empty(nb)
+    PP = np.empty(nb)
+    CY = np.empty(nb)
+    CYY = np.empty(nb)
+    S2 = np.empty(nb)
+    S3 = np.empty(nb)
+    H = np.empty(nb)
+    S = np.empty(nb)
+    if pitchfork:  # `_h_start`
+        for b in range(nb):
+            Y[b], L[b], XI[b], X0[b] = y0[b0 + b], l1[b0 + b], xi0[b0 + b], x0[b0 + b]
+        _terms_block(code, nb, Y, L, XI, X0, R, Q, C10, C20, C30, P, PP, CY, CYY, S2, S3)
+        for b in range(nb):
+            h0[b0 + b] = PP[b] / CYY[b]
+    else:
+        for b in range(nb):
+            h0[b0 + b] = 0.0
+    na = 0
+    for b in range(nb):
+        i = b0 + b
+        span[b] = y_max[i] - y0[i]
+        first = _begin(span[b], K[i], h0[i], whole)
+        if first >= 0:
+            y[i], ok[i] = y0[i], first
+            continue
+        at_start[b] = not (K[i] > h0[i])
+        y_prev[b], h_prev[b], s_prev[b] = y0[i], h0[i], np.nan
+        lo[b], hi[b] = np.nan, np.nan
+        jj[b], kk[b] = 0, 1
+        act[na] = b
+        na += 1
+    nr = 0
+    while na > 0:
+        for a in range(na):
+            b = act[a]
+            i = b0 + b
+            Y[a], jj[b], kk[b] = _next_node(y0[i], span[b], offsets, jj[b], kk[b], n_scan)
+            L[a], XI[a], X0[a] = l1[i], xi0[i], x0[i]
+        _terms_block(code, na, Y, L, XI, X0, R, Q, C10, C20, C30, P, PP, CY, CYY, S2, S3)
+        for a in range(na):
+            H[a], S[a] = _h_slope(P[a], PP[a], CY[a], CYY[a])
+        keep = 0
+        for a in range(na):
+            b = act[a]
+            i = b0 + b
+            yk, h, slope = Y[a], H[a], S[a]
+            verdict = _verdict(y_prev[b], h_prev[b], s_prev[b], yk, h, slope, K[i])
+            if verdict == _FALL:
+                y[i], ok[i] = y0[i], _fallen(code, l1[i], y0[i], span[b], K[i], h0[i],
+                                             (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) if code == 4
+                                             else R, Q, C10, C20, C30, offsets, whole, n_scan, pitchfork)
+                continue
+            if verdict == _DIP:
+                y[i], ok[i] = y0[i], 0
+                continue
+            if verdict == _CROSS and lo[b] != lo[b] and not at_start[b]:
+                lo[b], hi[b] = y_prev[b], yk
+                if not whole:
+                    ref[nr] = b
+                    nr += 1
+                    continue
+            y_prev[b], h_prev[b], s_prev[b] = yk, h, slope
+            if kk[b] > n_scan:  # the end of the range
+                if at_start[b]:
+                    y[i], ok[i] = y0[i], 1
+                elif lo[b] != lo[b]:
+                    y[i], ok[i] = y0[i], 0  # no crossing in the range: the reference says what it is
+                else:
+                    ref[nr] = b
+                    nr += 1
+                continue
+            act[keep] = b
+            keep += 1
+        na = keep
+    # Newton on g_y inside [lo, hi], bisection where it strays: `_root`, y_prev the iterate
+    for a in range(nr):
+        b = ref[a]
+        y_prev[b] = 0.5 * (lo[b] + hi[b])
+    for _ in range(max_iter):
+        if nr == 0:
+            break
+        for a in range(nr):
+            b = ref[a]
+            i = b0 + b
+            Y[a], L[a], XI[a], X0[a] = y_prev[b], l1[i], xi0[i], x0[i]
+        _terms_block(code, nr, Y, L, XI, X0, R, Q, C10, C20, C30, P, PP, CY, CYY, S2, S3)
+        keep = 0
+        for a in range(nr):
+            b = ref[a]
+            i = b0 + b
+            y_new, lo[b], hi[b], done = _newton(Y[a], lo[b], hi[b], P[a], PP[a], CY[a], CYY[a], K[i],
+                                                rtol * span[b], 1.0)
+            if done:
+                y[i], ok[i] = y_new, 1
+                continue
+            y_prev[b] = y_new
+            ref[keep] = b
+            keep += 1
+        nr = keep
+    for a in range(nr):  # not converged
+        i = b0 + ref[a]
+        y[i], ok[i] = y0[i], 0
+
+
+#: Samples per block of the batched scan (`_scan_block`).
+BLOCK = 256
+
+
+def _roots_loop(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
                 pitchfork, y, ok, h0):
-    for i in prange(l1.size):
-        h = _h_start(code, y0[i], l1[i], R, Q, C10, C20, C30, pitchfork)
-        h0[i] = h
-        y[i], ok[i] = _one(code, l1[i], y0[i], y_max[i], K[i], h, R, Q, C10, C20, C30, offsets, whole,
-                           rtol, max_iter, n_scan, pitchfork)
-
-
-def _roots_cr_loop(l1, y0, y_max, K, xi0, x0, Lb, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
-                   pitchfork, y, ok, h0):
-    for i in prange(l1.size):
-        R = (xi0[i], x0[i], Lb, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        h = _h_start(4, y0[i], l1[i], R, Q, C10, C20, C30, pitchfork)
-        h0[i] = h
-        y[i], ok[i] = _one(4, l1[i], y0[i], y_max[i], K[i], h, R, Q, C10, C20, C30, offsets, whole,
-                           rtol, max_iter, n_scan, pitchfork)
+    n = l1.size
+    for c in prange((n + BLOCK - 1) // BLOCK):
+        _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
+                    pitchfork, y, ok, h0, c * BLOCK, min(n, (c + 1) * BLOCK))
 
 
 def _arr(x, shape=None):
@@ -380,12 +586,13 @@ def branch_roots(problem, *, whole, start=None, rtol=1e-14, max_iter=100):
     args = (_arr(problem.y0, (n,)), _arr(problem.y_max, (n,)), _arr(problem.K, (n,)))
     C = consts["C"]
     h0 = np.empty(n)  # `Problem.h_start`, computed in the loop (in numpy it was most of a solid roll's call)
-    tail = (offsets, bool(whole), rtol, max_iter, N_SCAN, bool(problem.pitchfork), y, ok, h0)
+    l1 = _arr(consts["l1"])
     if code == CODES["cr"]:
-        _roots_cr[_parallel(n)](_arr(consts["l1"]), *args, _arr(consts["xi0"]), _arr(consts["x0"]), consts["Lb"],
-                                _arr(consts["Q"]), *C, *tail)
+        cr = (_arr(consts["xi0"]), _arr(consts["x0"]), (0.0, 0.0, float(consts["Lb"])) + (0.0,) * 6, _arr(consts["Q"]))
     else:
-        _roots[_parallel(n)](code, _arr(consts["l1"]), *args, consts.get("R", _NO_RING), _EMPTY_Q, *C, *tail)
+        cr = (l1, l1, tuple(float(r) for r in consts.get("R", _NO_RING)), _EMPTY_Q)  # (xi0, x0 unused)
+    _roots[_parallel(n)](code, l1, *args, *cr, *C, offsets, bool(whole), rtol, max_iter, N_SCAN,
+                         bool(problem.pitchfork), y, ok, h0)
     if whole:
         _chain(ok, y, args[0], float(problem.y0[0]) if start is None else float(start))
     return y, ok == 1
@@ -540,7 +747,6 @@ def _su_solve_loop(l1, v, bad, C10, C20, C30, kap, C0, Ri, area, slack, free_max
 
 
 _roots = _variants(_roots_loop)
-_roots_cr = _variants(_roots_cr_loop)
 _su = _variants(_su_loop)
 
 
