@@ -190,12 +190,13 @@ def _begin(span, K, h0, whole):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _next_node(y0, span, offsets, j, k, n_scan):
+def _next_node(y0, span, more, off, j, k, n_scan):
     """``(y, j, k)``: the next scan node after ``j`` scale offsets and ``k - 1`` regular nodes (`branch.scan_nodes`'
-    merge; the scan ends when ``k > n_scan``)."""
+    merge; the scan ends when ``k > n_scan``); ``more``: whether offset ``j`` exists, ``off`` its value. (Scalars:
+    an array argument costs two atomic reference counts per node, more than the node's terms.)"""
     reg = y0 + span * (k / n_scan) ** 2
-    if j < offsets.size:
-        ext = y0 + min(offsets[j], 0.999 * span)
+    if more:
+        ext = y0 + min(off, 0.999 * span)
         if ext <= reg:
             return ext, j + 1, k
     return reg, j, k + 1
@@ -258,7 +259,8 @@ def _above(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, n_scan, pitc
     Y[0], H[0], S[0] = y0, h0, np.nan
     j, k, i = 0, 1, 1
     while k <= n_scan:
-        Y[i], j, k = _next_node(y0, span, offsets, j, k, n_scan)
+        more = j < offsets.size
+        Y[i], j, k = _next_node(y0, span, more, offsets[j] if more else 0.0, j, k, n_scan)
         p_y, p_yy, c_y, c_yy = _terms(code, Y[i], l1, R, Q, C10, C20, C30)
         H[i], S[i] = _h_slope(p_y, p_yy, c_y, c_yy)
         if not (H[i] > K) or S[i] != S[i]:
@@ -311,7 +313,7 @@ def _above(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, n_scan, pitc
     return True
 
 
-@numba.njit(cache=True, error_model="numpy", inline="always")
+@numba.njit(cache=True, error_model="numpy")
 def _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_scan, pitchfork):
     """The certificate of a sample whose ``h`` stops rising: 2 (``y0``, if the previous state is not above
     ``y0``: checked by the caller) where ``h`` stays above ``K <= h0`` (`_above`), else 0."""
@@ -350,8 +352,10 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
     j = 0  # next scale offset
     k = 1  # next regular node
     while k <= n_scan:
-        yk, j, k = _next_node(y0, span, offsets, j, k, n_scan)
-        h, slope = _h_slope(*_terms(code, yk, l1, R, Q, C10, C20, C30))
+        more = j < offsets.size
+        yk, j, k = _next_node(y0, span, more, offsets[j] if more else 0.0, j, k, n_scan)
+        p_y, p_yy, c_y, c_yy = _terms(code, yk, l1, R, Q, C10, C20, C30)
+        h, slope = _h_slope(p_y, p_yy, c_y, c_yy)
         verdict = _verdict(y_prev, h_prev, s_prev, yk, h, slope, K)
         if verdict == _FALL:
             return y0, _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_scan, pitchfork)
@@ -389,6 +393,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     and brackets; the samples that end drop out. The Newton refinement likewise (`_newton`, as `_root`).
     CR: ``xi0``, ``x0`` per sample, ``R = (0, 0, Lb, ...)``; the others ignore them."""
     nb = b1 - b0
+    n_off = offsets.size
     span = np.empty(nb)
     y_prev = np.empty(nb)
     h_prev = np.empty(nb)
@@ -441,7 +446,9 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         for a in range(na):
             b = act[a]
             i = b0 + b
-            Y[a], jj[b], kk[b] = _next_node(y0[i], span[b], offsets, jj[b], kk[b], n_scan)
+            j = jj[b]
+            more = j < n_off
+            Y[a], jj[b], kk[b] = _next_node(y0[i], span[b], more, offsets[j] if more else 0.0, j, kk[b], n_scan)
             L[a], XI[a], X0[a] = l1[i], xi0[i], x0[i]
         _terms_block(code, na, Y, L, XI, X0, R, Q, C10, C20, C30, P, PP, CY, CYY, S2, S3)
         for a in range(na):
@@ -564,6 +571,22 @@ def _chain(ok, y, y0, y_start):
             ok[i] = 1 if (prev_ok and prev_y <= y0[i]) else 0
 
 
+def _roots_args(problem, whole, rtol=1e-14, max_iter=100):
+    """The arguments of `_roots_loop` (without the outputs) for a `~rdea_lab.physics.branch.Problem`."""
+    from .branch import N_SCAN, scale_offsets
+
+    code, consts = problem.kernel
+    n = problem.K.size
+    l1 = _arr(consts["l1"])
+    if code == CODES["cr"]:
+        cr = (_arr(consts["xi0"]), _arr(consts["x0"]), (0.0, 0.0, float(consts["Lb"])) + (0.0,) * 6, _arr(consts["Q"]))
+    else:
+        cr = (l1, l1, tuple(float(r) for r in consts.get("R", _NO_RING)), _EMPTY_Q)  # (xi0, x0 unused)
+    return (code, l1, _arr(problem.y0, (n,)), _arr(problem.y_max, (n,)), _arr(problem.K, (n,)), *cr,
+            *(float(c) for c in consts["C"]), _arr(scale_offsets(problem)), bool(whole), rtol, max_iter, N_SCAN,
+            bool(problem.pitchfork))
+
+
 def branch_roots(problem, *, whole, start=None, rtol=1e-14, max_iter=100):
     """``(y, certified)`` of every sample of a `~rdea_lab.physics.branch.Problem` with a ``kernel``.
 
@@ -574,27 +597,16 @@ def branch_roots(problem, *, whole, start=None, rtol=1e-14, max_iter=100):
     state before is not above ``y0`` (so no fold lies between them); the
     others must be solved by the reference.
     """
-    from .branch import N_SCAN, scale_offsets
-
-    code, consts = problem.kernel
     n = problem.K.size
     y = np.empty(n)
     ok = np.zeros(n, dtype=np.int8)
     if n == 0:
         return y, ok.astype(bool)
-    offsets = _arr(scale_offsets(problem))
-    args = (_arr(problem.y0, (n,)), _arr(problem.y_max, (n,)), _arr(problem.K, (n,)))
-    C = consts["C"]
+    args = _roots_args(problem, whole, rtol, max_iter)
     h0 = np.empty(n)  # `Problem.h_start`, computed in the loop (in numpy it was most of a solid roll's call)
-    l1 = _arr(consts["l1"])
-    if code == CODES["cr"]:
-        cr = (_arr(consts["xi0"]), _arr(consts["x0"]), (0.0, 0.0, float(consts["Lb"])) + (0.0,) * 6, _arr(consts["Q"]))
-    else:
-        cr = (l1, l1, tuple(float(r) for r in consts.get("R", _NO_RING)), _EMPTY_Q)  # (xi0, x0 unused)
-    _roots[_parallel(n)](code, l1, *args, *cr, *C, offsets, bool(whole), rtol, max_iter, N_SCAN,
-                         bool(problem.pitchfork), y, ok, h0)
+    _roots[_parallel(n)](*args, y, ok, h0)
     if whole:
-        _chain(ok, y, args[0], float(problem.y0[0]) if start is None else float(start))
+        _chain(ok, y, args[2], float(problem.y0[0]) if start is None else float(start))
     return y, ok == 1
 
 
