@@ -394,30 +394,19 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     CR: ``xi0``, ``x0`` per sample, ``R = (0, 0, Lb, ...)``; the others ignore them."""
     nb = b1 - b0
     n_off = offsets.size
-    span = np.empty(nb)
-    y_prev = np.empty(nb)
-    h_prev = np.empty(nb)
-    s_prev = np.empty(nb)
-    lo = np.empty(nb)
-    hi = np.empty(nb)
-    jj = np.empty(nb, np.int64)
-    kk = np.empty(nb, np.int64)
-    at_start = np.empty(nb, np.bool_)
-    act = np.empty(nb, np.int64)  # the samples still scanning (block indices)
-    ref = np.empty(nb, np.int64)  # the samples to refine
+    W = np.empty((22, nb))  # one allocation: rows as 1-D views
+    span, y_prev, h_prev, s_prev, lo, hi = W[0], W[1], W[2], W[3], W[4], W[5]
     # per sample still in play, compacted: the node, its arguments and terms
-    Y = np.empty(nb)
-    L = np.empty(nb)
-    XI = np.empty(nb)
-    X0 = np.empty(nb)
-    P = np.empty(nb)
-    PP = np.empty(nb)
-    CY = np.empty(nb)
-    CYY = np.empty(nb)
-    S2 = np.empty(nb)
-    S3 = np.empty(nb)
-    H = np.empty(nb)
-    S = np.empty(nb)
+    Y, L, XI, X0, P, PP, CY, CYY, S2, S3, H, S = W[6], W[7], W[8], W[9], W[10], W[11], W[12], W[13], W[14], \
+        W[15], W[16], W[17]
+    Y_new, LO, HI, KA = W[18], W[19], W[20], W[21]  # the Newton iteration's
+    N = np.empty((5, nb), np.int64)
+    jj, kk = N[0], N[1]
+    act = N[2]  # the samples still scanning (block indices)
+    ref = N[3]  # the samples to refine
+    idx = N[4]  # the samples refined, compacted
+    at_start = np.empty(nb, np.bool_)
+    done = np.empty(nb, np.bool_)
     if pitchfork:  # `_h_start`
         for b in range(nb):
             Y[b], L[b], XI[b], X0[b] = y0[b0 + b], l1[b0 + b], xi0[b0 + b], x0[b0 + b]
@@ -486,33 +475,34 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
             act[keep] = b
             keep += 1
         na = keep
-    # Newton on g_y inside [lo, hi], bisection where it strays: `_root`, y_prev the iterate
+    # Newton on g_y inside [lo, hi], bisection where it strays: `_root` for all at once, compacted (each
+    # iteration's steps in one vectorized loop); the tolerance rtol * span in S2
     for a in range(nr):
         b = ref[a]
-        y_prev[b] = 0.5 * (lo[b] + hi[b])
+        i = b0 + b
+        idx[a] = b
+        Y[a], LO[a], HI[a] = 0.5 * (lo[b] + hi[b]), lo[b], hi[b]
+        KA[a], S2[a], L[a], XI[a], X0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
     for _ in range(max_iter):
         if nr == 0:
             break
+        _terms_block(code, nr, Y, L, XI, X0, R, Q, C10, C20, C30, P, PP, CY, CYY, H, S)
         for a in range(nr):
-            b = ref[a]
-            i = b0 + b
-            Y[a], L[a], XI[a], X0[a] = y_prev[b], l1[i], xi0[i], x0[i]
-        _terms_block(code, nr, Y, L, XI, X0, R, Q, C10, C20, C30, P, PP, CY, CYY, S2, S3)
+            Y_new[a], LO[a], HI[a], done[a] = _newton(Y[a], LO[a], HI[a], P[a], PP[a], CY[a], CYY[a], KA[a], S2[a],
+                                                      1.0)
         keep = 0
         for a in range(nr):
-            b = ref[a]
-            i = b0 + b
-            y_new, lo[b], hi[b], done = _newton(Y[a], lo[b], hi[b], P[a], PP[a], CY[a], CYY[a], K[i],
-                                                rtol * span[b], 1.0)
-            if done:
-                y[i], ok[i] = y_new, 1
+            if done[a]:
+                i = b0 + idx[a]
+                y[i], ok[i] = Y_new[a], 1
                 continue
-            y_prev[b] = y_new
-            ref[keep] = b
+            idx[keep] = idx[a]
+            Y[keep], LO[keep], HI[keep], KA[keep], S2[keep] = Y_new[a], LO[a], HI[a], KA[a], S2[a]
+            L[keep], XI[keep], X0[keep] = L[a], XI[a], X0[a]
             keep += 1
         nr = keep
     for a in range(nr):  # not converged
-        i = b0 + ref[a]
+        i = b0 + idx[a]
         y[i], ok[i] = y0[i], 0
 
 
