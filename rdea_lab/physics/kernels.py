@@ -146,33 +146,34 @@ def _terms(code, y, l1, R, Q, C10, C20, C30):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _terms_block(code, na, Y, L, XI, X0, R, Q, C10, C20, C30, P, PP, CY, CYY, S2, S3):
-    """`_terms` at ``Y[a]`` for ``a < na`` (stretch ``L[a]``; CR: ``xi0 = XI[a]``, ``x0 = X0[a]``, ``Lb =
-    R[2]``) into ``P, PP, CY, CYY`` (``S2``, ``S3``: CR's scratch). One loop over the samples (for CR, one
-    per quadrature node) that the compiler vectorizes: the same operations in the same order as `_terms`,
-    so the same bits (no fastmath)."""
+def _terms_block(code, na, W, R, Q, C10, C20, C30):
+    """`_terms` at ``y = W[6, a]`` for ``a < na`` (stretch ``W[7, a]``; CR: ``xi0 = W[8, a]``, ``x0 = W[9, a]``,
+    ``Lb = R[2]``) into rows 10-13 of ``W`` (rows 14, 15: CR's scratch). One loop over the samples (for CR,
+    one per quadrature node) that the compiler vectorizes: the same operations in the same order as
+    `_terms`, so the same bits (no fastmath). (One array: each array argument of a call costs two atomic
+    reference counts.)"""
     if code == 1:
         for a in range(na):
-            P[a], PP[a], CY[a], CYY[a] = _terms1(Y[a], L[a], C10, C20, C30)
+            W[10, a], W[11, a], W[12, a], W[13, a] = _terms1(W[6, a], W[7, a], C10, C20, C30)
     elif code == 3:
         for a in range(na):
-            P[a], PP[a], CY[a], CYY[a] = _ring(Y[a], L[a], R, C10, C20, C30, True)
+            W[10, a], W[11, a], W[12, a], W[13, a] = _ring(W[6, a], W[7, a], R, C10, C20, C30, True)
     else:
         for a in range(na):
-            P[a] = 0.0
-            S2[a] = 0.0
-            S3[a] = 0.0
+            W[10, a] = 0.0
+            W[14, a] = 0.0
+            W[15, a] = 0.0
         for j in range(Q.shape[1]):
             s, w1, w2, w3 = Q[0, j], Q[1, j], Q[2, j], Q[3, j]
             for a in range(na):
-                A, B = _opening(Y[a], XI[a], L[a])
-                a1, a2, a3 = _node(A, B, X0[a], s, C10, C20, C30, True)
-                P[a] += a1 * w1
-                S2[a] += a2 * w2
-                S3[a] += a3 * w3
+                A, B = _opening(W[6, a], W[8, a], W[7, a])
+                a1, a2, a3 = _node(A, B, W[9, a], s, C10, C20, C30, True)
+                W[10, a] += a1 * w1
+                W[14, a] += a2 * w2
+                W[15, a] += a3 * w3
         Lb = R[2]
         for a in range(na):
-            P[a], PP[a], CY[a], CYY[a] = _cr_sums(Y[a], L[a], P[a], S2[a], S3[a], Lb)
+            W[10, a], W[11, a], W[12, a], W[13, a] = _cr_sums(W[6, a], W[7, a], W[10, a], W[14, a], W[15, a], Lb)
 
 
 # --- the scan's steps, shared by the one-sample scan (`_one`) and the batched one (`_scan_block`)
@@ -394,12 +395,11 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     CR: ``xi0``, ``x0`` per sample, ``R = (0, 0, Lb, ...)``; the others ignore them."""
     nb = b1 - b0
     n_off = offsets.size
-    W = np.empty((22, nb))  # one allocation: rows as 1-D views
+    W = np.empty((23, nb))  # one allocation: rows as 1-D views
     span, y_prev, h_prev, s_prev, lo, hi = W[0], W[1], W[2], W[3], W[4], W[5]
-    # per sample still in play, compacted: the node, its arguments and terms
-    Y, L, XI, X0, P, PP, CY, CYY, S2, S3, H, S = W[6], W[7], W[8], W[9], W[10], W[11], W[12], W[13], W[14], \
-        W[15], W[16], W[17]
-    Y_new, LO, HI, KA = W[18], W[19], W[20], W[21]  # the Newton iteration's
+    # per sample still in play, compacted: the node, its arguments and terms (rows 6-15: `_terms_block`'s)
+    Y, L, XI, X0, P, PP, CY, CYY, H, S = W[6], W[7], W[8], W[9], W[10], W[11], W[12], W[13], W[16], W[17]
+    Y_new, LO, HI, KA, TOL = W[18], W[19], W[20], W[21], W[22]  # the Newton iteration's
     N = np.empty((5, nb), np.int64)
     jj, kk = N[0], N[1]
     act = N[2]  # the samples still scanning (block indices)
@@ -410,7 +410,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     if pitchfork:  # `_h_start`
         for b in range(nb):
             Y[b], L[b], XI[b], X0[b] = y0[b0 + b], l1[b0 + b], xi0[b0 + b], x0[b0 + b]
-        _terms_block(code, nb, Y, L, XI, X0, R, Q, C10, C20, C30, P, PP, CY, CYY, S2, S3)
+        _terms_block(code, nb, W, R, Q, C10, C20, C30)
         for b in range(nb):
             h0[b0 + b] = PP[b] / CYY[b]
     else:
@@ -439,7 +439,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
             more = j < n_off
             Y[a], jj[b], kk[b] = _next_node(y0[i], span[b], more, offsets[j] if more else 0.0, j, kk[b], n_scan)
             L[a], XI[a], X0[a] = l1[i], xi0[i], x0[i]
-        _terms_block(code, na, Y, L, XI, X0, R, Q, C10, C20, C30, P, PP, CY, CYY, S2, S3)
+        _terms_block(code, na, W, R, Q, C10, C20, C30)
         for a in range(na):
             H[a], S[a] = _h_slope(P[a], PP[a], CY[a], CYY[a])
         keep = 0
@@ -476,19 +476,19 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
             keep += 1
         na = keep
     # Newton on g_y inside [lo, hi], bisection where it strays: `_root` for all at once, compacted (each
-    # iteration's steps in one vectorized loop); the tolerance rtol * span in S2
+    # iteration's steps in one vectorized loop)
     for a in range(nr):
         b = ref[a]
         i = b0 + b
         idx[a] = b
         Y[a], LO[a], HI[a] = 0.5 * (lo[b] + hi[b]), lo[b], hi[b]
-        KA[a], S2[a], L[a], XI[a], X0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
+        KA[a], TOL[a], L[a], XI[a], X0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
     for _ in range(max_iter):
         if nr == 0:
             break
-        _terms_block(code, nr, Y, L, XI, X0, R, Q, C10, C20, C30, P, PP, CY, CYY, H, S)
+        _terms_block(code, nr, W, R, Q, C10, C20, C30)
         for a in range(nr):
-            Y_new[a], LO[a], HI[a], done[a] = _newton(Y[a], LO[a], HI[a], P[a], PP[a], CY[a], CYY[a], KA[a], S2[a],
+            Y_new[a], LO[a], HI[a], done[a] = _newton(Y[a], LO[a], HI[a], P[a], PP[a], CY[a], CYY[a], KA[a], TOL[a],
                                                       1.0)
         keep = 0
         for a in range(nr):
@@ -497,7 +497,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
                 y[i], ok[i] = Y_new[a], 1
                 continue
             idx[keep] = idx[a]
-            Y[keep], LO[keep], HI[keep], KA[keep], S2[keep] = Y_new[a], LO[a], HI[a], KA[a], S2[a]
+            Y[keep], LO[keep], HI[keep], KA[keep], TOL[keep] = Y_new[a], LO[a], HI[a], KA[a], TOL[a]
             L[keep], XI[keep], X0[keep] = L[a], XI[a], X0[a]
             keep += 1
         nr = keep
