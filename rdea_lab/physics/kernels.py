@@ -19,6 +19,11 @@ the work around them, fused per sample with no temporaries:
   construction. With ``whole=False`` (the rising-ramp rule) the scan stops at
   the bracketing node, as the reference's does; with ``whole=True`` (a path)
   it covers the whole range, which certifies the sample's single basin.
+  The samples are scanned in blocks (`_scan_block`): node by node, the terms
+  of every sample of the block still scanning in one vectorized loop
+  (`_terms_block`), then each sample's steps, the same functions as the
+  one-sample scan `_one` (the step kernel's) takes, so the same certificates
+  and roots to the bit.
 - `linear_strains`: eq. (44)'s exact update as the sequential recurrence, its coefficients
   (`viscoelastic._linear_update`) computed once per distinct interval length.
 - `su_solve`: the whole SU solve (stress, status, every field, a slack roll's free state) in one call.
