@@ -8,7 +8,8 @@ from .. import yeoh
 from ..yeoh import gradient_terms
 from ..branch import Problem
 from ..result import ModelResult
-from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
+from ._common import (HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, ring_kernels, solve_model,
+                      yeoh_coefficients)
 
 
 def enthalpy(geom, material, stretch, voltage, lambda2):
@@ -28,6 +29,15 @@ def stress(l2, l1, v, C10, C20, C30, kap):
     eta_b eps E**2`` (eq. (33) of [1]); scalar or array arguments (compiled too)."""
     psi_1, _ = gradient_terms(l1, l2, C10, C20, C30)
     return l1 * psi_1 - 2.0 * kap * (l1 * v) ** 2 * l2 * l2
+
+
+def fields(l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri):
+    """``(sigma1 [Pa], capacitance [F], r_i [m])`` at the equilibrium ``lambda2 = l2``: `stress`, eq. (34)
+    ``C = C0 lambda1**2 lambda2**2``, and the inner radius of one hollow cylinder of mean hoop stretch ``l2``
+    and radial stretch ``1 / (l1 l2)``. Scalar or array arguments (compiled too:
+    `rdea_lab.physics.ring_kernels` runs it per sample)."""
+    return (stress(l2, l1, v, C10, C20, C30, kap), C0 * (l1 * l2) ** 2,
+            0.5 * (l2 * (Ro + Ri) - (Ro - Ri) / (l1 * l2)))
 
 
 def bounds(l1, kap):
@@ -55,16 +65,21 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     """1R equilibria at clean 1-D inputs: the rising-ramp rule, or the path from ``start``."""
     C = yeoh_coefficients(material)
     kap = kappa(geom, material)
+    C0 = geom.C0(material.eps_r)
+    fast = ring_kernels(kernel, l1.size, *C, kap, C0)
 
-    def state(l2):
-        # one hollow cylinder: mean hoop stretch l2, radial stretch 1 / (l1 l2)
-        return {"sigma1": stress(l2, l1, v, *C, kap),
-                "lambda2a": l2, "lambda2b": l2, "lambda2c": l2,
-                "capacitance": geom.C0(material.eps_r) * (l1 * l2) ** 2,
-                "r_i": 0.5 * (l2 * (geom.Ro + geom.Ri) - (geom.Ro - geom.Ri) / (l1 * l2))}
+    def at(l2, l1, v):
+        if fast is not None:
+            sigma1, cap, r_i = fast.fields1(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri)
+        else:
+            sigma1, cap, r_i = fields(l2, l1, v, *C, kap, C0, geom.Ro, geom.Ri)
+        return {"sigma1": sigma1, "lambda2a": l2, "lambda2b": l2, "lambda2c": l2, "capacitance": cap, "r_i": r_i}
 
-    return evaluate_free(problem(geom, material, l1, v), state, path=path, start=start, origin=origin,
-                         kernel=kernel)
+    def free(prob):
+        return fast.free_hook(1, prob, l1, v, C, kap, at)
+
+    return evaluate_free(problem(geom, material, l1, v), lambda l2: at(l2, l1, v), path=path, start=start,
+                         origin=origin, kernel=kernel, free=free if fast is not None else None)
 
 
 def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,

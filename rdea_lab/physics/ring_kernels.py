@@ -1,0 +1,248 @@
+"""Compiled passes of the 1R, 3R and CR solves around the certified root kernel (numba, ``cache=True``).
+
+The root of each sample is `kernels.branch_roots`' (its `kernels._one`); what
+this module compiles is the rest of a `solve`, with the numpy code as the
+reference (the tests check one against the other):
+
+- the result fields at the equilibria, one parallel pass writing every field:
+  `one_ring.fields`, `three_ring.ring_fields` and `continuum.node_mechanics` /
+  `continuum.closing`, compiled as they are (`kernels._jit`);
+- a slack roll's free state: `kernels.free_stretch` (the bracketing and
+  Illinois iteration of `models._common.free_state`, the one compiled form of
+  it), each trial the rising-ramp state at the trial stretch from the
+  certified `kernels._one` and its stress from the model's compiled fields.
+  A sample whose search meets a trial that is not certified, or that ends
+  without a free state, is reported as not done: the caller hands it to the
+  numpy `free_state` (so every status other than ``SLACK`` is the reference's).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numba import prange
+
+from . import kernels
+from .branch import N_SCAN
+from .kernels import (_arr, _basis, _fields3, _gradient, _h_start, _jit, _one, _parallel, _slope, _variants,
+                      free_stretch)
+from .models import continuum, one_ring, three_ring
+from .models._common import FREE_STRETCH_MAX
+
+_stress1 = _jit(one_ring.stress, gradient_terms=_gradient)
+_fields1 = _jit(one_ring.fields, inline="always", stress=_stress1)
+_bounds1 = _jit(one_ring.bounds)
+_xi_hoop = _jit(three_ring.xi_at_hoop_stretch)
+_bounds3 = _jit(three_ring.bounds, xi_at_hoop_stretch=_xi_hoop)
+_bounds_cr = _jit(continuum.bounds)
+_node_mech = _jit(continuum.node_mechanics, inline="always", slope=_slope)
+_closing = _jit(continuum.closing, inline="always")
+
+_N_SCAN = N_SCAN
+_FREE_MAX = FREE_STRETCH_MAX
+_NAN3 = (math.nan, math.nan, math.nan)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _cr_mechanics(xi, l1, xi0, x0, lx0p, Q, region, avg, C10, C20, C30):
+    """``lambda1 dpsi/dlambda1`` at fixed ``xi`` and the region-averaged hoop stretches of one CR sample:
+    `continuum.node_mechanics` summed over the quadrature nodes (``Q[0]`` the nodes, ``Q[3]`` the weights)
+    as `continuum._mechanics` sums it in numpy (``Q[4]``: ``s_i / s``)."""
+    A = (xi - xi0) * (xi + xi0)
+    B = l1 * A
+    mech = 0.0
+    h0 = 0.0
+    h1 = 0.0
+    h2 = 0.0
+    for j in range(Q.shape[1]):
+        m, h = _node_mech(A, B, x0, lx0p, l1, Q[0, j], Q[4, j], C10, C20, C30)
+        mech += m * Q[3, j]
+        r = region[j]
+        if r == 0:
+            h0 += h * avg[j]
+        elif r == 1:
+            h1 += h * avg[j]
+        else:
+            h2 += h * avg[j]
+    return mech, h0, h1, h2
+
+
+def _fields1_loop(y, l1, v, C10, C20, C30, kap, C0, Ro, Ri, sigma, cap, r_i):
+    for i in prange(y.size):
+        sigma[i], cap[i], r_i[i] = _fields1(y[i], l1[i], v[i], C10, C20, C30, kap, C0, Ro, Ri)
+
+
+def _fields3_loop(y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
+    for i in prange(y.size):
+        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = _fields3(
+            y[i], l1[i], v[i], R, C10, C20, C30, kap, C0, Ro)
+
+
+def _fields_cr_loop(y, l1, v, xi0, x0, lx0p, Q, region, avg, present, C10, C20, C30, Lb, kap, C0, Ro, out):
+    for i in prange(y.size):
+        mech, h0, h1, h2 = _cr_mechanics(y[i], l1[i], xi0[i], x0[i], lx0p[i], Q, region, avg, C10, C20, C30)
+        out[0, i], out[4, i], out[5, i] = _closing(mech, y[i], xi0[i], l1[i], v[i], Lb, kap, C0, Ro)
+        out[1, i] = h0 if present[0] else math.nan
+        out[2, i] = h1 if present[1] else math.nan
+        out[3, i] = h2 if present[2] else math.nan
+
+
+_f1 = _variants(_fields1_loop)
+_f3 = _variants(_fields3_loop)
+_fcr = _variants(_fields_cr_loop)
+
+
+def fields1(y, l1, v, C, kap, C0, Ro, Ri):
+    """`one_ring.fields` of every sample (1-D arrays of one size): ``(sigma1, capacitance, r_i)``."""
+    y = _arr(y)
+    out = np.empty((3, y.size))
+    _f1[_parallel(y.size)](y, _arr(l1, y.shape), _arr(v, y.shape), *map(float, C), float(kap), float(C0),
+                           float(Ro), float(Ri), *out)
+    return tuple(out)
+
+
+def fields3(y, l1, v, R, C, kap, C0, Ro):
+    """`three_ring.ring_fields` of every sample: the six rows of one block."""
+    y = _arr(y)
+    out = np.empty((6, y.size))
+    _f3[_parallel(y.size)](y, _arr(l1, y.shape), _arr(v, y.shape), tuple(float(r) for r in R), *map(float, C),
+                           float(kap), float(C0), float(Ro), out)
+    return tuple(out)
+
+
+def cr_tables(roll):
+    """``(Q, region, avg, present)`` of a `continuum._Roll` for `fields_cr` and `free_states`: ``Q`` the rows
+    ``(s, w / s, w / s**2, w, s_i / s)`` (the first four `kernels._terms`'), the region of each node, its
+    weight in its region's average, and which regions are present."""
+    s = roll.s
+    Q = np.empty((5, s.size))
+    Q[:4] = np.stack(roll.weights)
+    Q[4] = roll.s_i / s
+    region = np.ascontiguousarray(roll.region, np.int64)
+    avg = np.ascontiguousarray(roll.avg[np.arange(s.size), region], float)
+    return Q, region, avg, np.array(roll.present, np.bool_)
+
+
+def fields_cr(y, l1, v, roll, C, kap, C0, Ro, tables=None):
+    """The CR result fields of every sample (`continuum.evaluate`'s, compiled): six rows ``(sigma1, lambda2a,
+    lambda2b, lambda2c, capacitance, r_i)``."""
+    y = _arr(y)
+    n = y.size
+    Q, region, avg, present = cr_tables(roll) if tables is None else tables
+    out = np.empty((6, n))
+    _fcr[_parallel(n)](y, _arr(l1, y.shape), _arr(v, y.shape), _arr(roll.xi0, y.shape), _arr(roll.x0, y.shape),
+                       _arr(roll.lx0p, y.shape), Q, region, avg, present, *map(float, C), float(roll.Lb),
+                       float(kap), float(C0), float(Ro), out)
+    return tuple(out)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _rising(code, lam, v, R, B, Q, C10, C20, C30, kap, offsets, pitchfork):
+    """The rising-ramp state at stretch ``lam``: ``(y, certified, R)`` by `kernels._one` (``R``: CR's
+    per-sample constants at ``lam``)."""
+    if code == 1:
+        y0, y_max, load = _bounds1(lam, kap)
+    elif code == 3:
+        y0, y_max, load = _bounds3(lam, kap, B)
+    else:
+        y0, y_max, load = _bounds_cr(lam, kap, B[0], B[1])
+        _, x0 = _basis(lam)
+        R = (y0, x0, R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    h0 = _h_start(code, y0, lam, R, Q, C10, C20, C30, pitchfork)
+    y, cert = _one(code, lam, y0, y_max, load * v * v, h0, R, Q, C10, C20, C30, offsets, False, 1e-14, 100,
+                   _N_SCAN, pitchfork)
+    return y, cert == 1, R
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _stress(code, y, lam, v, R, B, Q, region, avg, C10, C20, C30, kap):
+    """The axial stress [Pa] at the equilibrium ``y`` of stretch ``lam`` (the model's compiled fields)."""
+    if code == 1:
+        return _stress1(y, lam, v, C10, C20, C30, kap)
+    if code == 3:
+        s, _, _, _, _, _ = _fields3(y, lam, v, R, C10, C20, C30, kap, 0.0, 0.0)
+        return s
+    lx0p, x0 = _basis(lam)
+    mech, _, _, _ = _cr_mechanics(y, lam, R[0], x0, lx0p, Q, region, avg, C10, C20, C30)
+    s, _, _ = _closing(mech, y, R[0], lam, v, R[2], kap, 0.0, 0.0)
+    return s
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _trial(lam, args):
+    """A trial of `kernels.free_stretch`: ``(stress, certified)`` of the rising-ramp state at ``lam``."""
+    code, v, R, B, Q, region, avg, C10, C20, C30, kap, offsets, pitchfork = args
+    y, ok, R = _rising(code, lam, v, R, B, Q, C10, C20, C30, kap, offsets, pitchfork)
+    if not ok:
+        return math.nan, False
+    return _stress(code, y, lam, v, R, B, Q, region, avg, C10, C20, C30, kap), True
+
+
+def _free_loop(code, l1, v, s1, R, B, Q, region, avg, C10, C20, C30, kap, offsets, pitchfork, free_max,
+               lam, y, done):
+    for i in prange(l1.size):
+        done[i] = False
+        lam[i] = math.nan
+        y[i] = math.nan
+        args = (code, v[i], R, B, Q, region, avg, C10, C20, C30, kap, offsets, pitchfork)
+        x = free_stretch(_trial, args, l1[i], s1[i], free_max)
+        if x != x:
+            continue
+        yx, ok, Rx = _rising(code, x, v[i], R, B, Q, C10, C20, C30, kap, offsets, pitchfork)
+        # the reference's final check: the stress vanishes there (it does not jump)
+        if ok and abs(_stress(code, yx, x, v[i], Rx, B, Q, region, avg, C10, C20, C30, kap)) <= (
+                1e-6 * abs(s1[i]) + 1e-6):
+            lam[i], y[i], done[i] = x, yx, True
+
+
+_free = _variants(_free_loop)
+#: A free state costs about as much as 10-20 roots: calls of this many slack samples run on all cores.
+FREE_PARALLEL_MIN = 256
+
+
+def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.0,) * 4, cr=None):
+    """The free states of slack samples (stretch ``l1``, voltage ``v``, stress ``s1 < 0`` there), compiled:
+    ``(free stretch, y there, done)``; a sample not done goes to the numpy `free_state`.
+
+    ``code``: `kernels.CODES`; ``offsets``: the scale nodes of the call's problem (`branch.scale_offsets`:
+    those of its widest span, so each trial is scanned at least at the nodes the reference scans it at);
+    ``R``, ``B``: 3R's ring and bound constants; ``cr``: CR's ``(Q, region, avg, s_i, s_ie, Lb)`` (`cr_tables`).
+    """
+    n = l1.size
+    lam, y, done = np.empty(n), np.empty(n), np.empty(n, np.bool_)
+    if n == 0:
+        return lam, y, done
+    if cr is not None:
+        Q, region, avg, s_i, s_ie, Lb = cr
+        R, B = (0.0, 0.0, float(Lb), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), (float(s_i), float(s_ie), 0.0, 0.0)
+    else:
+        Q, region, avg = _NO_Q, _NO_REGION, _NO_AVG
+    par = int(n >= FREE_PARALLEL_MIN and _parallel(kernels.PARALLEL_MIN))
+    _free[par](code, _arr(l1), _arr(v, l1.shape), _arr(s1, l1.shape), tuple(float(r) for r in R),
+               tuple(float(b) for b in B), Q, region, avg, *map(float, C), float(kap), _arr(offsets),
+               bool(pitchfork), _FREE_MAX, lam, y, done)
+    return lam, y, done
+
+
+_NO_Q = np.zeros((5, 0))
+_NO_REGION = np.zeros(0, np.int64)
+_NO_AVG = np.zeros(0)
+
+
+def free_hook(code, problem, l1, v, C, kap, fields, R=(0.0,) * 9, B=(0.0,) * 4, cr=None):
+    """`Evaluation.free` of a model's call: ``free(sel, s1)`` gives ``(free stretch, fields, done)`` of the slack
+    samples ``sel`` (stress ``s1`` at their own stretch) by `free_states`; ``fields(y, stretch, voltage)`` is the
+    model's fields dict (``lambda2a``, ``lambda2b``, ``lambda2c``, ``capacitance``, ``r_i``) at equilibria ``y``
+    (NaN where not done). ``problem``: the call's, whose scale nodes the trials are scanned at."""
+    from .branch import scale_offsets
+
+    offsets = scale_offsets(problem)
+
+    def free(sel, s1):
+        vs = v[sel]
+        lam, y, done = free_states(code, l1[sel], vs, s1, C, kap, offsets, problem.pitchfork, R, B, cr)
+        return lam, fields(y, lam, vs), done
+
+    return free
