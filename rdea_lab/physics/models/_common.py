@@ -180,10 +180,14 @@ def solve_model(name, evaluate, geom, material, stretch=None, voltage=None, *, p
         ev = evaluate(geom, material, l1, v, path=path, start=start, kernel=kernel)
     fields = dict(ev.fields)
     fields["tension"] = fields["sigma1"]
-    status = ev.status.copy()
+    status = ev.status  # the evaluation's own: written in place
     free = l1.copy()
-    with np.errstate(invalid="ignore"):
-        slack = np.flatnonzero(is_valid(status) & (fields["sigma1"] < 0.0) & ~bad) if slack else []
+    if slack:
+        with np.errstate(invalid="ignore"):
+            slack = np.flatnonzero(np.asarray(fields["sigma1"]) < 0.0)  # few: the other tests on those alone
+        slack = slack[is_valid(status[slack]) & ~bad[slack]]
+    else:
+        slack = []
     if len(slack):
         # a path's free state continues the branch the clamped state is on
         origin = ev.y[slack] if (path and ev.y is not None) else None
