@@ -46,10 +46,10 @@ _NAN3 = (math.nan, math.nan, math.nan)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _cr_mechanics(xi, l1, xi0, x0, lx0p, Q, region, avg, C10, C20, C30):
+def _cr_mechanics(xi, l1, xi0, x0, lx0p, Q, W, C10, C20, C30):
     """``lambda1 dpsi/dlambda1`` at fixed ``xi`` and the region-averaged hoop stretches of one CR sample:
-    `continuum.node_mechanics` summed over the quadrature nodes (``Q[0]`` the nodes, ``Q[3]`` the weights)
-    as `continuum._mechanics` sums it in numpy (``Q[4]``: ``s_i / s``)."""
+    `continuum.node_mechanics` summed over the quadrature nodes as `continuum._mechanics` sums it in numpy
+    (`cr_tables`: ``Q`` the nodes and weights, ``W`` the region averages' weights)."""
     A = (xi - xi0) * (xi + xi0)
     B = l1 * A
     mech = 0.0
@@ -59,13 +59,9 @@ def _cr_mechanics(xi, l1, xi0, x0, lx0p, Q, region, avg, C10, C20, C30):
     for j in range(Q.shape[1]):
         m, h = _node_mech(A, B, x0, lx0p, l1, Q[0, j], Q[4, j], C10, C20, C30)
         mech += m * Q[3, j]
-        r = region[j]
-        if r == 0:
-            h0 += h * avg[j]
-        elif r == 1:
-            h1 += h * avg[j]
-        else:
-            h2 += h * avg[j]
+        h0 += h * W[0, j]
+        h1 += h * W[1, j]
+        h2 += h * W[2, j]
     return mech, h0, h1, h2
 
 
@@ -80,13 +76,37 @@ def _fields3_loop(y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
             y[i], l1[i], v[i], R, C10, C20, C30, kap, C0, Ro)
 
 
-def _fields_cr_loop(y, l1, v, xi0, x0, lx0p, Q, region, avg, present, C10, C20, C30, Lb, kap, C0, Ro, out):
-    for i in prange(y.size):
-        mech, h0, h1, h2 = _cr_mechanics(y[i], l1[i], xi0[i], x0[i], lx0p[i], Q, region, avg, C10, C20, C30)
-        out[0, i], out[4, i], out[5, i] = _closing(mech, y[i], xi0[i], l1[i], v[i], Lb, kap, C0, Ro)
-        out[1, i] = h0 if present[0] else math.nan
-        out[2, i] = h1 if present[1] else math.nan
-        out[3, i] = h2 if present[2] else math.nan
+#: Samples per block of the CR field pass: each node is applied to a block of samples in a loop the compiler
+#: vectorizes (divisions and square roots four or eight at a time), as the per-sample loop over nodes is not.
+CR_BLOCK = 256
+
+
+def _fields_cr_loop(y, l1, v, xi0, x0, lx0p, Q, W, present, C10, C20, C30, Lb, kap, C0, Ro, out):
+    n = y.size
+    for b in prange((n + CR_BLOCK - 1) // CR_BLOCK):
+        lo = b * CR_BLOCK
+        m = min(CR_BLOCK, n - lo)
+        A = np.empty(m)
+        B = np.empty(m)
+        acc = np.zeros((4, m))
+        for i in range(m):
+            A[i] = (y[lo + i] - xi0[lo + i]) * (y[lo + i] + xi0[lo + i])
+            B[i] = l1[lo + i] * A[i]
+        for j in range(Q.shape[1]):  # `_cr_mechanics`, node by node over the block
+            s, s_i_s, w, w0, w1, w2 = Q[0, j], Q[4, j], Q[3, j], W[0, j], W[1, j], W[2, j]
+            for i in range(m):
+                k = lo + i
+                mech, h = _node_mech(A[i], B[i], x0[k], lx0p[k], l1[k], s, s_i_s, C10, C20, C30)
+                acc[0, i] += mech * w
+                acc[1, i] += h * w0
+                acc[2, i] += h * w1
+                acc[3, i] += h * w2
+        for i in range(m):
+            k = lo + i
+            out[0, k], out[4, k], out[5, k] = _closing(acc[0, i], y[k], xi0[k], l1[k], v[k], Lb, kap, C0, Ro)
+            out[1, k] = acc[1, i] if present[0] else math.nan
+            out[2, k] = acc[2, i] if present[1] else math.nan
+            out[3, k] = acc[3, i] if present[2] else math.nan
 
 
 _f1 = _variants(_fields1_loop)
@@ -113,16 +133,14 @@ def fields3(y, l1, v, R, C, kap, C0, Ro):
 
 
 def cr_tables(roll):
-    """``(Q, region, avg, present)`` of a `continuum._Roll` for `fields_cr` and `free_states`: ``Q`` the rows
-    ``(s, w / s, w / s**2, w, s_i / s)`` (the first four `kernels._terms`'), the region of each node, its
-    weight in its region's average, and which regions are present."""
+    """``(Q, W, present)`` of a `continuum._Roll` for `fields_cr` and `free_states`: ``Q`` the rows
+    ``(s, w / s, w / s**2, w, s_i / s)`` of the quadrature nodes (the first four `kernels._terms`'), ``W`` the
+    weights of each region's average (`_Roll.avg`, transposed) and which regions are present."""
     s = roll.s
     Q = np.empty((5, s.size))
     Q[:4] = np.stack(roll.weights)
     Q[4] = roll.s_i / s
-    region = np.ascontiguousarray(roll.region, np.int64)
-    avg = np.ascontiguousarray(roll.avg[np.arange(s.size), region], float)
-    return Q, region, avg, np.array(roll.present, np.bool_)
+    return Q, np.ascontiguousarray(roll.avg.T, float), np.array(roll.present, np.bool_)
 
 
 def fields_cr(y, l1, v, roll, C, kap, C0, Ro, tables=None):
@@ -130,10 +148,10 @@ def fields_cr(y, l1, v, roll, C, kap, C0, Ro, tables=None):
     lambda2b, lambda2c, capacitance, r_i)``."""
     y = _arr(y)
     n = y.size
-    Q, region, avg, present = cr_tables(roll) if tables is None else tables
+    Q, W, present = cr_tables(roll) if tables is None else tables
     out = np.empty((6, n))
     _fcr[_parallel(n)](y, _arr(l1, y.shape), _arr(v, y.shape), _arr(roll.xi0, y.shape), _arr(roll.x0, y.shape),
-                       _arr(roll.lx0p, y.shape), Q, region, avg, present, *map(float, C), float(roll.Lb),
+                       _arr(roll.lx0p, y.shape), Q, W, present, *map(float, C), float(roll.Lb),
                        float(kap), float(C0), float(Ro), out)
     return tuple(out)
 
@@ -157,7 +175,7 @@ def _rising(code, lam, v, R, B, Q, C10, C20, C30, kap, offsets, pitchfork):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _stress(code, y, lam, v, R, B, Q, region, avg, C10, C20, C30, kap):
+def _stress(code, y, lam, v, R, B, Q, W, C10, C20, C30, kap):
     """The axial stress [Pa] at the equilibrium ``y`` of stretch ``lam`` (the model's compiled fields)."""
     if code == 1:
         return _stress1(y, lam, v, C10, C20, C30, kap)
@@ -165,7 +183,7 @@ def _stress(code, y, lam, v, R, B, Q, region, avg, C10, C20, C30, kap):
         s, _, _, _, _, _ = _fields3(y, lam, v, R, C10, C20, C30, kap, 0.0, 0.0)
         return s
     lx0p, x0 = _basis(lam)
-    mech, _, _, _ = _cr_mechanics(y, lam, R[0], x0, lx0p, Q, region, avg, C10, C20, C30)
+    mech, _, _, _ = _cr_mechanics(y, lam, R[0], x0, lx0p, Q, W, C10, C20, C30)
     s, _, _ = _closing(mech, y, R[0], lam, v, R[2], kap, 0.0, 0.0)
     return s
 
@@ -173,26 +191,26 @@ def _stress(code, y, lam, v, R, B, Q, region, avg, C10, C20, C30, kap):
 @numba.njit(cache=True, error_model="numpy")
 def _trial(lam, args):
     """A trial of `kernels.free_stretch`: ``(stress, certified)`` of the rising-ramp state at ``lam``."""
-    code, v, R, B, Q, region, avg, C10, C20, C30, kap, offsets, pitchfork = args
+    code, v, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork = args
     y, ok, R = _rising(code, lam, v, R, B, Q, C10, C20, C30, kap, offsets, pitchfork)
     if not ok:
         return math.nan, False
-    return _stress(code, y, lam, v, R, B, Q, region, avg, C10, C20, C30, kap), True
+    return _stress(code, y, lam, v, R, B, Q, W, C10, C20, C30, kap), True
 
 
-def _free_loop(code, l1, v, s1, R, B, Q, region, avg, C10, C20, C30, kap, offsets, pitchfork, free_max,
+def _free_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max,
                lam, y, done):
     for i in prange(l1.size):
         done[i] = False
         lam[i] = math.nan
         y[i] = math.nan
-        args = (code, v[i], R, B, Q, region, avg, C10, C20, C30, kap, offsets, pitchfork)
+        args = (code, v[i], R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork)
         x = free_stretch(_trial, args, l1[i], s1[i], free_max)
         if x != x:
             continue
         yx, ok, Rx = _rising(code, x, v[i], R, B, Q, C10, C20, C30, kap, offsets, pitchfork)
         # the reference's final check: the stress vanishes there (it does not jump)
-        if ok and abs(_stress(code, yx, x, v[i], Rx, B, Q, region, avg, C10, C20, C30, kap)) <= (
+        if ok and abs(_stress(code, yx, x, v[i], Rx, B, Q, W, C10, C20, C30, kap)) <= (
                 1e-6 * abs(s1[i]) + 1e-6):
             lam[i], y[i], done[i] = x, yx, True
 
@@ -208,27 +226,26 @@ def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.
 
     ``code``: `kernels.CODES`; ``offsets``: the scale nodes of the call's problem (`branch.scale_offsets`:
     those of its widest span, so each trial is scanned at least at the nodes the reference scans it at);
-    ``R``, ``B``: 3R's ring and bound constants; ``cr``: CR's ``(Q, region, avg, s_i, s_ie, Lb)`` (`cr_tables`).
+    ``R``, ``B``: 3R's ring and bound constants; ``cr``: CR's ``(Q, W, s_i, s_ie, Lb)`` (`cr_tables`).
     """
     n = l1.size
     lam, y, done = np.empty(n), np.empty(n), np.empty(n, np.bool_)
     if n == 0:
         return lam, y, done
     if cr is not None:
-        Q, region, avg, s_i, s_ie, Lb = cr
+        Q, W, s_i, s_ie, Lb = cr
         R, B = (0.0, 0.0, float(Lb), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), (float(s_i), float(s_ie), 0.0, 0.0)
     else:
-        Q, region, avg = _NO_Q, _NO_REGION, _NO_AVG
+        Q, W = _NO_Q, _NO_W
     par = int(n >= FREE_PARALLEL_MIN and _parallel(kernels.PARALLEL_MIN))
     _free[par](code, _arr(l1), _arr(v, l1.shape), _arr(s1, l1.shape), tuple(float(r) for r in R),
-               tuple(float(b) for b in B), Q, region, avg, *map(float, C), float(kap), _arr(offsets),
+               tuple(float(b) for b in B), Q, W, *map(float, C), float(kap), _arr(offsets),
                bool(pitchfork), _FREE_MAX, lam, y, done)
     return lam, y, done
 
 
 _NO_Q = np.zeros((5, 0))
-_NO_REGION = np.zeros(0, np.int64)
-_NO_AVG = np.zeros(0)
+_NO_W = np.zeros((3, 0))
 
 
 def free_hook(code, problem, l1, v, C, kap, fields, R=(0.0,) * 9, B=(0.0,) * 4, cr=None):

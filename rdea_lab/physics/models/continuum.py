@@ -404,7 +404,7 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, poin
 
     def free(prob):
         return fast.free_hook(4, prob, l1, v, C, kap, lambda y, lam, vv: at(y, _Roll(geom, lam, points), vv),
-                              cr=(*tables[:3], roll.s_i, roll.s_ie, roll.Lb))
+                              cr=(*tables[:2], roll.s_i, roll.s_ie, roll.Lb))
 
     if roll.pinned:
         n = l1.size
