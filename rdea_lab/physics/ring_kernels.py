@@ -156,6 +156,31 @@ def fields_cr(y, l1, v, roll, C, kap, C0, Ro, tables=None):
     return tuple(out)
 
 
+@numba.njit(cache=True, error_model="numpy")
+def _bounds_loop(code, l1, v, kap, B, y0, y_max, load, K):
+    if code == 1:
+        for i in range(l1.size):
+            y0[i], y_max[i], load[i] = _bounds1(l1[i], kap)
+    elif code == 3:
+        for i in range(l1.size):
+            y0[i], y_max[i], load[i] = _bounds3(l1[i], kap, B)
+    else:
+        for i in range(l1.size):
+            y0[i], y_max[i], load[i] = _bounds_cr(l1[i], kap, B[0], B[1])
+    for i in range(l1.size):
+        K[i] = load[i] * v[i] * v[i]
+
+
+def bounds(code, l1, v, kap, B=(0.0,) * 4):
+    """``(y0, y_max, load, K)`` of a model's `~rdea_lab.physics.branch.Problem` in one pass: its ``bounds``
+    (`one_ring.bounds`, `three_ring.bounds` with ``B`` its bound constants, `continuum.bounds` with ``B = (s_i,
+    s_ie, 0, 0)``) and ``K = load v**2``."""
+    l1 = _arr(l1)
+    out = np.empty((4, l1.size))
+    _bounds_loop(code, l1, _arr(v, l1.shape), float(kap), tuple(float(b) for b in B), *out)
+    return tuple(out)
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _rising(code, lam, v, R, B, Q, C10, C20, C30, kap, offsets, pitchfork):
     """The rising-ramp state at stretch ``lam``: ``(y, certified, R)`` by `kernels._one` (``R``: CR's

@@ -102,7 +102,8 @@ def test_free_states_many_cases(model, family):
 
 
 def _bench_scene(n):
-    rng = np.random.default_rng(0)  # benchmarks/bench_models.py's scene: hollow core, lambda1 U[1, 1.75], v U[0, 3.5 kV]
+    # benchmarks/bench_models.py's scene: hollow core, lambda1 U[1, 1.75], v U[0, 3.5 kV]
+    rng = np.random.default_rng(0)
     return core("hollow"), rng.uniform(1.0, 1.75, n), rng.uniform(0.0, 3500.0, n)
 
 
@@ -128,6 +129,15 @@ def test_fields_equal_numpy(geom):
     n = 5000  # parallel from 4096 samples on
     l1, v = rng.uniform(1.0, 2.0, n), rng.uniform(0.0, 4000.0, n)
     C, kap, C0 = yeoh_coefficients(RIZZELLO), kappa(geom, RIZZELLO), geom.C0(RIZZELLO.eps_r)
+    # the problems' bounds and loads in one pass against the models' numpy `bounds`
+    roll = continuum._Roll(geom, l1)
+    for fast, prob in ((one_ring.problem(geom, RIZZELLO, l1, v, ring_kernels), one_ring.problem(geom, RIZZELLO, l1, v)),
+                       (three_ring.problem(geom, RIZZELLO, l1, v, ring_kernels),
+                        three_ring.problem(geom, RIZZELLO, l1, v))) + (
+            ((continuum._problem(roll, geom, RIZZELLO, l1, v, ring_kernels),
+              continuum._problem(roll, geom, RIZZELLO, l1, v)),) if geom.Ri > 0.0 else ()):
+        for key in ("y0", "y_max", "K", "load"):
+            _close(getattr(fast, key), getattr(prob, key), f"bounds {key}")
     l2 = rng.uniform(0.5, 2.0, n) / np.sqrt(l1)
     for x, y in zip(ring_kernels.fields1(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri),
                     one_ring.fields(l2, l1, v, *C, kap, C0, geom.Ro, geom.Ri)):
@@ -137,7 +147,6 @@ def test_fields_equal_numpy(geom):
     for x, y in zip(ring_kernels.fields3(xi, l1, v, rings.constants, C, kap, C0, geom.Ro),
                     three_ring.ring_fields(xi, l1, v, rings.constants, *C, kap, C0, geom.Ro)):
         _close(x, y, "3r")
-    roll = continuum._Roll(geom, l1)
     xi = roll.xi0 + (rng.uniform(0.0, 0.3, n) if geom.Ri > 0.0 else 0.0)
     mech, *hoop = continuum._by_blocks(continuum._mechanics(roll, C), xi, l1, roll.xi0, roll.x0, roll.lx0p)
     sigma1, cap, r_i = continuum.closing(mech, xi, roll.xi0, l1, v, roll.Lb, kap, C0, geom.Ro)

@@ -322,16 +322,20 @@ def bounds(l1, kap, s_i, s_ie):
     return xi0, np.sqrt(xi0 * xi0 + s_ie * (l2 * l2 - 1.0 / l1)), kap * l1 * l1
 
 
-def _problem(roll, geom, material, l1, v):
+def _problem(roll, geom, material, l1, v, fast=None):
     if roll.pinned:
         raise ValueError("CR with Ri = 0 has no free coordinate: r_i = 0 is pinned (an open hole costs infinite "
                          "energy); evaluate() handles it without a problem")
-    _, y_max, load = bounds(l1, kappa(geom, material), roll.s_i, roll.s_ie)
+    if fast is not None:
+        _, y_max, load, K = fast.bounds(4, l1, v, kappa(geom, material), (roll.s_i, roll.s_ie, 0.0, 0.0))
+    else:
+        _, y_max, load = bounds(l1, kappa(geom, material), roll.s_i, roll.s_ie)
+        K = load * v * v
     C = yeoh_coefficients(material)
     kernel = (4, {"l1": np.ascontiguousarray(l1, float), "C": C, "xi0": np.ascontiguousarray(roll.xi0, float),
                   "x0": np.ascontiguousarray(roll.x0, float), "Lb": float(roll.Lb),
                   "Q": np.ascontiguousarray(np.stack(roll.weights), float)})
-    return Problem(_terms(roll, C), roll.xi0, y_max, load * v * v, load, scale=np.sqrt(roll.s_i), kernel=kernel)
+    return Problem(_terms(roll, C), roll.xi0, y_max, K, load, scale=np.sqrt(roll.s_i), kernel=kernel)
 
 
 def node_mechanics(A, B, x0, lx0p, l1, s, s_i_over_s, C10, C20, C30):
@@ -366,8 +370,8 @@ def _mechanics(roll, C):
 
     def block(xi, l1, xi0, x0, lx0p):
         A = roll.opening(xi, xi0)
-        col = (lambda a: a[:, None])
-        W1dx, hoop = node_mechanics(col(A), col(l1 * A), col(x0), col(lx0p), col(l1), s, s_i_over_s, *C)
+        W1dx, hoop = node_mechanics(A[:, None], (l1 * A)[:, None], x0[:, None], lx0p[:, None], l1[:, None], s,
+                                    s_i_over_s, *C)
         hoop = hoop @ roll.avg  # each region's volume average
         return W1dx @ w, hoop[:, 0], hoop[:, 1], hoop[:, 2]
 
@@ -411,7 +415,7 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, poin
         y = np.zeros(n)
         return Evaluation(np.full(n, OK, np.int8), np.full(n, np.nan), np.full(n, np.nan), state(y),
                           0.0 if path else None, y)
-    return evaluate_free(_problem(roll, geom, material, l1, v), state, path=path, start=start, origin=origin,
+    return evaluate_free(_problem(roll, geom, material, l1, v, fast), state, path=path, start=start, origin=origin,
                          kernel=kernel, free=free if fast is not None else None)
 
 

@@ -47,8 +47,9 @@ def bounds(l1, kap):
     return y0, HOOP_STRETCH_CAP * y0, kap * l1 * l1
 
 
-def problem(geom, material, l1, v) -> Problem:
-    """The 1R equilibrium in ``y = lambda2`` at clean 1-D inputs (eq. 33 as a stationary point)."""
+def problem(geom, material, l1, v, fast=None) -> Problem:
+    """The 1R equilibrium in ``y = lambda2`` at clean 1-D inputs (eq. 33 as a stationary point); ``fast``:
+    `rdea_lab.physics.ring_kernels`, which computes its bounds in one pass."""
     C = yeoh_coefficients(material)
     kap = kappa(geom, material)
 
@@ -56,9 +57,12 @@ def problem(geom, material, l1, v) -> Problem:
         p_y, p_yy = yeoh.d_psi_d_l2(l1[idx], y, C, second)
         return p_y, p_yy, 2.0 * y, 2.0
 
-    y0, y_max, load = bounds(l1, kap)
-    return Problem(terms, y0, y_max, load * v * v, load,
-                   kernel=(1, {"l1": np.ascontiguousarray(l1, float), "C": C}))
+    if fast is not None:
+        y0, y_max, load, K = fast.bounds(1, l1, v, kap)
+    else:
+        y0, y_max, load = bounds(l1, kap)
+        K = load * v * v
+    return Problem(terms, y0, y_max, K, load, kernel=(1, {"l1": np.ascontiguousarray(l1, float), "C": C}))
 
 
 def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
@@ -78,7 +82,7 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     def free(prob):
         return fast.free_hook(1, prob, l1, v, C, kap, at)
 
-    return evaluate_free(problem(geom, material, l1, v), lambda l2: at(l2, l1, v), path=path, start=start,
+    return evaluate_free(problem(geom, material, l1, v, fast), lambda l2: at(l2, l1, v), path=path, start=start,
                          origin=origin, kernel=kernel, free=free if fast is not None else None)
 
 

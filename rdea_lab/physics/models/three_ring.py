@@ -231,13 +231,18 @@ def core_scale(rings) -> float | None:
     return float(rings.rho_ie) if rings.has_a else None
 
 
-def problem(geom, material, l1, v) -> Problem:
-    """The 3R equilibrium in ``xi = r_i / Ro`` at clean 1-D inputs."""
+def problem(geom, material, l1, v, fast=None) -> Problem:
+    """The 3R equilibrium in ``xi = r_i / Ro`` at clean 1-D inputs; ``fast``: `rdea_lab.physics.ring_kernels`,
+    which computes its bounds in one pass."""
     rings = _Rings(geom, l1)
-    y0, y_max, load = bounds(l1, kappa(geom, material), rings.bound_constants)
+    if fast is not None:
+        y0, y_max, load, K = fast.bounds(3, l1, v, kappa(geom, material), rings.bound_constants)
+    else:
+        y0, y_max, load = bounds(l1, kappa(geom, material), rings.bound_constants)
+        K = load * v * v
     pitchfork = rings.rho_i == 0.0 and rings.has_a
     C = yeoh_coefficients(material)
-    return Problem(_terms(rings, C), y0, y_max, load * v * v, load, pitchfork=pitchfork,
+    return Problem(_terms(rings, C), y0, y_max, K, load, pitchfork=pitchfork,
                    scale=core_scale(rings),
                    kernel=(3, {"l1": np.ascontiguousarray(l1, float), "R": rings.constants, "C": C}))
 
@@ -263,7 +268,7 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     def free(prob):
         return fast.free_hook(3, prob, l1, v, C, kap, at, R=rings.constants, B=rings.bound_constants)
 
-    return evaluate_free(problem(geom, material, l1, v), lambda xi: at(xi, l1, v), path=path, start=start,
+    return evaluate_free(problem(geom, material, l1, v, fast), lambda xi: at(xi, l1, v), path=path, start=start,
                          origin=origin, kernel=kernel, free=free if fast is not None else None)
 
 
