@@ -33,10 +33,11 @@ from .models._common import FREE_STRETCH_MAX
 
 _stress1 = _jit(one_ring.stress, gradient_terms=_gradient)
 _fields1 = _jit(one_ring.fields, inline="always", stress=_stress1)
-_bounds1 = _jit(one_ring.bounds)
-_xi_hoop = _jit(three_ring.xi_at_hoop_stretch)
-_bounds3 = _jit(three_ring.bounds, xi_at_hoop_stretch=_xi_hoop)
-_bounds_cr = _jit(continuum.bounds)
+# inlined: the loop over samples of `bounds` vectorizes
+_bounds1 = _jit(one_ring.bounds, inline="always")
+_xi_hoop = _jit(three_ring.xi_at_hoop_stretch, inline="always")
+_bounds3 = _jit(three_ring.bounds, inline="always", xi_at_hoop_stretch=_xi_hoop)
+_bounds_cr = _jit(continuum.bounds, inline="always")
 _node_mech = _jit(continuum.node_mechanics, inline="always", slope=_slope)
 _closing = _jit(continuum.closing, inline="always")
 
