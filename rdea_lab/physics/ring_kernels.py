@@ -5,8 +5,10 @@ this module compiles is the rest of a `solve`, with the numpy code as the
 reference (the tests check one against the other):
 
 - the result fields at the equilibria, one parallel pass writing every field:
-  `one_ring.fields`, `three_ring.ring_fields` and `continuum.node_mechanics` /
-  `continuum.closing`, compiled as they are (`kernels._jit`);
+  `three_ring.ring_fields` and `continuum.node_mechanics` / `continuum.closing`,
+  compiled as they are (`kernels._jit`); 1R's `one_ring.fields` stays numpy,
+  by blocks (`one_ring.BLOCK` says why);
+- the problems' bounds and loads (`bounds`);
 - a slack roll's free state: `kernels.free_stretch` (the bracketing and
   Illinois iteration of `models._common.free_state`, the one compiled form of
   it), each trial the rising-ramp state at the trial stretch from the
@@ -32,7 +34,6 @@ from .models import continuum, one_ring, three_ring
 from .models._common import FREE_STRETCH_MAX
 
 _stress1 = _jit(one_ring.stress, gradient_terms=_gradient)
-_fields1 = _jit(one_ring.fields, inline="always", stress=_stress1)
 # inlined: the loop over samples of `bounds` vectorizes
 _bounds1 = _jit(one_ring.bounds, inline="always")
 _xi_hoop = _jit(three_ring.xi_at_hoop_stretch, inline="always")
@@ -64,11 +65,6 @@ def _cr_mechanics(xi, l1, xi0, x0, lx0p, Q, W, C10, C20, C30):
         h1 += h * W[1, j]
         h2 += h * W[2, j]
     return mech, h0, h1, h2
-
-
-def _fields1_loop(y, l1, v, C10, C20, C30, kap, C0, Ro, Ri, sigma, cap, r_i):
-    for i in prange(y.size):
-        sigma[i], cap[i], r_i[i] = _fields1(y[i], l1[i], v[i], C10, C20, C30, kap, C0, Ro, Ri)
 
 
 def _fields3_loop(y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
@@ -110,18 +106,8 @@ def _fields_cr_loop(y, l1, v, xi0, x0, lx0p, Q, W, present, C10, C20, C30, Lb, k
             out[3, k] = acc[3, i] if present[2] else math.nan
 
 
-_f1 = _variants(_fields1_loop)
 _f3 = _variants(_fields3_loop)
 _fcr = _variants(_fields_cr_loop)
-
-
-def fields1(y, l1, v, C, kap, C0, Ro, Ri):
-    """`one_ring.fields` of every sample (1-D arrays of one size): ``(sigma1, capacitance, r_i)``."""
-    y = _arr(y)
-    out = np.empty((3, y.size))
-    _f1[_parallel(y.size)](y, _arr(l1, y.shape), _arr(v, y.shape), *map(float, C), float(kap), float(C0),
-                           float(Ro), float(Ri), *out)
-    return tuple(out)
 
 
 def fields3(y, l1, v, R, C, kap, C0, Ro):

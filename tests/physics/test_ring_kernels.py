@@ -7,8 +7,8 @@
   leaves go to the reference by construction (checked through `solve` against ``kernel="numpy"``, whose
   statuses must be identical). Cases: the seeded random families of test_random_cases (folds, small cores,
   micro-cores), each at stretches and voltages that make many rolls slack, and the bench scene.
-- The result fields: `fields1`, `fields3`, `fields_cr` against `one_ring.fields`, `three_ring.ring_fields`
-  and `continuum.evaluate`'s numpy fields.
+- The result fields: `fields3`, `fields_cr` against `three_ring.ring_fields` and `continuum.evaluate`'s numpy
+  fields; the problems' bounds (`ring_kernels.bounds`) against the models' `bounds`.
 """
 
 from __future__ import annotations
@@ -126,7 +126,7 @@ def test_bench_scene_whole_equal_reference(model):
 def test_fields_equal_numpy(geom):
     """Each compiled field pass against its numpy function at the same coordinates (not only at equilibria)."""
     rng = np.random.default_rng(7)
-    n = 5000  # parallel from 4096 samples on
+    n = one_ring.BLOCK + 5000  # parallel from 4096 samples on; 1R's numpy in two blocks
     l1, v = rng.uniform(1.0, 2.0, n), rng.uniform(0.0, 4000.0, n)
     C, kap, C0 = yeoh_coefficients(RIZZELLO), kappa(geom, RIZZELLO), geom.C0(RIZZELLO.eps_r)
     # the problems' bounds and loads in one pass against the models' numpy `bounds`
@@ -139,9 +139,9 @@ def test_fields_equal_numpy(geom):
         for key in ("y0", "y_max", "K", "load"):
             _close(getattr(fast, key), getattr(prob, key), f"bounds {key}")
     l2 = rng.uniform(0.5, 2.0, n) / np.sqrt(l1)
-    for x, y in zip(ring_kernels.fields1(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri),
+    for x, y in zip(one_ring._fields_by_blocks(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri),
                     one_ring.fields(l2, l1, v, *C, kap, C0, geom.Ro, geom.Ri)):
-        _close(x, y, "1r")
+        _close(x, y, "1r by blocks")
     rings = three_ring._Rings(geom, l1)
     xi = rings.rho_i / np.sqrt(l1) + rng.uniform(0.0, 0.3, n)
     for x, y in zip(ring_kernels.fields3(xi, l1, v, rings.constants, C, kap, C0, geom.Ro),
