@@ -202,29 +202,28 @@ def _stress(code, y, lam, v, R, B, Q, W, C10, C20, C30, kap):
 
 @numba.njit(cache=True, error_model="numpy")
 def _trial(lam, args):
-    """A trial of `kernels.free_stretch`: ``(stress, certified)`` of the rising-ramp state at ``lam``."""
-    code, v, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork = args
+    """A trial of `kernels.free_stretch`: ``(stress, certified)`` of the rising-ramp state at ``lam``; a certified
+    one is kept in ``memo[i] = (lam, y, stress)`` (the last one is the free state: not solved again)."""
+    code, v, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, memo, i = args
     y, ok, R = _rising(code, lam, v, R, B, Q, C10, C20, C30, kap, offsets, pitchfork)
     if not ok:
         return math.nan, False
-    return _stress(code, y, lam, v, R, B, Q, W, C10, C20, C30, kap), True
+    s = _stress(code, y, lam, v, R, B, Q, W, C10, C20, C30, kap)
+    memo[i, 0], memo[i, 1], memo[i, 2] = lam, y, s
+    return s, True
 
 
-def _free_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max,
-               lam, y, done):
+def _free_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done):
     for i in prange(l1.size):
         done[i] = False
-        lam[i] = math.nan
-        y[i] = math.nan
-        args = (code, v[i], R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork)
+        memo[i, 0] = math.nan
+        args = (code, v[i], R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, memo, i)
         x = free_stretch(_trial, args, l1[i], s1[i], free_max)
-        if x != x:
-            continue
-        yx, ok, Rx = _rising(code, x, v[i], R, B, Q, C10, C20, C30, kap, offsets, pitchfork)
-        # the reference's final check: the stress vanishes there (it does not jump)
-        if ok and abs(_stress(code, yx, x, v[i], Rx, B, Q, W, C10, C20, C30, kap)) <= (
-                1e-6 * abs(s1[i]) + 1e-6):
-            lam[i], y[i], done[i] = x, yx, True
+        # the reference's final check at the free stretch (its last trial): the stress vanishes (does not jump)
+        if x == x and memo[i, 0] == x and abs(memo[i, 2]) <= 1e-6 * abs(s1[i]) + 1e-6:
+            done[i] = True
+        else:
+            memo[i, 0] = memo[i, 1] = math.nan
 
 
 _free = _variants(_free_loop)
@@ -241,9 +240,9 @@ def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.
     ``R``, ``B``: 3R's ring and bound constants; ``cr``: CR's ``(Q, W, s_i, s_ie, Lb)`` (`cr_tables`).
     """
     n = l1.size
-    lam, y, done = np.empty(n), np.empty(n), np.empty(n, np.bool_)
+    memo, done = np.empty((n, 3)), np.empty(n, np.bool_)
     if n == 0:
-        return lam, y, done
+        return memo[:, 0], memo[:, 1], done
     if cr is not None:
         Q, W, s_i, s_ie, Lb = cr
         R, B = (0.0, 0.0, float(Lb), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), (float(s_i), float(s_ie), 0.0, 0.0)
@@ -252,8 +251,8 @@ def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.
     par = int(n >= FREE_PARALLEL_MIN and _parallel(kernels.PARALLEL_MIN))
     _free[par](code, _arr(l1), _arr(v, l1.shape), _arr(s1, l1.shape), tuple(float(r) for r in R),
                tuple(float(b) for b in B), Q, W, *map(float, C), float(kap), _arr(offsets),
-               bool(pitchfork), _FREE_MAX, lam, y, done)
-    return lam, y, done
+               bool(pitchfork), _FREE_MAX, memo, done)
+    return memo[:, 0].copy(), memo[:, 1].copy(), done
 
 
 _NO_Q = np.zeros((5, 0))
