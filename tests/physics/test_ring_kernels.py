@@ -42,7 +42,7 @@ def _close(x, y, what):
         assert err <= RTOL * scale + 1e-300, f"{what}: differs by {err / max(scale, 1e-300):.2e} relative"
 
 
-def _slack_scene(case, rng, n=48):
+def _slack_scene(case, rng, n=32):
     """Stretches and voltages of one case where many of its rolls are slack: voltages up to 1.5 times the case's
     largest, stretches 1-2."""
     l1 = rng.uniform(1.0, 2.0, n)
