@@ -44,7 +44,6 @@ _closing = _jit(continuum.closing, inline="always")
 
 _N_SCAN = N_SCAN
 _FREE_MAX = FREE_STRETCH_MAX
-_NAN3 = (math.nan, math.nan, math.nan)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -227,7 +226,8 @@ def _free_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfo
 
 
 _free = _variants(_free_loop)
-#: A free state costs about as much as 10-20 roots: calls of this many slack samples run on all cores.
+#: A free state costs some 5-10 roots and stresses (its trials): calls of this many slack samples run on all
+#: cores.
 FREE_PARALLEL_MIN = 256
 
 
