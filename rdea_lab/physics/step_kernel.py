@@ -36,7 +36,8 @@ import numba
 import numpy as np
 
 from . import _branch_kernels as _bk
-from .kernels import _fields3, _gradient, _jit, _basis, _one, _slope, _terms, free_stretch
+from .kernels import _fields3, _basis, _one, _slope, _terms, free_stretch
+from .ring_kernels import _bounds1, _bounds3, _stress1
 from .models import one_ring, three_ring
 from .branch import N_SCAN, scale_offsets
 from .models._common import FREE_STRETCH_MAX, kappa, yeoh_coefficients
@@ -44,10 +45,6 @@ from .result import OK, OVERFLOW, SLACK, SNAPPED
 from .scan_kernel import path_rule
 from .viscoelastic import _FS_GROW, _FS_STEP, _FS_STRETCH_STEP
 
-_stress1 = _jit(one_ring.stress, gradient_terms=_gradient)
-_bounds1 = _jit(one_ring.bounds)
-_xi_hoop = _jit(three_ring.xi_at_hoop_stretch)
-_bounds3 = _jit(three_ring.bounds, xi_at_hoop_stretch=_xi_hoop)
 
 #: Model codes of `step` (CR is not stepped here: its samples go to the reference).
 CODES = {"su": 0, "1r": 1, "3r": 3}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -53,24 +54,40 @@ class Evaluation:
     stretch, signed), ``lambda2a``, ``lambda2b``, ``lambda2c``,
     ``capacitance``, ``r_i``. ``critical_voltage`` / ``range_voltage`` as in
     ModelResult (None: NaN for every sample); ``end`` the path's last coordinate.
+    ``free``: the compiled free state of slack samples, where the model has one
+    (`rdea_lab.physics.ring_kernels.free_hook`): ``free(sel, sigma1)`` returns
+    ``(free stretch, fields, done)`` of the samples ``sel``; those not done are
+    `free_state`'s.
     """
 
     status: np.ndarray
-    critical_voltage: np.ndarray
-    range_voltage: np.ndarray
+    critical_voltage: np.ndarray | None
+    range_voltage: np.ndarray | None
     fields: dict
     end: float | None = None
     y: np.ndarray | None = None
+    free: Callable | None = None
 
 
 
-def evaluate_free(problem, state, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
+def ring_kernels(kernel, n, *coefficients):
+    """`rdea_lab.physics.ring_kernels` where `compiled` gives the compiled kernels for ``n`` samples and every
+    coefficient is one number (a design study's per-sample materials stay numpy), else None."""
+    if not all(np.ndim(c) == 0 for c in coefficients) or compiled(kernel, n) is None:
+        return None
+    from .. import ring_kernels as module
+
+    return module
+
+
+def evaluate_free(problem, state, *, path=False, start=None, origin=None, kernel="auto", free=None) -> Evaluation:
     """Solve a one-coordinate problem (rising-ramp rule, the path, or descent from
     ``origin`` per sample) and assemble its fields.
 
     ``state(y)`` returns the fields dict at the equilibrium coordinates. With a
     compiled ``kernel``, the samples it certifies (one basin, no fold) are its
-    and every other sample is the reference solver's.
+    and every other sample is the reference solver's; ``free(problem)`` then
+    gives the compiled free state of its slack samples (`Evaluation.free`).
     """
     fast = compiled(kernel, problem.K.size) if (problem.kernel is not None and origin is None) else None
     if origin is not None:
@@ -85,19 +102,27 @@ def evaluate_free(problem, state, *, path=False, start=None, origin=None, kernel
         found = PathResult(*_branch_certified(fast, problem), None)
     else:
         found = PathResult(*follow_branch(problem), None)
-    return Evaluation(found.status, problem.voltage(found.K_crit), problem.voltage(found.K_range),
-                      state(found.y), found.end, found.y)
+    return Evaluation(found.status, _voltage(problem, found.K_crit), _voltage(problem, found.K_range),
+                      state(found.y), found.end, found.y,
+                      free(problem) if (free is not None and fast is not None) else None)
+
+
+def _voltage(problem, K):
+    """`Problem.voltage`, None for None (no sample has one)."""
+    return None if K is None else problem.voltage(K)
 
 
 def _branch_certified(fast, problem):
-    """`follow_branch` with the compiled kernel's certified samples (the rest by the reference)."""
+    """`follow_branch` with the compiled kernel's certified samples (the rest by the reference); ``K_crit``,
+    ``K_range`` None where every sample is certified (no fold, no range end)."""
     y, ok = fast.branch_roots(problem, whole=False)
     n = y.size
     status = np.full(n, OK, dtype=np.int8)
-    K_crit, K_range = np.full(n, np.nan), np.full(n, np.nan)
     bad = np.flatnonzero(~ok)
-    if bad.size:
-        y[bad], status[bad], K_crit[bad], K_range[bad] = follow_branch(problem.subset(bad))
+    if not bad.size:
+        return BranchResult(y, status, None, None)
+    K_crit, K_range = np.full(n, np.nan), np.full(n, np.nan)
+    y[bad], status[bad], K_crit[bad], K_range[bad] = follow_branch(problem.subset(bad))
     return BranchResult(y, status, K_crit, K_range)
 
 
@@ -155,17 +180,35 @@ def solve_model(name, evaluate, geom, material, stretch=None, voltage=None, *, p
         ev = evaluate(geom, material, l1, v, path=path, start=start, kernel=kernel)
     fields = dict(ev.fields)
     fields["tension"] = fields["sigma1"]
-    status = ev.status.copy()
+    status = ev.status  # the evaluation's own: written in place
     free = l1.copy()
-    with np.errstate(invalid="ignore"):
-        slack = np.flatnonzero(is_valid(status) & (fields["sigma1"] < 0.0) & ~bad) if slack else []
+    if slack:
+        with np.errstate(invalid="ignore"):
+            slack = np.flatnonzero(np.asarray(fields["sigma1"]) < 0.0)  # few: the other tests on those alone
+        slack = slack[is_valid(status[slack]) & ~bad[slack]]
+    else:
+        slack = []
     if len(slack):
         # a path's free state continues the branch the clamped state is on
         origin = ev.y[slack] if (path and ev.y is not None) else None
         # the free state's trials are solved as the call's samples were (compiled or not), however few
         sub_kernel = kernel if kernel != "auto" else ("numba" if compiled(kernel, l1.size) is not None else "numpy")
-        lam_f, st_f, f_free = free_state(evaluate, geom, _take(material, slack), l1[slack], v[slack],
-                                         fields["sigma1"][slack], origin=origin, kernel=sub_kernel)
+        s1 = fields["sigma1"][slack]
+        if origin is None and ev.free is not None:  # compiled, the samples it does not finish by the reference
+            lam_f, f_free, done = ev.free(slack, s1)
+            st_f = np.full(slack.size, SLACK, np.int8)
+            rest = np.flatnonzero(~done)
+            if rest.size:
+                at = slack[rest]
+                lam_r, st_f[rest], f_r = free_state(evaluate, geom, _take(material, at), l1[at], v[at], s1[rest],
+                                                    kernel=sub_kernel)
+                lam_f[rest] = lam_r
+                for key, arr in f_r.items():
+                    f_free[key] = np.array(f_free[key], float)  # one array per field from here on
+                    f_free[key][rest] = arr
+        else:
+            lam_f, st_f, f_free = free_state(evaluate, geom, _take(material, slack), l1[slack], v[slack], s1,
+                                             origin=origin, kernel=sub_kernel)
         # slack either way (force 0: the clamped state pushes); a snap-through stays the event it is.
         # Where the free state lies beyond what the model solves (outside its range, past a fold, or
         # past FREE_STRETCH_MAX) the stretches and capacitance stay the clamped state's, free_stretch NaN.

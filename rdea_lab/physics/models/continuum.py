@@ -67,7 +67,8 @@ from ..yeoh import slope
 from ..branch import Problem
 from ..result import OK, ModelNotApplicable, ModelResult
 from . import su
-from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
+from ._common import (HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, ring_kernels, solve_model,
+                      yeoh_coefficients)
 
 #: Target relative accuracy of one region's quadrature, used to choose its points (see :func:`quadrature`).
 QUAD_TOL = 1e-12
@@ -189,9 +190,6 @@ class _Roll:
         """``A = xi**2 - s_i / lambda1``, factored so that it keeps its digits near the unloaded state."""
         return (xi - xi0) * (xi + xi0)
 
-    def xi_at_inner_hoop(self, l2, l1, xi0):
-        """``xi`` where the hoop stretch at ``R = Rie`` is ``l2``."""
-        return np.sqrt(xi0 * xi0 + self.s_ie * (l2 * l2 - 1.0 / l1))
 
 
 def node_terms(A, B, x0, s, C10, C20, C30, second=True):
@@ -315,17 +313,53 @@ def problem(geom, material, l1, v, *, points=None) -> Problem:
     return _problem(_Roll(geom, l1, points), geom, material, l1, v)
 
 
-def _problem(roll, geom, material, l1, v):
+def bounds(l1, kap, s_i, s_ie):
+    """``(y0, y_max, load)`` of the CR problem at stretch ``l1``: the unloaded ``xi = (s_i / lambda1)**0.5``, the
+    ``xi`` where the hoop stretch at ``R = Rie`` (the largest in the active region) is `HOOP_STRETCH_CAP` times
+    uniaxial and ``K / v**2``. Scalar or array arguments (compiled too)."""
+    xi0 = np.sqrt(s_i / l1)
+    l2 = HOOP_STRETCH_CAP / np.sqrt(l1)
+    return xi0, np.sqrt(xi0 * xi0 + s_ie * (l2 * l2 - 1.0 / l1)), kap * l1 * l1
+
+
+def _problem(roll, geom, material, l1, v, fast=None):
     if roll.pinned:
         raise ValueError("CR with Ri = 0 has no free coordinate: r_i = 0 is pinned (an open hole costs infinite "
                          "energy); evaluate() handles it without a problem")
-    load = kappa(geom, material) * l1 * l1
-    y_max = roll.xi_at_inner_hoop(HOOP_STRETCH_CAP / np.sqrt(l1), l1, roll.xi0)
+    if fast is not None:
+        _, y_max, load, K = fast.bounds(4, l1, v, kappa(geom, material), (roll.s_i, roll.s_ie, 0.0, 0.0))
+    else:
+        _, y_max, load = bounds(l1, kappa(geom, material), roll.s_i, roll.s_ie)
+        K = load * v * v
     C = yeoh_coefficients(material)
     kernel = (4, {"l1": np.ascontiguousarray(l1, float), "C": C, "xi0": np.ascontiguousarray(roll.xi0, float),
                   "x0": np.ascontiguousarray(roll.x0, float), "Lb": float(roll.Lb),
                   "Q": np.ascontiguousarray(np.stack(roll.weights), float)})
-    return Problem(_terms(roll, C), roll.xi0, y_max, load * v * v, load, scale=np.sqrt(roll.s_i), kernel=kernel)
+    return Problem(_terms(roll, C), roll.xi0, y_max, K, load, scale=np.sqrt(roll.s_i), kernel=kernel)
+
+
+def node_mechanics(A, B, x0, lx0p, l1, s, s_i_over_s, C10, C20, C30):
+    """What `_mechanics` averages at quadrature nodes ``s``: ``W'(x) lambda1 dx/dlambda1`` at fixed ``xi`` and
+    the hoop stretch ``lambda2 = ((1 + B / s) / lambda1)**0.5`` (``A`` the opening, ``B = lambda1 A``, ``x0``
+    and ``lx0p = lambda1 dx0/dlambda1`` of `su.basis`). Scalar or broadcast arrays (compiled too:
+    `rdea_lab.physics.ring_kernels` sums it per sample)."""
+    inv = 1.0 / (s + B)
+    t = B * inv
+    x = x0 + A * t / s
+    W1, _ = slope(x, (C10, C20, C30))
+    # lambda1 d(I1 - 3)/dlambda1 at fixed xi: x0, B and A (through s_i / lambda1) all move
+    dx = lx0p + l1 * (A * inv) ** 2 + t * (2.0 - t) * s_i_over_s / l1
+    return W1 * dx, np.sqrt((1.0 + B / s) / l1)
+
+
+def closing(mech, xi, xi0, l1, v, Lb, kap, C0, Ro):
+    """``(sigma1 [Pa], capacitance [F], r_i [m])`` at the equilibrium ``xi`` from the elastic stress ``mech``
+    (`_mechanics`): the electrical part of ``sigma1`` and ``C = C0 lambda1**2 c``, ``c = 1 / lambda1 + A Lb``
+    (see the module docstring). Scalar or array arguments (compiled too)."""
+    A = (xi - xi0) * (xi + xi0)  # `_Roll.opening`
+    elec = kap * v * v * l1 * (1.0 + l1 * Lb * (A + xi * xi))
+    c = 1.0 / l1 + A * Lb
+    return mech - elec, C0 * l1 * l1 * c, xi * Ro
 
 
 def _mechanics(roll, C):
@@ -336,17 +370,10 @@ def _mechanics(roll, C):
 
     def block(xi, l1, xi0, x0, lx0p):
         A = roll.opening(xi, xi0)
-        B = (l1 * A)[:, None]
-        inv = 1.0 / (s + B)
-        t = B * inv
-        x = x0[:, None] + A[:, None] * t / s
-        W1, _ = yeoh.slope(x, C)
-        # lambda1 d(I1 - 3)/dlambda1 at fixed xi: x0, B and A (through s_i / lambda1) all move
-        L = l1[:, None]
-        dx = lx0p[:, None] + L * (A[:, None] * inv) ** 2 + t * (2.0 - t) * s_i_over_s / L
-        # hoop stretch lambda2 = sqrt((1 + B / s) / lambda1), averaged over each region's volume
-        hoop = np.sqrt((1.0 + B / s) / L) @ roll.avg
-        return (W1 * dx) @ w, hoop[:, 0], hoop[:, 1], hoop[:, 2]
+        W1dx, hoop = node_mechanics(A[:, None], (l1 * A)[:, None], x0[:, None], lx0p[:, None], l1[:, None], s,
+                                    s_i_over_s, *C)
+        hoop = hoop @ roll.avg  # each region's volume average
+        return W1dx @ w, hoop[:, 0], hoop[:, 1], hoop[:, 2]
 
     return block
 
@@ -359,25 +386,37 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, poin
     (status OK; a path changes nothing).
     """
     kap = kappa(geom, material)
+    C = yeoh_coefficients(material)
+    C0 = geom.C0(material.eps_r)
     roll = _Roll(geom, l1, points)
-    mechanics = _mechanics(roll, yeoh_coefficients(material))
+    fast = ring_kernels(kernel, l1.size, *C, kap, C0)
+    tables = fast.cr_tables(roll) if fast is not None else None
+
+    def at(xi, roll, v):
+        l1 = roll.l1
+        if fast is not None:
+            fields = fast.fields_cr(xi, l1, v, roll, C, kap, C0, geom.Ro, tables)
+            return dict(zip(("sigma1", "lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i"), fields))
+        mech, *hoop = _by_blocks(_mechanics(roll, C), xi, l1, roll.xi0, roll.x0, roll.lx0p)
+        l2 = [h if there else np.full_like(l1, np.nan) for h, there in zip(hoop, roll.present)]
+        sigma1, cap, r_i = closing(mech, xi, roll.xi0, l1, v, roll.Lb, kap, C0, geom.Ro)
+        return {"sigma1": sigma1, "lambda2a": l2[0], "lambda2b": l2[1], "lambda2c": l2[2], "capacitance": cap,
+                "r_i": r_i}
 
     def state(xi):
-        mech, *hoop = _by_blocks(mechanics, xi, l1, roll.xi0, roll.x0, roll.lx0p)
-        A = roll.opening(xi, roll.xi0)
-        elec = kap * v * v * l1 * (1.0 + l1 * roll.Lb * (A + xi * xi))
-        l2 = [h if there else np.full_like(l1, np.nan) for h, there in zip(hoop, roll.present)]
-        c = 1.0 / l1 + A * roll.Lb
-        return {"sigma1": mech - elec, "lambda2a": l2[0], "lambda2b": l2[1], "lambda2c": l2[2],
-                "capacitance": geom.C0(material.eps_r) * l1 * l1 * c, "r_i": xi * geom.Ro}
+        return at(xi, roll, v)
+
+    def free(prob):
+        return fast.free_hook(4, prob, l1, v, C, kap, lambda y, lam, vv: at(y, _Roll(geom, lam, points), vv),
+                              cr=(*tables[:2], roll.s_i, roll.s_ie, roll.Lb))
 
     if roll.pinned:
         n = l1.size
         y = np.zeros(n)
         return Evaluation(np.full(n, OK, np.int8), np.full(n, np.nan), np.full(n, np.nan), state(y),
                           0.0 if path else None, y)
-    return evaluate_free(_problem(roll, geom, material, l1, v), state, path=path, start=start, origin=origin,
-                         kernel=kernel)
+    return evaluate_free(_problem(roll, geom, material, l1, v, fast), state, path=path, start=start, origin=origin,
+                         kernel=kernel, free=free if fast is not None else None)
 
 
 def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,

@@ -8,7 +8,8 @@ from .. import yeoh
 from ..yeoh import gradient_terms
 from ..branch import Problem
 from ..result import ModelResult
-from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
+from ._common import (HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, ring_kernels, solve_model,
+                      yeoh_coefficients)
 
 
 def enthalpy(geom, material, stretch, voltage, lambda2):
@@ -30,6 +31,33 @@ def stress(l2, l1, v, C10, C20, C30, kap):
     return l1 * psi_1 - 2.0 * kap * (l1 * v) ** 2 * l2 * l2
 
 
+def fields(l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri):
+    """``(sigma1 [Pa], capacitance [F], r_i [m])`` at the equilibrium ``lambda2 = l2``: `stress`, eq. (34)
+    ``C = C0 lambda1**2 lambda2**2``, and the inner radius of one hollow cylinder of mean hoop stretch ``l2``
+    and radial stretch ``1 / (l1 l2)``. Scalar or array arguments (compiled too:
+    `rdea_lab.physics.ring_kernels` runs it per sample)."""
+    return (stress(l2, l1, v, C10, C20, C30, kap), C0 * (l1 * l2) ** 2,
+            0.5 * (l2 * (Ro + Ri) - (Ro - Ri) / (l1 * l2)))
+
+
+#: Samples per block of `fields` on large calls: its temporaries stay in cache (half the time of one pass over
+#: 1e5 samples). Numpy, not compiled: its logarithms and ``expm1`` run several to a vector instruction, numba's
+#: one call each (6-9 ns against 1 ns), which made the compiled pass twice as slow on one core.
+BLOCK = 16384
+
+
+def _fields_by_blocks(l2, l1, v, C, kap, C0, Ro, Ri):
+    """`fields` of 1-D arrays and scalar coefficients, by blocks of `BLOCK` samples."""
+    n = l2.size
+    if n <= BLOCK:
+        return fields(l2, l1, v, *C, kap, C0, Ro, Ri)
+    out = np.empty((3, n))
+    for i in range(0, n, BLOCK):
+        s = slice(i, i + BLOCK)
+        out[0, s], out[1, s], out[2, s] = fields(l2[s], l1[s], v[s], *C, kap, C0, Ro, Ri)
+    return tuple(out)
+
+
 def bounds(l1, kap):
     """``(y0, y_max, load)`` of the 1R problem at stretch ``l1``: the unloaded ``lambda2 = l1**-0.5``,
     the hoop-stretch cap and ``K / v**2``."""
@@ -37,8 +65,9 @@ def bounds(l1, kap):
     return y0, HOOP_STRETCH_CAP * y0, kap * l1 * l1
 
 
-def problem(geom, material, l1, v) -> Problem:
-    """The 1R equilibrium in ``y = lambda2`` at clean 1-D inputs (eq. 33 as a stationary point)."""
+def problem(geom, material, l1, v, fast=None) -> Problem:
+    """The 1R equilibrium in ``y = lambda2`` at clean 1-D inputs (eq. 33 as a stationary point); ``fast``:
+    `rdea_lab.physics.ring_kernels`, which computes its bounds in one pass."""
     C = yeoh_coefficients(material)
     kap = kappa(geom, material)
 
@@ -46,25 +75,33 @@ def problem(geom, material, l1, v) -> Problem:
         p_y, p_yy = yeoh.d_psi_d_l2(l1[idx], y, C, second)
         return p_y, p_yy, 2.0 * y, 2.0
 
-    y0, y_max, load = bounds(l1, kap)
-    return Problem(terms, y0, y_max, load * v * v, load,
-                   kernel=(1, {"l1": np.ascontiguousarray(l1, float), "C": C}))
+    if fast is not None:
+        y0, y_max, load, K = fast.bounds(1, l1, v, kap)
+    else:
+        y0, y_max, load = bounds(l1, kap)
+        K = load * v * v
+    return Problem(terms, y0, y_max, K, load, kernel=(1, {"l1": np.ascontiguousarray(l1, float), "C": C}))
 
 
 def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
     """1R equilibria at clean 1-D inputs: the rising-ramp rule, or the path from ``start``."""
     C = yeoh_coefficients(material)
     kap = kappa(geom, material)
+    C0 = geom.C0(material.eps_r)
+    fast = ring_kernels(kernel, l1.size, *C, kap, C0)
 
-    def state(l2):
-        # one hollow cylinder: mean hoop stretch l2, radial stretch 1 / (l1 l2)
-        return {"sigma1": stress(l2, l1, v, *C, kap),
-                "lambda2a": l2, "lambda2b": l2, "lambda2c": l2,
-                "capacitance": geom.C0(material.eps_r) * (l1 * l2) ** 2,
-                "r_i": 0.5 * (l2 * (geom.Ro + geom.Ri) - (geom.Ro - geom.Ri) / (l1 * l2))}
+    def at(l2, l1, v):
+        if fast is not None:  # numpy by blocks (see `BLOCK`): one number per coefficient
+            sigma1, cap, r_i = _fields_by_blocks(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri)
+        else:
+            sigma1, cap, r_i = fields(l2, l1, v, *C, kap, C0, geom.Ro, geom.Ri)
+        return {"sigma1": sigma1, "lambda2a": l2, "lambda2b": l2, "lambda2c": l2, "capacitance": cap, "r_i": r_i}
 
-    return evaluate_free(problem(geom, material, l1, v), state, path=path, start=start, origin=origin,
-                         kernel=kernel)
+    def free(prob):
+        return fast.free_hook(1, prob, l1, v, C, kap, at)
+
+    return evaluate_free(problem(geom, material, l1, v, fast), lambda l2: at(l2, l1, v), path=path, start=start,
+                         origin=origin, kernel=kernel, free=free if fast is not None else None)
 
 
 def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,

@@ -32,8 +32,8 @@ from .. import yeoh
 from ..yeoh import gradient_terms, psi2_first, psi2_terms
 from ..branch import Problem
 from ..result import ModelNotApplicable, ModelResult
-from .._backend import compiled
-from ._common import HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, solve_model, yeoh_coefficients
+from ._common import (HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, ring_kernels, solve_model,
+                      yeoh_coefficients)
 
 
 def radii(xi, l1, Da, Dab, Dabc):
@@ -174,7 +174,7 @@ def ring_state(xi, l1, v, R, C10, C20, C30, kap):
 def ring_fields(xi, l1, v, R, C10, C20, C30, kap, C0, Ro):
     """``(sigma1 [Pa], lambda2a, lambda2b, lambda2c, capacitance [F], r_i [m])`` at the equilibrium ``xi``:
     `ring_state` and eq. (29), ``C = C0 lambda1**2 lambda2b**2``. Scalar or array arguments (compiled too:
-    `rdea_lab.physics.kernels.ring_fields` runs it per sample)."""
+    `rdea_lab.physics.ring_kernels.fields3` runs it per sample)."""
     sigma1, l2a, l2b, l2c = ring_state(xi, l1, v, R, C10, C20, C30, kap)
     return sigma1, l2a, l2b, l2c, C0 * (l1 * l2b) ** 2, xi * Ro
 
@@ -231,13 +231,18 @@ def core_scale(rings) -> float | None:
     return float(rings.rho_ie) if rings.has_a else None
 
 
-def problem(geom, material, l1, v) -> Problem:
-    """The 3R equilibrium in ``xi = r_i / Ro`` at clean 1-D inputs."""
+def problem(geom, material, l1, v, fast=None) -> Problem:
+    """The 3R equilibrium in ``xi = r_i / Ro`` at clean 1-D inputs; ``fast``: `rdea_lab.physics.ring_kernels`,
+    which computes its bounds in one pass."""
     rings = _Rings(geom, l1)
-    y0, y_max, load = bounds(l1, kappa(geom, material), rings.bound_constants)
+    if fast is not None:
+        y0, y_max, load, K = fast.bounds(3, l1, v, kappa(geom, material), rings.bound_constants)
+    else:
+        y0, y_max, load = bounds(l1, kappa(geom, material), rings.bound_constants)
+        K = load * v * v
     pitchfork = rings.rho_i == 0.0 and rings.has_a
     C = yeoh_coefficients(material)
-    return Problem(_terms(rings, C), y0, y_max, load * v * v, load, pitchfork=pitchfork,
+    return Problem(_terms(rings, C), y0, y_max, K, load, pitchfork=pitchfork,
                    scale=core_scale(rings),
                    kernel=(3, {"l1": np.ascontiguousarray(l1, float), "R": rings.constants, "C": C}))
 
@@ -251,18 +256,20 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     C0 = geom.C0(material.eps_r)
     # compiled fields from as many samples as `evaluate_free` compiles the roots (also for a free state's
     # descent, whose roots are numpy's: the two agree to 1e-12); per-sample coefficients stay in numpy
-    scalar = all(isinstance(c, float) for c in C) and np.ndim(kap) == 0 and np.ndim(C0) == 0
-    fast = compiled(kernel, l1.size) if scalar else None
+    fast = ring_kernels(kernel, l1.size, *C, kap, C0)
 
-    def state(xi):
+    def at(xi, l1, v):
         if fast is not None:
-            fields = fast.ring_fields(xi, l1, v, rings.constants, C, kap, C0, geom.Ro)
+            fields = fast.fields3(xi, l1, v, rings.constants, C, kap, C0, geom.Ro)
         else:
             fields = ring_fields(xi, l1, v, rings.constants, *C, kap, C0, geom.Ro)
         return dict(zip(("sigma1", "lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i"), fields))
 
-    return evaluate_free(problem(geom, material, l1, v), state, path=path, start=start, origin=origin,
-                         kernel=kernel)
+    def free(prob):
+        return fast.free_hook(3, prob, l1, v, C, kap, at, R=rings.constants, B=rings.bound_constants)
+
+    return evaluate_free(problem(geom, material, l1, v, fast), lambda xi: at(xi, l1, v), path=path, start=start,
+                         origin=origin, kernel=kernel, free=free if fast is not None else None)
 
 
 def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,

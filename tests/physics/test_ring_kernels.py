@@ -1,0 +1,156 @@
+"""The compiled passes of `rdea_lab.physics.ring_kernels` against the numpy reference they stand in for.
+
+- A slack roll's free state: `ring_kernels.free_states` (through `Evaluation.free`) against the numpy
+  `models._common.free_state` with ``kernel="numpy"`` (the reference's trials, solved by `follow_branch`),
+  sample by sample: every sample the compiled search finishes must be one the reference finds (``SLACK``),
+  with its free stretch and fields to 1e-12 (relative to each field's largest magnitude); the samples it
+  leaves go to the reference by construction (checked through `solve` against ``kernel="numpy"``, whose
+  statuses must be identical). Cases: the seeded random families of test_random_cases (folds, small cores,
+  micro-cores), each at stretches and voltages that make many rolls slack, and the bench scene.
+- The result fields: `fields3`, `fields_cr` against `three_ring.ring_fields` and `continuum.evaluate`'s numpy
+  fields; the problems' bounds (`ring_kernels.bounds`) against the models' `bounds`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rdea_lab.physics import ring_kernels
+from rdea_lab.physics.models import continuum, one_ring, solve, three_ring
+from rdea_lab.physics.models._common import free_state, kappa, yeoh_coefficients
+from rdea_lab.physics.result import SLACK, is_valid
+
+from physics_cases import RIZZELLO, core
+from test_kernels import assert_same
+from test_random_cases import cases
+
+MODULES = {"1r": one_ring, "3r": three_ring, "cr": continuum}
+KEYS = ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i")
+RTOL = 1e-12
+#: Cases of each family in the default run (a prefix; all of them under ``-m slow``).
+N_CASES = 6
+
+
+def _close(x, y, what):
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    assert np.array_equal(np.isnan(x), np.isnan(y)), f"{what}: NaN pattern differs"
+    fin = np.isfinite(y)
+    if fin.any():
+        scale = np.max(np.abs(y[fin]))
+        err = np.max(np.abs(x[fin] - y[fin]))
+        assert err <= RTOL * scale + 1e-300, f"{what}: differs by {err / max(scale, 1e-300):.2e} relative"
+
+
+def _slack_scene(case, rng, n=32):
+    """Stretches and voltages of one case where many of its rolls are slack: voltages up to 1.5 times the case's
+    largest, stretches 1-2."""
+    l1 = rng.uniform(1.0, 2.0, n)
+    v = rng.uniform(0.0, 1.5 * float(np.max(case.voltage)), n)
+    return l1, v
+
+
+def check_free_states(model, geom, mat, l1, v):
+    """Compiled free states against `free_state` with numpy trials: ``(slack samples, done)``."""
+    module = MODULES[model]
+    ev = module.evaluate(geom, mat, l1, v, kernel="numba")
+    sigma = np.asarray(ev.fields["sigma1"], float)
+    with np.errstate(invalid="ignore"):
+        slack = np.flatnonzero(is_valid(ev.status) & (sigma < 0.0))
+    if not slack.size:
+        return 0, 0
+    assert ev.free is not None, f"{model}: no compiled free state"
+    lam, fields, done = ev.free(slack, sigma[slack])
+    lam_r, st_r, f_r = free_state(module.evaluate, geom, mat, l1[slack], v[slack], sigma[slack], kernel="numpy")
+    what = f"{model} {geom} {mat}"
+    # every sample it finishes is one the reference finds, at the same stretch, with the same fields
+    assert np.all(st_r[done] == SLACK), f"{what}: compiled found a free state where the reference did not"
+    _close(lam[done], lam_r[done], f"{what}: free stretch")
+    for key in KEYS:
+        _close(np.broadcast_to(fields[key], lam.shape)[done], np.broadcast_to(f_r[key], lam.shape)[done],
+               f"{what}: {key}")
+    return slack.size, int(np.count_nonzero(done))
+
+
+@pytest.mark.parametrize("model, family", [("1r", "general"), ("3r", "general"), ("cr", "general"),
+                                           ("1r", "small core"), ("3r", "small core"),
+                                           ("3r", "hollow micro-core"), ("cr", "hollow micro-core")])
+def test_free_states_equal_free_state_on_random_families(model, family, n_cases=None):
+    n_slack = n_done = 0
+    rng = np.random.default_rng(41)
+    for case in cases(family, N_CASES if n_cases is None else n_cases):
+        if model == "cr" and case.geom.Ri == 0.0:
+            continue  # CR of a solid roll is SU: no free coordinate
+        l1, v = _slack_scene(case, rng)
+        s, d = check_free_states(model, case.geom, case.mat, l1, v)
+        n_slack, n_done = n_slack + s, n_done + d
+        # and the whole solve: statuses identical to the reference's, numbers to 1e-12
+        assert_same(solve(model, case.geom, case.mat, l1, v, kernel="numpy"),
+                    solve(model, case.geom, case.mat, l1, v, kernel="numba"), f"{model} {case.name}")
+    # the compiled search runs (a trial near a fold, which `kernels._one` does not certify, sends its sample to
+    # the reference: on solid rolls near their pitchfork most of them)
+    assert n_slack > 0 and n_done > 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("model, family", [("1r", "general"), ("3r", "general"), ("cr", "general"),
+                                           ("1r", "small core"), ("3r", "small core"),
+                                           ("3r", "hollow micro-core"), ("cr", "hollow micro-core")])
+def test_free_states_many_cases(model, family):
+    """The test above on 200 cases of each family (minutes)."""
+    test_free_states_equal_free_state_on_random_families(model, family, n_cases=200)
+
+
+def _bench_scene(n):
+    # benchmarks/bench_models.py's scene: hollow core, lambda1 U[1, 1.75], v U[0, 3.5 kV]
+    rng = np.random.default_rng(0)
+    return core("hollow"), rng.uniform(1.0, 1.75, n), rng.uniform(0.0, 3500.0, n)
+
+
+@pytest.mark.parametrize("model", ["1r", "3r", "cr"])
+def test_bench_scene_equal_reference(model, n=4000):
+    geom, l1, v = _bench_scene(n)
+    s, d = check_free_states(model, geom, RIZZELLO, l1, v)
+    assert s > 0 and d == s  # on the bench scene every slack roll's free state is compiled
+    assert_same(solve(model, geom, RIZZELLO, l1, v, kernel="numpy"), solve(model, geom, RIZZELLO, l1, v,
+                                                                            kernel="numba"), f"{model} bench")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("model", ["1r", "3r", "cr"])
+def test_bench_scene_whole_equal_reference(model):
+    test_bench_scene_equal_reference(model, n=100_000)
+
+
+@pytest.mark.parametrize("geom", [core("hollow"), core("active"), core("passive")])
+def test_fields_equal_numpy(geom):
+    """Each compiled field pass against its numpy function at the same coordinates (not only at equilibria)."""
+    rng = np.random.default_rng(7)
+    n = one_ring.BLOCK + 5000  # parallel from 4096 samples on; 1R's numpy in two blocks
+    l1, v = rng.uniform(1.0, 2.0, n), rng.uniform(0.0, 4000.0, n)
+    C, kap, C0 = yeoh_coefficients(RIZZELLO), kappa(geom, RIZZELLO), geom.C0(RIZZELLO.eps_r)
+    # the problems' bounds and loads in one pass against the models' numpy `bounds`
+    roll = continuum._Roll(geom, l1)
+    for fast, prob in ((one_ring.problem(geom, RIZZELLO, l1, v, ring_kernels), one_ring.problem(geom, RIZZELLO, l1, v)),
+                       (three_ring.problem(geom, RIZZELLO, l1, v, ring_kernels),
+                        three_ring.problem(geom, RIZZELLO, l1, v))) + (
+            ((continuum._problem(roll, geom, RIZZELLO, l1, v, ring_kernels),
+              continuum._problem(roll, geom, RIZZELLO, l1, v)),) if geom.Ri > 0.0 else ()):
+        for key in ("y0", "y_max", "K", "load"):
+            _close(getattr(fast, key), getattr(prob, key), f"bounds {key}")
+    l2 = rng.uniform(0.5, 2.0, n) / np.sqrt(l1)
+    for x, y in zip(one_ring._fields_by_blocks(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri),
+                    one_ring.fields(l2, l1, v, *C, kap, C0, geom.Ro, geom.Ri)):
+        _close(x, y, "1r by blocks")
+    rings = three_ring._Rings(geom, l1)
+    xi = rings.rho_i / np.sqrt(l1) + rng.uniform(0.0, 0.3, n)
+    for x, y in zip(ring_kernels.fields3(xi, l1, v, rings.constants, C, kap, C0, geom.Ro),
+                    three_ring.ring_fields(xi, l1, v, rings.constants, *C, kap, C0, geom.Ro)):
+        _close(x, y, "3r")
+    xi = roll.xi0 + (rng.uniform(0.0, 0.3, n) if geom.Ri > 0.0 else 0.0)
+    mech, *hoop = continuum._by_blocks(continuum._mechanics(roll, C), xi, l1, roll.xi0, roll.x0, roll.lx0p)
+    sigma1, cap, r_i = continuum.closing(mech, xi, roll.xi0, l1, v, roll.Lb, kap, C0, geom.Ro)
+    hoop = [h if there else np.full(n, np.nan) for h, there in zip(hoop, roll.present)]
+    for x, y, name in zip(ring_kernels.fields_cr(xi, l1, v, roll, C, kap, C0, geom.Ro),
+                          (sigma1, *hoop, cap, r_i), ("sigma1", "lambda2a", "lambda2b", "lambda2c", "C", "r_i")):
+        _close(x, y, f"cr {name}")
