@@ -484,59 +484,69 @@ def _su_free(l1, v, s1, C10, C20, C30, kap, free_max):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_taut(l1, v, C10, C20, C30, kap, C0, Ri, area, sigma, tension, force, l2, cap, r_i, free):
-    """The taut state of every sample: one loop without branches over whole arrays, which the compiler
-    vectorizes (a loop over a block's index range, or one that also writes the int8 status, it did not)."""
+def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, status):
+    """What a whole SU solve computes up front, in one loop over the inputs as given: the tension (eq. (39)
+    at the given stretch), the stretch of the state (the given one; a slack sample's free stretch comes
+    later) and the status; NaN where the sample has no state (a NaN or infinite input: `BAD_INPUT`).
+    Returns ``(slack samples, finite samples with a stretch below 1)``."""
+    OK_, SLACK_, BAD_, OVER_ = codes[0], codes[1], codes[2], codes[3]
+    n_slack = 0
+    n_low = 0
+    # without branches (`&`, selects), so that the compiler vectorizes the loop
     for i in range(l1.size):
         lam = l1[i]
-        s = _su_stress(lam, v[i], C10, C20, C30, kap)
-        q = 1.0 / np.sqrt(lam)
-        sigma[i] = s
-        tension[i] = s
-        force[i] = s * area / lam
-        l2[i] = q
-        cap[i] = C0 * lam
-        r_i[i] = Ri * q
-        free[i] = lam
+        w = v[i]
+        given = (np.abs(lam) < np.inf) & (np.abs(w) < np.inf)
+        n_low += np.int64(given & (lam < 1.0))
+        lam = lam if given else 1.0  # `result.prepare_inputs`' unloaded state
+        w = w if given else 0.0
+        s = _su_stress(lam, w, C10, C20, C30, kap)
+        neg = slack & (s < 0.0)
+        # a slack roll's stress and force are 0: only its tension must be finite. The force ``s area /
+        # lam`` is finite where ``s area`` is, for lam >= 1 (a stretch below 1 is the caller's error)
+        ok = (np.abs(s) < np.inf) & (neg | (np.abs(s * area) < np.inf)) & given
+        tension[i] = s if ok else np.nan
+        state[i] = lam if ok else np.nan
+        a, b, c = np.int8(ok), np.int8(neg), np.int8(given)
+        status[i] = a * (b * SLACK_ + (1 - b) * OK_) + (1 - a) * (c * OVER_ + (1 - c) * BAD_)
+        n_slack += np.int64(ok & neg)
+    return n_slack, n_low
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_solve_loop(l1, v, bad, C10, C20, C30, kap, C0, Ri, area, slack, free_max, codes,
-                   sigma, tension, force, l2, cap, r_i, free, status, converged):
-    OK_, SLACK_, BAD_, OVER_ = codes[0], codes[1], codes[2], codes[3]
-    # the taut state of every sample (vectorized) ...
-    _su_taut(l1, v, C10, C20, C30, kap, C0, Ri, area, sigma, tension, force, l2, cap, r_i, free)
-    # ... then the few that are not: bad inputs, slack rolls (their free state), overflow
+def _su_slack_index(status, code, count):
+    idx = np.empty(count, np.intp)
+    k = 0
+    for i in range(status.size):
+        if status[i] == code:
+            idx[k] = i
+            k += 1
+    return idx
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_free_all(l1, v, s1, C10, C20, C30, kap, free_max, out):
     for i in range(l1.size):
-        status[i] = OK_
-        converged[i] = True
-        s = sigma[i]
-        if not bad[i] and (s >= 0.0 or not slack) and np.isfinite(s) and np.isfinite(force[i]):
-            continue
-        if bad[i]:
-            sigma[i] = tension[i] = force[i] = l2[i] = cap[i] = r_i[i] = free[i] = np.nan
-            status[i] = BAD_
-            converged[i] = False
-            continue
-        lam = l1[i]
-        st = OK_
-        at = lam
-        lf = lam
-        if slack and s < 0.0:
-            st = SLACK_
-            lf = _su_free(lam, v[i], s, C10, C20, C30, kap, free_max)
-            if lf == lf:
-                at = lf
-        sig = 0.0 if st == SLACK_ else s
-        f = sig * area / lam
-        if not (np.isfinite(sig) and np.isfinite(f) and np.isfinite(s)):
-            sigma[i] = tension[i] = force[i] = l2[i] = cap[i] = r_i[i] = free[i] = np.nan
-            status[i] = OVER_
-            converged[i] = False
-            continue
-        q = 1.0 / np.sqrt(at)
-        sigma[i], force[i], l2[i], cap[i], r_i[i], free[i] = sig, f, q, C0 * at, Ri * q, lf
-        status[i] = st
+        out[i] = _su_free(l1[i], v[i], s1[i], C10, C20, C30, kap, free_max)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_field(which, tension, status, state, slack_code, scale, out):
+    """One result field of an SU solve from its tension, status and state stretch (NaN where the sample has
+    no state): ``which`` 0 the stress (0 where slack), 1 the force (``scale``: the area), 2 the hoop
+    stretch, 3 the capacitance (``scale``: C0)."""
+    if which == 0:
+        for i in range(out.size):
+            out[i] = 0.0 if status[i] == slack_code else tension[i]
+    elif which == 1:
+        for i in range(out.size):
+            out[i] = (0.0 if status[i] == slack_code else tension[i]) * scale / state[i]
+    elif which == 2:
+        for i in range(out.size):
+            out[i] = 1.0 / np.sqrt(state[i])
+    else:
+        for i in range(out.size):
+            out[i] = scale * state[i]
 
 
 _roots = _variants(_roots_loop)
@@ -576,23 +586,40 @@ def su_state(l1, v, C, kap, C0, out=None):
     return out
 
 
-def su_solve(l1, v, bad, C, kap, C0, Ri, area, slack, free_max, codes):
-    """The whole SU solve of clean 1-D inputs in one pass: the stress, the slack roll's free state
-    (`models._common.free_state`'s steps, compiled), the status and every field of the result.
-
-    ``codes``: ``(OK, SLACK, BAD_INPUT, OVERFLOW)``. Returns ``(fields, status, converged)`` with
-    ``fields`` a (7, n) array of rows ``sigma1, tension, force, lambda2, capacitance, r_i,
-    free_stretch`` (NaN where not converged).
+def su_solve(l1, v, C, kap, area, slack, codes):
+    """The eager part of a whole SU solve of 1-D float inputs as given, one compiled pass: ``(tension,
+    state, status, slack, low)``: the tension [Pa] (eq. (39) at the given stretch), the stretch of the
+    state [-] (the given one, NaN where the sample has no state), the status (``codes``: ``(OK, SLACK,
+    BAD_INPUT, OVERFLOW)``; a NaN or infinite input is ``BAD_INPUT``), the indices of the slack samples
+    and the number of finite samples with a stretch below 1 (the caller's error). The slack samples'
+    free stretch is `su_free`'s, every other field `su_field`'s (`rdea_lab.physics.models.su` computes
+    them when they are asked for).
     """
     n = l1.size
-    fields = np.empty((7, n))
+    tension = np.empty(n)
+    state = np.empty(n)
     status = np.empty(n, np.int8)
-    converged = np.empty(n, np.bool_)
+    codes = np.asarray(codes, np.int8)
     # one thread: the pass is memory-bound, and a shared machine's busy cores made the threaded
     # form up to 10x slower than this one
-    _su_solve_loop(l1, v, bad, C[0], C[1], C[2], kap, C0, Ri, area, bool(slack), free_max,
-                   np.asarray(codes, np.int8), *fields, status, converged)
-    return fields, status, converged
+    count, low = _su_tension(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, tension, state, status)
+    idx = _su_slack_index(status, codes[1], count) if count else np.empty(0, np.intp)
+    return tension, state, status, idx, low
+
+
+def su_free(l1, v, s1, C, kap, free_max):
+    """The free stretch of slack SU samples (1-D ``l1``, ``v`` and their stress ``s1 < 0``), NaN where
+    there is none (`free_stretch`: the reference `free_state`'s steps)."""
+    out = np.empty(l1.size)
+    _su_free_all(_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out)
+    return out
+
+
+def su_field(which, tension, status, state, slack_code, scale):
+    """One field of an SU result (`_su_field`), a new array."""
+    out = np.empty(tension.size)
+    _su_field(which, tension, status, state, slack_code, scale, out)
+    return out
 
 
 _update = _jit(viscoelastic._linear_update, inline="always")
