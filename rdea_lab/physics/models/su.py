@@ -149,9 +149,9 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
     derive = _Fields(fast, shape, tension, state, status, idx, vc[idx], C, kap, float(geom.area),
                      float(geom.C0(material.eps_r)), float(geom.Ri))
     nan = np.broadcast_to(np.nan, shape)  # SU has no fold and no range end
-    return deferred({"model": "su", "stretch": read_only(l1.reshape(shape)), "voltage": read_only(v.reshape(shape)), "status": read_only(status.reshape(shape)),
-                     "tension": read_only(tension.reshape(shape)), "critical_voltage": nan, "range_voltage": nan,
-                     "end": end}, derive)
+    return deferred({"model": "su", "stretch": read_only(l1.reshape(shape)), "voltage": read_only(v.reshape(shape)),
+                     "status": read_only(status.reshape(shape)), "tension": read_only(tension.reshape(shape)),
+                     "critical_voltage": nan, "range_voltage": nan, "end": end}, derive)
 
 
 class _Fields:
