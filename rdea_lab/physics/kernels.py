@@ -21,7 +21,8 @@ the work around them, fused per sample with no temporaries:
   it covers the whole range, which certifies the sample's single basin.
 - `linear_strains`: eq. (44)'s exact update as the sequential recurrence, its coefficients
   (`viscoelastic._linear_update`) computed once per distinct interval length.
-- `su_solve`: the whole SU solve (stress, status, every field, a slack roll's free state) in one call.
+- `su_solve`: what a whole SU solve computes up front (the tension and status, the inputs checked) in
+  one pass; `su_free` (a slack roll's free state) and `su_field` the fields computed when first read.
 - `ring_fields`: the 3R result fields at the equilibria (`three_ring.ring_fields`).
 - `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample, the one
   compiled form of it (SU here, the step kernel's slack states).
@@ -345,7 +346,18 @@ PARALLEL_MIN = 4096
 
 
 def _parallel(n) -> int:
-    return int(n >= PARALLEL_MIN and threading.current_thread() is threading.main_thread())
+    return int(n >= PARALLEL_MIN and threading.current_thread() is threading.main_thread() and _core_free())
+
+
+def _core_free() -> bool:
+    """Whether the machine has a core to spare (its 1-minute load average at most the cores less a half).
+    On busy cores numba's threads cost a call 8-16 ms of waiting (2 cores at load 4: 1R and 3R calls of
+    4096 samples 7-14x slower than one thread, slower than numpy), more than they can save. The result is
+    the same either way: each sample is computed on its own."""
+    try:
+        return os.getloadavg()[0] <= (os.cpu_count() or 1) - 0.5
+    except OSError:  # no load average here: threads as before
+        return True
 
 
 @numba.njit(cache=True)

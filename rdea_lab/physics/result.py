@@ -107,6 +107,12 @@ def check_inputs(l1, v, shape):
 class ModelResult:
     """Quasi-static response of a roll to arrays of stretch and voltage.
 
+    A result may compute some fields when they are first read (`DeferredResult`: SU by the compiled
+    kernels computes the status and tension in its solve, the slack rolls' free states, the stress and
+    the other fields when read); each reads the same either way. Arrays a result shares (the caller's
+    inputs, one array for several fields, the arrays later fields are computed from) are read-only:
+    copy one to change it.
+
     Attributes
     ----------
     model : str
