@@ -538,8 +538,104 @@ def _su_slack_index(status, code, count):
 
 @numba.njit(cache=True, error_model="numpy")
 def _su_free_all(l1, v, s1, C10, C20, C30, kap, free_max, out):
+    """`_su_free` of every sample, one after the other (the reference of `_su_free_lanes`)."""
     for i in range(l1.size):
         out[i] = _su_free(l1[i], v[i], s1[i], C10, C20, C30, kap, free_max)
+
+
+_LANES = 8
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out):
+    """`_su_free` of every sample, `_LANES` samples in lockstep: each lane takes `free_stretch`'s steps for
+    its sample in the same order with the same numbers (so the same result, bit for bit), and the stress of
+    all lanes is evaluated together, so that the lanes' chains of dependent divisions overlap. A lane that
+    is done takes the next sample. The final check uses the stress of the last trial, which is the stress
+    at the returned stretch."""
+    B = _LANES
+    n = l1.size
+    idx = np.full(B, -1)
+    phase = np.zeros(B, np.int8)  # 0: bracketing by 25 % steps, 1: the Illinois iteration
+    x_try = np.ones(B)
+    vv = np.zeros(B)
+    s1v = np.zeros(B)
+    lo = np.empty(B)
+    s_lo = np.empty(B)
+    hi = np.empty(B)
+    a = np.empty(B)
+    b = np.empty(B)
+    fa = np.empty(B)
+    fb = np.empty(B)
+    tol = np.empty(B)
+    side = np.zeros(B, np.int8)
+    count = np.zeros(B, np.int64)
+    sig = np.empty(B)
+    nxt = 0
+    busy = 0
+    while True:
+        for k in range(B):  # an idle lane takes the next sample
+            if idx[k] < 0:
+                if nxt < n:
+                    idx[k] = nxt
+                    phase[k] = 0
+                    lo[k] = hi[k] = l1[nxt]
+                    s_lo[k] = s1v[k] = s1[nxt]
+                    vv[k] = v[nxt]
+                    x_try[k] = min(hi[k] * 1.25, free_max)
+                    nxt += 1
+                    busy += 1
+                else:
+                    x_try[k] = 1.0  # an idle lane evaluates a harmless stretch
+                    vv[k] = 0.0
+        if busy == 0:
+            break
+        for k in range(B):
+            sig[k] = _su_stress(x_try[k], vv[k], C10, C20, C30, kap)
+        for k in range(B):
+            if idx[k] < 0:
+                continue
+            trial, y = x_try[k], sig[k]
+            res = np.nan
+            done = not np.isfinite(y)
+            if not done and phase[k] == 0:
+                if y >= 0.0:  # bracketed: the Illinois iteration from [lo, trial]
+                    a[k], b[k], fa[k], fb[k] = lo[k], trial, s_lo[k], y
+                    tol[k] = 1e-10 * abs(s1v[k])
+                    side[k] = 0
+                    count[k] = 0
+                    phase[k] = 1
+                else:
+                    lo[k], s_lo[k] = trial, y
+                    done = trial >= free_max
+                    hi[k] = trial
+                    x_try[k] = min(hi[k] * 1.25, free_max)
+            elif not done:
+                if y < 0.0:
+                    fb[k] = 0.5 * fb[k] if side[k] == -1 else fb[k]
+                    a[k], fa[k] = trial, y
+                    side[k] = -1
+                else:
+                    fa[k] = 0.5 * fa[k] if side[k] == 1 else fa[k]
+                    b[k], fb[k] = trial, y
+                    side[k] = 1
+                count[k] += 1
+                if abs(y) <= tol[k] or b[k] - a[k] <= 1e-13 * b[k]:
+                    done = True
+                    if abs(y) <= 1e-6 * abs(s1v[k]) + 1e-6:  # `_su_free`'s final check
+                        res = trial
+                else:
+                    done = count[k] >= 200
+            if done:
+                out[idx[k]] = res
+                idx[k] = -1
+                busy -= 1
+            elif phase[k] == 1:
+                xa, xb = a[k], b[k]
+                xn = (xa * fb[k] - xb * fa[k]) / (fb[k] - fa[k])
+                if not (xn > xa and xn < xb):
+                    xn = 0.5 * (xa + xb)
+                x_try[k] = xn
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -621,9 +717,10 @@ def su_solve(l1, v, C, kap, area, slack, codes):
 
 def su_free(l1, v, s1, C, kap, free_max):
     """The free stretch of slack SU samples (1-D ``l1``, ``v`` and their stress ``s1 < 0``), NaN where
-    there is none (`free_stretch`: the reference `free_state`'s steps)."""
+    there is none (`free_stretch`: the reference `free_state`'s steps), several samples in lockstep
+    (`_su_free_lanes`)."""
     out = np.empty(l1.size)
-    _su_free_all(_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out)
+    _su_free_lanes(_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out)
     return out
 
 

@@ -187,3 +187,34 @@ def test_su_stretch_below_one_is_the_callers_error(kernel):
     l1 = np.array([1.2, np.nan, 0.99, 0.5, 1.0])
     with pytest.raises(StretchBelowOneError, match=r"stretch 0\.99 at sample 2 is below 1 \(1 samples in all\)"):
         solve("su", core("hollow"), TABLE3, l1, np.array([0.0, 1.0, 1.0, np.inf, 1.0]), kernel=kernel)
+
+
+def _lanes_against_one_by_one(seeds):
+    from rdea_lab.physics import kernels
+    from rdea_lab.physics.models._common import kappa
+
+    total = 0
+    for seed in seeds:
+        geom, mat, l1, v = random_family(seed, 5000)
+        C, kap = (mat.C10, mat.C20, mat.C30), float(kappa(geom, mat))
+        ok = np.isfinite(l1) & np.isfinite(v)
+        l1, v = l1[ok], v[ok]
+        tension, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True, (0, SLACK, BAD_INPUT, OVERFLOW))
+        args = (l1[idx].copy(), v[idx].copy(), tension[idx].copy(), *C, kap, FREE_STRETCH_MAX)
+        one, lanes = np.empty(idx.size), np.empty(idx.size)
+        kernels._su_free_all(*args, one)
+        kernels._su_free_lanes(*args, lanes)
+        assert np.array_equal(one, lanes, equal_nan=True), f"seed {seed}"
+        total += idx.size
+    return total
+
+
+def test_su_free_states_in_lockstep_equal_one_by_one():
+    """`kernels._su_free_lanes` (several slack samples in lockstep) against `_su_free` sample by sample
+    (which the tests above hold to the numpy reference): bit for bit, NaN where none is found."""
+    assert _lanes_against_one_by_one(range(6)) > 5000
+
+
+@pytest.mark.slow
+def test_su_free_states_in_lockstep_equal_one_by_one_on_many_families():
+    assert _lanes_against_one_by_one(range(6, 80)) > 50000
