@@ -11,7 +11,8 @@ With ``--fresh`` each call is instead the first of a new process (``--repeat`` p
 median): the compiled path's time then includes loading numba and the kernels' machine code, which is
 what ``auto`` weighs against the call's numpy time.
 
-    python3 benchmarks/auto_vs_numpy.py [--models su,1r,3r,cr] [--samples 256,2048,16384] [--repeat 15] [--fresh]
+    python3 benchmarks/auto_vs_numpy.py [--models su,1r,3r,cr] [--samples 256,2048,16384] [--repeat 15]
+        [--fresh] [--scenes 'hollow core,...']
 """
 
 from __future__ import annotations
@@ -86,6 +87,7 @@ def main():
     ap.add_argument("--samples", default="256,2048,16384")
     ap.add_argument("--repeat", type=int, default=15)
     ap.add_argument("--fresh", action="store_true", help="each call the first of a new process")
+    ap.add_argument("--scenes", default="", help="comma-separated scene names (default: all)")
     a = ap.parse_args()
     from rdea_lab.physics._backend import auto_kernel
 
@@ -93,6 +95,8 @@ def main():
     lowest = np.inf
     for n in (int(float(x)) for x in a.samples.split(",")):
         for name, (geom, material, l1, v) in scenes(n).items():
+            if a.scenes and name not in a.scenes.split(","):
+                continue
             for model in a.models.split(","):
                 slack = float(np.mean(solve(model, geom, material, l1, v, kernel="numpy").status == SLACK))
                 if a.fresh:
