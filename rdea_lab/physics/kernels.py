@@ -22,7 +22,7 @@ the work around them, fused per sample with no temporaries:
 - `linear_strains`: eq. (44)'s exact update as the sequential recurrence, its coefficients
   (`viscoelastic._linear_update`) computed once per distinct interval length.
 - `su_solve`: what a whole SU solve computes up front (the tension and status, the inputs checked) in
-  one pass; `su_free` (a slack roll's free state) and `su_field` the fields computed when first read.
+  one pass; `su_free` (a slack roll's free state) and `su_fields` the fields computed when first read.
 - `ring_fields`: the 3R result fields at the equilibria (`three_ring.ring_fields`).
 - `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample, the one
   compiled form of it (SU here, the step kernel's slack states).
@@ -639,22 +639,37 @@ def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_field(which, tension, status, state, slack_code, scale, out):
-    """One result field of an SU solve from its tension, status and state stretch (NaN where the sample has
-    no state): ``which`` 0 the stress (0 where slack), 1 the force (``scale``: the area), 2 the hoop
-    stretch, 3 the capacitance (``scale``: C0)."""
-    if which == 0:
-        for i in range(out.size):
-            out[i] = 0.0 if status[i] == slack_code else tension[i]
-    elif which == 1:
-        for i in range(out.size):
-            out[i] = (0.0 if status[i] == slack_code else tension[i]) * scale / state[i]
-    elif which == 2:
-        for i in range(out.size):
-            out[i] = 1.0 / np.sqrt(state[i])
-    else:
-        for i in range(out.size):
-            out[i] = scale * state[i]
+def _su_stress_force(tension, status, state, slack_code, area, sigma, force):
+    """The stress (the tension; 0 where slack) and the force ``sigma area / lambda1`` of an SU solve (NaN
+    where the sample has no state: its tension and state stretch are NaN)."""
+    for i in range(tension.size):
+        s = 0.0 if status[i] == slack_code else tension[i]
+        sigma[i] = s
+        force[i] = s * area / state[i]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_state_fields(state, idx, found, C0, Ri, free, l2, cap, r_i):
+    """The free stretch, hoop stretch, capacitance and inner radius of an SU solve at the stretch of each
+    sample's state: the given one (``state``, NaN where the sample has no state), at the slack samples
+    ``idx`` their free stretch ``found`` where there is one (NaN: the clamped state's fields, free
+    stretch NaN)."""
+    for i in range(state.size):
+        at = state[i]
+        q = 1.0 / np.sqrt(at)
+        free[i] = at
+        l2[i] = q
+        cap[i] = C0 * at
+        r_i[i] = Ri * q
+    for k in range(idx.size):
+        i = idx[k]
+        at = found[k]
+        free[i] = at
+        if at == at:
+            q = 1.0 / np.sqrt(at)
+            l2[i] = q
+            cap[i] = C0 * at
+            r_i[i] = Ri * q
 
 
 _roots = _variants(_roots_loop)
@@ -700,7 +715,7 @@ def su_solve(l1, v, C, kap, area, slack, codes):
     state [-] (the given one, NaN where the sample has no state), the status (``codes``: ``(OK, SLACK,
     BAD_INPUT, OVERFLOW)``; a NaN or infinite input is ``BAD_INPUT``), the indices of the slack samples
     and the number of finite samples with a stretch below 1 (the caller's error). The slack samples'
-    free stretch is `su_free`'s, every other field `su_field`'s (`rdea_lab.physics.models.su` computes
+    free stretch is `su_free`'s, every other field `su_fields`' (`rdea_lab.physics.models.su` computes
     them when they are asked for).
     """
     n = l1.size
@@ -724,10 +739,17 @@ def su_free(l1, v, s1, C, kap, free_max):
     return out
 
 
-def su_field(which, tension, status, state, slack_code, scale):
-    """One field of an SU result (`_su_field`), a new array."""
-    out = np.empty(tension.size)
-    _su_field(which, tension, status, state, slack_code, scale, out)
+def su_fields(tension, status, state, idx, v_slack, C, kap, free_max, slack_code, area, C0, Ri, which):
+    """The fields of an SU solve (`su_solve`) computed when first read: ``which`` 0, a (2, n) block of the
+    stress and force; 1, a (4, n) block of the free stretch, hoop stretch, capacitance and inner radius,
+    the slack samples' free stretches by `su_free` (``v_slack``: their voltages)."""
+    if which == 0:
+        out = np.empty((2, tension.size))
+        _su_stress_force(tension, status, state, slack_code, area, out[0], out[1])
+        return out
+    found = su_free(state[idx], v_slack, tension[idx], C, kap, free_max)
+    out = np.empty((4, tension.size))
+    _su_state_fields(state, idx, found, C0, Ri, *out)
     return out
 
 

@@ -130,9 +130,10 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
     and identical statuses).
 
     One compiled pass (`rdea_lab.physics.kernels.su_solve`) computes what every caller needs: the status
-    and the tension. The other fields are computed when first read (`_Fields`): the slack rolls' free
-    states, then the stress, force, stretches, capacitance and radius, each one compiled pass. A caller
-    that reads the stress alone (a fit, a calibration) pays for it alone. The result holds no reference
+    and the tension (and checks the inputs). The other fields are computed when first read (`_Fields`):
+    the stress and force in one compiled pass, the slack rolls' free states and the stretches,
+    capacitance and radius in another. A caller that reads the stress alone (a fit, a calibration)
+    pays for no free state. The result holds no reference
     to the caller's arrays beyond ``stretch`` and ``voltage``, so a later change to those changes no
     field computed later."""
     end = check_start("su", path, start)
@@ -155,45 +156,27 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
 
 
 class _Fields:
-    """The fields of a compiled SU solve that are computed when first read (see `_solve_compiled`): from
+    """The fields of a compiled SU solve that are computed when first read (see `_solve_compiled`), from
     the solve's own tension, state stretch and status (read-only) and the slack samples' indices and
-    voltages."""
+    voltages: the stress and force together, then the free states and the fields at them together
+    (`rdea_lab.physics.kernels.su_fields`), the convergence from the status."""
 
-    _WHICH = {"sigma1": 0, "force": 1, "capacitance": 3}
+    _ROWS = {"sigma1": (0, 0), "force": (0, 1), "free_stretch": (1, 0), "lambda2a": (1, 1), "lambda2b": (1, 1),
+             "lambda2c": (1, 1), "capacitance": (1, 2), "r_i": (1, 3)}
 
     def __init__(self, fast, shape, tension, state, status, idx, v_slack, C, kap, area, C0, Ri):
         self.fast, self.shape, self.tension, self.state, self.status = fast, shape, tension, state, status
-        self.idx, self.v_slack, self.C, self.kap = idx, v_slack, C, kap
-        self.scale = {"force": area, "capacitance": C0, "r_i": Ri}
-        self.free = self.l2 = None
-
-    def _free(self):
-        """``(free_stretch, state)``: the result's free stretch and the stretch of each sample's state (the
-        free stretch where slack and found, else the given stretch), once."""
-        if self.free is None:
-            idx = self.idx
-            free, state = self.state, self.state
-            if idx.size:
-                lam = self.state[idx]  # the given stretch of the slack samples
-                found = self.fast.su_free(lam, self.v_slack, self.tension[idx], self.C, self.kap, FREE_STRETCH_MAX)
-                free, state = self.state.copy(), self.state.copy()
-                free[idx] = found
-                ok = found == found  # not found: the stretches and capacitance stay the clamped state's
-                state[idx[ok]] = found[ok]
-            self.free = (free, state)
-        return self.free
+        self.args = (idx, v_slack, C, kap, FREE_STRETCH_MAX, SLACK, area, C0, Ri)
+        self.blocks = [None, None]
 
     def __call__(self, name):
         if name == "converged":
             return ((self.status == OK) | (self.status == SLACK)).reshape(self.shape)
-        if name == "free_stretch":  # read-only: it may be the state stretch, which the other fields read
-            return read_only(self._free()[0].reshape(self.shape))
-        if name.startswith("lambda2") or name == "r_i":
-            if self.l2 is None:  # one array for the three rings: read-only (`read_only`)
-                self.l2 = read_only(self.fast.su_field(2, self.tension, self.status, self._free()[1], SLACK, 0.0)
-                                    .reshape(self.shape))
-            return self.l2 if name != "r_i" else self.scale["r_i"] * self.l2  # Ri lambda2, as `evaluate`'s
-        which = self._WHICH[name]
-        state = self._free()[1] if which >= 2 else self.state
-        return self.fast.su_field(which, self.tension, self.status, state, SLACK, self.scale.get(name, 0.0)
-                                  ).reshape(self.shape)
+        block, row = self._ROWS[name]
+        if self.blocks[block] is None:
+            rows = self.fast.su_fields(self.tension, self.status, self.state, *self.args, block)
+            rows = [r.reshape(self.shape) for r in rows]
+            if block == 1:  # one array for the three rings: read-only (`read_only`)
+                rows[1] = read_only(rows[1])
+            self.blocks[block] = rows
+        return self.blocks[block][row]
