@@ -37,7 +37,8 @@ def solve(model: str, geom, material, stretch, voltage, *, path=False, start=Non
     (`rdea_lab.physics._backend.auto_kernel`). SU from 16384 samples, 1R from 328, 3R and CR on a hollow
     roll from 82, 3R on a solid roll from 16384; CR on a solid roll never (its compiled path is the
     numpy one). With numba loaded the kernels were 2-17x faster than numpy where ``auto`` takes them
-    (``benchmarks/auto_vs_numpy.py``; 3R on a solid roll 0.9-1.3x), and faster below those counts too,
+    (``benchmarks/auto_vs_numpy.py``; 3R on a solid roll 0.9-1.3x; SU on a taut roll with every field
+    read 0.8-1x, the stress alone 7x), and faster below those counts too,
     so a process that solves many small calls may pass ``numba``. As the
     choice follows the sample count, a series solved in blocks may take both paths (equal to 1e-12);
     a fixed ``kernel`` gives blocks equal to one call bit for bit.
