@@ -5,13 +5,27 @@ from __future__ import annotations
 import os
 import sys
 
+import numpy as np
+
 #: Kernel choices of `rdea_lab.physics.models.solve` and the branch updates.
 KERNELS = ("auto", "numba", "numpy")
-#: ``auto`` uses the compiled kernels for calls of at least this many samples: loading numba and the
-#: cached machine code costs a process about 1.5 s once, more than the kernels save on small calls.
-#: The choice depends on the call alone (not on what the process loaded before), so a result does not
-#: depend on the history of the process (the two agree to 1e-12 anyway, mostly to the last bit).
+#: ``auto`` uses the compiled kernels for calls that save at least what this many SU samples save: loading
+#: numba and the cached machine code costs a process 0.4-0.8 s once (measured by
+#: ``benchmarks/auto_vs_numpy.py --fresh``), more than the kernels save on small calls. The choice depends
+#: on the call alone (not on what the process loaded before), so a result does not depend on the history
+#: of the process (the two agree to 1e-12 anyway, mostly to the last bit).
 AUTO_MIN_SAMPLES = 16384
+
+#: What one sample of a model's solve saves compiled, in SU samples (SU's numpy solve of a taut sample
+#: costs about 40 ns, its compiled one about 20), by model and roll (solid: ``Ri = 0``; hollow: a core),
+#: rounded from ``benchmarks/auto_vs_numpy.py`` with numba loaded (per sample, numpy against compiled, one
+#: thread): 1R 2-4 us against 0.8-1.6 us (up to 19 against 6 where slack), 3R and CR on a hollow roll
+#: 10-11 us against 2.6-4 us; 3R on a solid roll 0.3-0.7 us and CR on a solid roll the same work both ways
+#: (below 3R's pitchfork both stay at the uniaxial state; CR on a solid roll is the SU state, evaluated in
+#: numpy either way). `auto_kernel` turns ``auto`` on from ``AUTO_MIN_SAMPLES / weight`` samples; 0: never
+#: (the compiled path would only load numba).
+AUTO_WEIGHT = {("su", False): 1, ("su", True): 1, ("1r", False): 50, ("1r", True): 50,
+               ("3r", False): 1, ("3r", True): 200, ("cr", False): 0, ("cr", True): 200}
 
 
 _SAID = set()
@@ -25,8 +39,12 @@ def _say_once(line: str) -> None:
 
 
 def compiled(kernel, n=None):
-    """The `rdea_lab.physics.kernels` module if ``kernel`` asks for it and it can be had, else None
-    (``n``: the call's samples, for ``auto``)."""
+    """The `rdea_lab.physics.kernels` module if ``kernel`` asks for it and it can be had, else None.
+
+    ``n``: for ``auto``, the call's samples as SU samples (what they save compiled; `auto_kernel` weighs a
+    model's samples): the kernels from `AUTO_MIN_SAMPLES` on. `rdea_lab.physics.models.solve` resolves
+    ``auto`` once per call (`auto_kernel`), so its models see ``numba`` or ``numpy``; design studies and
+    the viscoelastic update ask with their own counts."""
     if kernel not in KERNELS:
         raise ValueError(f"kernel {kernel!r}; allowed: {', '.join(KERNELS)}")
     if kernel == "numpy" or (kernel == "auto" and (n is None or n < AUTO_MIN_SAMPLES)):
@@ -44,3 +62,17 @@ def compiled(kernel, n=None):
                   "(python3 -m pip install 'rdea-lab[fast]' compiles them)")
         return None
     return kernels if (kernel == "numba" or kernels.enabled()) else None
+
+
+def auto_kernel(kernel, model, geom, n):
+    """``kernel`` for one solve of ``model`` on ``geom`` with ``n`` samples: ``"auto"`` resolved to
+    ``"numba"`` where the call saves enough compiled (``n`` times the model's `AUTO_WEIGHT` on this
+    roll reaches `AUTO_MIN_SAMPLES`) and the kernels can be had (`compiled`), else ``"numpy"``; any
+    other choice as it is. Decided by what the call holds (model, roll, samples), never by what the
+    process did before."""
+    if kernel != "auto":
+        return kernel
+    Ri = getattr(geom, "Ri", 0.0)
+    hollow = bool(np.any(np.asarray(Ri) > 0.0))
+    weight = AUTO_WEIGHT.get((model, hollow), 1)
+    return "numba" if weight and compiled("auto", n * weight) is not None else "numpy"

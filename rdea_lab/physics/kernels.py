@@ -26,7 +26,8 @@ the work around them, fused per sample with no temporaries:
   and roots to the bit.
 - `linear_strains`: eq. (44)'s exact update as the sequential recurrence, its coefficients
   (`viscoelastic._linear_update`) computed once per distinct interval length.
-- `su_solve`: the whole SU solve (stress, status, every field, a slack roll's free state) in one call.
+- `su_solve`: what a whole SU solve computes up front (the tension and status, the inputs checked) in
+  one pass; `su_free` (a slack roll's free state) and `su_fields` the fields computed when first read.
 - `ring_fields`: the 3R result fields at the equilibria (`three_ring.ring_fields`).
 - `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample, the one
   compiled form of it (SU here, the step kernel's slack states).
@@ -553,7 +554,18 @@ PARALLEL_MIN = 4096
 
 
 def _parallel(n) -> int:
-    return int(n >= PARALLEL_MIN and threading.current_thread() is threading.main_thread())
+    return int(n >= PARALLEL_MIN and threading.current_thread() is threading.main_thread() and _core_free())
+
+
+def _core_free() -> bool:
+    """Whether the machine has a core to spare (its 1-minute load average at most the cores less a half).
+    On busy cores numba's threads cost a call 8-16 ms of waiting (2 cores at load 4: 1R and 3R calls of
+    4096 samples 7-14x slower than one thread, slower than numpy), more than they can save. The result is
+    the same either way: each sample is computed on its own."""
+    try:
+        return os.getloadavg()[0] <= (os.cpu_count() or 1) - 0.5
+    except OSError:  # no load average here: threads as before
+        return True
 
 
 @numba.njit(cache=True)
@@ -698,59 +710,180 @@ def _su_free(l1, v, s1, C10, C20, C30, kap, free_max):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_taut(l1, v, C10, C20, C30, kap, C0, Ri, area, sigma, tension, force, l2, cap, r_i, free):
-    """The taut state of every sample: one loop without branches over whole arrays, which the compiler
-    vectorizes (a loop over a block's index range, or one that also writes the int8 status, it did not)."""
+def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, status):
+    """What a whole SU solve computes up front, in one loop over the inputs as given: the tension (eq. (39)
+    at the given stretch), the stretch of the state (the given one; a slack sample's free stretch comes
+    later) and the status; NaN where the sample has no state (a NaN or infinite input: `BAD_INPUT`).
+    Returns ``(slack samples, finite samples with a stretch below 1)``."""
+    OK_, SLACK_, BAD_, OVER_ = codes[0], codes[1], codes[2], codes[3]
+    n_slack = 0
+    n_low = 0
+    # without branches (`&`, selects), so that the compiler vectorizes the loop
     for i in range(l1.size):
         lam = l1[i]
-        s = _su_stress(lam, v[i], C10, C20, C30, kap)
-        q = 1.0 / np.sqrt(lam)
-        sigma[i] = s
-        tension[i] = s
-        force[i] = s * area / lam
-        l2[i] = q
-        cap[i] = C0 * lam
-        r_i[i] = Ri * q
-        free[i] = lam
+        w = v[i]
+        given = (np.abs(lam) < np.inf) & (np.abs(w) < np.inf)
+        n_low += np.int64(given & (lam < 1.0))
+        lam = lam if given else 1.0  # `result.prepare_inputs`' unloaded state
+        w = w if given else 0.0
+        s = _su_stress(lam, w, C10, C20, C30, kap)
+        neg = slack & (s < 0.0)
+        # a slack roll's stress and force are 0: only its tension must be finite. The force ``s area /
+        # lam`` is finite where ``s area`` is, for lam >= 1 (a stretch below 1 is the caller's error)
+        ok = (np.abs(s) < np.inf) & (neg | (np.abs(s * area) < np.inf)) & given
+        tension[i] = s if ok else np.nan
+        state[i] = lam if ok else np.nan
+        a, b, c = np.int8(ok), np.int8(neg), np.int8(given)
+        status[i] = a * (b * SLACK_ + (1 - b) * OK_) + (1 - a) * (c * OVER_ + (1 - c) * BAD_)
+        n_slack += np.int64(ok & neg)
+    return n_slack, n_low
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_solve_loop(l1, v, bad, C10, C20, C30, kap, C0, Ri, area, slack, free_max, codes,
-                   sigma, tension, force, l2, cap, r_i, free, status, converged):
-    OK_, SLACK_, BAD_, OVER_ = codes[0], codes[1], codes[2], codes[3]
-    # the taut state of every sample (vectorized) ...
-    _su_taut(l1, v, C10, C20, C30, kap, C0, Ri, area, sigma, tension, force, l2, cap, r_i, free)
-    # ... then the few that are not: bad inputs, slack rolls (their free state), overflow
+def _su_slack_index(status, code, count):
+    idx = np.empty(count, np.intp)
+    k = 0
+    for i in range(status.size):
+        if status[i] == code:
+            idx[k] = i
+            k += 1
+    return idx
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_free_all(l1, v, s1, C10, C20, C30, kap, free_max, out):
+    """`_su_free` of every sample, one after the other (the reference of `_su_free_lanes`)."""
     for i in range(l1.size):
-        status[i] = OK_
-        converged[i] = True
-        s = sigma[i]
-        if not bad[i] and (s >= 0.0 or not slack) and np.isfinite(s) and np.isfinite(force[i]):
-            continue
-        if bad[i]:
-            sigma[i] = tension[i] = force[i] = l2[i] = cap[i] = r_i[i] = free[i] = np.nan
-            status[i] = BAD_
-            converged[i] = False
-            continue
-        lam = l1[i]
-        st = OK_
-        at = lam
-        lf = lam
-        if slack and s < 0.0:
-            st = SLACK_
-            lf = _su_free(lam, v[i], s, C10, C20, C30, kap, free_max)
-            if lf == lf:
-                at = lf
-        sig = 0.0 if st == SLACK_ else s
-        f = sig * area / lam
-        if not (np.isfinite(sig) and np.isfinite(f) and np.isfinite(s)):
-            sigma[i] = tension[i] = force[i] = l2[i] = cap[i] = r_i[i] = free[i] = np.nan
-            status[i] = OVER_
-            converged[i] = False
-            continue
+        out[i] = _su_free(l1[i], v[i], s1[i], C10, C20, C30, kap, free_max)
+
+
+_LANES = 8
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out):
+    """`_su_free` of every sample, `_LANES` samples in lockstep: each lane takes `free_stretch`'s steps for
+    its sample in the same order with the same numbers (so the same result, bit for bit), and the stress of
+    all lanes is evaluated together, so that the lanes' chains of dependent divisions overlap. A lane that
+    is done takes the next sample. The final check uses the stress of the last trial, which is the stress
+    at the returned stretch."""
+    B = _LANES
+    n = l1.size
+    idx = np.full(B, -1)
+    phase = np.zeros(B, np.int8)  # 0: bracketing by 25 % steps, 1: the Illinois iteration
+    x_try = np.ones(B)
+    vv = np.zeros(B)
+    s1v = np.zeros(B)
+    lo = np.empty(B)
+    s_lo = np.empty(B)
+    hi = np.empty(B)
+    a = np.empty(B)
+    b = np.empty(B)
+    fa = np.empty(B)
+    fb = np.empty(B)
+    tol = np.empty(B)
+    side = np.zeros(B, np.int8)
+    count = np.zeros(B, np.int64)
+    sig = np.empty(B)
+    nxt = 0
+    busy = 0
+    while True:
+        for k in range(B):  # an idle lane takes the next sample
+            if idx[k] < 0:
+                if nxt < n:
+                    idx[k] = nxt
+                    phase[k] = 0
+                    lo[k] = hi[k] = l1[nxt]
+                    s_lo[k] = s1v[k] = s1[nxt]
+                    vv[k] = v[nxt]
+                    x_try[k] = min(hi[k] * 1.25, free_max)
+                    nxt += 1
+                    busy += 1
+                else:
+                    x_try[k] = 1.0  # an idle lane evaluates a harmless stretch
+                    vv[k] = 0.0
+        if busy == 0:
+            break
+        for k in range(B):
+            sig[k] = _su_stress(x_try[k], vv[k], C10, C20, C30, kap)
+        for k in range(B):
+            if idx[k] < 0:
+                continue
+            trial, y = x_try[k], sig[k]
+            res = np.nan
+            done = not np.isfinite(y)
+            if not done and phase[k] == 0:
+                if y >= 0.0:  # bracketed: the Illinois iteration from [lo, trial]
+                    a[k], b[k], fa[k], fb[k] = lo[k], trial, s_lo[k], y
+                    tol[k] = 1e-10 * abs(s1v[k])
+                    side[k] = 0
+                    count[k] = 0
+                    phase[k] = 1
+                else:
+                    lo[k], s_lo[k] = trial, y
+                    done = trial >= free_max
+                    hi[k] = trial
+                    x_try[k] = min(hi[k] * 1.25, free_max)
+            elif not done:
+                if y < 0.0:
+                    fb[k] = 0.5 * fb[k] if side[k] == -1 else fb[k]
+                    a[k], fa[k] = trial, y
+                    side[k] = -1
+                else:
+                    fa[k] = 0.5 * fa[k] if side[k] == 1 else fa[k]
+                    b[k], fb[k] = trial, y
+                    side[k] = 1
+                count[k] += 1
+                if abs(y) <= tol[k] or b[k] - a[k] <= 1e-13 * b[k]:
+                    done = True
+                    if abs(y) <= 1e-6 * abs(s1v[k]) + 1e-6:  # `_su_free`'s final check
+                        res = trial
+                else:
+                    done = count[k] >= 200
+            if done:
+                out[idx[k]] = res
+                idx[k] = -1
+                busy -= 1
+            elif phase[k] == 1:
+                xa, xb = a[k], b[k]
+                xn = (xa * fb[k] - xb * fa[k]) / (fb[k] - fa[k])
+                if not (xn > xa and xn < xb):
+                    xn = 0.5 * (xa + xb)
+                x_try[k] = xn
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_stress_force(tension, status, state, slack_code, area, sigma, force):
+    """The stress (the tension; 0 where slack) and the force ``sigma area / lambda1`` of an SU solve (NaN
+    where the sample has no state: its tension and state stretch are NaN)."""
+    for i in range(tension.size):
+        s = 0.0 if status[i] == slack_code else tension[i]
+        sigma[i] = s
+        force[i] = s * area / state[i]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_state_fields(state, idx, found, C0, Ri, free, l2, cap, r_i):
+    """The free stretch, hoop stretch, capacitance and inner radius of an SU solve at the stretch of each
+    sample's state: the given one (``state``, NaN where the sample has no state), at the slack samples
+    ``idx`` their free stretch ``found`` where there is one (NaN: the clamped state's fields, free
+    stretch NaN)."""
+    for i in range(state.size):
+        at = state[i]
         q = 1.0 / np.sqrt(at)
-        sigma[i], force[i], l2[i], cap[i], r_i[i], free[i] = sig, f, q, C0 * at, Ri * q, lf
-        status[i] = st
+        free[i] = at
+        l2[i] = q
+        cap[i] = C0 * at
+        r_i[i] = Ri * q
+    for k in range(idx.size):
+        i = idx[k]
+        at = found[k]
+        free[i] = at
+        if at == at:
+            q = 1.0 / np.sqrt(at)
+            l2[i] = q
+            cap[i] = C0 * at
+            r_i[i] = Ri * q
 
 
 _roots = _variants(_roots_loop)
@@ -789,23 +922,48 @@ def su_state(l1, v, C, kap, C0, out=None):
     return out
 
 
-def su_solve(l1, v, bad, C, kap, C0, Ri, area, slack, free_max, codes):
-    """The whole SU solve of clean 1-D inputs in one pass: the stress, the slack roll's free state
-    (`models._common.free_state`'s steps, compiled), the status and every field of the result.
-
-    ``codes``: ``(OK, SLACK, BAD_INPUT, OVERFLOW)``. Returns ``(fields, status, converged)`` with
-    ``fields`` a (7, n) array of rows ``sigma1, tension, force, lambda2, capacitance, r_i,
-    free_stretch`` (NaN where not converged).
+def su_solve(l1, v, C, kap, area, slack, codes):
+    """The eager part of a whole SU solve of 1-D float inputs as given, one compiled pass: ``(tension,
+    state, status, slack, low)``: the tension [Pa] (eq. (39) at the given stretch), the stretch of the
+    state [-] (the given one, NaN where the sample has no state), the status (``codes``: ``(OK, SLACK,
+    BAD_INPUT, OVERFLOW)``; a NaN or infinite input is ``BAD_INPUT``), the indices of the slack samples
+    and the number of finite samples with a stretch below 1 (the caller's error). The slack samples'
+    free stretch is `su_free`'s, every other field `su_fields`' (`rdea_lab.physics.models.su` computes
+    them when they are asked for).
     """
     n = l1.size
-    fields = np.empty((7, n))
+    tension = np.empty(n)
+    state = np.empty(n)
     status = np.empty(n, np.int8)
-    converged = np.empty(n, np.bool_)
+    codes = np.asarray(codes, np.int8)
     # one thread: the pass is memory-bound, and a shared machine's busy cores made the threaded
     # form up to 10x slower than this one
-    _su_solve_loop(l1, v, bad, C[0], C[1], C[2], kap, C0, Ri, area, bool(slack), free_max,
-                   np.asarray(codes, np.int8), *fields, status, converged)
-    return fields, status, converged
+    count, low = _su_tension(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, tension, state, status)
+    idx = _su_slack_index(status, codes[1], count) if count else np.empty(0, np.intp)
+    return tension, state, status, idx, low
+
+
+def su_free(l1, v, s1, C, kap, free_max):
+    """The free stretch of slack SU samples (1-D ``l1``, ``v`` and their stress ``s1 < 0``), NaN where
+    there is none (`free_stretch`: the reference `free_state`'s steps), several samples in lockstep
+    (`_su_free_lanes`)."""
+    out = np.empty(l1.size)
+    _su_free_lanes(_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out)
+    return out
+
+
+def su_fields(tension, status, state, idx, v_slack, C, kap, free_max, slack_code, area, C0, Ri, which):
+    """The fields of an SU solve (`su_solve`) computed when first read: ``which`` 0, a (2, n) block of the
+    stress and force; 1, a (4, n) block of the free stretch, hoop stretch, capacitance and inner radius,
+    the slack samples' free stretches by `su_free` (``v_slack``: their voltages)."""
+    if which == 0:
+        out = np.empty((2, tension.size))
+        _su_stress_force(tension, status, state, slack_code, area, out[0], out[1])
+        return out
+    found = su_free(state[idx], v_slack, tension[idx], C, kap, free_max)
+    out = np.empty((4, tension.size))
+    _su_state_fields(state, idx, found, C0, Ri, *out)
+    return out
 
 
 _update = _jit(viscoelastic._linear_update, inline="always")

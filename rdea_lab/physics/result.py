@@ -68,11 +68,21 @@ def prepare_inputs(stretch, voltage):
         If any finite stretch is below 1 (Assumption 1 of [1]: the roll is
         always in tension, ``l1 >= L1``).
     """
+    return check_inputs(*broadcast_inputs(stretch, voltage))
+
+
+def broadcast_inputs(stretch, voltage):
+    """``(l1, v, shape)``: stretch and voltage as 1-D float arrays of their broadcast ``shape`` (the
+    caller's own arrays where they are float64 of that shape and contiguous), not checked yet
+    (`check_inputs`)."""
     l1, v = np.asarray(stretch, dtype=float), np.asarray(voltage, dtype=float)
     if l1.shape != v.shape:
         l1, v = (np.ascontiguousarray(a) for a in np.broadcast_arrays(l1, v))
-    shape = l1.shape
-    l1, v = l1.reshape(-1), v.reshape(-1)
+    return l1.reshape(-1), v.reshape(-1), l1.shape
+
+
+def check_inputs(l1, v, shape):
+    """`prepare_inputs` of `broadcast_inputs`' arrays: the checks and the unloaded state at bad samples."""
     with np.errstate(invalid="ignore"):
         finite = np.isfinite(l1)
         finite &= np.isfinite(v)
@@ -96,6 +106,12 @@ def prepare_inputs(stretch, voltage):
 @dataclass(frozen=True)
 class ModelResult:
     """Quasi-static response of a roll to arrays of stretch and voltage.
+
+    A result may compute some fields when they are first read (`DeferredResult`: SU by the compiled
+    kernels computes the status and tension in its solve, the slack rolls' free states, the stress and
+    the other fields when read); each reads the same either way. Arrays a result shares (the caller's
+    inputs, one array for several fields, the arrays later fields are computed from) are read-only:
+    copy one to change it.
 
     Attributes
     ----------
@@ -183,6 +199,42 @@ class ModelResult:
         if not parts:
             return f"all {n} samples converged"
         return "; ".join(parts)
+
+
+#: The fields of a `ModelResult`, in order.
+FIELDS = tuple(ModelResult.__dataclass_fields__)
+
+
+class DeferredResult(ModelResult):
+    """A `ModelResult` some of whose fields are computed when first read (then kept): a solve that
+    computes what every caller needs (the status, the tension) and leaves the rest (the free state of a
+    slack roll, the force, the stretches) to the caller that reads them.
+
+    Every field reads as it would on a `ModelResult` built at once (equal to it); the arrays the deferred
+    ones are computed from are read-only. `dataclasses.replace`, `pickle` and `copy` give a `ModelResult`
+    with every field computed. Built by `deferred` only.
+    """
+
+    def __getattr__(self, name):  # only for what the instance does not hold yet
+        derive = self.__dict__.get("_derive")
+        if derive is None or name not in FIELDS:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        value = derive(name)
+        object.__setattr__(self, name, value)
+        return value
+
+    def __reduce__(self):
+        return ModelResult, tuple(getattr(self, name) for name in FIELDS)
+
+
+def deferred(fields: dict, derive) -> DeferredResult:
+    """A `DeferredResult` holding ``fields`` (names of `FIELDS`) and computing each other field ``name``
+    as ``derive(name)`` when first read."""
+    out = object.__new__(DeferredResult)
+    for name, value in fields.items():
+        object.__setattr__(out, name, value)
+    object.__setattr__(out, "_derive", derive)
+    return out
 
 
 @dataclass(frozen=True)

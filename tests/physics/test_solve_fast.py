@@ -116,3 +116,105 @@ def test_inputs_are_not_copied_nor_changed(kernel):
     res = solve("1r", geom, TABLE3, l1, v, kernel=kernel)
     assert np.isnan(l1[5]) and np.isnan(res.stretch[5]) and res.status[5] == BAD_INPUT
     assert not np.shares_memory(res.tension, res.sigma1)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(8, 72))
+def test_su_fused_pass_equals_reference_on_many_random_families(seed):
+    """The full set of families (the default suite runs the first 8, above)."""
+    geom, mat, l1, v = random_family(seed)
+    for slack in (True, False):
+        assert_same(reference(geom, mat, l1, v, slack=slack),
+                    solve("su", geom, mat, l1, v, slack=slack, kernel="numba"), f"seed {seed} slack {slack}")
+
+
+ALL_FIELDS = ("sigma1", "force", "tension", "lambda2a", "lambda2b", "lambda2c", "capacitance", "converged", "status",
+              "r_i", "free_stretch", "critical_voltage", "range_voltage")
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_su_fields_computed_when_read_in_any_order(seed):
+    """The compiled SU result computes most fields when first read (`su._Fields`): read in a random order,
+    after the caller has overwritten its input arrays, each equals the reference's (computed before)."""
+    geom, mat, l1, v = random_family(seed)
+    ref = reference(geom, mat, l1, v)
+    fast = solve("su", geom, mat, l1, v, kernel="numba")
+    l1[:] = 1.3  # the caller reuses its arrays: no field computed later sees that
+    v[:] = 0.0
+    order = np.random.default_rng(seed).permutation(ALL_FIELDS)
+    for name in order:
+        x, y = getattr(ref, name), getattr(fast, name)
+        assert x.shape == y.shape and x.dtype == y.dtype, name
+        if x.dtype == bool or x.dtype == np.int8:
+            assert np.array_equal(x, y), name
+        else:
+            assert np.array_equal(np.isnan(x), np.isnan(y)), name
+            fin = np.isfinite(x)
+            assert np.all(np.abs(x[fin] - y[fin]) <= 1e-12 * np.max(np.abs(x[fin]), initial=0.0)), name
+    assert fast.lambda2a is fast.lambda2b is fast.lambda2c  # one array for the three rings, read-only
+    for name in ("lambda2a", "status", "tension"):
+        assert not getattr(fast, name).flags.writeable, name  # shared, or what later fields are computed from
+
+
+def test_su_deferred_result_pickles_copies_and_replaces_as_a_model_result():
+    import copy
+    import dataclasses
+    import pickle
+
+    from rdea_lab.physics.result import ModelResult
+
+    geom = core("hollow")
+    l1 = np.linspace(1.0, 1.5, 300)
+    ref = reference(geom, TABLE3, l1, 2600.0)
+    assert np.any(ref.status == SLACK)
+    for make in (lambda r: pickle.loads(pickle.dumps(r)), copy.copy, copy.deepcopy,
+                 lambda r: dataclasses.replace(r, model="su")):
+        out = make(solve("su", geom, TABLE3, l1, 2600.0, kernel="numba"))
+        assert isinstance(out, ModelResult)
+        assert_same(ref, out, "copied")
+        assert np.array_equal(out.converged, ref.converged)
+    fast = solve("su", geom, TABLE3, l1, 2600.0, kernel="numba")
+    assert not hasattr(fast, "sigma2") and "sigma1=" in repr(fast) and fast.summary() == ref.summary()
+    assert [f.name for f in dataclasses.fields(fast)] == [f.name for f in dataclasses.fields(ref)]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        fast.sigma1 = None
+
+
+@pytest.mark.parametrize("kernel", ["numpy", "numba"])
+def test_su_stretch_below_one_is_the_callers_error(kernel):
+    from rdea_lab.physics.result import StretchBelowOneError
+
+    l1 = np.array([1.2, np.nan, 0.99, 0.5, 1.0])
+    with pytest.raises(StretchBelowOneError, match=r"stretch 0\.99 at sample 2 is below 1 \(1 samples in all\)"):
+        solve("su", core("hollow"), TABLE3, l1, np.array([0.0, 1.0, 1.0, np.inf, 1.0]), kernel=kernel)
+
+
+def _lanes_against_one_by_one(seeds):
+    from rdea_lab.physics import kernels
+    from rdea_lab.physics.models._common import kappa
+
+    total = 0
+    for seed in seeds:
+        geom, mat, l1, v = random_family(seed, 5000)
+        C, kap = (mat.C10, mat.C20, mat.C30), float(kappa(geom, mat))
+        ok = np.isfinite(l1) & np.isfinite(v)
+        l1, v = l1[ok], v[ok]
+        tension, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True, (0, SLACK, BAD_INPUT, OVERFLOW))
+        args = (l1[idx].copy(), v[idx].copy(), tension[idx].copy(), *C, kap, FREE_STRETCH_MAX)
+        one, lanes = np.empty(idx.size), np.empty(idx.size)
+        kernels._su_free_all(*args, one)
+        kernels._su_free_lanes(*args, lanes)
+        assert np.array_equal(one, lanes, equal_nan=True), f"seed {seed}"
+        total += idx.size
+    return total
+
+
+def test_su_free_states_in_lockstep_equal_one_by_one():
+    """`kernels._su_free_lanes` (several slack samples in lockstep) against `_su_free` sample by sample
+    (which the tests above hold to the numpy reference): bit for bit, NaN where none is found."""
+    assert _lanes_against_one_by_one(range(6)) > 5000
+
+
+@pytest.mark.slow
+def test_su_free_states_in_lockstep_equal_one_by_one_on_many_families():
+    assert _lanes_against_one_by_one(range(6, 80)) > 50000

@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
+
+from .._backend import auto_kernel
 from . import continuum, one_ring, su, three_ring
 
 #: Model names, cheapest first.
@@ -27,9 +30,18 @@ def solve(model: str, geom, material, stretch, voltage, *, path=False, start=Non
     A roll whose tension would be negative is slack (force 0, status
     ``SLACK``, the free state's stretches); ``slack=False`` returns the
     equilibrium at the given stretch with its negative stress instead.
-    ``kernel``: ``auto`` (the compiled kernels of `rdea_lab.physics.kernels`
-    where numba is installed and ``RDEA_LAB_KERNELS`` is not ``numpy``),
-    ``numba`` or ``numpy`` (the reference); they agree to 1e-12.
+    ``kernel``: ``auto``, ``numba`` (the compiled kernels of `rdea_lab.physics.kernels`) or ``numpy``
+    (the reference); they agree to 1e-12. ``auto`` takes the kernels where numba is installed,
+    ``RDEA_LAB_KERNELS`` is not ``numpy`` and the call saves enough by them to be worth loading numba
+    (0.4-0.8 s, once per process): by the model, the roll and the sample count
+    (`rdea_lab.physics._backend.auto_kernel`). SU from 16384 samples, 1R from 328, 3R and CR on a hollow
+    roll from 82, 3R on a solid roll from 16384; CR on a solid roll never (its compiled path is the
+    numpy one). With numba loaded the kernels were 2-17x faster than numpy where ``auto`` takes them
+    (``benchmarks/auto_vs_numpy.py``; 3R on a solid roll 0.9-1.3x; SU on a taut roll with every field
+    read 0.8-1x, the stress alone 7x), and faster below those counts too,
+    so a process that solves many small calls may pass ``numba``. As the
+    choice follows the sample count, a series solved in blocks may take both paths (equal to 1e-12);
+    a fixed ``kernel`` gives blocks equal to one call bit for bit.
     """
     try:
         module = MODELS[model.lower()]
@@ -40,4 +52,6 @@ def solve(model: str, geom, material, stretch, voltage, *, path=False, start=Non
         if isinstance(value, (str, os.PathLike)):
             raise TypeError(f"solve: {name} must be an object, not the path {str(value)!r}: physics reads no files; "
                             f"load it with {loader}")
+    if kernel == "auto":  # decided once per call, by what the call holds
+        kernel = auto_kernel(kernel, model.lower(), geom, np.broadcast(np.asarray(stretch), np.asarray(voltage)).size)
     return module.solve(geom, material, stretch, voltage, path=path, start=start, slack=slack, kernel=kernel)

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from .. import yeoh
-from ..result import BAD_INPUT, OK, OVERFLOW, SLACK, ModelResult, PathEnd, prepare_inputs, read_only
+from ..result import (BAD_INPUT, OK, OVERFLOW, SLACK, ModelResult, PathEnd, broadcast_inputs, check_inputs, deferred,
+                      read_only)
 from .._backend import compiled
 from ._common import FREE_STRETCH_MAX, Evaluation, check_start, kappa, solve_model, yeoh_coefficients
 
@@ -115,28 +116,67 @@ def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=Tru
     C = yeoh_coefficients(material)
     prepared = None
     if all(isinstance(c, float) for c in C) and np.ndim(geom.Ri) == 0 and np.ndim(material.eps_r) == 0:
-        prepared = prepare_inputs(stretch, voltage)
-        fast = compiled(kernel, prepared[0].size)
-        if fast is not None:
-            return _solve_compiled(fast, geom, material, C, *prepared, path, start, slack)
+        l1, v, shape = broadcast_inputs(stretch, voltage)
+        fast = compiled(kernel, l1.size)
+        if fast is not None:  # the compiled pass checks the inputs itself
+            return _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack)
+        prepared = check_inputs(l1, v, shape)
     return solve_model("su", evaluate, geom, material, stretch, voltage, path=path, start=start, slack=slack,
                        kernel=kernel, prepared=prepared)
 
 
-def _solve_compiled(fast, geom, material, C, l1, v, bad, shape, raw, path, start, slack) -> ModelResult:
-    """`solve` in one compiled pass (`rdea_lab.physics.kernels.su_solve`): the same result as
-    `solve_model`'s (the tests hold them to 1e-12 and identical statuses)."""
+def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -> ModelResult:
+    """`solve` by the compiled kernels: the same result as `solve_model`'s (the tests hold them to 1e-12
+    and identical statuses).
+
+    One compiled pass (`rdea_lab.physics.kernels.su_solve`) computes what every caller needs: the status
+    and the tension (and checks the inputs). The other fields are computed when first read (`_Fields`):
+    the stress and force in one compiled pass, the slack rolls' free states and the stretches,
+    capacitance and radius in another. A caller that reads the stress alone (a fit, a calibration)
+    pays for no free state. The result holds no reference
+    to the caller's arrays beyond ``stretch`` and ``voltage``, so a later change to those changes no
+    field computed later."""
     end = check_start("su", path, start)
+    kap = float(kappa(geom, material))
+    codes = (OK, SLACK, BAD_INPUT, OVERFLOW)
+    l1c, vc = np.ascontiguousarray(l1), np.ascontiguousarray(v)
+    tension, state, status, idx, low = fast.su_solve(l1c, vc, C, kap, float(geom.area), slack, codes)
+    if low:
+        check_inputs(l1, v, shape)  # raises `StretchBelowOneError`, with the first such sample
     if path:  # SU has no coordinate: a path ends where it started only when it had no sample to solve
-        end = PathEnd("su", *(end if (end is not None and bad.size and bad.all()) else (None, None)))
-    fields, status, ok = fast.su_solve(np.ascontiguousarray(l1), np.ascontiguousarray(v), bad, C,
-                                       float(kappa(geom, material)), float(geom.C0(material.eps_r)),
-                                       float(geom.Ri), float(geom.area), slack, FREE_STRETCH_MAX,
-                                       (OK, SLACK, BAD_INPUT, OVERFLOW))
-    sigma, tension, force, l2, cap, r_i, free = (f.reshape(shape) for f in fields)
+        none = end is not None and status.size and not (status != BAD_INPUT).any()
+        end = PathEnd("su", *(end if none else (None, None)))
+    # the slack samples' inputs, for their free states (copies: a few samples)
+    derive = _Fields(fast, shape, tension, state, status, idx, vc[idx], C, kap, float(geom.area),
+                     float(geom.C0(material.eps_r)), float(geom.Ri))
     nan = np.broadcast_to(np.nan, shape)  # SU has no fold and no range end
-    l2 = read_only(l2)  # one array for the three rings: read-only, so no write to one changes another
-    return ModelResult(model="su", stretch=read_only(raw[0].reshape(shape)), voltage=read_only(raw[1].reshape(shape)),
-                       sigma1=sigma, force=force, lambda2a=l2, lambda2b=l2, lambda2c=l2, capacitance=cap,
-                       converged=ok.reshape(shape), status=status.reshape(shape), critical_voltage=nan,
-                       r_i=r_i, tension=tension, range_voltage=nan, free_stretch=free, end=end)
+    return deferred({"model": "su", "stretch": read_only(l1.reshape(shape)), "voltage": read_only(v.reshape(shape)),
+                     "status": read_only(status.reshape(shape)), "tension": read_only(tension.reshape(shape)),
+                     "critical_voltage": nan, "range_voltage": nan, "end": end}, derive)
+
+
+class _Fields:
+    """The fields of a compiled SU solve that are computed when first read (see `_solve_compiled`), from
+    the solve's own tension, state stretch and status (read-only) and the slack samples' indices and
+    voltages: the stress and force together, then the free states and the fields at them together
+    (`rdea_lab.physics.kernels.su_fields`), the convergence from the status."""
+
+    _ROWS = {"sigma1": (0, 0), "force": (0, 1), "free_stretch": (1, 0), "lambda2a": (1, 1), "lambda2b": (1, 1),
+             "lambda2c": (1, 1), "capacitance": (1, 2), "r_i": (1, 3)}
+
+    def __init__(self, fast, shape, tension, state, status, idx, v_slack, C, kap, area, C0, Ri):
+        self.fast, self.shape, self.tension, self.state, self.status = fast, shape, tension, state, status
+        self.args = (idx, v_slack, C, kap, FREE_STRETCH_MAX, SLACK, area, C0, Ri)
+        self.blocks = [None, None]
+
+    def __call__(self, name):
+        if name == "converged":
+            return ((self.status == OK) | (self.status == SLACK)).reshape(self.shape)
+        block, row = self._ROWS[name]
+        if self.blocks[block] is None:
+            rows = self.fast.su_fields(self.tension, self.status, self.state, *self.args, block)
+            rows = [r.reshape(self.shape) for r in rows]
+            if block == 1:  # one array for the three rings: read-only (`read_only`)
+                rows[1] = read_only(rows[1])
+            self.blocks[block] = rows
+        return self.blocks[block][row]

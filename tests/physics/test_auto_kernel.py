@@ -1,0 +1,68 @@
+"""``kernel="auto"``: decided per call by what the call holds (model, roll, samples), never by what the process
+loaded before; the path it picks is the one the result comes from.
+
+The weights are measured (`rdea_lab.physics._backend.AUTO_WEIGHT`, ``benchmarks/auto_vs_numpy.py``); here the
+rule is held to what `solve`'s docstring states, and `solve` to passing its choice on.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rdea_lab.physics._backend import auto_kernel
+from rdea_lab.physics.models import solve
+
+from physics_cases import RIZZELLO, TABLE3, core
+from test_kernels import assert_same
+
+pytest.importorskip("numba")
+
+
+@pytest.mark.parametrize("model, roll, first", [("su", "hollow", 16384), ("su", "active", 16384),
+                                                 ("1r", "active", 328), ("1r", "hollow", 328),
+                                                 ("3r", "hollow", 82), ("3r", "passive", 16384),
+                                                 ("cr", "hollow", 82)])
+def test_auto_compiles_from_the_stated_sample_counts(model, roll, first):
+    geom = core(roll)
+    assert auto_kernel("auto", model, geom, first - 1) == "numpy"
+    assert auto_kernel("auto", model, geom, first) == "numba"
+    assert auto_kernel("numpy", model, geom, 10**7) == "numpy" and auto_kernel("numba", model, geom, 1) == "numba"
+
+
+def test_auto_never_compiles_cr_on_a_solid_roll_nor_when_turned_off(monkeypatch):
+    assert auto_kernel("auto", "cr", core("active"), 10**9) == "numpy"  # its compiled path is the numpy one
+    monkeypatch.setenv("RDEA_LAB_KERNELS", "numpy")
+    assert auto_kernel("auto", "3r", core("hollow"), 10**9) == "numpy"
+
+
+@pytest.mark.parametrize("model, n", [("3r", 82), ("1r", 400), ("su", 16384)])
+def test_solve_takes_the_path_auto_picks(model, n, monkeypatch):
+    """From the stated count on, ``auto`` is the compiled path (bit for bit); below it the numpy one."""
+    geom = core("hollow")
+    rng = np.random.default_rng(n)
+    l1, v = rng.uniform(1.0, 1.6, n), rng.uniform(0.0, 3000.0, n)
+    auto = solve(model, geom, RIZZELLO, l1, v)
+    for name in ("status", "sigma1", "capacitance", "free_stretch"):
+        np.testing.assert_array_equal(getattr(auto, name), getattr(solve(model, geom, RIZZELLO, l1, v,
+                                                                         kernel="numba"), name))
+    below = solve(model, geom, RIZZELLO, l1[:-1], v[:-1])
+    assert type(below) is type(solve(model, geom, RIZZELLO, l1[:-1], v[:-1], kernel="numpy"))
+    assert_same(solve(model, geom, RIZZELLO, l1[:-1], v[:-1], kernel="numpy"), below, "below")
+
+
+def test_thread_choice_follows_free_cores(monkeypatch):
+    """The threaded variant only where a core is free (the result is the same either way)."""
+    from rdea_lab.physics import kernels
+
+    monkeypatch.setattr(kernels.os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    assert kernels._parallel(kernels.PARALLEL_MIN) == 1
+    monkeypatch.setattr(kernels.os, "getloadavg", lambda: (float(kernels.os.cpu_count() or 1), 0.0, 0.0))
+    assert kernels._parallel(kernels.PARALLEL_MIN) == 0
+    geom = core("hollow")
+    l1 = np.linspace(1.0, 1.6, kernels.PARALLEL_MIN)
+    serial = solve("3r", geom, TABLE3, l1, 2000.0, kernel="numba")
+    monkeypatch.setattr(kernels.os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    threaded = solve("3r", geom, TABLE3, l1, 2000.0, kernel="numba")
+    for name in ("status", "sigma1", "lambda2b", "r_i"):
+        np.testing.assert_array_equal(getattr(serial, name), getattr(threaded, name))
