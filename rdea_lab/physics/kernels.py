@@ -28,7 +28,6 @@ the work around them, fused per sample with no temporaries:
   (`viscoelastic._linear_update`) computed once per distinct interval length.
 - `su_solve`: what a whole SU solve computes up front (the tension and status, the inputs checked) in
   one pass; `su_free` (a slack roll's free state) and `su_fields` the fields computed when first read.
-- `ring_fields`: the 3R result fields at the equilibria (`three_ring.ring_fields`).
 - `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample, the one
   compiled form of it (SU here, the step kernel's slack states).
 
@@ -888,23 +887,6 @@ def _su_state_fields(state, idx, found, C0, Ri, free, l2, cap, r_i):
 
 _roots = _variants(_roots_loop)
 _su = _variants(_su_loop)
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _ring_fields_loop(y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
-    for i in range(y.size):
-        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = _fields3(
-            y[i], l1[i], v[i], R, C10, C20, C30, kap, C0, Ro)
-
-
-def ring_fields(y, l1, v, R, C, kap, C0, Ro):
-    """`three_ring.ring_fields` of every sample (1-D ``y``, ``l1``, ``v``), compiled: six arrays, the rows of
-    one block."""
-    y = _arr(y)
-    out = np.empty((6, y.size))
-    _ring_fields_loop(y, _arr(l1, y.shape), _arr(v, y.shape), tuple(float(r) for r in R), float(C[0]),
-                      float(C[1]), float(C[2]), float(kap), float(C0), float(Ro), out)
-    return tuple(out)
 
 
 def su_state(l1, v, C, kap, C0, out=None):
