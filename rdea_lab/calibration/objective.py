@@ -11,7 +11,9 @@ import xarray as xr
 
 from ..physics import viscoelastic
 from ..physics.geometry import geometry_from_card
+from ..physics._backend import AUTO_MIN_SAMPLES, compiled
 from ..physics.models import solve, su
+from ..physics.models._common import kappa, yeoh_coefficients
 from ..twin import MIN_STRETCH, compose, viscous
 from ..specs import specimen_from_yaml
 from .phases import sample_weights
@@ -241,5 +243,37 @@ def residuals(runs, params, model, scale=None) -> np.ndarray:
     per decade of hold time (:mod:`rdea_lab.calibration.phases`); otherwise its samples weigh alike.
     ``scale``: `residual_scale` of ``runs``, for a caller that evaluates them many times (the objective).
     """
-    return np.concatenate([(predict_force(r, params, model) - r.force) * s
+    fused = _fused_kernel() if runs else None
+    return np.concatenate([_fused_residuals(fused, r, params, model, s) if fused is not None else
+                           (predict_force(r, params, model) - r.force) * s
                            for r, s in zip(runs, residual_scale(runs) if scale is None else scale)])
+
+
+def _fused_kernel():
+    """The compiled residual pass (`rdea_lab.calibration._fused`), or None where the compiled kernels are
+    off or numba is missing (the branch update's own choice for a `History`: the two then agree to the
+    last bit, the fused pass taking the branch strains from the same compiled update)."""
+    if compiled("auto", AUTO_MIN_SAMPLES) is None:
+        return None
+    from ._fused import su_linear_residual
+
+    return su_linear_residual
+
+
+def _fused_residuals(kernel, run: RunData, params, model: str, scale) -> np.ndarray:
+    """`residuals` of one run by the compiled pass where it applies (SU's stress basis, linear law, every
+    sample finite), else by `predict_force`."""
+    visco = viscous(params)
+    history = run.visco_history()
+    if not ((model == "su" or run.zero_voltage) and visco.law == "linear" and history.all_finite
+            and history.t.size > 1 and np.shape(scale) == (run.n,)):
+        return (predict_force(run, params, model) - run.force) * scale
+    b, x, lv2 = run.su_basis()
+    k, eta, eta_v0, _ = visco
+    if not np.all(eta / k > 0):  # what branch_strains refuses (the physics' check does first)
+        return (predict_force(run, params, model) - run.force) * scale
+    out = np.empty(run.n)
+    kernel(b, x, lv2, yeoh_coefficients(params), kappa(run.geom, params), k, eta, history.lengths,
+           history.length_index, history.slope, eta_v0, history.rate, float(run.geom.area), run.stretch, run.force,
+           scale, np.empty((k.size, run.n)), out)
+    return out
