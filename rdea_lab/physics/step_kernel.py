@@ -182,9 +182,11 @@ def _path_state(code, l1, y0, y_max, K, h0, R, C10, C20, C30, offsets, pitchfork
 
 @numba.njit(cache=True, error_model="numpy")
 def _free_trial(lam, args):
-    """A trial of `_free`: the path's state at stretch ``lam`` descending from ``origin``, ``(stress, valid)``."""
-    code, P, R, B, offsets, pitchfork, v, origin = args
-    sig, _, _, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, lam, v, origin, False, 0, 0.0, True)
+    """A trial of `_free`: the path's state at stretch ``lam`` descending from ``origin``, ``(stress, valid)``;
+    the trial's stretch, stress, capacitance, lambda2b and status kept in ``last``."""
+    code, P, R, B, offsets, pitchfork, v, origin, last = args
+    sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, lam, v, origin, False, 0, 0.0, True)
+    last[0], last[1], last[2], last[3], last[4] = lam, sig, cap, l2b, st
     return sig, (st == OK or st == SNAPPED)
 
 
@@ -193,10 +195,14 @@ def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
     """The free (F = 0) state of a slack roll: `kernels.free_stretch` (the steps of
     `models._common.free_state`), each trial the path's state descending from ``origin``, then the
     reference's final check. ``(capacitance, lambda2b, found, free stretch)``."""
-    x = free_stretch(_free_trial, (code, P, R, B, offsets, pitchfork, v, origin), l1, sigma_l1, _FREE_MAX)
+    last = np.full(5, np.nan)
+    x = free_stretch(_free_trial, (code, P, R, B, offsets, pitchfork, v, origin, last), l1, sigma_l1, _FREE_MAX)
     if x != x:
         return math.nan, math.nan, False, math.nan
-    sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, x, v, origin, False, 0, 0.0, True)
+    if last[0] == x:  # the stretch returned is the last trial's: its state, not computed a second time
+        sig, cap, l2b, st = last[1], last[2], last[3], int(last[4])
+    else:
+        sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, x, v, origin, False, 0, 0.0, True)
     if not ((st == OK or st == SNAPPED) and abs(sig) <= 1e-6 * abs(sigma_l1) + 1e-6):
         return math.nan, math.nan, False, math.nan
     return cap, l2b, True, x
