@@ -243,37 +243,37 @@ def residuals(runs, params, model, scale=None) -> np.ndarray:
     per decade of hold time (:mod:`rdea_lab.calibration.phases`); otherwise its samples weigh alike.
     ``scale``: `residual_scale` of ``runs``, for a caller that evaluates them many times (the objective).
     """
+    scale = residual_scale(runs) if scale is None else scale
     fused = _fused_kernel() if runs else None
-    return np.concatenate([_fused_residuals(fused, r, params, model, s) if fused is not None else
-                           (predict_force(r, params, model) - r.force) * s
-                           for r, s in zip(runs, residual_scale(runs) if scale is None else scale)])
+    if fused is None:
+        return np.concatenate([(predict_force(r, params, model) - r.force) * s for r, s in zip(runs, scale)])
+    out = np.empty(sum(r.n for r in runs))
+    visco = viscous(params)
+    k, eta, eta_v0, law = visco
+    C = yeoh_coefficients(params)
+    linear = law == "linear" and bool(np.all(eta / k > 0))  # (what branch_strains refuses: the physics' check
+    start = 0                                                # refuses it first)
+    for r, s in zip(runs, scale):
+        end = start + r.n
+        history = r.visco_history()
+        if (linear and (model == "su" or r.zero_voltage) and history.all_finite and history.t.size > 1
+                and np.shape(s) == (r.n,)):
+            b, x, lv2 = r.su_basis()
+            fused(b, x, lv2, C, kappa(r.geom, params), k, eta, history.lengths, history.length_index, history.slope,
+                  eta_v0, history.rate, float(r.geom.area), r.stretch, r.force, s, np.empty((k.size, r.n)),
+                  out[start:end])
+        else:
+            out[start:end] = (predict_force(r, params, model) - r.force) * s
+        start = end
+    return out
 
 
 def _fused_kernel():
-    """The compiled residual pass (`rdea_lab.calibration._fused`), or None where the compiled kernels are
-    off or numba is missing (the branch update's own choice for a `History`: the two then agree to the
-    last bit, the fused pass taking the branch strains from the same compiled update)."""
+    """The compiled residual pass (`rdea_lab.calibration._fused`: SU's stress basis, linear law, every sample
+    finite), or None where the compiled kernels are off or numba is missing (the branch update's own choice
+    for a `History`: the two then agree to the last bit, the fused pass running the same compiled update)."""
     if compiled("auto", AUTO_MIN_SAMPLES) is None:
         return None
     from ._fused import su_linear_residual
 
     return su_linear_residual
-
-
-def _fused_residuals(kernel, run: RunData, params, model: str, scale) -> np.ndarray:
-    """`residuals` of one run by the compiled pass where it applies (SU's stress basis, linear law, every
-    sample finite), else by `predict_force`."""
-    visco = viscous(params)
-    history = run.visco_history()
-    if not ((model == "su" or run.zero_voltage) and visco.law == "linear" and history.all_finite
-            and history.t.size > 1 and np.shape(scale) == (run.n,)):
-        return (predict_force(run, params, model) - run.force) * scale
-    b, x, lv2 = run.su_basis()
-    k, eta, eta_v0, _ = visco
-    if not np.all(eta / k > 0):  # what branch_strains refuses (the physics' check does first)
-        return (predict_force(run, params, model) - run.force) * scale
-    out = np.empty(run.n)
-    kernel(b, x, lv2, yeoh_coefficients(params), kappa(run.geom, params), k, eta, history.lengths,
-           history.length_index, history.slope, eta_v0, history.rate, float(run.geom.area), run.stretch, run.force,
-           scale, np.empty((k.size, run.n)), out)
-    return out
