@@ -191,11 +191,12 @@ def _free_trial(lam, args):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
+def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin, last):
     """The free (F = 0) state of a slack roll: `kernels.free_stretch` (the steps of
     `models._common.free_state`), each trial the path's state descending from ``origin``, then the
-    reference's final check. ``(capacitance, lambda2b, found, free stretch)``."""
-    last = np.full(5, np.nan)
+    reference's final check. ``(capacitance, lambda2b, found, free stretch)``. ``last``: scratch of 5
+    floats (the caller's: no allocation per sample) for the last trial's state."""
+    last[0] = math.nan
     x = free_stretch(_free_trial, (code, P, R, B, offsets, pitchfork, v, origin, last), l1, sigma_l1, _FREE_MAX)
     if x != x:
         return math.nan, math.nan, False, math.nan
@@ -226,7 +227,7 @@ def step(code, S, P, R, B, offsets, pitchfork, t, l1, v, out):
         if not (abs(sigma) < math.inf and abs(sigma * P[5] / l1) < math.inf):
             sigma, cap, l2b, status = math.nan, math.nan, math.nan, OVERFLOW
         elif sigma < 0.0:  # slack: the roll's own state is its free one (the clamped one's where none is found)
-            cap_f, l2b_f, found, _ = _free(code, P, R, B, offsets, pitchfork, l1, v, sigma, y)
+            cap_f, l2b_f, found, _ = _free(code, P, R, B, offsets, pitchfork, l1, v, sigma, y, np.empty(5))
             if found:
                 cap, l2b = cap_f, l2b_f
             if status != SNAPPED:

@@ -213,7 +213,7 @@ def test_the_free_states_fields_are_the_state_solved_at_its_stretch(model, Ri):
             s, _, _, y, st, _, _ = sk._state(code, P, R, B, off, fork, l1, v, math.nan, False, 0, math.nan, False)
             if not (st == 0 and s < 0.0):
                 continue
-            cap, l2b, found, x = sk._free(code, P, R, B, off, fork, l1, v, s, y)
+            cap, l2b, found, x = sk._free(code, P, R, B, off, fork, l1, v, s, y, np.empty(5))
             if not found:
                 continue
             found_any += 1
