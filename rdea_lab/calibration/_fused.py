@@ -27,19 +27,34 @@ def su_linear_residual(b, x, lv2, C, kap, k, eta, lengths, index, slope, eta_v0,
     interval's, the stretch slopes and rates); ``q``: scratch of shape (M, n) for the branch strains.
     """
     M = k.size
+    n = b.size
     if M:
         _linear(lengths, index, slope, eta / k, np.zeros(M), q)
-    for i in range(b.size):
+    # in passes without branches inside (the compiler vectorizes them), in the numpy composition's order:
+    # q[0] becomes the overstress k_1 q_1 + ... + k_M q_M (+ eta_v0 rate); out the reversible stress
+    for i in range(n):
         W1, _ = _slope_inline(x[i], C)
-        s_rev = b[i] * W1 - kap * lv2[i]
-        s_irr = 0.0
-        if M:
-            s_irr = k[0] * q[0, i]
-            for j in range(1, M):
-                s_irr += k[j] * q[j, i]
+        out[i] = b[i] * W1 - kap * lv2[i]
+    if M:
+        k0 = k[0]
+        for i in range(n):
+            q[0, i] = k0 * q[0, i]
+        for j in range(1, M):
+            kj = k[j]
+            for i in range(n):
+                q[0, i] += kj * q[j, i]
         if eta_v0 != 0.0:
-            s_irr += eta_v0 * rate[i]
-        f = (s_rev + s_irr) * area / stretch[i]
-        if f < 0.0:  # np.maximum(f, 0.0): slack; NaN stays NaN
-            f = 0.0
+            for i in range(n):
+                q[0, i] += eta_v0 * rate[i]
+        for i in range(n):
+            out[i] = out[i] + q[0, i]
+    elif eta_v0 != 0.0:
+        for i in range(n):
+            out[i] = out[i] + (0.0 + eta_v0 * rate[i])
+    else:
+        for i in range(n):
+            out[i] = out[i] + 0.0
+    for i in range(n):
+        f = out[i] * area / stretch[i]
+        f = 0.0 if f < 0.0 else f  # np.maximum(f, 0.0): slack; NaN stays NaN
         out[i] = (f - force[i]) * scale[i]
