@@ -161,6 +161,12 @@ class Objective:
 
     def _margin_slot(self):
         """Index of C20 among the free parameters when least squares fits it as the Yeoh margin, else None."""
+        if not hasattr(self, "_slot"):  # the parameters do not change: once per objective
+            self._slot = self._find_margin_slot()
+            self._margin = None if self._slot is None else self._margin_parameter()
+        return self._slot
+
+    def _find_margin_slot(self):
         names = [p.name for p in self.free]
         if "C20" not in names or not all(n in {p.name for p in self.parameters} for n in ("C10", "C30")):
             return None
@@ -185,7 +191,7 @@ class Objective:
         v = self.values(np.arcsin(np.clip(2.0 * u - 1.0, -1.0, 1.0)))
         i = self._margin_slot()
         if i is not None:
-            m = self._margin_parameter().to_physical(float(np.arcsin(np.clip(2.0 * u[i] - 1.0, -1.0, 1.0))))
+            m = self._margin.to_physical(float(np.arcsin(np.clip(2.0 * u[i] - 1.0, -1.0, 1.0))))
             v["C20"] = m - math.sqrt(3.0 * v["C10"] * v["C30"])
         return v
 
@@ -302,7 +308,7 @@ def _jacobian(obj: Objective):
     def jac(u):
         u = np.asarray(u, float)
         r0 = obj.last_residuals(u)
-        J = np.zeros((r0.size, u.size))
+        J = np.zeros((r0.size, u.size), order="F")  # filled by columns; handed on in C order, as before
         for i in range(u.size):
             for sign in ((1.0, -1.0) if u[i] + h <= 1.0 else (-1.0, 1.0)):
                 ui = u.copy()
@@ -313,7 +319,7 @@ def _jacobian(obj: Objective):
                 if np.all(np.isfinite(r)):
                     J[:, i] = (r - r0) / (ui[i] - u[i])
                     break
-        return J
+        return np.ascontiguousarray(J)
 
     return jac
 

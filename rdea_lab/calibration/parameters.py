@@ -14,6 +14,7 @@ a Yeoh restricted to monotone stiffening, or neo-Hookean (:func:`constrain_start
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -60,14 +61,19 @@ class FitParameter:
     def _x(self, u):
         return np.exp(u) if self.kind == "log" else self.scale * np.sinh(u)
 
+    @cached_property
+    def _ends(self):
+        """``(g(lo), g(hi))`` of the log or asinh map ``g`` (`_u`): once, not per evaluation."""
+        return self._u(self.lo), self._u(self.hi)
+
     def to_internal(self, x: float) -> float:
         """Physical value -> unconstrained internal variable."""
-        ulo, uhi = self._u(self.lo), self._u(self.hi)
+        ulo, uhi = self._ends
         r = (self._u(np.clip(x, self.lo, self.hi)) - ulo) / (uhi - ulo)
         return float(np.arcsin(np.clip(2.0 * r - 1.0, -1.0, 1.0)))
 
     def to_physical(self, z: float) -> float:
-        ulo, uhi = self._u(self.lo), self._u(self.hi)
+        ulo, uhi = self._ends
         return float(self._x(ulo + (np.sin(z) + 1.0) * 0.5 * (uhi - ulo)))
 
     def at_bound(self, x: float, rtol=1e-6) -> bool:

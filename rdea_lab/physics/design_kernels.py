@@ -33,6 +33,7 @@ def _rolls_loop(code, P, R, B, offsets, n_off, pitchfork, l1, v, path, slack, si
         Pd = P[d]
         fork = pitchfork[d]
         y_prev = math.nan
+        last = np.empty(5)  # the free state's scratch (`step_kernel._free`), one per design
         handed = False  # on a path: a sample went to the reference, so do the ones after it (from its state)
         for i in range(l1.shape[1]):
             lam, u = l1[d, i], v[d, i]
@@ -52,9 +53,9 @@ def _rolls_loop(code, P, R, B, offsets, n_off, pitchfork, l1, v, path, slack, si
             st, f, t = OK, lam, s
             if good and slack and s < 0.0:
                 if code == 0:
-                    c, l2, good, f = step_kernel._free(0, Pd, Rd, Bd, off, fork, lam, u, s, yy)
+                    c, l2, good, f = step_kernel._free(0, Pd, Rd, Bd, off, fork, lam, u, s, yy, last)
                 else:
-                    c, l2, good, f = step_kernel._free(code, Pd, Rd, Bd, off, fork, lam, u, s, yy)
+                    c, l2, good, f = step_kernel._free(code, Pd, Rd, Bd, off, fork, lam, u, s, yy, last)
                 st, s = SLACK, 0.0
             sigma[d, i], tension[d, i], cap[d, i], l2b[d, i], y[d, i], free[d, i] = s, t, c, l2, yy, f
             status[d, i] = st

@@ -179,21 +179,28 @@ def _path_state(code, l1, y0, y_max, K, h0, R, C10, C20, C30, offsets, pitchfork
 
 @numba.njit(cache=True, error_model="numpy")
 def _free_trial(lam, args):
-    """A trial of `_free`: the path's state at stretch ``lam`` descending from ``origin``, ``(stress, valid)``."""
-    code, P, R, B, offsets, pitchfork, v, origin = args
-    sig, _, _, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, lam, v, origin, False, 0, 0.0, True)
+    """A trial of `_free`: the path's state at stretch ``lam`` descending from ``origin``, ``(stress, valid)``;
+    the trial's stretch, stress, capacitance, lambda2b and status kept in ``last``."""
+    code, P, R, B, offsets, pitchfork, v, origin, last = args
+    sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, lam, v, origin, False, 0, 0.0, True)
+    last[0], last[1], last[2], last[3], last[4] = lam, sig, cap, l2b, st
     return sig, (st == OK or st == SNAPPED)
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin):
+def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin, last):
     """The free (F = 0) state of a slack roll: `kernels.free_stretch` (the steps of
     `models._common.free_state`), each trial the path's state descending from ``origin``, then the
-    reference's final check. ``(capacitance, lambda2b, found, free stretch)``."""
-    x = free_stretch(_free_trial, (code, P, R, B, offsets, pitchfork, v, origin), l1, sigma_l1, _FREE_MAX)
+    reference's final check. ``(capacitance, lambda2b, found, free stretch)``. ``last``: scratch of 5
+    floats (the caller's: no allocation per sample) for the last trial's state."""
+    last[0] = math.nan
+    x = free_stretch(_free_trial, (code, P, R, B, offsets, pitchfork, v, origin, last), l1, sigma_l1, _FREE_MAX)
     if x != x:
         return math.nan, math.nan, False, math.nan
-    sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, x, v, origin, False, 0, 0.0, True)
+    if last[0] == x:  # the stretch returned is the last trial's: its state, not computed a second time
+        sig, cap, l2b, st = last[1], last[2], last[3], int(last[4])
+    else:
+        sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, x, v, origin, False, 0, 0.0, True)
     if not ((st == OK or st == SNAPPED) and abs(sig) <= 1e-6 * abs(sigma_l1) + 1e-6):
         return math.nan, math.nan, False, math.nan
     return cap, l2b, True, x
@@ -217,7 +224,7 @@ def step(code, S, P, R, B, offsets, pitchfork, t, l1, v, out):
         if not (abs(sigma) < math.inf and abs(sigma * P[5] / l1) < math.inf):
             sigma, cap, l2b, status = math.nan, math.nan, math.nan, OVERFLOW
         elif sigma < 0.0:  # slack: the roll's own state is its free one (the clamped one's where none is found)
-            cap_f, l2b_f, found, _ = _free(code, P, R, B, offsets, pitchfork, l1, v, sigma, y)
+            cap_f, l2b_f, found, _ = _free(code, P, R, B, offsets, pitchfork, l1, v, sigma, y, np.empty(5))
             if found:
                 cap, l2b = cap_f, l2b_f
             if status != SNAPPED:

@@ -191,3 +191,33 @@ def test_stepped_equals_block_across_a_micro_core_fold():
     t = np.arange(v.size) * 1e-2
     status = assert_equal_to_block(MICRO, MICRO_MAT, "3r", t, lam, v)["model_status"]
     assert np.count_nonzero(status == SNAPPED) >= 2  # the fold is crossed (up and down)
+
+
+@pytest.mark.parametrize("model, Ri", [("1r", 0.0), ("3r", 0.0), ("3r", 0.5e-3)])
+def test_the_free_states_fields_are_the_state_solved_at_its_stretch(model, Ri):
+    """`step_kernel._free` returns the fields of its search's last trial (the stretch it returns) instead of
+    solving that state again: they must be the state `_state` solves afresh there, and pass the final check."""
+    import dataclasses
+    import math
+
+    from rdea_lab.physics import step_kernel as sk
+    from rdea_lab.physics.geometry import geometry_from_card
+
+    geom = geometry_from_card(CARD)
+    if Ri:
+        geom = dataclasses.replace(geom, Ri=Ri)
+    code, P, R, B, off, fork = sk.constants(model, geom, TABLE3, (), (), 0.0, "linear")
+    found_any = 0
+    for l1 in (1.0, 1.02, 1.1):
+        for v in (2600.0, 4000.0, 6000.0):
+            s, _, _, y, st, _, _ = sk._state(code, P, R, B, off, fork, l1, v, math.nan, False, 0, math.nan, False)
+            if not (st == 0 and s < 0.0):
+                continue
+            cap, l2b, found, x = sk._free(code, P, R, B, off, fork, l1, v, s, y, np.empty(5))
+            if not found:
+                continue
+            found_any += 1
+            sig2, cap2, l2b2, _, st2, _, _ = sk._state(code, P, R, B, off, fork, x, v, y, False, 0, 0.0, True)
+            assert st2 in (0, SNAPPED) and abs(sig2) <= 1e-6 * abs(s) + 1e-6
+            assert (cap, l2b) == (cap2, l2b2) and x > l1
+    assert found_any >= 2  # slack samples with a free state were tried
