@@ -11,9 +11,7 @@ import xarray as xr
 
 from ..physics import viscoelastic
 from ..physics.geometry import geometry_from_card
-from ..physics._backend import AUTO_MIN_SAMPLES, compiled
 from ..physics.models import solve, su
-from ..physics.models._common import kappa, yeoh_coefficients
 from ..twin import MIN_STRETCH, compose, viscous
 from ..specs import specimen_from_yaml
 from .phases import sample_weights
@@ -249,8 +247,7 @@ def residuals(runs, params, model, scale=None) -> np.ndarray:
         return np.concatenate([(predict_force(r, params, model) - r.force) * s for r, s in zip(runs, scale)])
     out = np.empty(sum(r.n for r in runs))
     visco = viscous(params)
-    k, eta, eta_v0, law = visco
-    C = yeoh_coefficients(params)
+    k, eta, _, law = visco
     linear = law == "linear" and bool(np.all(eta / k > 0))  # (what branch_strains refuses: the physics' check
     start = 0                                                # refuses it first)
     for r, s in zip(runs, scale):
@@ -258,10 +255,7 @@ def residuals(runs, params, model, scale=None) -> np.ndarray:
         history = r.visco_history()
         if (linear and (model == "su" or r.zero_voltage) and history.all_finite and history.t.size > 1
                 and np.shape(s) == (r.n,)):
-            b, x, lv2 = r.su_basis()
-            fused(b, x, lv2, C, kappa(r.geom, params), k, eta, history.lengths, history.length_index, history.slope,
-                  eta_v0, history.rate, float(r.geom.area), r.stretch, r.force, s, np.empty((k.size, r.n)),
-                  out[start:end])
+            fused(r.su_basis(), r.geom, params, visco, history, r.stretch, r.force, s, out[start:end])
         else:
             out[start:end] = (predict_force(r, params, model) - r.force) * s
         start = end
@@ -269,11 +263,8 @@ def residuals(runs, params, model, scale=None) -> np.ndarray:
 
 
 def _fused_kernel():
-    """The compiled residual pass (`rdea_lab.calibration._fused`: SU's stress basis, linear law, every sample
-    finite), or None where the compiled kernels are off or numba is missing (the branch update's own choice
-    for a `History`: the two then agree to the last bit, the fused pass running the same compiled update)."""
-    if compiled("auto", AUTO_MIN_SAMPLES) is None:
-        return None
-    from ._fused import su_linear_residual
-
-    return su_linear_residual
+    """The compiled residual pass (`rdea_lab.physics.models.su.residual_pass`: SU's stress basis, linear law,
+    every sample finite), or None where the compiled kernels are off or numba is missing (the branch update's
+    own choice for a `History`: the two then agree to the last bit, the fused pass running the same compiled
+    update)."""
+    return su.residual_pass()

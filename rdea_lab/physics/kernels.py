@@ -28,6 +28,8 @@ the work around them, fused per sample with no temporaries:
   (`viscoelastic._linear_update`) computed once per distinct interval length.
 - `su_solve`: what a whole SU solve computes up front (the tension and status, the inputs checked) in
   one pass; `su_free` (a slack roll's free state) and `su_fields` the fields computed when first read.
+- `su_linear_residual`: a calibration run's scaled force errors under eq. (44)'s linear law in one pass
+  (`rdea_lab.physics.models.su.residual_pass`).
 - `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample, the one
   compiled form of it (SU here, the step kernel's slack states).
 
@@ -964,6 +966,48 @@ def _linear(lengths, index, slope, tau, q0, q):
             k = index[i]
             x = a[k] * x + slope[i] * c[k]
             q[j, i + 1] = x
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_linear_residual(b, x, lv2, C, kap, k, eta, lengths, index, slope, eta_v0, rate, area, stretch, force,
+                       scale, q, out):
+    """``out[i]``: the scaled force error at sample i (module docstring); ``eta_v0 == 0``: no damper term.
+
+    ``lengths``, ``index``, ``slope``, ``rate``: the run's `History` (its distinct interval lengths, each
+    interval's, the stretch slopes and rates); ``q``: scratch of shape (M, n) for the branch strains.
+    """
+    M = k.size
+    n = b.size
+    if M:
+        _linear(lengths, index, slope, eta / k, np.zeros(M), q)
+    # in passes without branches inside (the compiler vectorizes them), in the numpy composition's order:
+    # q[0] becomes the overstress k_1 q_1 + ... + k_M q_M (+ eta_v0 rate); out the reversible stress
+    for i in range(n):
+        W1, _ = _slope_inline(x[i], C)
+        out[i] = b[i] * W1 - kap * lv2[i]
+    if M:
+        k0 = k[0]
+        for i in range(n):
+            q[0, i] = k0 * q[0, i]
+        for j in range(1, M):
+            kj = k[j]
+            for i in range(n):
+                q[0, i] += kj * q[j, i]
+        if eta_v0 != 0.0:
+            for i in range(n):
+                q[0, i] += eta_v0 * rate[i]
+        for i in range(n):
+            out[i] = out[i] + q[0, i]
+    elif eta_v0 != 0.0:
+        for i in range(n):
+            out[i] = out[i] + (0.0 + eta_v0 * rate[i])
+    else:
+        for i in range(n):
+            out[i] = out[i] + 0.0
+    for i in range(n):
+        f = out[i] * area / stretch[i]
+        f = 0.0 if f < 0.0 else f  # np.maximum(f, 0.0): slack; NaN stays NaN
+        out[i] = (f - force[i]) * scale[i]
 
 
 def _readonly(x, dtype):

@@ -1,4 +1,4 @@
-"""The objective's compiled residual pass (`rdea_lab.calibration._fused`) against the numpy composition it
+"""The objective's compiled residual pass (`rdea_lab.physics.models.su.residual_pass`) against the numpy composition it
 replaces (`predict_force`: `rdea_lab.twin.compose` on the SU stress basis): the same numbers to the last bit,
 so a fit takes the same path, evaluation for evaluation (issue 30, reproduce's calibration stage)."""
 

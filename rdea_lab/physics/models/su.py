@@ -7,7 +7,7 @@ import numpy as np
 from .. import yeoh
 from ..result import (BAD_INPUT, OK, OVERFLOW, SLACK, ModelResult, PathEnd, broadcast_inputs, check_inputs, deferred,
                       read_only)
-from .._backend import compiled
+from .._backend import AUTO_MIN_SAMPLES, compiled
 from ._common import FREE_STRETCH_MAX, Evaluation, check_start, kappa, solve_model, yeoh_coefficients
 
 
@@ -60,6 +60,31 @@ def stress_from_basis(stress_basis_, geom, material):
     b, x, lv2 = stress_basis_
     W1, _ = yeoh.slope(x, yeoh_coefficients(material))
     return b * W1 - kappa(geom, material) * lv2
+
+
+def residual_pass(kernel="auto"):
+    """A calibration run's scaled force errors in one compiled pass, or None where the compiled kernels are
+    off or numba is missing (the caller then composes them in numpy).
+
+    The pass (`rdea_lab.physics.kernels`) takes the same operations in the same order as
+    :func:`stress_from_basis`, then `rdea_lab.twin.compose` under eq. (44)'s linear law, the force clipped
+    at 0 (a slack roll), less the measured force, times ``scale``: the two agree to the last bit. It is a
+    callable ``f(basis, geom, material, visco, history, stretch, force, scale, out)``: ``basis`` of
+    :func:`stress_basis`, ``visco`` the twin's ``(k, eta, eta_v0, law)`` (the law linear, every ``eta / k``
+    positive), ``history`` the run's `~rdea_lab.physics.viscoelastic.History` (finite, two samples or
+    more); it writes ``out``.
+    """
+    fast = compiled(kernel, AUTO_MIN_SAMPLES)
+    if fast is None:
+        return None
+
+    def run(basis, geom, material, visco, history, stretch, force, scale, out):
+        b, x, lv2 = basis
+        k, eta, eta_v0, _ = visco
+        fast._su_linear_residual(b, x, lv2, yeoh_coefficients(material), kappa(geom, material), k, eta,
+                                 history.lengths, history.length_index, history.slope, eta_v0, history.rate,
+                                 float(geom.area), stretch, force, scale, np.empty((k.size, stretch.size)), out)
+    return run
 
 
 def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kernel="auto") -> Evaluation:
