@@ -16,16 +16,14 @@ KERNELS = ("auto", "numba", "numpy")
 #: of the process (the two agree to 1e-12 anyway, mostly to the last bit).
 AUTO_MIN_SAMPLES = 16384
 
-#: What one sample of a model's solve saves compiled, in SU samples (SU's numpy solve of a taut sample
-#: costs about 40 ns, its compiled one about 20), by model and roll (solid: ``Ri = 0``; hollow: a core),
-#: rounded from ``benchmarks/auto_vs_numpy.py`` with numba loaded (per sample, numpy against compiled, one
-#: thread): 1R 2-4 us against 0.8-1.6 us (up to 19 against 6 where slack), 3R and CR on a hollow roll
-#: 10-11 us against 2.6-4 us; 3R on a solid roll 0.3-0.7 us and CR on a solid roll the same work both ways
-#: (below 3R's pitchfork both stay at the uniaxial state; CR on a solid roll is the SU state, evaluated in
-#: numpy either way). `auto_kernel` turns ``auto`` on from ``AUTO_MIN_SAMPLES / weight`` samples; 0: never
-#: (the compiled path would only load numba).
-AUTO_WEIGHT = {("su", False): 1, ("su", True): 1, ("1r", False): 50, ("1r", True): 50,
-               ("3r", False): 1, ("3r", True): 200, ("cr", False): 0, ("cr", True): 200}
+#: Which calls ``auto`` compiles, by model and roll (solid: ``Ri = 0``; hollow: a core): 1 from
+#: `AUTO_MIN_SAMPLES` samples, 0 never. CR on a solid roll never: its compiled path does the numpy work
+#: (the SU state) and would only load numba. The other models compile from the same count: the kernels
+#: save a 1R, 3R or CR sample more than an SU one (``benchmarks/auto_vs_numpy.py``), but a lower count
+#: made one-shot commands on a few hundred samples pay numba's loading (a CLI `curve` of a hollow 3R
+#: roll went from 0.9 to 1.3 s) to save about a millisecond.
+AUTO_WEIGHT = {("su", False): 1, ("su", True): 1, ("1r", False): 1, ("1r", True): 1,
+               ("3r", False): 1, ("3r", True): 1, ("cr", False): 0, ("cr", True): 1}
 
 
 _SAID = set()

@@ -30,11 +30,12 @@ the work around them, fused per sample with no temporaries:
   one pass; `su_free` (a slack roll's free state) and `su_fields` the fields computed when first read.
 - `su_linear_residual`: a calibration run's scaled force errors under eq. (44)'s linear law in one pass
   (`rdea_lab.physics.models.su.residual_pass`).
-- `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample, the one
-  compiled form of it (SU here, the step kernel's slack states).
+- `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample (the
+  step kernel's and `ring_kernels`' slack states); `_su_free_lanes` takes the same steps for 8 SU
+  samples in lockstep (tested equal to it bit for bit: a second form of the iteration, kept for speed).
 
 Importing this module imports numba and loads the cached machine code
-(about 1.5 s); the first call in a fresh install compiles (about 25 s for
+(a fraction of a second to seconds); the first call in a fresh install compiles (about 25 s for
 every kernel, measured by ``rdea-lab bench``: ``compile_s``). numba checks a
 cached function only against its own file, so a kernel that calls an
 equation from another module would keep an old copy of it after an edit:

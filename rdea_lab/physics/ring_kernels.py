@@ -1,6 +1,6 @@
 """Compiled passes of the 1R, 3R and CR solves around the certified root kernel (numba, ``cache=True``).
 
-The root of each sample is `kernels.branch_roots`' (its `kernels._one`); what
+The root of each sample is `kernels.branch_roots`' (a free state's trial: `kernels._one`); what
 this module compiles is the rest of a `solve`, with the numpy code as the
 reference (the tests check one against the other):
 

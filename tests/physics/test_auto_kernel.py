@@ -20,9 +20,9 @@ pytest.importorskip("numba")
 
 
 @pytest.mark.parametrize("model, roll, first", [("su", "hollow", 16384), ("su", "active", 16384),
-                                                 ("1r", "active", 328), ("1r", "hollow", 328),
-                                                 ("3r", "hollow", 82), ("3r", "passive", 16384),
-                                                 ("cr", "hollow", 82)])
+                                                 ("1r", "active", 16384), ("1r", "hollow", 16384),
+                                                 ("3r", "hollow", 16384), ("3r", "passive", 16384),
+                                                 ("cr", "hollow", 16384)])
 def test_auto_compiles_from_the_stated_sample_counts(model, roll, first):
     geom = core(roll)
     assert auto_kernel("auto", model, geom, first - 1) == "numpy"
@@ -36,7 +36,7 @@ def test_auto_never_compiles_cr_on_a_solid_roll_nor_when_turned_off(monkeypatch)
     assert auto_kernel("auto", "3r", core("hollow"), 10**9) == "numpy"
 
 
-@pytest.mark.parametrize("model, n", [("3r", 82), ("1r", 400), ("su", 16384)])
+@pytest.mark.parametrize("model, n", [("3r", 16384), ("1r", 16384), ("su", 16384)])
 def test_solve_takes_the_path_auto_picks(model, n, monkeypatch):
     """From the stated count on, ``auto`` is the compiled path (bit for bit); below it the numpy one."""
     geom = core("hollow")

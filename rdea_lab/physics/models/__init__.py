@@ -32,13 +32,10 @@ def solve(model: str, geom, material, stretch, voltage, *, path=False, start=Non
     equilibrium at the given stretch with its negative stress instead.
     ``kernel``: ``auto``, ``numba`` (the compiled kernels of `rdea_lab.physics.kernels`) or ``numpy``
     (the reference); they agree to 1e-12. ``auto`` takes the kernels where numba is installed,
-    ``RDEA_LAB_KERNELS`` is not ``numpy`` and the call saves enough by them to be worth loading numba
-    (0.4-0.8 s, once per process): by the model, the roll and the sample count
-    (`rdea_lab.physics._backend.auto_kernel`). SU from 16384 samples, 1R from 328, 3R and CR on a hollow
-    roll from 82, 3R on a solid roll from 16384; CR on a solid roll never (its compiled path is the
-    numpy one). With numba loaded the kernels were 2-17x faster than numpy where ``auto`` takes them
-    (``benchmarks/auto_vs_numpy.py``; 3R on a solid roll 0.9-1.3x; SU on a taut roll with every field
-    read 0.8-1x, the stress alone 7x), and faster below those counts too,
+    ``RDEA_LAB_KERNELS`` is not ``numpy`` and the call is worth loading numba (once per process), decided by
+    the call alone (`rdea_lab.physics._backend.auto_kernel`): from 16384 samples, except CR on a solid roll
+    (never: its compiled path is the numpy one). With numba loaded the kernels are faster below that count
+    too,
     so a process that solves many small calls may pass ``numba``. As the
     choice follows the sample count, a series solved in blocks may take both paths (equal to 1e-12);
     a fixed ``kernel`` gives blocks equal to one call bit for bit.
