@@ -210,9 +210,10 @@ class DeferredResult(ModelResult):
     computes what every caller needs (the status, the tension) and leaves the rest (the free state of a
     slack roll, the force, the stretches) to the caller that reads them.
 
-    Every field reads as it would on a `ModelResult` built at once (equal to it); the arrays the deferred
-    ones are computed from are read-only. `dataclasses.replace`, `pickle` and `copy` give a `ModelResult`
-    with every field computed. Built by `deferred` only.
+    Every field reads as it would on a `ModelResult` built at once; the arrays the deferred ones are
+    computed from are read-only. `pickle` and `copy` give a `ModelResult`, `dataclasses.replace` a result of
+    this class, each with every field computed. ``==`` compares a result with one of its own class only.
+    Built by `deferred` only.
     """
 
     def __getattr__(self, name):  # only for what the instance does not hold yet
