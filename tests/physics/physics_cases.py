@@ -5,6 +5,8 @@ subset of both run together with xdist could import the wrong one)."""
 
 from types import SimpleNamespace
 
+import numpy as np
+
 from rdea_lab.physics.geometry import RollGeometry
 
 #: Material of ref. [36], used in Section 3.4 of the paper.
@@ -23,3 +25,15 @@ CORES = {
 def core(name_or_radii, L1=34e-3, L1e=34e-3, L3=48e-6):
     radii = CORES[name_or_radii] if isinstance(name_or_radii, str) else name_or_radii
     return RollGeometry(*radii, L1=L1, L1e=L1e, L3=L3)
+
+
+def assert_close(x, y, what, rtol):
+    """``x`` equals the reference ``y`` where it is finite to ``rtol`` of ``y``'s largest finite magnitude, with
+    the same NaN pattern."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    assert np.array_equal(np.isnan(x), np.isnan(y)), f"{what}: NaN pattern differs"
+    fin = np.isfinite(y)
+    if fin.any():
+        scale = np.max(np.abs(y[fin]))
+        err = np.max(np.abs(x[fin] - y[fin]))
+        assert err <= rtol * scale + 1e-300, f"{what}: differs by {err / max(scale, 1e-300):.2e} relative"

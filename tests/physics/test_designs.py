@@ -37,6 +37,8 @@ from rdea_lab.physics.models import solve
 from rdea_lab.physics.models._common import kappa
 from rdea_lab.physics.result import LIMIT_POINT, OK, OUTSIDE_RANGE, SLACK, SNAPPED
 
+from physics_cases import assert_close
+
 #: Fields of DesignResult compared with the per-roll ModelResult.
 FIELDS = ("force", "sigma1", "tension", "capacitance", "lambda2b", "free_stretch", "critical_voltage",
           "range_voltage")
@@ -169,13 +171,8 @@ def assert_same_as_per_roll(res, refs, what):
         assert np.array_equal(res.status[d], ref.status), f"{what} roll {d}: status {res.status[d]} != {ref.status}"
         for name in FIELDS:
             x = np.asarray(getattr(res, name)[d], float)
-            y = np.broadcast_to(np.asarray(getattr(ref, name), float), x.shape)
-            assert np.array_equal(np.isnan(x), np.isnan(y)), f"{what} roll {d}: {name} NaN pattern differs"
-            fin = np.isfinite(y)
-            if fin.any():
-                scale = np.max(np.abs(y[fin]))
-                err = np.max(np.abs(x[fin] - y[fin]))
-                assert err <= RTOL * scale + 1e-300, f"{what} roll {d}: {name} differs by {err / scale:.2e} relative"
+            assert_close(x, np.broadcast_to(np.asarray(getattr(ref, name), float), x.shape), f"{what} roll {d}: {name}",
+                         RTOL)
 
 
 def material_list(mat, n, **per_design):

@@ -21,7 +21,7 @@ from rdea_lab.physics.models import continuum, one_ring, solve, three_ring
 from rdea_lab.physics.models._common import free_state, kappa, yeoh_coefficients
 from rdea_lab.physics.result import SLACK, is_valid
 
-from physics_cases import RIZZELLO, core
+from physics_cases import RIZZELLO, assert_close, core
 from test_kernels import assert_same
 from test_random_cases import cases
 
@@ -42,13 +42,7 @@ N_CASES = 6
 
 
 def _close(x, y, what):
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    assert np.array_equal(np.isnan(x), np.isnan(y)), f"{what}: NaN pattern differs"
-    fin = np.isfinite(y)
-    if fin.any():
-        scale = np.max(np.abs(y[fin]))
-        err = np.max(np.abs(x[fin] - y[fin]))
-        assert err <= RTOL * scale + 1e-300, f"{what}: differs by {err / max(scale, 1e-300):.2e} relative"
+    assert_close(x, y, what, RTOL)
 
 
 def _slack_scene(case, rng, n=32):
