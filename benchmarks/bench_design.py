@@ -429,17 +429,18 @@ def run(designs=10_000, chunk=250, repeat=3, workers=(1, 2), loop_designs=200, c
             if size in c["1"].get("by_chunk", {}):
                 c["2"]["by_chunk"][size]["speedup"] = (c["1"]["by_chunk"][size]["seconds"][0]
                                                        / c["2"]["by_chunk"][size]["seconds"][0])
-    lp, peak = loop(study, table, fixed, loop_designs, repeat)
-    study_peak = ref["peak_force"][:lp["designs"]]
-    ok = np.isfinite(study_peak)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rel = np.abs(peak[ok] - study_peak[ok]) / np.abs(study_peak[ok])
-    lp["max_rel_diff"] = float(rel.max()) if rel.size else float("nan")
-    lp["compared"] = int(ok.sum())
-    best = c[str(max(workers))]
-    lp["study_over_loop"] = best["designs_per_s"][0] / lp["designs_per_s"][0]
-    lp["study_workers"] = max(workers)
-    result["loop"] = lp
+    if loop_designs > 0:  # 0: the study alone
+        lp, peak = loop(study, table, fixed, loop_designs, repeat)
+        study_peak = ref["peak_force"][:lp["designs"]]
+        ok = np.isfinite(study_peak)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rel = np.abs(peak[ok] - study_peak[ok]) / np.abs(study_peak[ok])
+        lp["max_rel_diff"] = float(rel.max()) if rel.size else float("nan")
+        lp["compared"] = int(ok.sum())
+        best = c[str(max(workers))]
+        lp["study_over_loop"] = best["designs_per_s"][0] / lp["designs_per_s"][0]
+        lp["study_workers"] = max(workers)
+        result["loop"] = lp
     if "2" in c and model in AIMS:
         aim_s, aim_n = AIMS[model]
         t_aim = c["2"]["seconds"][0] * aim_n / designs
@@ -504,13 +505,15 @@ def format_text(r: dict) -> str:
             parts = [f"{c}: {e['seconds'][0]:.2f} ({e['seconds'][2]:.2f}-{e['seconds'][1]:.2f})"
                      + (f" {e['speedup']:.2f}x" if "speedup" in e else "") for c, e in by.items()]
             lines.append(f"    {w} worker(s): " + ", ".join(parts))
-    lp = r["loop"]
-    lines.append(row(f"loop simulate(), {lp['designs']}", lp))
-    e = lp["extrapolated_1e4_s"]
-    lines.append(f"  loop: 1e4 designs would take {e[0]:.0f} s ({e[2]:.0f}-{e[1]:.0f}); "
-                 f"the {lp['study_workers']}-worker study is {lp['study_over_loop']:.1f}x the loop's rate")
-    lines.append(f"  loop max force vs study peak_force, {lp['compared']} designs: max rel. diff "
-                 f"{lp['max_rel_diff']:.1e}; results identical across worker counts: {r['same_across_workers']}; "
+    lp = r.get("loop")
+    if lp is not None:
+        lines.append(row(f"loop simulate(), {lp['designs']}", lp))
+        e = lp["extrapolated_1e4_s"]
+        lines.append(f"  loop: 1e4 designs would take {e[0]:.0f} s ({e[2]:.0f}-{e[1]:.0f}); "
+                     f"the {lp['study_workers']}-worker study is {lp['study_over_loop']:.1f}x the loop's rate")
+        lines.append(f"  loop max force vs study peak_force, {lp['compared']} designs: max rel. diff "
+                     f"{lp['max_rel_diff']:.1e}")
+    lines.append(f"  results identical across worker counts: {r['same_across_workers']}; "
                  f"design status: {r['design_status']}")
     if "aim" in r:
         a = r["aim"]
