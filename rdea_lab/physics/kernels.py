@@ -31,8 +31,9 @@ the work around them, fused per sample with no temporaries:
 - `su_linear_residual`: a calibration run's scaled force errors under eq. (44)'s linear law in one pass
   (`rdea_lab.physics.models.su.residual_pass`).
 - `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample (the
-  step kernel's and `ring_kernels`' slack states); `_su_free_lanes` takes the same steps for 8 SU
-  samples in lockstep (tested equal to it bit for bit: a second form of the iteration, kept for speed).
+  step kernel's and `ring_kernels`' slack states), one step at a time (`_free_step`: the one compiled
+  form of a step); `_su_free_lanes` takes the same steps for 8 SU samples in lockstep. `free_check` is
+  the reference's final check (`models._common.free_check`) compiled.
 
 Importing this module imports numba and loads the cached machine code
 (a fraction of a second to seconds); the first call in a fresh install compiles (about 25 s for
@@ -54,7 +55,7 @@ import numpy as np
 from numba import prange
 
 from . import viscoelastic, yeoh
-from .models import continuum, su, three_ring
+from .models import _common, continuum, su, three_ring
 
 
 def _check_cache():
@@ -645,54 +646,73 @@ def _su_stress(lam, v, C10, C20, C30, kap):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def free_stretch(stress, args, l1, s1, free_max):
-    """The free (F = 0) stretch above ``l1`` of one slack sample (stress ``s1 < 0`` at ``l1``), NaN where
-    none is found: `models._common.free_state`'s steps for one sample, in the same order (bracketing by
-    25 % steps, the Illinois iteration and its stopping rule), the one compiled form of them.
+def _free_start(l1, s1, free_max):
+    """``(state, first trial stretch)`` of `free_stretch`'s iteration for one slack sample (stretch ``l1``,
+    stress ``s1 < 0`` there). The state is ``(phase, lo, s_lo, a, b, fa, fb, tol, side, count)``: phase 0
+    brackets by 25 % steps up from ``lo`` (its stress ``s_lo``), phase 1 is the Illinois iteration on
+    ``[a, b]`` (``fa < 0 <= fb``; ``side``: the end replaced last, ``count``: its trials so far)."""
+    return (0, l1, s1, l1, l1, s1, s1, 1e-10 * abs(s1), 0, 0), min(l1 * 1.25, free_max)
 
-    ``stress(stretch, args)`` is the compiled model at a trial stretch, ``(stress [Pa], valid)``; a trial
-    that is not valid (not converged, non-finite) ends the search with NaN. The caller checks the stress
-    at the returned stretch (the reference's final check), with the model's fields there in hand.
-    Inlined into each caller at numba's level: a call would pass ``stress`` as a pointer to the Python
-    object, which numba cannot cache.
-    """
-    lo, s_lo, hi = l1, s1, l1
-    s_hi = -np.inf
-    while True:
-        trial = min(hi * 1.25, free_max)
-        sig, valid = stress(trial, args)
-        if not (valid and np.isfinite(sig)):
-            return np.nan
-        if sig >= 0.0:
-            hi, s_hi = trial, sig
-            break
-        lo, s_lo = trial, sig
-        if trial >= free_max:
-            return np.nan
-        hi = trial
-    a, b, fa, fb = lo, hi, s_lo, s_hi
-    tol = 1e-10 * abs(s1)
-    side = 0
-    x = b
-    for _ in range(200):
-        xn = (a * fb - b * fa) / (fb - fa)
-        if not (xn > a and xn < b):
-            xn = 0.5 * (a + b)
-        yn, valid = stress(xn, args)
-        if not (valid and np.isfinite(yn)):
-            return np.nan
-        x = xn
-        if yn < 0.0:
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _free_step(state, trial, y, valid, free_max):
+    """One step of `free_stretch`'s iteration: the trial stretch ``trial`` gave the stress ``y`` (``valid``:
+    the model has a state there). ``(state, next trial, done, free stretch)``; the free stretch (NaN where
+    none is found) only where done. `models._common.free_state`'s steps, in its order: bracketing by 25 %
+    steps up to ``free_max``, then the Illinois iteration, at most 200 trials, until the stress is within
+    1e-10 of the clamped one's or the bracket within 1e-13 of its end."""
+    phase, lo, s_lo, a, b, fa, fb, tol, side, count = state
+    if not (valid and np.isfinite(y)):
+        return state, trial, True, np.nan
+    if phase == 0:
+        if y < 0.0:  # not bracketed yet: 25 % further, up to free_max
+            if trial >= free_max:
+                return state, trial, True, np.nan
+            return (0, trial, y, a, b, fa, fb, tol, side, count), min(trial * 1.25, free_max), False, np.nan
+        a, b, fa, fb = lo, trial, s_lo, y  # bracketed: the Illinois iteration on [lo, trial]
+        phase = 1
+    else:  # replace the end on the root's side; halve the kept end's value when it is kept twice
+        if y < 0.0:
             fb = 0.5 * fb if side == -1 else fb
-            a, fa = xn, yn
+            a, fa = trial, y
             side = -1
         else:
             fa = 0.5 * fa if side == 1 else fa
-            b, fb = xn, yn
+            b, fb = trial, y
             side = 1
-        if abs(yn) <= tol or b - a <= 1e-13 * b:
-            return x
-    return np.nan
+        count += 1
+        if abs(y) <= tol or b - a <= 1e-13 * b:
+            return state, trial, True, trial
+        if count >= 200:
+            return state, trial, True, np.nan
+    xn = (a * fb - b * fa) / (fb - fa)
+    if not (xn > a and xn < b):
+        xn = 0.5 * (a + b)
+    return (phase, lo, s_lo, a, b, fa, fb, tol, side, count), xn, False, np.nan
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def free_stretch(stress, args, l1, s1, free_max):
+    """The free (F = 0) stretch above ``l1`` of one slack sample (stress ``s1 < 0`` at ``l1``), NaN where
+    none is found: `models._common.free_state`'s steps for one sample, in the same order (`_free_start`,
+    then `_free_step` per trial: the one compiled form of them, which `_su_free_lanes` takes too).
+
+    ``stress(stretch, args)`` is the compiled model at a trial stretch, ``(stress [Pa], valid)``; a trial
+    that is not valid (not converged, non-finite) ends the search with NaN. The caller checks the stress
+    at the returned stretch (the reference's final check, `free_check`), with the model's fields there in
+    hand. Inlined into each caller at numba's level: a call would pass ``stress`` as a pointer to the
+    Python object, which numba cannot cache.
+    """
+    state, x = _free_start(l1, s1, free_max)
+    while True:
+        y, valid = stress(x, args)
+        state, x, done, found = _free_step(state, x, y, valid, free_max)
+        if done:
+            return found
+
+
+#: `models._common.free_check` compiled: the free state's final check (its tolerance stated once).
+free_check = _jit(_common.free_check, inline="always")
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -706,17 +726,17 @@ def _su_free(l1, v, s1, C10, C20, C30, kap, free_max):
     """The SU free stretch above ``l1`` (`free_stretch`), NaN where there is none or where the stress
     there fails the reference's final check."""
     x = free_stretch(_su_trial, (v, C10, C20, C30, kap), l1, s1, free_max)
-    if x == x and not (abs(_su_stress(x, v, C10, C20, C30, kap)) <= 1e-6 * abs(s1) + 1e-6):
+    if x == x and not free_check(_su_stress(x, v, C10, C20, C30, kap), s1):
         return np.nan
     return x
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, status):
+def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, status, converged):
     """What a whole SU solve computes up front, in one loop over the inputs as given: the tension (eq. (39)
     at the given stretch), the stretch of the state (the given one; a slack sample's free stretch comes
-    later) and the status; NaN where the sample has no state (a NaN or infinite input: `BAD_INPUT`).
-    Returns ``(slack samples, finite samples with a stretch below 1)``."""
+    later), the status and whether it converged; NaN where the sample has no state (a NaN or infinite
+    input: `BAD_INPUT`). Returns ``(slack samples, finite samples with a stretch below 1)``."""
     OK_, SLACK_, BAD_, OVER_ = codes[0], codes[1], codes[2], codes[3]
     n_slack = 0
     n_low = 0
@@ -737,6 +757,7 @@ def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, s
         state[i] = lam if ok else np.nan
         a, b, c = np.int8(ok), np.int8(neg), np.int8(given)
         status[i] = a * (b * SLACK_ + (1 - b) * OK_) + (1 - a) * (c * OVER_ + (1 - c) * BAD_)
+        converged[i] = ok  # OK or SLACK
         n_slack += np.int64(ok & neg)
     return n_slack, n_low
 
@@ -763,42 +784,40 @@ _LANES = 8
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out):
-    """`_su_free` of every sample, `_LANES` samples in lockstep: each lane takes `free_stretch`'s steps for
-    its sample in the same order with the same numbers (so the same result, bit for bit), and the stress of
-    all lanes is evaluated together, so that the lanes' chains of dependent divisions overlap. A lane that
-    is done takes the next sample. The final check uses the stress of the last trial, which is the stress
-    at the returned stretch."""
+def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, start, stop):
+    """`_su_free` of the samples ``start:stop``, `_LANES` samples in lockstep: each lane takes
+    `free_stretch`'s steps (`_free_start`, `_free_step`) for its sample, and the stress of all lanes is
+    evaluated together, so that the lanes' chains of dependent divisions overlap. A lane that is done
+    takes the next sample. The final check uses the stress of the last trial, which is the stress at the
+    returned stretch."""
     B = _LANES
-    n = l1.size
     idx = np.full(B, -1)
-    phase = np.zeros(B, np.int8)  # 0: bracketing by 25 % steps, 1: the Illinois iteration
     x_try = np.ones(B)
     vv = np.zeros(B)
     s1v = np.zeros(B)
+    sig = np.empty(B)
+    # each lane's `_free_step` state, one array per entry
+    phase = np.zeros(B, np.int64)
     lo = np.empty(B)
     s_lo = np.empty(B)
-    hi = np.empty(B)
     a = np.empty(B)
     b = np.empty(B)
     fa = np.empty(B)
     fb = np.empty(B)
     tol = np.empty(B)
-    side = np.zeros(B, np.int8)
+    side = np.zeros(B, np.int64)
     count = np.zeros(B, np.int64)
-    sig = np.empty(B)
-    nxt = 0
+    nxt = start
     busy = 0
     while True:
         for k in range(B):  # an idle lane takes the next sample
             if idx[k] < 0:
-                if nxt < n:
+                if nxt < stop:
                     idx[k] = nxt
-                    phase[k] = 0
-                    lo[k] = hi[k] = l1[nxt]
-                    s_lo[k] = s1v[k] = s1[nxt]
+                    st, x_try[k] = _free_start(l1[nxt], s1[nxt], free_max)
+                    phase[k], lo[k], s_lo[k], a[k], b[k], fa[k], fb[k], tol[k], side[k], count[k] = st
+                    s1v[k] = s1[nxt]
                     vv[k] = v[nxt]
-                    x_try[k] = min(hi[k] * 1.25, free_max)
                     nxt += 1
                     busy += 1
                 else:
@@ -811,76 +830,56 @@ def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out):
         for k in range(B):
             if idx[k] < 0:
                 continue
-            trial, y = x_try[k], sig[k]
-            res = np.nan
-            done = not np.isfinite(y)
-            if not done and phase[k] == 0:
-                if y >= 0.0:  # bracketed: the Illinois iteration from [lo, trial]
-                    a[k], b[k], fa[k], fb[k] = lo[k], trial, s_lo[k], y
-                    tol[k] = 1e-10 * abs(s1v[k])
-                    side[k] = 0
-                    count[k] = 0
-                    phase[k] = 1
-                else:
-                    lo[k], s_lo[k] = trial, y
-                    done = trial >= free_max
-                    hi[k] = trial
-                    x_try[k] = min(hi[k] * 1.25, free_max)
-            elif not done:
-                if y < 0.0:
-                    fb[k] = 0.5 * fb[k] if side[k] == -1 else fb[k]
-                    a[k], fa[k] = trial, y
-                    side[k] = -1
-                else:
-                    fa[k] = 0.5 * fa[k] if side[k] == 1 else fa[k]
-                    b[k], fb[k] = trial, y
-                    side[k] = 1
-                count[k] += 1
-                if abs(y) <= tol[k] or b[k] - a[k] <= 1e-13 * b[k]:
-                    done = True
-                    if abs(y) <= 1e-6 * abs(s1v[k]) + 1e-6:  # `_su_free`'s final check
-                        res = trial
-                else:
-                    done = count[k] >= 200
+            st = (phase[k], lo[k], s_lo[k], a[k], b[k], fa[k], fb[k], tol[k], side[k], count[k])
+            st, x, done, found = _free_step(st, x_try[k], sig[k], True, free_max)
             if done:
-                out[idx[k]] = res
+                out[idx[k]] = found if free_check(sig[k], s1v[k]) else np.nan  # `_su_free`'s final check
                 idx[k] = -1
                 busy -= 1
-            elif phase[k] == 1:
-                xa, xb = a[k], b[k]
-                xn = (xa * fb[k] - xb * fa[k]) / (fb[k] - fa[k])
-                if not (xn > xa and xn < xb):
-                    xn = 0.5 * (xa + xb)
-                x_try[k] = xn
+            else:
+                phase[k], lo[k], s_lo[k], a[k], b[k], fa[k], fb[k], tol[k], side[k], count[k] = st
+                x_try[k] = x
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _su_stress_force(tension, status, state, slack_code, area, sigma, force):
+def _su_free_loop(l1, v, s1, C10, C20, C30, kap, free_max, out, chunks):
+    """`_su_free_lanes` of every sample, in ``chunks`` ranges (on all cores in the parallel variant)."""
+    n = l1.size
+    size = (n + chunks - 1) // chunks
+    for c in prange(chunks):
+        _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, min(n, c * size), min(n, (c + 1) * size))
+
+
+def _su_stress_force_loop(tension, status, state, slack_code, area, sigma, force):
     """The stress (the tension; 0 where slack) and the force ``sigma area / lambda1`` of an SU solve (NaN
-    where the sample has no state: its tension and state stretch are NaN)."""
-    for i in range(tension.size):
-        s = 0.0 if status[i] == slack_code else tension[i]
+    where the sample has no state: its tension and state stretch are NaN; 0 where slack, as ``0 area /
+    lambda1`` is: ``state`` there may hold the free stretch, see `_su_state_fields`)."""
+    for i in prange(tension.size):
+        slack = status[i] == slack_code
+        s = 0.0 if slack else tension[i]
         sigma[i] = s
-        force[i] = s * area / state[i]
+        force[i] = 0.0 if slack else s * area / state[i]
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _su_state_fields(state, idx, found, C0, Ri, free, l2, cap, r_i):
-    """The free stretch, hoop stretch, capacitance and inner radius of an SU solve at the stretch of each
-    sample's state: the given one (``state``, NaN where the sample has no state), at the slack samples
-    ``idx`` their free stretch ``found`` where there is one (NaN: the clamped state's fields, free
-    stretch NaN)."""
-    for i in range(state.size):
+def _su_state_fields_loop(state, C0, Ri, l2, cap, r_i):
+    """The hoop stretch, capacitance and inner radius of an SU solve at the stretch of each sample's state
+    (``state``: the given one, NaN where the sample has no state)."""
+    for i in prange(state.size):
         at = state[i]
         q = 1.0 / np.sqrt(at)
-        free[i] = at
         l2[i] = q
         cap[i] = C0 * at
         r_i[i] = Ri * q
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_free_fields(state, idx, found, C0, Ri, l2, cap, r_i):
+    """At the slack samples ``idx``: their free stretch ``found`` into ``state`` (which becomes the free
+    stretch field), and where there is one (not NaN) the fields there (NaN: the clamped state's fields
+    stay, the free stretch is NaN)."""
     for k in range(idx.size):
         i = idx[k]
         at = found[k]
-        free[i] = at
+        state[i] = at
         if at == at:
             q = 1.0 / np.sqrt(at)
             l2[i] = q
@@ -890,6 +889,11 @@ def _su_state_fields(state, idx, found, C0, Ri, free, l2, cap, r_i):
 
 _roots = _variants(_roots_loop)
 _su = _variants(_su_loop)
+_su_free_chunks = _variants(_su_free_loop)
+_su_stress_force = _variants(_su_stress_force_loop)
+_su_state_fields = _variants(_su_state_fields_loop)
+#: A free state costs some 10 stress evaluations: calls of this many slack samples run on all cores.
+SU_FREE_PARALLEL_MIN = 512
 
 
 def su_state(l1, v, C, kap, C0, out=None):
@@ -909,46 +913,56 @@ def su_state(l1, v, C, kap, C0, out=None):
 
 def su_solve(l1, v, C, kap, area, slack, codes):
     """The eager part of a whole SU solve of 1-D float inputs as given, one compiled pass: ``(tension,
-    state, status, slack, low)``: the tension [Pa] (eq. (39) at the given stretch), the stretch of the
-    state [-] (the given one, NaN where the sample has no state), the status (``codes``: ``(OK, SLACK,
-    BAD_INPUT, OVERFLOW)``; a NaN or infinite input is ``BAD_INPUT``), the indices of the slack samples
-    and the number of finite samples with a stretch below 1 (the caller's error). The slack samples'
-    free stretch is `su_free`'s, every other field `su_fields`' (`rdea_lab.physics.models.su` computes
-    them when they are asked for).
+    state, status, converged, slack, low)``: the tension [Pa] (eq. (39) at the given stretch), the stretch
+    of the state [-] (the given one, NaN where the sample has no state), the status (``codes``: ``(OK,
+    SLACK, BAD_INPUT, OVERFLOW)``; a NaN or infinite input is ``BAD_INPUT``), where it is OK or SLACK, the
+    indices of the slack samples and the number of finite samples with a stretch below 1 (the caller's
+    error). The slack samples' free stretch is `su_free`'s, every other field `su_fields`'
+    (`rdea_lab.physics.models.su` computes them when they are asked for).
     """
     n = l1.size
     tension = np.empty(n)
     state = np.empty(n)
     status = np.empty(n, np.int8)
+    converged = np.empty(n, np.bool_)
     codes = np.asarray(codes, np.int8)
     # one thread: the pass is memory-bound, and a shared machine's busy cores made the threaded
     # form up to 10x slower than this one
-    count, low = _su_tension(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, tension, state, status)
+    count, low = _su_tension(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, tension, state, status,
+                             converged)
     idx = _su_slack_index(status, codes[1], count) if count else np.empty(0, np.intp)
-    return tension, state, status, idx, low
+    return tension, state, status, converged, idx, low
 
 
 def su_free(l1, v, s1, C, kap, free_max):
     """The free stretch of slack SU samples (1-D ``l1``, ``v`` and their stress ``s1 < 0``), NaN where
     there is none (`free_stretch`: the reference `free_state`'s steps), several samples in lockstep
-    (`_su_free_lanes`)."""
-    out = np.empty(l1.size)
-    _su_free_lanes(_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out)
+    (`_su_free_lanes`), on all cores from `SU_FREE_PARALLEL_MIN` samples where `_parallel` allows."""
+    n = l1.size
+    out = np.empty(n)
+    par = int(n >= SU_FREE_PARALLEL_MIN and _parallel(PARALLEL_MIN))
+    chunks = 4 * numba.get_num_threads() if par else 1
+    _su_free_chunks[par](_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out, chunks)
     return out
 
 
 def su_fields(tension, status, state, idx, v_slack, C, kap, free_max, slack_code, area, C0, Ri, which):
-    """The fields of an SU solve (`su_solve`) computed when first read: ``which`` 0, a (2, n) block of the
-    stress and force; 1, a (4, n) block of the free stretch, hoop stretch, capacitance and inner radius,
-    the slack samples' free stretches by `su_free` (``v_slack``: their voltages)."""
+    """The fields of an SU solve (`su_solve`) computed when first read, on all cores where `_parallel`
+    allows: ``which`` 0, a (2, n) block of the stress and force; 1, the hoop stretch (an array of its own:
+    the three rings') and a (2, n) block of the capacitance and inner radius, and ``state`` (written in
+    place) becomes the free stretch: the slack samples' free stretches by `su_free` (``v_slack``: their
+    voltages)."""
+    par = _parallel(tension.size)
     if which == 0:
         out = np.empty((2, tension.size))
-        _su_stress_force(tension, status, state, slack_code, area, out[0], out[1])
+        _su_stress_force[par](tension, status, state, slack_code, area, out[0], out[1])
         return out
-    found = su_free(state[idx], v_slack, tension[idx], C, kap, free_max)
-    out = np.empty((4, tension.size))
-    _su_state_fields(state, idx, found, C0, Ri, *out)
-    return out
+    found = su_free(state[idx], v_slack, tension[idx], C, kap, free_max) if idx.size else None
+    l2, rest = np.empty(tension.size), np.empty((2, tension.size))
+    _su_state_fields[par](state, C0, Ri, l2, *rest)
+    if idx.size:
+        _su_free_fields(state, idx, found, C0, Ri, l2, *rest)
+    return l2, *rest
 
 
 _update = _jit(viscoelastic._linear_update, inline="always")

@@ -199,12 +199,15 @@ def _lanes_against_one_by_one(seeds):
         C, kap = (mat.C10, mat.C20, mat.C30), float(kappa(geom, mat))
         ok = np.isfinite(l1) & np.isfinite(v)
         l1, v = l1[ok], v[ok]
-        tension, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True, (0, SLACK, BAD_INPUT, OVERFLOW))
+        tension, _, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True,
+                                                   (0, SLACK, BAD_INPUT, OVERFLOW))
         args = (l1[idx].copy(), v[idx].copy(), tension[idx].copy(), *C, kap, FREE_STRETCH_MAX)
-        one, lanes = np.empty(idx.size), np.empty(idx.size)
+        one, lanes, chunked = np.empty(idx.size), np.empty(idx.size), np.full(idx.size, -1.0)
         kernels._su_free_all(*args, one)
-        kernels._su_free_lanes(*args, lanes)
+        kernels._su_free_lanes(*args, lanes, 0, idx.size)
+        kernels._su_free_chunks[1](*args, chunked, 7)  # on all cores, in 7 ranges (every sample in one)
         assert np.array_equal(one, lanes, equal_nan=True), f"seed {seed}"
+        assert np.array_equal(one, chunked, equal_nan=True), f"seed {seed}"
         total += idx.size
     return total
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from .. import yeoh
@@ -154,54 +156,69 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
     """`solve` by the compiled kernels: the same result as `solve_model`'s (the tests hold them to 1e-12
     and identical statuses).
 
-    One compiled pass (`rdea_lab.physics.kernels.su_solve`) computes what every caller needs: the status
-    and the tension (and checks the inputs). The other fields are computed when first read (`_Fields`):
-    the stress and force in one compiled pass, the slack rolls' free states and the stretches,
-    capacitance and radius in another. A caller that reads the stress alone (a fit, a calibration)
-    pays for no free state. The result holds no reference
-    to the caller's arrays beyond ``stretch`` and ``voltage``, so a later change to those changes no
-    field computed later."""
+    One compiled pass (`rdea_lab.physics.kernels.su_solve`) computes what every caller needs: the status,
+    the convergence and the tension (and checks the inputs). The other fields are computed when first read
+    (`_Fields`): the stress and force in one compiled pass, the slack rolls' free states and the stretches,
+    capacitance and radius in another. A caller that reads the stress alone (a fit, a calibration) pays
+    for no free state. The result holds no reference to the caller's arrays beyond ``stretch`` and
+    ``voltage``, so a later change to those changes no field computed later; the arrays later fields are
+    computed from are not writeable (nor can a view of them be made so)."""
     end = check_start("su", path, start)
     kap = float(kappa(geom, material))
-    codes = (OK, SLACK, BAD_INPUT, OVERFLOW)
     l1c, vc = np.ascontiguousarray(l1), np.ascontiguousarray(v)
-    tension, state, status, idx, low = fast.su_solve(l1c, vc, C, kap, float(geom.area), slack, codes)
+    area = float(geom.area)
+    tension, state, status, converged, idx, low = fast.su_solve(l1c, vc, C, kap, area, slack, _CODES)
     if low:
         check_inputs(l1, v, shape)  # raises `StretchBelowOneError`, with the first such sample
     if path:  # SU has no coordinate: a path ends where it started only when it had no sample to solve
         none = end is not None and status.size and not (status != BAD_INPUT).any()
         end = PathEnd("su", *(end if none else (None, None)))
+    for a in (tension, status, converged):
+        a.flags.writeable = False  # the arrays themselves: a view of them cannot be made writeable
     # the slack samples' inputs, for their free states (copies: a few samples)
-    derive = _Fields(fast, shape, tension, state, status, idx, vc[idx], C, kap, float(geom.area),
+    derive = _Fields(fast, shape, tension, state, status, idx, vc[idx], C, kap, area,
                      float(geom.C0(material.eps_r)), float(geom.Ri))
     nan = np.broadcast_to(np.nan, shape)  # SU has no fold and no range end
     return deferred({"model": "su", "stretch": read_only(l1.reshape(shape)), "voltage": read_only(v.reshape(shape)),
-                     "status": read_only(status.reshape(shape)), "tension": read_only(tension.reshape(shape)),
-                     "critical_voltage": nan, "range_voltage": nan, "end": end}, derive)
+                     "status": status.reshape(shape), "tension": tension.reshape(shape),
+                     "converged": converged.reshape(shape), "critical_voltage": nan, "range_voltage": nan,
+                     "end": end}, derive)
+
+
+_CODES = (OK, SLACK, BAD_INPUT, OVERFLOW)
 
 
 class _Fields:
     """The fields of a compiled SU solve that are computed when first read (see `_solve_compiled`), from
-    the solve's own tension, state stretch and status (read-only) and the slack samples' indices and
-    voltages: the stress and force together, then the free states and the fields at them together
-    (`rdea_lab.physics.kernels.su_fields`), the convergence from the status."""
+    the solve's own tension, state stretch and status (not writeable) and the slack samples' indices and
+    voltages, in two blocks (`rdea_lab.physics.kernels.su_fields`): the stress and force, then the free
+    states and the fields at them (the state stretch, written in place, becomes the free stretch, then is
+    not writeable). Each block is computed once, under a lock: threads that read a field first at once
+    get the same arrays."""
 
-    _ROWS = {"sigma1": (0, 0), "force": (0, 1), "free_stretch": (1, 0), "lambda2a": (1, 1), "lambda2b": (1, 1),
-             "lambda2c": (1, 1), "capacitance": (1, 2), "r_i": (1, 3)}
+    _ROWS = {"sigma1": (0, 0), "force": (0, 1), "lambda2a": (1, 0), "lambda2b": (1, 0), "lambda2c": (1, 0),
+             "capacitance": (1, 1), "r_i": (1, 2), "free_stretch": (1, 3)}
 
     def __init__(self, fast, shape, tension, state, status, idx, v_slack, C, kap, area, C0, Ri):
         self.fast, self.shape, self.tension, self.state, self.status = fast, shape, tension, state, status
         self.args = (idx, v_slack, C, kap, FREE_STRETCH_MAX, SLACK, area, C0, Ri)
         self.blocks = [None, None]
+        self.lock = threading.Lock()
 
     def __call__(self, name):
-        if name == "converged":
-            return ((self.status == OK) | (self.status == SLACK)).reshape(self.shape)
         block, row = self._ROWS[name]
-        if self.blocks[block] is None:
-            rows = self.fast.su_fields(self.tension, self.status, self.state, *self.args, block)
-            rows = [r.reshape(self.shape) for r in rows]
-            if block == 1:  # one array for the three rings: read-only (`read_only`)
-                rows[1] = read_only(rows[1])
-            self.blocks[block] = rows
+        with self.lock:
+            if self.blocks[block] is None:
+                self.blocks[block] = self._compute(block)
         return self.blocks[block][row]
+
+    def _compute(self, block):
+        # the stress pass reads the state stretch only where not slack: the same before and after the
+        # free-state pass writes the free stretches into it (a read-only view: one compiled variant)
+        state = read_only(self.state) if block == 0 else self.state
+        out = list(self.fast.su_fields(self.tension, self.status, state, *self.args, block))
+        if block == 1:  # one array for the three rings; the state stretch, now the free one: not writeable
+            out.append(self.state)
+            for a in (out[0], self.state):
+                a.flags.writeable = False
+        return [r.reshape(self.shape) for r in out]
