@@ -156,6 +156,66 @@ def test_su_fields_computed_when_read_in_any_order(seed):
         assert not getattr(fast, name).flags.writeable, name  # shared, or what later fields are computed from
 
 
+
+def test_su_deferred_fields_cannot_be_changed_through_a_view():
+    """The arrays the deferred fields are computed from (tension, status, the state stretch that becomes
+    the free one) and the rings' shared array are not writeable themselves: a caller who asks a view of
+    them to be writeable is refused, and every field read later equals the reference's."""
+    geom = core("hollow")
+    l1 = np.linspace(1.0, 1.5, 3000)
+    ref = reference(geom, TABLE3, l1, 2600.0)
+    assert np.any(ref.status == SLACK)
+    fast = solve("su", geom, TABLE3, l1, 2600.0, kernel="numba")
+    for name in ("tension", "status", "converged"):  # read before any deferred field is computed
+        with pytest.raises(ValueError):
+            getattr(fast, name).flags.writeable = True
+        with pytest.raises(ValueError):
+            getattr(fast, name)[...] = 0
+    assert_same(ref, fast, "after the refused writes")  # every deferred field computed after them
+    for name in ("lambda2a", "free_stretch"):
+        with pytest.raises(ValueError):
+            getattr(fast, name).flags.writeable = True
+    assert_same(ref, fast, "after the refused writes")
+
+
+def test_su_deferred_block_computed_once_by_threads_reading_it_at_once():
+    """Two threads that read a deferred field first at the same time get the same arrays, computed once
+    (`su._Fields`' lock); the fields equal the reference's."""
+    import threading
+    import time
+
+    geom = core("hollow")
+    l1 = np.linspace(1.0, 1.5, 3000)
+    ref = reference(geom, TABLE3, l1, 2600.0)
+    fast = solve("su", geom, TABLE3, l1, 2600.0, kernel="numba")
+    derive = fast._derive
+    calls = []
+
+    class Slow:  # the kernels module, its fields pass slowed down so that the two reads overlap
+        def __getattr__(self, name):
+            return getattr(derive_fast, name)
+
+        def su_fields(self, *args):
+            calls.append(args[-1])
+            time.sleep(0.05)
+            return derive_fast.su_fields(*args)
+
+    derive_fast, derive.fast = derive.fast, Slow()
+    got = {}
+
+    def read(key, name):
+        got[key] = getattr(fast, name)
+
+    threads = [threading.Thread(target=read, args=(k, name)) for k, name in enumerate(("free_stretch", "r_i",
+                                                                                           "sigma1", "force"))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sorted(calls) == [0, 1]  # each block once
+    assert got[0] is fast.free_stretch and got[1] is fast.r_i and got[2] is fast.sigma1 and got[3] is fast.force
+    assert_same(ref, fast, "read by threads")
+
 def test_su_deferred_result_pickles_copies_and_replaces_as_a_model_result():
     import copy
     import dataclasses
