@@ -841,29 +841,23 @@ def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, start, stop):
                 x_try[k] = x
 
 
-def _su_free_loop(l1, v, s1, C10, C20, C30, kap, free_max, out, chunks):
-    """`_su_free_lanes` of every sample, in ``chunks`` ranges (on all cores in the parallel variant)."""
-    n = l1.size
-    size = (n + chunks - 1) // chunks
-    for c in prange(chunks):
-        _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, min(n, c * size), min(n, (c + 1) * size))
-
-
-def _su_stress_force_loop(tension, status, state, slack_code, area, sigma, force):
+@numba.njit(cache=True, error_model="numpy")
+def _su_stress_force(tension, status, state, slack_code, area, sigma, force):
     """The stress (the tension; 0 where slack) and the force ``sigma area / lambda1`` of an SU solve (NaN
     where the sample has no state: its tension and state stretch are NaN; 0 where slack, as ``0 area /
     lambda1`` is: ``state`` there may hold the free stretch, see `_su_state_fields`)."""
-    for i in prange(tension.size):
+    for i in range(tension.size):
         slack = status[i] == slack_code
         s = 0.0 if slack else tension[i]
         sigma[i] = s
         force[i] = 0.0 if slack else s * area / state[i]
 
 
-def _su_state_fields_loop(state, C0, Ri, l2, cap, r_i):
+@numba.njit(cache=True, error_model="numpy")
+def _su_state_fields(state, C0, Ri, l2, cap, r_i):
     """The hoop stretch, capacitance and inner radius of an SU solve at the stretch of each sample's state
     (``state``: the given one, NaN where the sample has no state)."""
-    for i in prange(state.size):
+    for i in range(state.size):
         at = state[i]
         q = 1.0 / np.sqrt(at)
         l2[i] = q
@@ -889,11 +883,6 @@ def _su_free_fields(state, idx, found, C0, Ri, l2, cap, r_i):
 
 _roots = _variants(_roots_loop)
 _su = _variants(_su_loop)
-_su_free_chunks = _variants(_su_free_loop)
-_su_stress_force = _variants(_su_stress_force_loop)
-_su_state_fields = _variants(_su_state_fields_loop)
-#: A free state costs some 10 stress evaluations: calls of this many slack samples run on all cores.
-SU_FREE_PARALLEL_MIN = 512
 
 
 def su_state(l1, v, C, kap, C0, out=None):
@@ -937,29 +926,26 @@ def su_solve(l1, v, C, kap, area, slack, codes):
 def su_free(l1, v, s1, C, kap, free_max):
     """The free stretch of slack SU samples (1-D ``l1``, ``v`` and their stress ``s1 < 0``), NaN where
     there is none (`free_stretch`: the reference `free_state`'s steps), several samples in lockstep
-    (`_su_free_lanes`), on all cores from `SU_FREE_PARALLEL_MIN` samples where `_parallel` allows."""
-    n = l1.size
-    out = np.empty(n)
-    par = int(n >= SU_FREE_PARALLEL_MIN and _parallel(PARALLEL_MIN))
-    chunks = 4 * numba.get_num_threads() if par else 1
-    _su_free_chunks[par](_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out, chunks)
+    (`_su_free_lanes`)."""
+    out = np.empty(l1.size)
+    _su_free_lanes(_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out, 0, l1.size)
     return out
 
 
 def su_fields(tension, status, state, idx, v_slack, C, kap, free_max, slack_code, area, C0, Ri, which):
-    """The fields of an SU solve (`su_solve`) computed when first read, on all cores where `_parallel`
-    allows: ``which`` 0, a (2, n) block of the stress and force; 1, the hoop stretch (an array of its own:
-    the three rings') and a (2, n) block of the capacitance and inner radius, and ``state`` (written in
-    place) becomes the free stretch: the slack samples' free stretches by `su_free` (``v_slack``: their
-    voltages)."""
-    par = _parallel(tension.size)
+    """The fields of an SU solve (`su_solve`) computed when first read: ``which`` 0, a (2, n) block of the
+    stress and force; 1, the hoop stretch (an array of its own: the three rings') and a (2, n) block of the
+    capacitance and inner radius, and ``state`` (written in place) becomes the free stretch: the slack
+    samples' free stretches by `su_free` (``v_slack``: their voltages). One thread, as `su_solve`: the
+    passes are memory-bound, and on a shared machine's busy cores numba's threads waited some 8 ms per
+    pass (24 ms for every field of 1e5 samples, against 1 ms on one thread)."""
     if which == 0:
         out = np.empty((2, tension.size))
-        _su_stress_force[par](tension, status, state, slack_code, area, out[0], out[1])
+        _su_stress_force(tension, status, state, slack_code, area, out[0], out[1])
         return out
     found = su_free(state[idx], v_slack, tension[idx], C, kap, free_max) if idx.size else None
     l2, rest = np.empty(tension.size), np.empty((2, tension.size))
-    _su_state_fields[par](state, C0, Ri, l2, *rest)
+    _su_state_fields(state, C0, Ri, l2, *rest)
     if idx.size:
         _su_free_fields(state, idx, found, C0, Ri, l2, *rest)
     return l2, *rest
