@@ -647,48 +647,49 @@ def _su_stress(lam, v, C10, C20, C30, kap):
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _free_start(l1, s1, free_max):
-    """``(state, first trial stretch)`` of `free_stretch`'s iteration for one slack sample (stretch ``l1``,
-    stress ``s1 < 0`` there). The state is ``(phase, lo, s_lo, a, b, fa, fb, tol, side, count)``: phase 0
+    """The state of `free_stretch`'s iteration for one slack sample (stretch ``l1``, stress ``s1 < 0``
+    there) and its first trial stretch: ``(phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial)``. Phase 0
     brackets by 25 % steps up from ``lo`` (its stress ``s_lo``), phase 1 is the Illinois iteration on
-    ``[a, b]`` (``fa < 0 <= fb``; ``side``: the end replaced last, ``count``: its trials so far)."""
-    return (0, l1, s1, l1, l1, s1, s1, 1e-10 * abs(s1), 0, 0), min(l1 * 1.25, free_max)
+    ``[a, b]`` (``fa < 0 <= fb``; ``side``: the end replaced last, -1 or 1, ``count``: its trials so far).
+    Floats all, passed one by one: numba's parallel loops (`ring_kernels`) fail to analyse a tuple state."""
+    return 0.0, l1, s1, l1, l1, s1, s1, 1e-10 * abs(s1), 0.0, 0.0, min(l1 * 1.25, free_max)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _free_step(state, trial, y, valid, free_max):
-    """One step of `free_stretch`'s iteration: the trial stretch ``trial`` gave the stress ``y`` (``valid``:
-    the model has a state there). ``(state, next trial, done, free stretch)``; the free stretch (NaN where
-    none is found) only where done. `models._common.free_state`'s steps, in its order: bracketing by 25 %
-    steps up to ``free_max``, then the Illinois iteration, at most 200 trials, until the stress is within
-    1e-10 of the clamped one's or the bracket within 1e-13 of its end."""
-    phase, lo, s_lo, a, b, fa, fb, tol, side, count = state
+def _free_step(phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, y, valid, free_max):
+    """One step of `free_stretch`'s iteration (the state of `_free_start`): the trial stretch ``trial`` gave
+    the stress ``y`` (``valid``: the model has a state there). Returns the state, the next trial, whether
+    done and the free stretch (NaN where none is found), that only where done. `models._common.free_state`'s
+    steps, in its order: bracketing by 25 % steps up to ``free_max``, then the Illinois iteration, at most
+    200 trials, until the stress is within 1e-10 of the clamped one's or the bracket within 1e-13 of its
+    end."""
     if not (valid and np.isfinite(y)):
-        return state, trial, True, np.nan
-    if phase == 0:
+        return phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, True, np.nan
+    if phase == 0.0:
         if y < 0.0:  # not bracketed yet: 25 % further, up to free_max
             if trial >= free_max:
-                return state, trial, True, np.nan
-            return (0, trial, y, a, b, fa, fb, tol, side, count), min(trial * 1.25, free_max), False, np.nan
+                return phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, True, np.nan
+            return 0.0, trial, y, a, b, fa, fb, tol, side, count, min(trial * 1.25, free_max), False, np.nan
         a, b, fa, fb = lo, trial, s_lo, y  # bracketed: the Illinois iteration on [lo, trial]
-        phase = 1
+        phase = 1.0
     else:  # replace the end on the root's side; halve the kept end's value when it is kept twice
         if y < 0.0:
-            fb = 0.5 * fb if side == -1 else fb
+            fb = 0.5 * fb if side == -1.0 else fb
             a, fa = trial, y
-            side = -1
+            side = -1.0
         else:
-            fa = 0.5 * fa if side == 1 else fa
+            fa = 0.5 * fa if side == 1.0 else fa
             b, fb = trial, y
-            side = 1
-        count += 1
+            side = 1.0
+        count += 1.0
         if abs(y) <= tol or b - a <= 1e-13 * b:
-            return state, trial, True, trial
-        if count >= 200:
-            return state, trial, True, np.nan
+            return phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, True, trial
+        if count >= 200.0:
+            return phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, True, np.nan
     xn = (a * fb - b * fa) / (fb - fa)
     if not (xn > a and xn < b):
         xn = 0.5 * (a + b)
-    return (phase, lo, s_lo, a, b, fa, fb, tol, side, count), xn, False, np.nan
+    return phase, lo, s_lo, a, b, fa, fb, tol, side, count, xn, False, np.nan
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -703,10 +704,11 @@ def free_stretch(stress, args, l1, s1, free_max):
     hand. Inlined into each caller at numba's level: a call would pass ``stress`` as a pointer to the
     Python object, which numba cannot cache.
     """
-    state, x = _free_start(l1, s1, free_max)
+    phase, lo, s_lo, a, b, fa, fb, tol, side, count, x = _free_start(l1, s1, free_max)
     while True:
         y, valid = stress(x, args)
-        state, x, done, found = _free_step(state, x, y, valid, free_max)
+        phase, lo, s_lo, a, b, fa, fb, tol, side, count, x, done, found = _free_step(
+            phase, lo, s_lo, a, b, fa, fb, tol, side, count, x, y, valid, free_max)
         if done:
             return found
 
@@ -783,6 +785,12 @@ def _su_free_all(l1, v, s1, C10, C20, C30, kap, free_max, out):
 _LANES = 8
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _put(state, k, st):
+    for j in range(10):  # unrolled: ``st`` is a tuple
+        state[k, j] = st[j]
+
+
 @numba.njit(cache=True, error_model="numpy")
 def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, start, stop):
     """`_su_free` of the samples ``start:stop``, `_LANES` samples in lockstep: each lane takes
@@ -796,17 +804,7 @@ def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, start, stop):
     vv = np.zeros(B)
     s1v = np.zeros(B)
     sig = np.empty(B)
-    # each lane's `_free_step` state, one array per entry
-    phase = np.zeros(B, np.int64)
-    lo = np.empty(B)
-    s_lo = np.empty(B)
-    a = np.empty(B)
-    b = np.empty(B)
-    fa = np.empty(B)
-    fb = np.empty(B)
-    tol = np.empty(B)
-    side = np.zeros(B, np.int64)
-    count = np.zeros(B, np.int64)
+    state = np.empty((B, 10))  # each lane's `_free_step` state
     nxt = start
     busy = 0
     while True:
@@ -814,8 +812,9 @@ def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, start, stop):
             if idx[k] < 0:
                 if nxt < stop:
                     idx[k] = nxt
-                    st, x_try[k] = _free_start(l1[nxt], s1[nxt], free_max)
-                    phase[k], lo[k], s_lo[k], a[k], b[k], fa[k], fb[k], tol[k], side[k], count[k] = st
+                    st = _free_start(l1[nxt], s1[nxt], free_max)
+                    _put(state, k, st)
+                    x_try[k] = st[10]
                     s1v[k] = s1[nxt]
                     vv[k] = v[nxt]
                     nxt += 1
@@ -830,14 +829,15 @@ def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, start, stop):
         for k in range(B):
             if idx[k] < 0:
                 continue
-            st = (phase[k], lo[k], s_lo[k], a[k], b[k], fa[k], fb[k], tol[k], side[k], count[k])
-            st, x, done, found = _free_step(st, x_try[k], sig[k], True, free_max)
+            st = state[k]
+            p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, x, done, found = _free_step(
+                st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7], st[8], st[9], x_try[k], sig[k], True, free_max)
             if done:
                 out[idx[k]] = found if free_check(sig[k], s1v[k]) else np.nan  # `_su_free`'s final check
                 idx[k] = -1
                 busy -= 1
             else:
-                phase[k], lo[k], s_lo[k], a[k], b[k], fa[k], fb[k], tol[k], side[k], count[k] = st
+                _put(state, k, (p0, p1, p2, p3, p4, p5, p6, p7, p8, p9))
                 x_try[k] = x
 
 
