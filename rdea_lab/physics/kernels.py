@@ -673,14 +673,12 @@ def _free_step(phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, y, valid,
         a, b, fa, fb = lo, trial, s_lo, y  # bracketed: the Illinois iteration on [lo, trial]
         phase = 1.0
     else:  # replace the end on the root's side; halve the kept end's value when it is kept twice
-        if y < 0.0:
-            fb = 0.5 * fb if side == -1.0 else fb
-            a, fa = trial, y
-            side = -1.0
-        else:
-            fa = 0.5 * fa if side == 1.0 else fa
-            b, fb = trial, y
-            side = 1.0
+        neg = y < 0.0  # (selects, not branches: the side is a coin toss to the branch predictor)
+        fb = (0.5 * fb if side == -1.0 else fb) if neg else y
+        fa = y if neg else (0.5 * fa if side == 1.0 else fa)
+        a = trial if neg else a
+        b = b if neg else trial
+        side = -1.0 if neg else 1.0
         count += 1.0
         if abs(y) <= tol or b - a <= 1e-13 * b:
             return phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, True, trial
@@ -842,15 +840,16 @@ def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, start, stop):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_stress_force(tension, status, state, slack_code, area, sigma, force):
+def _su_stress_force(tension, state, slack, area, sigma, force):
     """The stress (the tension; 0 where slack) and the force ``sigma area / lambda1`` of an SU solve (NaN
-    where the sample has no state: its tension and state stretch are NaN; 0 where slack, as ``0 area /
-    lambda1`` is: ``state`` there may hold the free stretch, see `_su_state_fields`)."""
+    where the sample has no state: its tension and state stretch are NaN). Slack where ``slack`` (the
+    solve's) and the tension is negative, as `_su_tension` has it; the force there is 0, as ``0 area /
+    lambda1`` is (``state`` there may hold the free stretch, see `_su_free_fields`)."""
     for i in range(tension.size):
-        slack = status[i] == slack_code
-        s = 0.0 if slack else tension[i]
-        sigma[i] = s
-        force[i] = 0.0 if slack else s * area / state[i]
+        t = tension[i]
+        free = slack & (t < 0.0)
+        sigma[i] = 0.0 if free else t
+        force[i] = 0.0 if free else t * area / state[i]
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -932,16 +931,16 @@ def su_free(l1, v, s1, C, kap, free_max):
     return out
 
 
-def su_fields(tension, status, state, idx, v_slack, C, kap, free_max, slack_code, area, C0, Ri, which):
-    """The fields of an SU solve (`su_solve`) computed when first read: ``which`` 0, a (2, n) block of the
-    stress and force; 1, the hoop stretch (an array of its own: the three rings') and a (2, n) block of the
+def su_fields(tension, state, idx, v_slack, C, kap, free_max, slack, area, C0, Ri, which):
+    """The fields of an SU solve (`su_solve` with ``slack``) computed when first read: ``which`` 0, a (2, n)
+    block of the stress and force; 1, the hoop stretch (an array of its own: the three rings') and a (2, n) block of the
     capacitance and inner radius, and ``state`` (written in place) becomes the free stretch: the slack
     samples' free stretches by `su_free` (``v_slack``: their voltages). One thread, as `su_solve`: the
     passes are memory-bound, and on a shared machine's busy cores numba's threads waited some 8 ms per
     pass (24 ms for every field of 1e5 samples, against 1 ms on one thread)."""
     if which == 0:
         out = np.empty((2, tension.size))
-        _su_stress_force(tension, status, state, slack_code, area, out[0], out[1])
+        _su_stress_force(tension, state, slack, area, out[0], out[1])
         return out
     found = su_free(state[idx], v_slack, tension[idx], C, kap, free_max) if idx.size else None
     l2, rest = np.empty(tension.size), np.empty((2, tension.size))

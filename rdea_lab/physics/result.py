@@ -220,9 +220,9 @@ class DeferredResult(ModelResult):
         derive = self.__dict__.get("_derive")
         if derive is None or name not in FIELDS:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-        value = derive(name)
-        object.__setattr__(self, name, value)
-        return value
+        for key, value in derive(name).items():  # the fields computed with it too: held from now on
+            object.__setattr__(self, key, value)
+        return self.__dict__[name]
 
     def __reduce__(self):
         return ModelResult, tuple(getattr(self, name) for name in FIELDS)
@@ -230,7 +230,8 @@ class DeferredResult(ModelResult):
 
 def deferred(fields: dict, derive) -> DeferredResult:
     """A `DeferredResult` holding ``fields`` (names of `FIELDS`) and computing each other field ``name``
-    as ``derive(name)`` when first read."""
+    when first read: ``derive(name)`` is a dict of it and the fields computed with it (names of `FIELDS`),
+    each the same object whenever asked for."""
     out = object.__new__(DeferredResult)
     for name, value in fields.items():
         object.__setattr__(out, name, value)

@@ -176,8 +176,8 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
     for a in (tension, status, converged):
         a.flags.writeable = False  # the arrays themselves: a view of them cannot be made writeable
     # the slack samples' inputs, for their free states (copies: a few samples)
-    derive = _Fields(fast, shape, tension, state, status, idx, vc[idx], C, kap, area,
-                     float(geom.C0(material.eps_r)), float(geom.Ri))
+    derive = _Fields(fast, shape, tension, state, idx, vc[idx], C, kap, area, float(geom.C0(material.eps_r)),
+                     float(geom.Ri), bool(slack))
     nan = np.broadcast_to(np.nan, shape)  # SU has no fold and no range end
     return deferred({"model": "su", "stretch": read_only(l1.reshape(shape)), "voltage": read_only(v.reshape(shape)),
                      "status": status.reshape(shape), "tension": tension.reshape(shape),
@@ -190,35 +190,39 @@ _CODES = (OK, SLACK, BAD_INPUT, OVERFLOW)
 
 class _Fields:
     """The fields of a compiled SU solve that are computed when first read (see `_solve_compiled`), from
-    the solve's own tension, state stretch and status (not writeable) and the slack samples' indices and
-    voltages, in two blocks (`rdea_lab.physics.kernels.su_fields`): the stress and force, then the free
-    states and the fields at them (the state stretch, written in place, becomes the free stretch, then is
-    not writeable). Each block is computed once, under a lock: threads that read a field first at once
-    get the same arrays."""
+    the solve's own tension and state stretch (not writeable) and the slack samples' indices and voltages,
+    in two blocks (`rdea_lab.physics.kernels.su_fields`): the stress and force, then the free states and
+    the fields at them (the state stretch, written in place, becomes the free stretch, then is not
+    writeable). Each block is computed once, under a lock: threads that read a field first at once get the
+    same arrays. A call gives every field of the block (`deferred`)."""
 
-    _ROWS = {"sigma1": (0, 0), "force": (0, 1), "lambda2a": (1, 0), "lambda2b": (1, 0), "lambda2c": (1, 0),
-             "capacitance": (1, 1), "r_i": (1, 2), "free_stretch": (1, 3)}
+    _BLOCKS = (("sigma1", "force"), ("lambda2a", "capacitance", "r_i", "free_stretch"))
+    _BLOCK = {"sigma1": 0, "force": 0, "lambda2a": 1, "lambda2b": 1, "lambda2c": 1, "capacitance": 1, "r_i": 1,
+              "free_stretch": 1}
 
-    def __init__(self, fast, shape, tension, state, status, idx, v_slack, C, kap, area, C0, Ri):
-        self.fast, self.shape, self.tension, self.state, self.status = fast, shape, tension, state, status
-        self.args = (idx, v_slack, C, kap, FREE_STRETCH_MAX, SLACK, area, C0, Ri)
+    def __init__(self, fast, shape, tension, state, idx, v_slack, C, kap, area, C0, Ri, slack):
+        self.fast, self.shape, self.tension, self.state = fast, shape, tension, state
+        self.args = (idx, v_slack, C, kap, FREE_STRETCH_MAX, slack, area, C0, Ri)
         self.blocks = [None, None]
         self.lock = threading.Lock()
 
     def __call__(self, name):
-        block, row = self._ROWS[name]
+        block = self._BLOCK[name]
         with self.lock:
             if self.blocks[block] is None:
                 self.blocks[block] = self._compute(block)
-        return self.blocks[block][row]
+        return self.blocks[block]
 
     def _compute(self, block):
         # the stress pass reads the state stretch only where not slack: the same before and after the
         # free-state pass writes the free stretches into it (a read-only view: one compiled variant)
         state = read_only(self.state) if block == 0 else self.state
-        out = list(self.fast.su_fields(self.tension, self.status, state, *self.args, block))
+        out = list(self.fast.su_fields(self.tension, state, *self.args, block))
         if block == 1:  # one array for the three rings; the state stretch, now the free one: not writeable
             out.append(self.state)
             for a in (out[0], self.state):
                 a.flags.writeable = False
-        return [r.reshape(self.shape) for r in out]
+        fields = dict(zip(self._BLOCKS[block], (r.reshape(self.shape) for r in out)))
+        if block == 1:
+            fields["lambda2b"] = fields["lambda2c"] = fields["lambda2a"]
+        return fields
