@@ -899,27 +899,39 @@ def su_state(l1, v, C, kap, C0, out=None):
     return out
 
 
+#: The rows of `su_solve`'s one float block: the tension and state stretch, then the fields `su_fields` fills.
+SU_ROWS = ("tension", "state", "sigma1", "force", "lambda2", "capacitance", "r_i")
+
+
 def su_solve(l1, v, C, kap, area, slack, codes):
-    """The eager part of a whole SU solve of 1-D float inputs as given, one compiled pass: ``(tension,
-    state, status, converged, slack, low)``: the tension [Pa] (eq. (39) at the given stretch), the stretch
-    of the state [-] (the given one, NaN where the sample has no state), the status (``codes``: ``(OK,
-    SLACK, BAD_INPUT, OVERFLOW)``; a NaN or infinite input is ``BAD_INPUT``), where it is OK or SLACK, the
-    indices of the slack samples and the number of finite samples with a stretch below 1 (the caller's
-    error). The slack samples' free stretch is `su_free`'s, every other field `su_fields`'
-    (`rdea_lab.physics.models.su` computes them when they are asked for).
+    """The eager part of a whole SU solve of 1-D float inputs as given, one compiled pass: ``(block, rows,
+    status, converged, slack, low)``. ``block``: one (7, n) float array for every float field of the solve
+    (`SU_ROWS`), not writeable (nor can a view of it be made so); ``rows``: its rows as writeable views, for
+    the kernels only. The pass fills the tension [Pa] (eq. (39) at the given stretch) and the stretch of
+    the state [-] (the given one, NaN where the sample has no state); ``status`` (``codes``: ``(OK, SLACK,
+    BAD_INPUT, OVERFLOW)``; a NaN or infinite input is ``BAD_INPUT``), where it is OK or SLACK, the indices
+    of the slack samples and the number of finite samples with a stretch below 1 (the caller's error). The
+    slack samples' free stretch is `su_free`'s, every other field `su_fields`' (`rdea_lab.physics.models.su`
+    computes them when they are asked for).
+
+    One allocation for every row: a result's fields are one chunk of memory, which the allocator hands to
+    the next result when this one is dropped, where seven arrays freed at once were given back to the system
+    and taken again, page by page (750 page faults, a third of the time, per call of 1e5 samples with every
+    field read). The rows not computed yet are not touched (reserved, not in memory, where the chunk is new).
     """
     n = l1.size
-    tension = np.empty(n)
-    state = np.empty(n)
+    block = np.empty((len(SU_ROWS), n))
+    rows = tuple(block)
+    block.flags.writeable = False  # the rows above stay writeable: the kernels fill them
     status = np.empty(n, np.int8)
     converged = np.empty(n, np.bool_)
     codes = np.asarray(codes, np.int8)
     # one thread: the pass is memory-bound, and a shared machine's busy cores made the threaded
     # form up to 10x slower than this one
-    count, low = _su_tension(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, tension, state, status,
+    count, low = _su_tension(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, rows[0], rows[1], status,
                              converged)
     idx = _su_slack_index(status, codes[1], count) if count else np.empty(0, np.intp)
-    return tension, state, status, converged, idx, low
+    return block, rows, status, converged, idx, low
 
 
 def su_free(l1, v, s1, C, kap, free_max):
@@ -931,23 +943,21 @@ def su_free(l1, v, s1, C, kap, free_max):
     return out
 
 
-def su_fields(tension, state, idx, v_slack, C, kap, free_max, slack, area, C0, Ri, which):
-    """The fields of an SU solve (`su_solve` with ``slack``) computed when first read: ``which`` 0, a (2, n)
-    block of the stress and force; 1, the hoop stretch (an array of its own: the three rings') and a (2, n) block of the
-    capacitance and inner radius, and ``state`` (written in place) becomes the free stretch: the slack
-    samples' free stretches by `su_free` (``v_slack``: their voltages). One thread, as `su_solve`: the
-    passes are memory-bound, and on a shared machine's busy cores numba's threads waited some 8 ms per
-    pass (24 ms for every field of 1e5 samples, against 1 ms on one thread)."""
+def su_fields(rows, idx, v_slack, C, kap, free_max, slack, area, C0, Ri, which):
+    """The fields of an SU solve (`su_solve` with ``slack``: its ``rows``) computed when first read, into
+    their rows: ``which`` 0, the stress and force; 1, the hoop stretch, capacitance and inner radius, and
+    the state stretch (written in place) becomes the free stretch: the slack samples' free stretches by
+    `su_free` (``v_slack``: their voltages). One thread, as `su_solve`: the passes are memory-bound, and on
+    a shared machine's busy cores numba's threads waited some 8 ms per pass (24 ms for every field of 1e5
+    samples, against 1 ms on one thread)."""
+    tension, state, sigma, force, l2, cap, r_i = rows
     if which == 0:
-        out = np.empty((2, tension.size))
-        _su_stress_force(tension, state, slack, area, out[0], out[1])
-        return out
+        _su_stress_force(tension, state, slack, area, sigma, force)
+        return
     found = su_free(state[idx], v_slack, tension[idx], C, kap, free_max) if idx.size else None
-    l2, rest = np.empty(tension.size), np.empty((2, tension.size))
-    _su_state_fields(state, C0, Ri, l2, *rest)
+    _su_state_fields(state, C0, Ri, l2, cap, r_i)
     if idx.size:
-        _su_free_fields(state, idx, found, C0, Ri, l2, *rest)
-    return l2, *rest
+        _su_free_fields(state, idx, found, C0, Ri, l2, cap, r_i)
 
 
 _update = _jit(viscoelastic._linear_update, inline="always")

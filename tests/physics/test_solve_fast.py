@@ -259,8 +259,9 @@ def _lanes_against_one_by_one(seeds):
         C, kap = (mat.C10, mat.C20, mat.C30), float(kappa(geom, mat))
         ok = np.isfinite(l1) & np.isfinite(v)
         l1, v = l1[ok], v[ok]
-        tension, _, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True,
-                                                   (0, SLACK, BAD_INPUT, OVERFLOW))
+        block, _, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True,
+                                                 (0, SLACK, BAD_INPUT, OVERFLOW))
+        tension = block[0]
         args = (l1[idx].copy(), v[idx].copy(), tension[idx].copy(), *C, kap, FREE_STRETCH_MAX)
         one, lanes = np.empty(idx.size), np.full(idx.size, -1.0)
         kernels._su_free_all(*args, one)

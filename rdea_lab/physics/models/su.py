@@ -161,26 +161,26 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
     (`_Fields`): the stress and force in one compiled pass, the slack rolls' free states and the stretches,
     capacitance and radius in another. A caller that reads the stress alone (a fit, a calibration) pays
     for no free state. The result holds no reference to the caller's arrays beyond ``stretch`` and
-    ``voltage``, so a later change to those changes no field computed later; the arrays later fields are
-    computed from are not writeable (nor can a view of them be made so)."""
+    ``voltage``, so a later change to those changes no field computed later. Every array of the result is
+    read-only (nor can a view of it be made writeable): the fields are rows of one block (`su_solve`), and
+    the later ones are computed from the earlier."""
     end = check_start("su", path, start)
     kap = float(kappa(geom, material))
     l1c, vc = np.ascontiguousarray(l1), np.ascontiguousarray(v)
     area = float(geom.area)
-    tension, state, status, converged, idx, low = fast.su_solve(l1c, vc, C, kap, area, slack, _CODES)
+    block, rows, status, converged, idx, low = fast.su_solve(l1c, vc, C, kap, area, slack, _CODES)
     if low:
         check_inputs(l1, v, shape)  # raises `StretchBelowOneError`, with the first such sample
     if path:  # SU has no coordinate: a path ends where it started only when it had no sample to solve
         none = end is not None and status.size and not (status != BAD_INPUT).any()
         end = PathEnd("su", *(end if none else (None, None)))
-    for a in (tension, status, converged):
-        a.flags.writeable = False  # the arrays themselves: a view of them cannot be made writeable
+    status.flags.writeable = converged.flags.writeable = False
     # the slack samples' inputs, for their free states (copies: a few samples)
-    derive = _Fields(fast, shape, tension, state, idx, vc[idx], C, kap, area, float(geom.C0(material.eps_r)),
+    derive = _Fields(fast, shape, block, rows, idx, vc[idx], C, kap, area, float(geom.C0(material.eps_r)),
                      float(geom.Ri), bool(slack))
     nan = np.broadcast_to(np.nan, shape)  # SU has no fold and no range end
     return deferred({"model": "su", "stretch": read_only(l1.reshape(shape)), "voltage": read_only(v.reshape(shape)),
-                     "status": status.reshape(shape), "tension": tension.reshape(shape),
+                     "status": status.reshape(shape), "tension": block[0].reshape(shape),
                      "converged": converged.reshape(shape), "critical_voltage": nan, "range_voltage": nan,
                      "end": end}, derive)
 
@@ -189,40 +189,29 @@ _CODES = (OK, SLACK, BAD_INPUT, OVERFLOW)
 
 
 class _Fields:
-    """The fields of a compiled SU solve that are computed when first read (see `_solve_compiled`), from
-    the solve's own tension and state stretch (not writeable) and the slack samples' indices and voltages,
-    in two blocks (`rdea_lab.physics.kernels.su_fields`): the stress and force, then the free states and
-    the fields at them (the state stretch, written in place, becomes the free stretch, then is not
-    writeable). Each block is computed once, under a lock: threads that read a field first at once get the
-    same arrays. A call gives every field of the block (`deferred`)."""
+    """The fields of a compiled SU solve that are computed when first read (see `_solve_compiled`), into
+    the rows of the solve's block (`rdea_lab.physics.kernels.su_solve`), from its tension and state stretch
+    and the slack samples' indices and voltages, in two passes (`rdea_lab.physics.kernels.su_fields`): the
+    stress and force, then the free states and the fields at them (the state stretch, written in place,
+    becomes the free stretch). Each is computed once, under a lock: threads that read a field first at
+    once get the same arrays. A call gives every field of the pass (`deferred`)."""
 
-    _BLOCKS = (("sigma1", "force"), ("lambda2a", "capacitance", "r_i", "free_stretch"))
-    _BLOCK = {"sigma1": 0, "force": 0, "lambda2a": 1, "lambda2b": 1, "lambda2c": 1, "capacitance": 1, "r_i": 1,
-              "free_stretch": 1}
+    _PASSES = ({"sigma1": 2, "force": 3},
+               {"lambda2a": 4, "lambda2b": 4, "lambda2c": 4, "capacitance": 5, "r_i": 6, "free_stretch": 1})
+    _PASS = {name: k for k, names in enumerate(_PASSES) for name in names}
 
-    def __init__(self, fast, shape, tension, state, idx, v_slack, C, kap, area, C0, Ri, slack):
-        self.fast, self.shape, self.tension, self.state = fast, shape, tension, state
+    def __init__(self, fast, shape, block, rows, idx, v_slack, C, kap, area, C0, Ri, slack):
+        self.fast, self.shape, self.block, self.rows = fast, shape, block, rows
         self.args = (idx, v_slack, C, kap, FREE_STRETCH_MAX, slack, area, C0, Ri)
-        self.blocks = [None, None]
+        self.done = [None, None]
         self.lock = threading.Lock()
 
     def __call__(self, name):
-        block = self._BLOCK[name]
+        k = self._PASS[name]
         with self.lock:
-            if self.blocks[block] is None:
-                self.blocks[block] = self._compute(block)
-        return self.blocks[block]
-
-    def _compute(self, block):
-        # the stress pass reads the state stretch only where not slack: the same before and after the
-        # free-state pass writes the free stretches into it (a read-only view: one compiled variant)
-        state = read_only(self.state) if block == 0 else self.state
-        out = list(self.fast.su_fields(self.tension, state, *self.args, block))
-        if block == 1:  # one array for the three rings; the state stretch, now the free one: not writeable
-            out.append(self.state)
-            for a in (out[0], self.state):
-                a.flags.writeable = False
-        fields = dict(zip(self._BLOCKS[block], (r.reshape(self.shape) for r in out)))
-        if block == 1:
-            fields["lambda2b"] = fields["lambda2c"] = fields["lambda2a"]
-        return fields
+            if self.done[k] is None:
+                self.fast.su_fields(self.rows, *self.args, k)
+                views = {}  # one view per row: the three rings' fields are one array
+                self.done[k] = {key: views.setdefault(row, self.block[row].reshape(self.shape))
+                                for key, row in self._PASSES[k].items()}
+        return self.done[k]
