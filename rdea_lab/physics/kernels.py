@@ -840,24 +840,18 @@ def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, start, stop):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_stress_force(tension, state, slack, area, sigma, force):
-    """The stress (the tension; 0 where slack) and the force ``sigma area / lambda1`` of an SU solve (NaN
-    where the sample has no state: its tension and state stretch are NaN). Slack where ``slack`` (the
-    solve's) and the tension is negative, as `_su_tension` has it; the force there is 0, as ``0 area /
-    lambda1`` is (``state`` there may hold the free stretch, see `_su_free_fields`)."""
+def _su_state_pass(tension, state, slack, area, C0, Ri, sigma, force, l2, cap, r_i):
+    """The fields of an SU solve at the stretch of each sample's state (``state``: the given one; NaN where
+    the sample has no state: its tension is NaN too), in one pass: the stress (the tension; 0 where
+    slack), the force ``sigma area / lambda1``, the hoop stretch, capacitance and inner radius. Slack where
+    ``slack`` (the solve's) and the tension is negative, as `_su_tension` has it; the force there is 0, as
+    ``0 area / lambda1`` is, and the other fields are the clamped state's until `_su_free_fields`."""
     for i in range(tension.size):
         t = tension[i]
+        at = state[i]
         free = slack & (t < 0.0)
         sigma[i] = 0.0 if free else t
-        force[i] = 0.0 if free else t * area / state[i]
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _su_state_fields(state, C0, Ri, l2, cap, r_i):
-    """The hoop stretch, capacitance and inner radius of an SU solve at the stretch of each sample's state
-    (``state``: the given one, NaN where the sample has no state)."""
-    for i in range(state.size):
-        at = state[i]
+        force[i] = 0.0 if free else t * area / at
         q = 1.0 / np.sqrt(at)
         l2[i] = q
         cap[i] = C0 * at
@@ -945,18 +939,17 @@ def su_free(l1, v, s1, C, kap, free_max):
 
 def su_fields(rows, idx, v_slack, C, kap, free_max, slack, area, C0, Ri, which):
     """The fields of an SU solve (`su_solve` with ``slack``: its ``rows``) computed when first read, into
-    their rows: ``which`` 0, the stress and force; 1, the hoop stretch, capacitance and inner radius, and
-    the state stretch (written in place) becomes the free stretch: the slack samples' free stretches by
-    `su_free` (``v_slack``: their voltages). One thread, as `su_solve`: the passes are memory-bound, and on
-    a shared machine's busy cores numba's threads waited some 8 ms per pass (24 ms for every field of 1e5
-    samples, against 1 ms on one thread)."""
+    their rows: ``which`` 0, the stress, force, hoop stretch, capacitance and inner radius at the state
+    stretch, in one pass (`_su_state_pass`); 1 (after 0), the slack samples' free stretches by `su_free`
+    (``v_slack``: their voltages) and the fields there (`_su_free_fields`): the state stretch becomes the
+    free stretch. One thread, as `su_solve`: the passes are memory-bound, and on a shared machine's busy
+    cores numba's threads waited some 8 ms per pass (24 ms for every field of 1e5 samples, against 1 ms on
+    one thread)."""
     tension, state, sigma, force, l2, cap, r_i = rows
     if which == 0:
-        _su_stress_force(tension, state, slack, area, sigma, force)
-        return
-    found = su_free(state[idx], v_slack, tension[idx], C, kap, free_max) if idx.size else None
-    _su_state_fields(state, C0, Ri, l2, cap, r_i)
-    if idx.size:
+        _su_state_pass(tension, state, slack, area, C0, Ri, sigma, force, l2, cap, r_i)
+    elif idx.size:
+        found = su_free(state[idx], v_slack, tension[idx], C, kap, free_max)
         _su_free_fields(state, idx, found, C0, Ri, l2, cap, r_i)
 
 

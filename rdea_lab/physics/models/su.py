@@ -191,10 +191,11 @@ _CODES = (OK, SLACK, BAD_INPUT, OVERFLOW)
 class _Fields:
     """The fields of a compiled SU solve that are computed when first read (see `_solve_compiled`), into
     the rows of the solve's block (`rdea_lab.physics.kernels.su_solve`), from its tension and state stretch
-    and the slack samples' indices and voltages, in two passes (`rdea_lab.physics.kernels.su_fields`): the
-    stress and force, then the free states and the fields at them (the state stretch, written in place,
-    becomes the free stretch). Each is computed once, under a lock: threads that read a field first at
-    once get the same arrays. A call gives every field of the pass (`deferred`)."""
+    and the slack samples' indices and voltages, in two passes (`rdea_lab.physics.kernels.su_fields`): every
+    field at the state stretch (the stress and force are then final), then the free states and the fields
+    at them (the state stretch, written in place, becomes the free stretch). Each is computed once, under a
+    lock: threads that read a field first at once get the same arrays. A call gives every field of the pass
+    (`deferred`)."""
 
     _PASSES = ({"sigma1": 2, "force": 3},
                {"lambda2a": 4, "lambda2b": 4, "lambda2c": 4, "capacitance": 5, "r_i": 6, "free_stretch": 1})
@@ -209,9 +210,13 @@ class _Fields:
     def __call__(self, name):
         k = self._PASS[name]
         with self.lock:
-            if self.done[k] is None:
-                self.fast.su_fields(self.rows, *self.args, k)
-                views = {}  # one view per row: the three rings' fields are one array
-                self.done[k] = {key: views.setdefault(row, self.block[row].reshape(self.shape))
-                                for key, row in self._PASSES[k].items()}
+            for j in range(k + 1):  # the free states' pass after the first
+                if self.done[j] is None:
+                    self._compute(j)
         return self.done[k]
+
+    def _compute(self, k):
+        self.fast.su_fields(self.rows, *self.args, k)
+        views = {}  # one view per row: the three rings' fields are one array
+        self.done[k] = {key: views.setdefault(row, self.block[row].reshape(self.shape))
+                        for key, row in self._PASSES[k].items()}
