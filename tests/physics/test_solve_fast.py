@@ -273,6 +273,33 @@ def _lanes_against_one_by_one(seeds):
     return total
 
 
+
+def test_su_compiled_free_states_equal_the_numpy_reference_bit_for_bit():
+    """The compiled free-state step (`kernels._free_step`, which `free_stretch` and the SU lanes take) against
+    the numpy reference `_common.free_state` (its bracketing, Illinois iteration and final check
+    `free_check`) with the numpy SU model: the same trials in the same order, so the same free stretches to
+    the last bit, NaN where there is none, on slack samples of random families."""
+    from rdea_lab.physics import kernels
+    from rdea_lab.physics.models._common import free_state, kappa
+
+    total = none = 0
+    for seed in range(6):
+        geom, mat, l1, v = random_family(seed, 5000)
+        C, kap = (mat.C10, mat.C20, mat.C30), float(kappa(geom, mat))
+        ok = np.isfinite(l1) & np.isfinite(v)
+        l1, v = l1[ok], v[ok]
+        block, _, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True,
+                                                 (0, SLACK, BAD_INPUT, OVERFLOW))
+        lam, vs, s1 = l1[idx].copy(), v[idx].copy(), block[0][idx].copy()
+        with np.errstate(over="ignore", invalid="ignore"):
+            ref, _, _ = free_state(su.evaluate, geom, mat, lam, vs, s1, kernel="numpy")
+        lanes = np.empty(idx.size)
+        kernels._su_free_lanes(lam, vs, s1, *C, kap, FREE_STRETCH_MAX, lanes, 0, idx.size)
+        assert np.array_equal(ref, lanes, equal_nan=True), f"seed {seed}"
+        total += idx.size
+        none += np.count_nonzero(np.isnan(ref))
+    assert total > 5000 and 100 < none < total - 1000  # both kinds of ending
+
 def test_su_free_states_in_lockstep_equal_one_by_one():
     """`kernels._su_free_lanes` (several slack samples in lockstep) against `_su_free` sample by sample
     (which the tests above hold to the numpy reference): bit for bit, NaN where none is found."""
