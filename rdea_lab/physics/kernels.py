@@ -26,8 +26,9 @@ the work around them, fused per sample with no temporaries:
   and roots to the bit.
 - `linear_strains`: eq. (44)'s exact update as the sequential recurrence, its coefficients
   (`viscoelastic._linear_update`) computed once per distinct interval length.
-- `su_solve`: what a whole SU solve computes up front (the tension and status, the inputs checked) in
-  one pass; `su_free` (a slack roll's free state) and `su_fields` the fields computed when first read.
+- `su_solve`: what a whole SU solve computes up front (the tension, status and convergence, the inputs
+  checked) in one pass, into one block of memory for every field; `su_fields` the fields computed when
+  first read (every field at the state stretch in one pass, then the slack rolls' free states, `su_free`).
 - `su_linear_residual`: a calibration run's scaled force errors under eq. (44)'s linear law in one pass
   (`rdea_lab.physics.models.su.residual_pass`).
 - `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample (the

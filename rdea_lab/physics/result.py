@@ -108,10 +108,10 @@ class ModelResult:
     """Quasi-static response of a roll to arrays of stretch and voltage.
 
     A result may compute some fields when they are first read (`DeferredResult`: SU by the compiled
-    kernels computes the status and tension in its solve, the slack rolls' free states, the stress and
-    the other fields when read); each reads the same either way. Arrays a result shares (the caller's
-    inputs, one array for several fields, the arrays later fields are computed from) are read-only:
-    copy one to change it.
+    kernels computes the status, convergence and tension in its solve, the stress and the other fields,
+    then the slack rolls' free states, when read); each reads the same either way. Arrays a result shares
+    (the caller's inputs, one array for several fields, the arrays later fields are computed from) are
+    read-only: copy one to change it (a compiled SU result's arrays are all read-only).
 
     Attributes
     ----------
@@ -211,9 +211,11 @@ class DeferredResult(ModelResult):
     slack roll, the force, the stretches) to the caller that reads them.
 
     Every field reads as it would on a `ModelResult` built at once; the arrays the deferred ones are
-    computed from are read-only. `pickle` and `copy` give a `ModelResult`, `dataclasses.replace` a result of
-    this class, each with every field computed. ``==`` compares a result with one of its own class only.
-    Built by `deferred` only.
+    computed from are read-only, and their memory itself not writeable (a view of them cannot be made
+    writeable). Fields computed together are held together when the first of them is read; threads that
+    read one first at once get the same arrays (the solve's ``derive`` locks). `pickle` and `copy` give a
+    `ModelResult`, `dataclasses.replace` a result of this class, each with every field computed. ``==``
+    compares a result with one of its own class only. Built by `deferred` only.
     """
 
     def __getattr__(self, name):  # only for what the instance does not hold yet
