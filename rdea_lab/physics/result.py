@@ -251,6 +251,17 @@ class PathEnd:
     label: tuple | None = None
 
 
+_NAN = np.array(np.nan)
+_NAN.flags.writeable = False
+
+
+def nan_field(shape) -> np.ndarray:
+    """A read-only NaN field of ``shape`` that allocates nothing (a broadcast view of one NaN, itself not
+    writeable: the view cannot be made writeable, as the broadcast of a writeable NaN could, which would
+    write every sample of every field that shares it)."""
+    return np.broadcast_to(_NAN, shape)
+
+
 def read_only(a: np.ndarray) -> np.ndarray:
     """A read-only view of ``a`` (``a`` itself keeps its flags): a result's array that is shared (the
     caller's input, one array for several fields) cannot be changed through the result."""
@@ -296,7 +307,7 @@ def finish(model, geom, l1, bad, shape, raw, fields, status, critical_voltage, r
             out[name] = read_only(out[name])
     out["force"] = (force if all_ok else out["sigma1"].reshape(-1) * geom.area / l1).reshape(shape)
     # None: no sample has a fold or a range end (SU): one read-only NaN view, nothing allocated
-    nan = np.broadcast_to(np.nan, (n,))
+    nan = nan_field((n,))
     crit = nan if critical_voltage is None else np.where((status == LIMIT_POINT) | (status == SNAPPED),
                                                          np.asarray(critical_voltage, float), np.nan)
     rng = nan if range_voltage is None else np.where(status == OUTSIDE_RANGE, np.asarray(range_voltage, float),

@@ -166,7 +166,7 @@ def test_su_deferred_fields_cannot_be_changed_through_a_view():
     ref = reference(geom, TABLE3, l1, 2600.0)
     assert np.any(ref.status == SLACK)
     fast = solve("su", geom, TABLE3, l1, 2600.0, kernel="numba")
-    for name in ("tension", "status", "converged"):  # read before any deferred field is computed
+    for name in ("tension", "status", "converged", "critical_voltage", "range_voltage"):  # before any deferred
         with pytest.raises(ValueError):
             getattr(fast, name).flags.writeable = True
         with pytest.raises(ValueError):
@@ -176,6 +176,8 @@ def test_su_deferred_fields_cannot_be_changed_through_a_view():
         with pytest.raises(ValueError):
             getattr(fast, name).flags.writeable = True
     assert_same(ref, fast, "after the refused writes")
+    with pytest.raises(ValueError):  # the numpy path's NaN fields, one broadcast NaN, as well
+        ref.critical_voltage.flags.writeable = True
 
 
 def test_su_deferred_block_computed_once_by_threads_reading_it_at_once():

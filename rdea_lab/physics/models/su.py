@@ -8,7 +8,7 @@ import numpy as np
 
 from .. import yeoh
 from ..result import (BAD_INPUT, OK, OVERFLOW, SLACK, ModelResult, PathEnd, broadcast_inputs, check_inputs, deferred,
-                      read_only)
+                      nan_field, read_only)
 from .._backend import AUTO_MIN_SAMPLES, compiled
 from ._common import FREE_STRETCH_MAX, Evaluation, check_start, kappa, solve_model, yeoh_coefficients
 
@@ -178,7 +178,7 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
     # the slack samples' inputs, for their free states (copies: a few samples)
     derive = _Fields(fast, shape, block, rows, idx, vc[idx], C, kap, area, float(geom.C0(material.eps_r)),
                      float(geom.Ri), bool(slack))
-    nan = np.broadcast_to(np.nan, shape)  # SU has no fold and no range end
+    nan = nan_field(shape)  # SU has no fold and no range end
     return deferred({"model": "su", "stretch": read_only(l1.reshape(shape)), "voltage": read_only(v.reshape(shape)),
                      "status": status.reshape(shape), "tension": block[0].reshape(shape),
                      "converged": converged.reshape(shape), "critical_voltage": nan, "range_voltage": nan,
