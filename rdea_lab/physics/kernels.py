@@ -747,8 +747,7 @@ def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, s
         w = v[i]
         given = (np.abs(lam) < np.inf) & (np.abs(w) < np.inf)
         n_low += np.int64(given & (lam < 1.0))
-        lam = lam if given else 1.0  # `result.prepare_inputs`' unloaded state
-        w = w if given else 0.0
+        # a NaN or infinite input gives a stress that is not kept (not ``given``): no unloaded state to put in
         s = _su_stress(lam, w, C10, C20, C30, kap)
         neg = slack & (s < 0.0)
         # a slack roll's stress and force are 0: only its tension must be finite. The force ``s area /
