@@ -897,12 +897,27 @@ def su_state(l1, v, C, kap, C0, out=None):
 SU_ROWS = ("tension", "state", "sigma1", "force", "lambda2", "capacitance", "r_i")
 
 
+@numba.njit(cache=True, error_model="numpy")
+def _su_tension_rows(l1, v, C10, C20, C30, kap, area, slack, codes, work, status, converged):
+    return _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, work[0], work[1], status, converged)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_state_rows(work, slack, area, C0, Ri):
+    _su_state_pass(work[0], work[1], slack, area, C0, Ri, work[2], work[3], work[4], work[5], work[6])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_free_rows(work, idx, found, C0, Ri):
+    _su_free_fields(work[1], idx, found, C0, Ri, work[4], work[5], work[6])
+
+
 def su_solve(l1, v, C, kap, area, slack, codes):
-    """The eager part of a whole SU solve of 1-D float inputs as given, one compiled pass: ``(block, rows,
+    """The eager part of a whole SU solve of 1-D float inputs as given, one compiled pass: ``(block, work,
     status, converged, slack, low)``. ``block``: one (7, n) float array for every float field of the solve
-    (`SU_ROWS`), not writeable (nor can a view of it be made so); ``rows``: its rows as writeable views, for
-    the kernels only. The pass fills the tension [Pa] (eq. (39) at the given stretch) and the stretch of
-    the state [-] (the given one, NaN where the sample has no state); ``status`` (``codes``: ``(OK, SLACK,
+    (`SU_ROWS`), not writeable (nor can a view of it be made so); ``work``: a writeable view of it, for the
+    kernels only. The pass fills the tension [Pa] (eq. (39) at the given stretch) and the stretch of the
+    state [-] (the given one, NaN where the sample has no state); ``status`` (``codes``: ``(OK, SLACK,
     BAD_INPUT, OVERFLOW)``; a NaN or infinite input is ``BAD_INPUT``), where it is OK or SLACK, the indices
     of the slack samples and the number of finite samples with a stretch below 1 (the caller's error). The
     slack samples' free stretch is `su_free`'s, every other field `su_fields`' (`rdea_lab.physics.models.su`
@@ -915,17 +930,16 @@ def su_solve(l1, v, C, kap, area, slack, codes):
     """
     n = l1.size
     block = np.empty((len(SU_ROWS), n))
-    rows = tuple(block)
-    block.flags.writeable = False  # the rows above stay writeable: the kernels fill them
+    work = block.view()
+    block.flags.writeable = False  # ``work``, a view taken before, stays writeable: the kernels fill it
     status = np.empty(n, np.int8)
     converged = np.empty(n, np.bool_)
     codes = np.asarray(codes, np.int8)
     # one thread: the pass is memory-bound, and a shared machine's busy cores made the threaded
     # form up to 10x slower than this one
-    count, low = _su_tension(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, rows[0], rows[1], status,
-                             converged)
+    count, low = _su_tension_rows(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, work, status, converged)
     idx = _su_slack_index(status, codes[1], count) if count else np.empty(0, np.intp)
-    return block, rows, status, converged, idx, low
+    return block, work, status, converged, idx, low
 
 
 def su_free(l1, v, s1, C, kap, free_max):
@@ -937,20 +951,19 @@ def su_free(l1, v, s1, C, kap, free_max):
     return out
 
 
-def su_fields(rows, idx, v_slack, C, kap, free_max, slack, area, C0, Ri, which):
-    """The fields of an SU solve (`su_solve` with ``slack``: its ``rows``) computed when first read, into
+def su_fields(work, idx, v_slack, C, kap, free_max, slack, area, C0, Ri, which):
+    """The fields of an SU solve (`su_solve` with ``slack``: its ``work``) computed when first read, into
     their rows: ``which`` 0, the stress, force, hoop stretch, capacitance and inner radius at the state
     stretch, in one pass (`_su_state_pass`); 1 (after 0), the slack samples' free stretches by `su_free`
     (``v_slack``: their voltages) and the fields there (`_su_free_fields`): the state stretch becomes the
     free stretch. One thread, as `su_solve`: the passes are memory-bound, and on a shared machine's busy
     cores numba's threads waited some 8 ms per pass (24 ms for every field of 1e5 samples, against 1 ms on
     one thread)."""
-    tension, state, sigma, force, l2, cap, r_i = rows
     if which == 0:
-        _su_state_pass(tension, state, slack, area, C0, Ri, sigma, force, l2, cap, r_i)
+        _su_state_rows(work, slack, area, C0, Ri)
     elif idx.size:
-        found = su_free(state[idx], v_slack, tension[idx], C, kap, free_max)
-        _su_free_fields(state, idx, found, C0, Ri, l2, cap, r_i)
+        found = su_free(work[1][idx], v_slack, work[0][idx], C, kap, free_max)
+        _su_free_rows(work, idx, found, C0, Ri)
 
 
 _update = _jit(viscoelastic._linear_update, inline="always")

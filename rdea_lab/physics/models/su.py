@@ -170,7 +170,7 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
     kap = float(kappa(geom, material))
     l1c, vc = np.ascontiguousarray(l1), np.ascontiguousarray(v)
     area = float(geom.area)
-    block, rows, status, converged, idx, low = fast.su_solve(l1c, vc, C, kap, area, slack, _CODES)
+    block, work, status, converged, idx, low = fast.su_solve(l1c, vc, C, kap, area, slack, _CODES)
     if low:
         check_inputs(l1, v, shape)  # raises `StretchBelowOneError`, with the first such sample
     if path:  # SU has no coordinate: a path ends where it started only when it had no sample to solve
@@ -178,7 +178,7 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
         end = PathEnd("su", *(end if none else (None, None)))
     status.flags.writeable = converged.flags.writeable = False
     # the slack samples' inputs, for their free states (copies: a few samples)
-    derive = _Fields(fast, shape, block, rows, idx, vc[idx], C, kap, area, float(geom.C0(material.eps_r)),
+    derive = _Fields(fast, shape, block, work, idx, vc[idx], C, kap, area, float(geom.C0(material.eps_r)),
                      float(geom.Ri), bool(slack))
     nan = nan_field(shape)  # SU has no fold and no range end
     return deferred({"model": "su", "stretch": read_only(l1.reshape(shape)), "voltage": read_only(v.reshape(shape)),
@@ -203,8 +203,8 @@ class _Fields:
                {"lambda2a": 4, "lambda2b": 4, "lambda2c": 4, "capacitance": 5, "r_i": 6, "free_stretch": 1})
     _PASS = {name: k for k, names in enumerate(_PASSES) for name in names}
 
-    def __init__(self, fast, shape, block, rows, idx, v_slack, C, kap, area, C0, Ri, slack):
-        self.fast, self.shape, self.block, self.rows = fast, shape, block, rows
+    def __init__(self, fast, shape, block, work, idx, v_slack, C, kap, area, C0, Ri, slack):
+        self.fast, self.shape, self.block, self.work = fast, shape, block, work
         self.args = (idx, v_slack, C, kap, FREE_STRETCH_MAX, slack, area, C0, Ri)
         self.done = [None, None]
         self.lock = threading.Lock()
@@ -218,7 +218,7 @@ class _Fields:
         return self.done[k]
 
     def _compute(self, k):
-        self.fast.su_fields(self.rows, *self.args, k)
+        self.fast.su_fields(self.work, *self.args, k)
         views = {}  # one view per row: the three rings' fields are one array
         self.done[k] = {key: views.setdefault(row, self.block[row].reshape(self.shape))
                         for key, row in self._PASSES[k].items()}
