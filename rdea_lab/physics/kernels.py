@@ -33,7 +33,7 @@ the work around them, fused per sample with no temporaries:
   (`rdea_lab.physics.models.su.residual_pass`).
 - `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample (the
   step kernel's and `ring_kernels`' slack states), one step at a time (`_free_step`: the one compiled
-  form of a step); `_su_free_lanes` takes the same steps for 8 SU samples in lockstep. `free_check` is
+  form of a step); `_su_free_lanes` takes the same steps for 16 SU samples in lockstep. `free_check` is
   the reference's final check (`models._common.free_check`) compiled.
 
 Importing this module imports numba and loads the cached machine code
@@ -780,7 +780,7 @@ def _su_free_all(l1, v, s1, C10, C20, C30, kap, free_max, out):
         out[i] = _su_free(l1[i], v[i], s1[i], C10, C20, C30, kap, free_max)
 
 
-_LANES = 8
+_LANES = 16  # 16 lanes: 20 % faster than 8 (more divisions in flight), 32 no faster
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
