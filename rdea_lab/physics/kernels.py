@@ -26,13 +26,15 @@ the work around them, fused per sample with no temporaries:
   and roots to the bit.
 - `linear_strains`: eq. (44)'s exact update as the sequential recurrence, its coefficients
   (`viscoelastic._linear_update`) computed once per distinct interval length.
-- `su_solve`: what a whole SU solve computes up front (the tension and status, the inputs checked) in
-  one pass; `su_free` (a slack roll's free state) and `su_fields` the fields computed when first read.
+- `su_solve`: what a whole SU solve computes up front (the tension, status and convergence, the inputs
+  checked) in one pass, into one block of memory for every field; `su_fields` the fields computed when
+  first read (every field at the state stretch in one pass, then the slack rolls' free states, `su_free`).
 - `su_linear_residual`: a calibration run's scaled force errors under eq. (44)'s linear law in one pass
   (`rdea_lab.physics.models.su.residual_pass`).
 - `free_stretch`: the reference `free_state`'s bracketing and Illinois iteration for one sample (the
-  step kernel's and `ring_kernels`' slack states); `_su_free_lanes` takes the same steps for 8 SU
-  samples in lockstep (tested equal to it bit for bit: a second form of the iteration, kept for speed).
+  step kernel's and `ring_kernels`' slack states), one step at a time (`_free_step`: the one compiled
+  form of a step); `_su_free_lanes` takes the same steps for 16 SU samples in lockstep. `free_check` is
+  the reference's final check (`models._common.free_check`) compiled.
 
 Importing this module imports numba and loads the cached machine code
 (a fraction of a second to seconds); the first call in a fresh install compiles (about 25 s for
@@ -54,7 +56,7 @@ import numpy as np
 from numba import prange
 
 from . import viscoelastic, yeoh
-from .models import continuum, su, three_ring
+from .models import _common, continuum, su, three_ring
 
 
 def _check_cache():
@@ -645,54 +647,73 @@ def _su_stress(lam, v, C10, C20, C30, kap):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
+def _free_start(l1, s1, free_max):
+    """The state of `free_stretch`'s iteration for one slack sample (stretch ``l1``, stress ``s1 < 0``
+    there) and its first trial stretch: ``(phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial)``. Phase 0
+    brackets by 25 % steps up from ``lo`` (its stress ``s_lo``), phase 1 is the Illinois iteration on
+    ``[a, b]`` (``fa < 0 <= fb``; ``side``: the end replaced last, -1 or 1, ``count``: its trials so far).
+    Floats all, passed one by one: numba's parallel loops (`ring_kernels`) fail to analyse a tuple state."""
+    return 0.0, l1, s1, l1, l1, s1, s1, 1e-10 * abs(s1), 0.0, 0.0, min(l1 * 1.25, free_max)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _free_step(phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, y, valid, free_max):
+    """One step of `free_stretch`'s iteration (the state of `_free_start`): the trial stretch ``trial`` gave
+    the stress ``y`` (``valid``: the model has a state there). Returns the state, the next trial, whether
+    done and the free stretch (NaN where none is found), that only where done. `models._common.free_state`'s
+    steps, in its order: bracketing by 25 % steps up to ``free_max``, then the Illinois iteration, at most
+    200 trials, until the stress is within 1e-10 of the clamped one's or the bracket within 1e-13 of its
+    end."""
+    if not (valid and np.isfinite(y)):
+        return phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, True, np.nan
+    if phase == 0.0:
+        if y < 0.0:  # not bracketed yet: 25 % further, up to free_max
+            if trial >= free_max:
+                return phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, True, np.nan
+            return 0.0, trial, y, a, b, fa, fb, tol, side, count, min(trial * 1.25, free_max), False, np.nan
+        a, b, fa, fb = lo, trial, s_lo, y  # bracketed: the Illinois iteration on [lo, trial]
+        phase = 1.0
+    else:  # replace the end on the root's side; halve the kept end's value when it is kept twice
+        neg = y < 0.0  # (selects, not branches: the side is a coin toss to the branch predictor)
+        fb = (0.5 * fb if side == -1.0 else fb) if neg else y
+        fa = y if neg else (0.5 * fa if side == 1.0 else fa)
+        a = trial if neg else a
+        b = b if neg else trial
+        side = -1.0 if neg else 1.0
+        count += 1.0
+        if abs(y) <= tol or b - a <= 1e-13 * b:
+            return phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, True, trial
+        if count >= 200.0:
+            return phase, lo, s_lo, a, b, fa, fb, tol, side, count, trial, True, np.nan
+    xn = (a * fb - b * fa) / (fb - fa)
+    if not (xn > a and xn < b):
+        xn = 0.5 * (a + b)
+    return phase, lo, s_lo, a, b, fa, fb, tol, side, count, xn, False, np.nan
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
 def free_stretch(stress, args, l1, s1, free_max):
     """The free (F = 0) stretch above ``l1`` of one slack sample (stress ``s1 < 0`` at ``l1``), NaN where
-    none is found: `models._common.free_state`'s steps for one sample, in the same order (bracketing by
-    25 % steps, the Illinois iteration and its stopping rule), the one compiled form of them.
+    none is found: `models._common.free_state`'s steps for one sample, in the same order (`_free_start`,
+    then `_free_step` per trial: the one compiled form of them, which `_su_free_lanes` takes too).
 
     ``stress(stretch, args)`` is the compiled model at a trial stretch, ``(stress [Pa], valid)``; a trial
     that is not valid (not converged, non-finite) ends the search with NaN. The caller checks the stress
-    at the returned stretch (the reference's final check), with the model's fields there in hand.
-    Inlined into each caller at numba's level: a call would pass ``stress`` as a pointer to the Python
-    object, which numba cannot cache.
+    at the returned stretch (the reference's final check, `free_check`), with the model's fields there in
+    hand. Inlined into each caller at numba's level: a call would pass ``stress`` as a pointer to the
+    Python object, which numba cannot cache.
     """
-    lo, s_lo, hi = l1, s1, l1
-    s_hi = -np.inf
+    phase, lo, s_lo, a, b, fa, fb, tol, side, count, x = _free_start(l1, s1, free_max)
     while True:
-        trial = min(hi * 1.25, free_max)
-        sig, valid = stress(trial, args)
-        if not (valid and np.isfinite(sig)):
-            return np.nan
-        if sig >= 0.0:
-            hi, s_hi = trial, sig
-            break
-        lo, s_lo = trial, sig
-        if trial >= free_max:
-            return np.nan
-        hi = trial
-    a, b, fa, fb = lo, hi, s_lo, s_hi
-    tol = 1e-10 * abs(s1)
-    side = 0
-    x = b
-    for _ in range(200):
-        xn = (a * fb - b * fa) / (fb - fa)
-        if not (xn > a and xn < b):
-            xn = 0.5 * (a + b)
-        yn, valid = stress(xn, args)
-        if not (valid and np.isfinite(yn)):
-            return np.nan
-        x = xn
-        if yn < 0.0:
-            fb = 0.5 * fb if side == -1 else fb
-            a, fa = xn, yn
-            side = -1
-        else:
-            fa = 0.5 * fa if side == 1 else fa
-            b, fb = xn, yn
-            side = 1
-        if abs(yn) <= tol or b - a <= 1e-13 * b:
-            return x
-    return np.nan
+        y, valid = stress(x, args)
+        phase, lo, s_lo, a, b, fa, fb, tol, side, count, x, done, found = _free_step(
+            phase, lo, s_lo, a, b, fa, fb, tol, side, count, x, y, valid, free_max)
+        if done:
+            return found
+
+
+#: `models._common.free_check` compiled: the free state's final check (its tolerance stated once).
+free_check = _jit(_common.free_check, inline="always")
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -706,17 +727,17 @@ def _su_free(l1, v, s1, C10, C20, C30, kap, free_max):
     """The SU free stretch above ``l1`` (`free_stretch`), NaN where there is none or where the stress
     there fails the reference's final check."""
     x = free_stretch(_su_trial, (v, C10, C20, C30, kap), l1, s1, free_max)
-    if x == x and not (abs(_su_stress(x, v, C10, C20, C30, kap)) <= 1e-6 * abs(s1) + 1e-6):
+    if x == x and not free_check(_su_stress(x, v, C10, C20, C30, kap), s1):
         return np.nan
     return x
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, status):
+def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, status, converged):
     """What a whole SU solve computes up front, in one loop over the inputs as given: the tension (eq. (39)
     at the given stretch), the stretch of the state (the given one; a slack sample's free stretch comes
-    later) and the status; NaN where the sample has no state (a NaN or infinite input: `BAD_INPUT`).
-    Returns ``(slack samples, finite samples with a stretch below 1)``."""
+    later), the status and whether it converged; NaN where the sample has no state (a NaN or infinite
+    input: `BAD_INPUT`). Returns ``(slack samples, finite samples with a stretch below 1)``."""
     OK_, SLACK_, BAD_, OVER_ = codes[0], codes[1], codes[2], codes[3]
     n_slack = 0
     n_low = 0
@@ -726,8 +747,7 @@ def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, s
         w = v[i]
         given = (np.abs(lam) < np.inf) & (np.abs(w) < np.inf)
         n_low += np.int64(given & (lam < 1.0))
-        lam = lam if given else 1.0  # `result.prepare_inputs`' unloaded state
-        w = w if given else 0.0
+        # a NaN or infinite input gives a stress that is not kept (not ``given``): no unloaded state to put in
         s = _su_stress(lam, w, C10, C20, C30, kap)
         neg = slack & (s < 0.0)
         # a slack roll's stress and force are 0: only its tension must be finite. The force ``s area /
@@ -737,6 +757,7 @@ def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, s
         state[i] = lam if ok else np.nan
         a, b, c = np.int8(ok), np.int8(neg), np.int8(given)
         status[i] = a * (b * SLACK_ + (1 - b) * OK_) + (1 - a) * (c * OVER_ + (1 - c) * BAD_)
+        converged[i] = ok  # OK or SLACK
         n_slack += np.int64(ok & neg)
     return n_slack, n_low
 
@@ -759,46 +780,41 @@ def _su_free_all(l1, v, s1, C10, C20, C30, kap, free_max, out):
         out[i] = _su_free(l1[i], v[i], s1[i], C10, C20, C30, kap, free_max)
 
 
-_LANES = 8
+_LANES = 16  # 16 lanes: 20 % faster than 8 (more divisions in flight), 32 no faster
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _put(state, k, st):
+    for j in range(10):  # unrolled: ``st`` is a tuple
+        state[k, j] = st[j]
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out):
-    """`_su_free` of every sample, `_LANES` samples in lockstep: each lane takes `free_stretch`'s steps for
-    its sample in the same order with the same numbers (so the same result, bit for bit), and the stress of
-    all lanes is evaluated together, so that the lanes' chains of dependent divisions overlap. A lane that
-    is done takes the next sample. The final check uses the stress of the last trial, which is the stress
-    at the returned stretch."""
+def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, start, stop):
+    """`_su_free` of the samples ``start:stop``, `_LANES` samples in lockstep: each lane takes
+    `free_stretch`'s steps (`_free_start`, `_free_step`) for its sample, and the stress of all lanes is
+    evaluated together, so that the lanes' chains of dependent divisions overlap. A lane that is done
+    takes the next sample. The final check uses the stress of the last trial, which is the stress at the
+    returned stretch."""
     B = _LANES
-    n = l1.size
     idx = np.full(B, -1)
-    phase = np.zeros(B, np.int8)  # 0: bracketing by 25 % steps, 1: the Illinois iteration
     x_try = np.ones(B)
     vv = np.zeros(B)
     s1v = np.zeros(B)
-    lo = np.empty(B)
-    s_lo = np.empty(B)
-    hi = np.empty(B)
-    a = np.empty(B)
-    b = np.empty(B)
-    fa = np.empty(B)
-    fb = np.empty(B)
-    tol = np.empty(B)
-    side = np.zeros(B, np.int8)
-    count = np.zeros(B, np.int64)
     sig = np.empty(B)
-    nxt = 0
+    state = np.empty((B, 10))  # each lane's `_free_step` state
+    nxt = start
     busy = 0
     while True:
         for k in range(B):  # an idle lane takes the next sample
             if idx[k] < 0:
-                if nxt < n:
+                if nxt < stop:
                     idx[k] = nxt
-                    phase[k] = 0
-                    lo[k] = hi[k] = l1[nxt]
-                    s_lo[k] = s1v[k] = s1[nxt]
+                    st = _free_start(l1[nxt], s1[nxt], free_max)
+                    _put(state, k, st)
+                    x_try[k] = st[10]
+                    s1v[k] = s1[nxt]
                     vv[k] = v[nxt]
-                    x_try[k] = min(hi[k] * 1.25, free_max)
                     nxt += 1
                     busy += 1
                 else:
@@ -811,76 +827,46 @@ def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out):
         for k in range(B):
             if idx[k] < 0:
                 continue
-            trial, y = x_try[k], sig[k]
-            res = np.nan
-            done = not np.isfinite(y)
-            if not done and phase[k] == 0:
-                if y >= 0.0:  # bracketed: the Illinois iteration from [lo, trial]
-                    a[k], b[k], fa[k], fb[k] = lo[k], trial, s_lo[k], y
-                    tol[k] = 1e-10 * abs(s1v[k])
-                    side[k] = 0
-                    count[k] = 0
-                    phase[k] = 1
-                else:
-                    lo[k], s_lo[k] = trial, y
-                    done = trial >= free_max
-                    hi[k] = trial
-                    x_try[k] = min(hi[k] * 1.25, free_max)
-            elif not done:
-                if y < 0.0:
-                    fb[k] = 0.5 * fb[k] if side[k] == -1 else fb[k]
-                    a[k], fa[k] = trial, y
-                    side[k] = -1
-                else:
-                    fa[k] = 0.5 * fa[k] if side[k] == 1 else fa[k]
-                    b[k], fb[k] = trial, y
-                    side[k] = 1
-                count[k] += 1
-                if abs(y) <= tol[k] or b[k] - a[k] <= 1e-13 * b[k]:
-                    done = True
-                    if abs(y) <= 1e-6 * abs(s1v[k]) + 1e-6:  # `_su_free`'s final check
-                        res = trial
-                else:
-                    done = count[k] >= 200
+            st = state[k]
+            p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, x, done, found = _free_step(
+                st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7], st[8], st[9], x_try[k], sig[k], True, free_max)
             if done:
-                out[idx[k]] = res
+                out[idx[k]] = found if free_check(sig[k], s1v[k]) else np.nan  # `_su_free`'s final check
                 idx[k] = -1
                 busy -= 1
-            elif phase[k] == 1:
-                xa, xb = a[k], b[k]
-                xn = (xa * fb[k] - xb * fa[k]) / (fb[k] - fa[k])
-                if not (xn > xa and xn < xb):
-                    xn = 0.5 * (xa + xb)
-                x_try[k] = xn
+            else:
+                _put(state, k, (p0, p1, p2, p3, p4, p5, p6, p7, p8, p9))
+                x_try[k] = x
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_stress_force(tension, status, state, slack_code, area, sigma, force):
-    """The stress (the tension; 0 where slack) and the force ``sigma area / lambda1`` of an SU solve (NaN
-    where the sample has no state: its tension and state stretch are NaN)."""
+def _su_state_pass(tension, state, slack, area, C0, Ri, sigma, force, l2, cap, r_i):
+    """The fields of an SU solve at the stretch of each sample's state (``state``: the given one; NaN where
+    the sample has no state: its tension is NaN too), in one pass: the stress (the tension; 0 where
+    slack), the force ``sigma area / lambda1``, the hoop stretch, capacitance and inner radius. Slack where
+    ``slack`` (the solve's) and the tension is negative, as `_su_tension` has it; the force there is 0, as
+    ``0 area / lambda1`` is, and the other fields are the clamped state's until `_su_free_fields`."""
     for i in range(tension.size):
-        s = 0.0 if status[i] == slack_code else tension[i]
-        sigma[i] = s
-        force[i] = s * area / state[i]
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _su_state_fields(state, idx, found, C0, Ri, free, l2, cap, r_i):
-    """The free stretch, hoop stretch, capacitance and inner radius of an SU solve at the stretch of each
-    sample's state: the given one (``state``, NaN where the sample has no state), at the slack samples
-    ``idx`` their free stretch ``found`` where there is one (NaN: the clamped state's fields, free
-    stretch NaN)."""
-    for i in range(state.size):
+        t = tension[i]
         at = state[i]
+        free = slack & (t < 0.0)
+        sigma[i] = 0.0 if free else t
+        force[i] = 0.0 if free else t * area / at
         q = 1.0 / np.sqrt(at)
-        free[i] = at
         l2[i] = q
         cap[i] = C0 * at
         r_i[i] = Ri * q
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_free_fields(state, idx, found, C0, Ri, l2, cap, r_i):
+    """At the slack samples ``idx``: their free stretch ``found`` into ``state`` (which becomes the free
+    stretch field), and where there is one (not NaN) the fields there (NaN: the clamped state's fields
+    stay, the free stretch is NaN)."""
     for k in range(idx.size):
         i = idx[k]
         at = found[k]
-        free[i] = at
+        state[i] = at
         if at == at:
             q = 1.0 / np.sqrt(at)
             l2[i] = q
@@ -907,25 +893,53 @@ def su_state(l1, v, C, kap, C0, out=None):
     return out
 
 
+#: The rows of `su_solve`'s one float block: the tension and state stretch, then the fields `su_fields` fills.
+SU_ROWS = ("tension", "state", "sigma1", "force", "lambda2", "capacitance", "r_i")
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_tension_rows(l1, v, C10, C20, C30, kap, area, slack, codes, work, status, converged):
+    return _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, work[0], work[1], status, converged)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_state_rows(work, slack, area, C0, Ri):
+    _su_state_pass(work[0], work[1], slack, area, C0, Ri, work[2], work[3], work[4], work[5], work[6])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _su_free_rows(work, idx, found, C0, Ri):
+    _su_free_fields(work[1], idx, found, C0, Ri, work[4], work[5], work[6])
+
+
 def su_solve(l1, v, C, kap, area, slack, codes):
-    """The eager part of a whole SU solve of 1-D float inputs as given, one compiled pass: ``(tension,
-    state, status, slack, low)``: the tension [Pa] (eq. (39) at the given stretch), the stretch of the
-    state [-] (the given one, NaN where the sample has no state), the status (``codes``: ``(OK, SLACK,
-    BAD_INPUT, OVERFLOW)``; a NaN or infinite input is ``BAD_INPUT``), the indices of the slack samples
-    and the number of finite samples with a stretch below 1 (the caller's error). The slack samples'
-    free stretch is `su_free`'s, every other field `su_fields`' (`rdea_lab.physics.models.su` computes
-    them when they are asked for).
+    """The eager part of a whole SU solve of 1-D float inputs as given, one compiled pass: ``(block, work,
+    status, converged, slack, low)``. ``block``: one (7, n) float array for every float field of the solve
+    (`SU_ROWS`), not writeable (nor can a view of it be made so); ``work``: a writeable view of it, for the
+    kernels only. The pass fills the tension [Pa] (eq. (39) at the given stretch) and the stretch of the
+    state [-] (the given one, NaN where the sample has no state); ``status`` (``codes``: ``(OK, SLACK,
+    BAD_INPUT, OVERFLOW)``; a NaN or infinite input is ``BAD_INPUT``), where it is OK or SLACK, the indices
+    of the slack samples and the number of finite samples with a stretch below 1 (the caller's error). The
+    slack samples' free stretch is `su_free`'s, every other field `su_fields`' (`rdea_lab.physics.models.su`
+    computes them when they are asked for).
+
+    One allocation for every row: a result's fields are one chunk of memory, which the allocator hands to
+    the next result when this one is dropped, where seven arrays freed at once were given back to the system
+    and taken again, page by page (750 page faults, a third of the time, per call of 1e5 samples with every
+    field read). The rows not computed yet are not touched (reserved, not in memory, where the chunk is new).
     """
     n = l1.size
-    tension = np.empty(n)
-    state = np.empty(n)
+    block = np.empty((len(SU_ROWS), n))
+    work = block.view()
+    block.flags.writeable = False  # ``work``, a view taken before, stays writeable: the kernels fill it
     status = np.empty(n, np.int8)
+    converged = np.empty(n, np.bool_)
     codes = np.asarray(codes, np.int8)
     # one thread: the pass is memory-bound, and a shared machine's busy cores made the threaded
     # form up to 10x slower than this one
-    count, low = _su_tension(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, tension, state, status)
+    count, low = _su_tension_rows(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, work, status, converged)
     idx = _su_slack_index(status, codes[1], count) if count else np.empty(0, np.intp)
-    return tension, state, status, idx, low
+    return block, work, status, converged, idx, low
 
 
 def su_free(l1, v, s1, C, kap, free_max):
@@ -933,22 +947,23 @@ def su_free(l1, v, s1, C, kap, free_max):
     there is none (`free_stretch`: the reference `free_state`'s steps), several samples in lockstep
     (`_su_free_lanes`)."""
     out = np.empty(l1.size)
-    _su_free_lanes(_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out)
+    _su_free_lanes(_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out, 0, l1.size)
     return out
 
 
-def su_fields(tension, status, state, idx, v_slack, C, kap, free_max, slack_code, area, C0, Ri, which):
-    """The fields of an SU solve (`su_solve`) computed when first read: ``which`` 0, a (2, n) block of the
-    stress and force; 1, a (4, n) block of the free stretch, hoop stretch, capacitance and inner radius,
-    the slack samples' free stretches by `su_free` (``v_slack``: their voltages)."""
+def su_fields(work, idx, v_slack, C, kap, free_max, slack, area, C0, Ri, which):
+    """The fields of an SU solve (`su_solve` with ``slack``: its ``work``) computed when first read, into
+    their rows: ``which`` 0, the stress, force, hoop stretch, capacitance and inner radius at the state
+    stretch, in one pass (`_su_state_pass`); 1 (after 0), the slack samples' free stretches by `su_free`
+    (``v_slack``: their voltages) and the fields there (`_su_free_fields`): the state stretch becomes the
+    free stretch. One thread, as `su_solve`: the passes are memory-bound, and on a shared machine's busy
+    cores numba's threads waited some 8 ms per pass (24 ms for every field of 1e5 samples, against 1 ms on
+    one thread)."""
     if which == 0:
-        out = np.empty((2, tension.size))
-        _su_stress_force(tension, status, state, slack_code, area, out[0], out[1])
-        return out
-    found = su_free(state[idx], v_slack, tension[idx], C, kap, free_max)
-    out = np.empty((4, tension.size))
-    _su_state_fields(state, idx, found, C0, Ri, *out)
-    return out
+        _su_state_rows(work, slack, area, C0, Ri)
+    elif idx.size:
+        found = su_free(work[1][idx], v_slack, work[0][idx], C, kap, free_max)
+        _su_free_rows(work, idx, found, C0, Ri)
 
 
 _update = _jit(viscoelastic._linear_update, inline="always")

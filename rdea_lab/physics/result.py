@@ -108,10 +108,10 @@ class ModelResult:
     """Quasi-static response of a roll to arrays of stretch and voltage.
 
     A result may compute some fields when they are first read (`DeferredResult`: SU by the compiled
-    kernels computes the status and tension in its solve, the slack rolls' free states, the stress and
-    the other fields when read); each reads the same either way. Arrays a result shares (the caller's
-    inputs, one array for several fields, the arrays later fields are computed from) are read-only:
-    copy one to change it.
+    kernels computes the status, convergence and tension in its solve, the stress and the other fields,
+    then the slack rolls' free states, when read); each reads the same either way. Arrays a result shares
+    (the caller's inputs, one array for several fields, the arrays later fields are computed from) are
+    read-only: copy one to change it (a compiled SU result's arrays are all read-only).
 
     Attributes
     ----------
@@ -211,18 +211,20 @@ class DeferredResult(ModelResult):
     slack roll, the force, the stretches) to the caller that reads them.
 
     Every field reads as it would on a `ModelResult` built at once; the arrays the deferred ones are
-    computed from are read-only. `pickle` and `copy` give a `ModelResult`, `dataclasses.replace` a result of
-    this class, each with every field computed. ``==`` compares a result with one of its own class only.
-    Built by `deferred` only.
+    computed from are read-only, and their memory itself not writeable (a view of them cannot be made
+    writeable). Fields computed together are held together when the first of them is read; threads that
+    read one first at once get the same arrays (the solve's ``derive`` locks). `pickle` and `copy` give a
+    `ModelResult`, `dataclasses.replace` a result of this class, each with every field computed. ``==``
+    compares a result with one of its own class only. Built by `deferred` only.
     """
 
     def __getattr__(self, name):  # only for what the instance does not hold yet
         derive = self.__dict__.get("_derive")
         if derive is None or name not in FIELDS:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-        value = derive(name)
-        object.__setattr__(self, name, value)
-        return value
+        for key, value in derive(name).items():  # the fields computed with it too: held from now on
+            object.__setattr__(self, key, value)
+        return self.__dict__[name]
 
     def __reduce__(self):
         return ModelResult, tuple(getattr(self, name) for name in FIELDS)
@@ -230,7 +232,8 @@ class DeferredResult(ModelResult):
 
 def deferred(fields: dict, derive) -> DeferredResult:
     """A `DeferredResult` holding ``fields`` (names of `FIELDS`) and computing each other field ``name``
-    as ``derive(name)`` when first read."""
+    when first read: ``derive(name)`` is a dict of it and the fields computed with it (names of `FIELDS`),
+    each the same object whenever asked for."""
     out = object.__new__(DeferredResult)
     for name, value in fields.items():
         object.__setattr__(out, name, value)
@@ -246,6 +249,17 @@ class PathEnd:
     model: str
     y: float | None
     label: tuple | None = None
+
+
+_NAN = np.array(np.nan)
+_NAN.flags.writeable = False
+
+
+def nan_field(shape) -> np.ndarray:
+    """A read-only NaN field of ``shape`` that allocates nothing (a broadcast view of one NaN, itself not
+    writeable: the view cannot be made writeable, as the broadcast of a writeable NaN could, which would
+    write every sample of every field that shares it)."""
+    return np.broadcast_to(_NAN, shape)
 
 
 def read_only(a: np.ndarray) -> np.ndarray:
@@ -293,7 +307,7 @@ def finish(model, geom, l1, bad, shape, raw, fields, status, critical_voltage, r
             out[name] = read_only(out[name])
     out["force"] = (force if all_ok else out["sigma1"].reshape(-1) * geom.area / l1).reshape(shape)
     # None: no sample has a fold or a range end (SU): one read-only NaN view, nothing allocated
-    nan = np.broadcast_to(np.nan, (n,))
+    nan = nan_field((n,))
     crit = nan if critical_voltage is None else np.where((status == LIMIT_POINT) | (status == SNAPPED),
                                                          np.asarray(critical_voltage, float), np.nan)
     rng = nan if range_voltage is None else np.where(status == OUTSIDE_RANGE, np.asarray(range_voltage, float),

@@ -219,7 +219,7 @@ def _free_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfo
         args = (code, v[i], R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, memo, i)
         x = free_stretch(_trial, args, l1[i], s1[i], free_max)
         # the reference's final check at the free stretch (its last trial): the stress vanishes (does not jump)
-        if x == x and memo[i, 0] == x and abs(memo[i, 2]) <= 1e-6 * abs(s1[i]) + 1e-6:
+        if x == x and memo[i, 0] == x and kernels.free_check(memo[i, 2], s1[i]):
             done[i] = True
         else:
             memo[i, 0] = memo[i, 1] = math.nan

@@ -36,7 +36,7 @@ import numba
 import numpy as np
 
 from . import _branch_kernels as _bk
-from .kernels import _fields3, _basis, _one, _slope, _terms, free_stretch
+from .kernels import _fields3, _basis, _one, _slope, _terms, free_check, free_stretch
 from .ring_kernels import _bounds1, _bounds3, _stress1
 from .models import one_ring, three_ring
 from .branch import N_SCAN, scale_offsets
@@ -201,7 +201,7 @@ def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin, last):
         sig, cap, l2b, st = last[1], last[2], last[3], int(last[4])
     else:
         sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, x, v, origin, False, 0, 0.0, True)
-    if not ((st == OK or st == SNAPPED) and abs(sig) <= 1e-6 * abs(sigma_l1) + 1e-6):
+    if not ((st == OK or st == SNAPPED) and free_check(sig, sigma_l1)):
         return math.nan, math.nan, False, math.nan
     return cap, l2b, True, x
 

@@ -156,6 +156,68 @@ def test_su_fields_computed_when_read_in_any_order(seed):
         assert not getattr(fast, name).flags.writeable, name  # shared, or what later fields are computed from
 
 
+
+def test_su_deferred_fields_cannot_be_changed_through_a_view():
+    """The arrays the deferred fields are computed from (tension, status, the state stretch that becomes
+    the free one) and the rings' shared array are not writeable themselves: a caller who asks a view of
+    them to be writeable is refused, and every field read later equals the reference's."""
+    geom = core("hollow")
+    l1 = np.linspace(1.0, 1.5, 3000)
+    ref = reference(geom, TABLE3, l1, 2600.0)
+    assert np.any(ref.status == SLACK)
+    fast = solve("su", geom, TABLE3, l1, 2600.0, kernel="numba")
+    for name in ("tension", "status", "converged", "critical_voltage", "range_voltage"):  # before any deferred
+        with pytest.raises(ValueError):
+            getattr(fast, name).flags.writeable = True
+        with pytest.raises(ValueError):
+            getattr(fast, name)[...] = 0
+    assert_same(ref, fast, "after the refused writes")  # every deferred field computed after them
+    for name in ("lambda2a", "free_stretch"):
+        with pytest.raises(ValueError):
+            getattr(fast, name).flags.writeable = True
+    assert_same(ref, fast, "after the refused writes")
+    with pytest.raises(ValueError):  # the numpy path's NaN fields, one broadcast NaN, as well
+        ref.critical_voltage.flags.writeable = True
+
+
+def test_su_deferred_block_computed_once_by_threads_reading_it_at_once():
+    """Two threads that read a deferred field first at the same time get the same arrays, computed once
+    (`su._Fields`' lock); the fields equal the reference's."""
+    import threading
+    import time
+
+    geom = core("hollow")
+    l1 = np.linspace(1.0, 1.5, 3000)
+    ref = reference(geom, TABLE3, l1, 2600.0)
+    fast = solve("su", geom, TABLE3, l1, 2600.0, kernel="numba")
+    derive = fast._derive
+    calls = []
+
+    class Slow:  # the kernels module, its fields pass slowed down so that the two reads overlap
+        def __getattr__(self, name):
+            return getattr(derive_fast, name)
+
+        def su_fields(self, *args):
+            calls.append(args[-1])
+            time.sleep(0.05)
+            return derive_fast.su_fields(*args)
+
+    derive_fast, derive.fast = derive.fast, Slow()
+    got = {}
+
+    def read(key, name):
+        got[key] = getattr(fast, name)
+
+    threads = [threading.Thread(target=read, args=(k, name)) for k, name in enumerate(("free_stretch", "r_i",
+                                                                                           "sigma1", "force"))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sorted(calls) == [0, 1]  # each block once
+    assert got[0] is fast.free_stretch and got[1] is fast.r_i and got[2] is fast.sigma1 and got[3] is fast.force
+    assert_same(ref, fast, "read by threads")
+
 def test_su_deferred_result_pickles_copies_and_replaces_as_a_model_result():
     import copy
     import dataclasses
@@ -199,15 +261,46 @@ def _lanes_against_one_by_one(seeds):
         C, kap = (mat.C10, mat.C20, mat.C30), float(kappa(geom, mat))
         ok = np.isfinite(l1) & np.isfinite(v)
         l1, v = l1[ok], v[ok]
-        tension, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True, (0, SLACK, BAD_INPUT, OVERFLOW))
+        block, _, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True,
+                                                 (0, SLACK, BAD_INPUT, OVERFLOW))
+        tension = block[0]
         args = (l1[idx].copy(), v[idx].copy(), tension[idx].copy(), *C, kap, FREE_STRETCH_MAX)
-        one, lanes = np.empty(idx.size), np.empty(idx.size)
+        one, lanes = np.empty(idx.size), np.full(idx.size, -1.0)
         kernels._su_free_all(*args, one)
-        kernels._su_free_lanes(*args, lanes)
+        half = idx.size // 2  # in two ranges: every sample in one
+        kernels._su_free_lanes(*args, lanes, 0, half)
+        kernels._su_free_lanes(*args, lanes, half, idx.size)
         assert np.array_equal(one, lanes, equal_nan=True), f"seed {seed}"
         total += idx.size
     return total
 
+
+
+def test_su_compiled_free_states_equal_the_numpy_reference_bit_for_bit():
+    """The compiled free-state step (`kernels._free_step`, which `free_stretch` and the SU lanes take) against
+    the numpy reference `_common.free_state` (its bracketing, Illinois iteration and final check
+    `free_check`) with the numpy SU model: the same trials in the same order, so the same free stretches to
+    the last bit, NaN where there is none, on slack samples of random families."""
+    from rdea_lab.physics import kernels
+    from rdea_lab.physics.models._common import free_state, kappa
+
+    total = none = 0
+    for seed in range(6):
+        geom, mat, l1, v = random_family(seed, 5000)
+        C, kap = (mat.C10, mat.C20, mat.C30), float(kappa(geom, mat))
+        ok = np.isfinite(l1) & np.isfinite(v)
+        l1, v = l1[ok], v[ok]
+        block, _, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True,
+                                                 (0, SLACK, BAD_INPUT, OVERFLOW))
+        lam, vs, s1 = l1[idx].copy(), v[idx].copy(), block[0][idx].copy()
+        with np.errstate(over="ignore", invalid="ignore"):
+            ref, _, _ = free_state(su.evaluate, geom, mat, lam, vs, s1, kernel="numpy")
+        lanes = np.empty(idx.size)
+        kernels._su_free_lanes(lam, vs, s1, *C, kap, FREE_STRETCH_MAX, lanes, 0, idx.size)
+        assert np.array_equal(ref, lanes, equal_nan=True), f"seed {seed}"
+        total += idx.size
+        none += np.count_nonzero(np.isnan(ref))
+    assert total > 5000 and 100 < none < total - 1000  # both kinds of ending
 
 def test_su_free_states_in_lockstep_equal_one_by_one():
     """`kernels._su_free_lanes` (several slack samples in lockstep) against `_su_free` sample by sample

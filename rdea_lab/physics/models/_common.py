@@ -23,6 +23,14 @@ HOOP_STRETCH_CAP = 10.0
 FREE_STRETCH_MAX = 100.0
 
 
+def free_check(stress, sigma_at_l1):
+    """`free_state`'s final check: where the stress [Pa] at a free stretch found is small enough to be its
+    zero (``|stress| <= 1e-6 |sigma_at_l1| + 1e-6``, ``sigma_at_l1`` the clamped roll's stress); False
+    where it jumps there (the free roll would snap) or is NaN. The one statement of the tolerance: the
+    compiled kernels compile this function (`rdea_lab.physics.kernels.free_check`)."""
+    return np.abs(stress) <= 1e-6 * np.abs(sigma_at_l1) + 1e-6
+
+
 def yeoh_coefficients(material):
     """``(C10, C20, C30)`` [Pa] of a parameter set: floats, or arrays where a design study varies them
     (`rdea_lab.physics.designs`)."""
@@ -322,8 +330,7 @@ def free_state(evaluate, geom, material, l1, v, sigma_at_l1, *, origin=None, rto
     w = np.flatnonzero(keep)
     if w.size:
         ev = _trial(kernel, evaluate, geom, material, lam[w], v[w], origin, w)
-        scale = np.abs(np.asarray(sigma_at_l1, float)[w])
-        jump = ~(np.abs(ev.fields["sigma1"]) <= 1e-6 * scale + 1e-6)
+        jump = ~free_check(ev.fields["sigma1"], np.asarray(sigma_at_l1, float)[w])
         status[w[jump]] = NOT_CONVERGED
         lam[w[jump]] = np.nan
         for key in fields:
