@@ -4,10 +4,14 @@ The root of each sample is `kernels.branch_roots`' (a free state's trial: `kerne
 this module compiles is the rest of a `solve`, with the numpy code as the
 reference (the tests check one against the other):
 
-- the result fields at the equilibria, one parallel pass writing every field:
-  `three_ring.ring_fields` and `continuum.node_mechanics` / `continuum.closing`,
-  compiled as they are (`kernels._jit`); 1R's `one_ring.fields` stays numpy,
-  by blocks (`one_ring.BLOCK` says why);
+- the result fields at the equilibria: CR's `continuum.node_mechanics` /
+  `continuum.closing` compiled as they are (`kernels._jit`), one parallel pass;
+  1R's `one_ring.fields` and 3R's `three_ring.ring_fields` in split passes
+  (`fields1`, `fields3`: this numba has no vector math library, so its scalar
+  ``log`` and ``expm1`` cost 6-9 ns each against numpy's 1; the logarithms and
+  ``expm1`` of `yeoh.gradient_terms` are numpy's, over blocks, and the rest,
+  the same operations in the same order, compiled: equal to the numpy
+  functions bit for bit on the bench scene);
 - the problems' bounds and loads (`bounds`);
 - a slack roll's free state: `kernels.free_stretch` (the bracketing and
   Illinois iteration of `models._common.free_state`, the one compiled form of
@@ -28,8 +32,8 @@ from numba import prange
 
 from . import kernels
 from .branch import N_SCAN
-from .kernels import (_arr, _basis, _fields3, _gradient, _h_start, _jit, _one, _parallel, _slope, _variants,
-                      free_stretch)
+from .kernels import (_arr, _basis, _fields3, _gradient, _h_start, _jit, _one, _parallel, _slope,
+                      _variants, free_stretch)
 from .models import continuum, one_ring, three_ring
 from .models._common import FREE_STRETCH_MAX
 
@@ -41,6 +45,7 @@ _bounds3 = _jit(three_ring.bounds, inline="always", xi_at_hoop_stretch=_xi_hoop)
 _bounds_cr = _jit(continuum.bounds, inline="always")
 _node_mech = _jit(continuum.node_mechanics, inline="always", slope=_slope)
 _closing = _jit(continuum.closing, inline="always")
+_radii = _jit(three_ring.radii, inline="always")  # inlined: the split pass's loop vectorizes
 
 _N_SCAN = N_SCAN
 _FREE_MAX = FREE_STRETCH_MAX
@@ -64,12 +69,6 @@ def _cr_mechanics(xi, l1, xi0, x0, lx0p, Q, W, C10, C20, C30):
         h1 += h * W[1, j]
         h2 += h * W[2, j]
     return mech, h0, h1, h2
-
-
-def _fields3_loop(y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
-    for i in prange(y.size):
-        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = _fields3(
-            y[i], l1[i], v[i], R, C10, C20, C30, kap, C0, Ro)
 
 
 #: Samples per block of the CR field pass: each node is applied to a block of samples in a loop the compiler
@@ -105,16 +104,166 @@ def _fields_cr_loop(y, l1, v, xi0, x0, lx0p, Q, W, present, C10, C20, C30, Lb, k
             out[3, k] = acc[3, i] if present[2] else math.nan
 
 
-_f3 = _variants(_fields3_loop)
 _fcr = _variants(_fields_cr_loop)
 
 
+#: Samples per block of the split field passes (`fields1`, `fields3`): their work rows (some 20 of them) stay in
+#: the core's cache between the passes.
+SPLIT_BLOCK = 4096
+
+
+#: Rows of a split pass's work array (`_split`): the stretches whose logarithms `yeoh._invariant_terms` takes
+#: (``l1``, then each ring's hoop stretch), then the arguments of its ``expm1`` calls (`_log_args`), then the
+#: pass's own.
+_LOG, _EXP = 0, 4
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True, inline="always")
+def _log_args(W, rings, m):
+    """The arguments of the ``expm1`` calls of `yeoh._invariant_terms` from the logarithms ``a = log l1``
+    (row ``_LOG``) and ``b = log l2`` of each ring (the rows after it), into the rows from ``_EXP``: ``2 a``,
+    then for each ring ``2 b``, ``-2 (a + b)``, ``-4 a - 2 b``, ``-2 a - 4 b`` (its operations, in its order)."""
+    for i in range(m):
+        W[_EXP, i] = 2.0 * W[_LOG, i]
+    for j in range(rings):
+        for i in range(m):
+            a = W[_LOG, i]
+            b = W[_LOG + 1 + j, i]
+            W[_EXP + 1 + 4 * j, i] = 2.0 * b
+            W[_EXP + 2 + 4 * j, i] = -2.0 * (a + b)
+            W[_EXP + 3 + 4 * j, i] = -4.0 * a - 2.0 * b
+            W[_EXP + 4 + 4 * j, i] = -2.0 * a - 4.0 * b
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _gradient_of(W, j, i, l1, l2, C10, C20, C30):
+    """`yeoh.gradient_terms` of ring ``j`` of sample ``i`` from the ``expm1`` values (`_log_args`)."""
+    x = W[_EXP, i] + W[_EXP + 1 + 4 * j, i] + W[_EXP + 2 + 4 * j, i]
+    I_1 = -2.0 * l1 * W[_EXP + 3 + 4 * j, i]
+    I_2 = -2.0 * l2 * W[_EXP + 4 + 4 * j, i]
+    W1, _ = _slope(x, (C10, C20, C30))
+    return W1 * I_1, W1 * I_2
+
+
+#: Samples per block of the split field passes (`fields1`, `fields3`): their work rows (some 25) stay in the
+#: core's cache between the passes.
+SPLIT_BLOCK = 4096
+
+
+def _split(first, last, rings, own, n, args):
+    """A split field pass over ``n`` samples, by blocks of `SPLIT_BLOCK`: ``first(W, lo, m, *args)`` writes the
+    stretches whose logarithms `yeoh._invariant_terms` takes into the rows from ``_LOG`` (``l1``, then each of the
+    ``rings``' hoop stretch) and what else it keeps into its ``own`` rows (from ``_EXP + 1 + 4 rings``); numpy
+    takes the logarithms; the ``expm1`` arguments (`_log_args`, called by ``first``'s second half ``args_``);
+    numpy takes ``expm1`` of the block (vectorized, where this numba calls them one at a time, several times
+    slower); ``last(W, lo, m, *args)`` combines them into the fields."""
+    B = min(SPLIT_BLOCK, max(n, 1))
+    W = np.empty((_EXP + 1 + 4 * rings + own, B))
+    logs, exps = W[_LOG:_LOG + 1 + rings], W[_EXP:_EXP + 1 + 4 * rings]
+    with np.errstate(all="ignore"):  # as the compiled passes: no warnings (NaN and inf carry through)
+        for lo in range(0, n, B):
+            m = min(B, n - lo)
+            first(W, lo, m, *args)
+            t = logs[:, :m]
+            np.log(t, out=t)
+            _args[rings](W, m)
+            e = exps[:, :m]
+            np.expm1(e, out=e)
+            last(W, lo, m, *args)
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _args1(W, m):
+    _log_args(W, 1, m)
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _args3(W, m):
+    _log_args(W, 3, m)
+
+
+_args = {1: _args1, 3: _args3}
+_OWN3 = _EXP + 13  # 3R's own rows: dr_ie, dr_oe, dr_o, l2a, l2b, l2c
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _first3(W, lo, m, y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
+    Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c = R
+    for i in range(m):  # `three_ring.ring_state` up to its `gradient_terms`
+        xi, L = y[lo + i], l1[lo + i]
+        r_ie, r_oe, r_o = _radii(xi, L, Da, Dab, Dabc)
+        w = -0.5 / (L * L)
+        W[_OWN3, i] = 0.0 if Da == 0.0 else w * Da / r_ie
+        W[_OWN3 + 1, i] = 0.0 if Dab == 0.0 else w * Dab / r_oe
+        W[_OWN3 + 2, i] = 0.0 if Dabc == 0.0 else w * Dabc / r_o
+        l2a = (xi + r_ie) / Sa if eta_a > 0.0 else 1.0
+        l2b = (r_ie + r_oe) / Sb
+        l2c = (r_oe + r_o) / Sc if eta_c > 0.0 else 1.0
+        W[_LOG, i], W[_LOG + 1, i], W[_LOG + 2, i], W[_LOG + 3, i] = L, l2b, l2a, l2c
+        W[_OWN3 + 3, i], W[_OWN3 + 4, i], W[_OWN3 + 5, i] = l2a, l2b, l2c  # (the logarithms overwrite those)
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _last3(W, lo, m, y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
+    Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c = R
+    for i in range(m):  # the rest of `three_ring.ring_state` and `ring_fields`
+        k = lo + i
+        L, vk = l1[k], v[k]
+        dr_ie, dr_oe, dr_o = W[_OWN3, i], W[_OWN3 + 1, i], W[_OWN3 + 2, i]
+        l2b = W[_OWN3 + 4, i]
+        dl2b = (dr_ie + dr_oe) / Sb
+        psi_1, psi_2 = _gradient_of(W, 0, i, L, l2b, C10, C20, C30)
+        dg = eta_b * (psi_1 + psi_2 * dl2b)
+        l2a = math.nan
+        l2c = math.nan
+        if eta_a > 0.0:
+            l2a = W[_OWN3 + 3, i]
+            psi_1, psi_2 = _gradient_of(W, 1, i, L, l2a, C10, C20, C30)
+            dg = dg + eta_a * (psi_1 + psi_2 * dr_ie / Sa)
+        if eta_c > 0.0:
+            l2c = W[_OWN3 + 5, i]
+            psi_1, psi_2 = _gradient_of(W, 2, i, L, l2c, C10, C20, C30)
+            dg = dg + eta_c * (psi_1 + psi_2 * (dr_oe + dr_o) / Sc)
+        out[0, k] = L * dg - 2.0 * kap * vk * vk * L * L * l2b * (l2b + L * dl2b)
+        out[1, k], out[2, k], out[3, k] = l2a, l2b, l2c
+        out[4, k] = C0 * (L * l2b) ** 2
+        out[5, k] = y[k] * Ro
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _first1(W, lo, m, l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri, out):
+    for i in range(m):
+        W[_LOG, i], W[_LOG + 1, i] = l1[lo + i], l2[lo + i]
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _last1(W, lo, m, l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri, out):
+    for i in range(m):  # `one_ring.fields` from its `gradient_terms`
+        k = lo + i
+        L, y = l1[k], l2[k]
+        psi_1, _ = _gradient_of(W, 0, i, L, y, C10, C20, C30)
+        out[0, k] = L * psi_1 - 2.0 * kap * (L * v[k]) ** 2 * y * y
+        out[1, k] = C0 * (L * y) ** 2
+        out[2, k] = 0.5 * (y * (Ro + Ri) - (Ro - Ri) / (L * y))
+
+
+def fields1(l2, l1, v, C, kap, C0, Ro, Ri):
+    """`one_ring.fields` of every sample, ``(sigma1, capacitance, r_i)``: split passes (`_split`), the logarithms
+    and ``expm1`` of `yeoh.gradient_terms` by numpy, the rest compiled."""
+    l2 = _arr(l2)
+    out = np.empty((3, l2.size))
+    _split(_first1, _last1, 1, 0, l2.size, (l2, _arr(l1, l2.shape), _arr(v, l2.shape), *map(float, C), float(kap),
+                                            float(C0), float(Ro), float(Ri), out))
+    return tuple(out)
+
+
 def fields3(y, l1, v, R, C, kap, C0, Ro):
-    """`three_ring.ring_fields` of every sample: the six rows of one block."""
+    """`three_ring.ring_fields` of every sample: the six rows of one block. Split passes (`_split`): the
+    logarithms and ``expm1`` of `yeoh.gradient_terms` by numpy, the rest compiled."""
     y = _arr(y)
     out = np.empty((6, y.size))
-    _f3[_parallel(y.size)](y, _arr(l1, y.shape), _arr(v, y.shape), tuple(float(r) for r in R), *map(float, C),
-                           float(kap), float(C0), float(Ro), out)
+    _split(_first3, _last3, 3, 6, y.size, (y, _arr(l1, y.shape), _arr(v, y.shape), tuple(float(r) for r in R),
+                                         *map(float, C), float(kap), float(C0), float(Ro), out))
     return tuple(out)
 
 

@@ -129,7 +129,7 @@ def test_bench_scene_whole_equal_reference(model):
 def test_fields_equal_numpy(geom):
     """Each compiled field pass against its numpy function at the same coordinates (not only at equilibria)."""
     rng = np.random.default_rng(7)
-    n = one_ring.BLOCK + 5000  # parallel from 4096 samples on; 1R's numpy in two blocks
+    n = 2 * ring_kernels.SPLIT_BLOCK + 1000  # parallel from 4096 samples on; the split passes in three blocks
     l1, v = rng.uniform(1.0, 2.0, n), rng.uniform(0.0, 4000.0, n)
     C, kap, C0 = yeoh_coefficients(RIZZELLO), kappa(geom, RIZZELLO), geom.C0(RIZZELLO.eps_r)
     # the problems' bounds and loads in one pass against the models' numpy `bounds`
@@ -142,9 +142,9 @@ def test_fields_equal_numpy(geom):
         for key in ("y0", "y_max", "K", "load"):
             _close(getattr(fast, key), getattr(prob, key), f"bounds {key}")
     l2 = rng.uniform(0.5, 2.0, n) / np.sqrt(l1)
-    for x, y in zip(one_ring._fields_by_blocks(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri),
+    for x, y in zip(ring_kernels.fields1(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri),
                     one_ring.fields(l2, l1, v, *C, kap, C0, geom.Ro, geom.Ri)):
-        _close(x, y, "1r by blocks")
+        _close(x, y, "1r")
     rings = three_ring._Rings(geom, l1)
     xi = rings.rho_i / np.sqrt(l1) + rng.uniform(0.0, 0.3, n)
     for x, y in zip(ring_kernels.fields3(xi, l1, v, rings.constants, C, kap, C0, geom.Ro),

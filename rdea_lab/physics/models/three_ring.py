@@ -174,7 +174,8 @@ def ring_state(xi, l1, v, R, C10, C20, C30, kap):
 def ring_fields(xi, l1, v, R, C10, C20, C30, kap, C0, Ro):
     """``(sigma1 [Pa], lambda2a, lambda2b, lambda2c, capacitance [F], r_i [m])`` at the equilibrium ``xi``:
     `ring_state` and eq. (29), ``C = C0 lambda1**2 lambda2b**2``. Scalar or array arguments (compiled too:
-    `rdea_lab.physics.ring_kernels.fields3` runs it per sample)."""
+    `rdea_lab.physics.kernels` compiles it as it is for one sample; `rdea_lab.physics.ring_kernels.fields3` is
+    its split form over blocks, tested against it)."""
     sigma1, l2a, l2b, l2c = ring_state(xi, l1, v, R, C10, C20, C30, kap)
     return sigma1, l2a, l2b, l2c, C0 * (l1 * l2b) ** 2, xi * Ro
 
