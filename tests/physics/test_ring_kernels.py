@@ -7,8 +7,9 @@
   leaves go to the reference by construction (checked through `solve` against ``kernel="numpy"``, whose
   statuses must be identical). Cases: the seeded random families of test_random_cases (folds, small cores,
   micro-cores), each at stretches and voltages that make many rolls slack, and the bench scene.
-- The result fields: `fields3`, `fields_cr` against `three_ring.ring_fields` and `continuum.evaluate`'s numpy
-  fields; the problems' bounds (`ring_kernels.bounds`) against the models' `bounds`.
+- The result fields: `fields1`, `fields3`, `fields_cr` against `one_ring.fields`, `three_ring.ring_fields` and
+  `continuum.evaluate`'s numpy fields (the split passes also near stretch 1, with rings of zero volume and
+  non-finite coordinates); the problems' bounds (`ring_kernels.bounds`) against the models' `bounds`.
 """
 
 from __future__ import annotations
@@ -39,6 +40,9 @@ KEYS = ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i")
 RTOL = 1e-12
 #: Cases of each family in the default run (a prefix; all of them under ``-m slow``).
 N_CASES = 6
+#: Rolls whose inner or outer passive ring has no volume, and the hollow core [m].
+CORES_SPLIT = {"no ring a": (0.86e-3, 0.86e-3, 1.76e-3, 1.8e-3), "no ring c": (0.86e-3, 0.88e-3, 1.8e-3, 1.8e-3),
+               "hollow": (0.86e-3, 0.88e-3, 1.76e-3, 1.8e-3)}
 
 
 def _close(x, y, what):
@@ -157,3 +161,30 @@ def test_fields_equal_numpy(geom):
     for x, y, name in zip(ring_kernels.fields_cr(xi, l1, v, roll, C, kap, C0, geom.Ro),
                           (sigma1, *hoop, cap, r_i), ("sigma1", "lambda2a", "lambda2b", "lambda2c", "C", "r_i")):
         _close(x, y, f"cr {name}")
+
+
+@pytest.mark.parametrize("radii", [CORES_SPLIT["no ring a"], CORES_SPLIT["no ring c"], CORES_SPLIT["hollow"]])
+def test_split_field_passes_at_the_edges(radii):
+    """`fields1` and `fields3` (numpy's logarithms and ``expm1``, the rest compiled) against the numpy functions
+    where the logarithms matter: stretches 1e-14 to 1e-3 above 1, rings of zero volume (NaN stretch), NaN and
+    infinite coordinates, and a call shorter than a block."""
+    geom = core(radii)
+    rng = np.random.default_rng(3)
+    n = ring_kernels.SPLIT_BLOCK + 7
+    l1 = np.where(rng.random(n) < 0.5, 1.0 + 10.0 ** rng.uniform(-14, -3, n), rng.uniform(1.0, 3.0, n))
+    v = rng.uniform(0.0, 5000.0, n)
+    l1[:2], v[2] = np.nan, np.inf
+    C, kap, C0 = yeoh_coefficients(RIZZELLO), kappa(geom, RIZZELLO), geom.C0(RIZZELLO.eps_r)
+    rings = three_ring._Rings(geom, l1)
+    l2 = rng.uniform(0.9, 1.1, n) / np.sqrt(l1)
+    xi = rings.rho_i / np.sqrt(l1) + rng.uniform(0.0, 0.05, n) * (rng.random(n) < 0.9)
+    l2[3], xi[4] = np.nan, np.inf
+    with np.errstate(all="ignore"):
+        for m in (n, 100):
+            s = slice(0, m)
+            for x, y in zip(ring_kernels.fields1(l2[s], l1[s], v[s], C, kap, C0, geom.Ro, geom.Ri),
+                            one_ring.fields(l2[s], l1[s], v[s], *C, kap, C0, geom.Ro, geom.Ri)):
+                _close(x, y, f"1r {radii}")
+            for x, y in zip(ring_kernels.fields3(xi[s], l1[s], v[s], rings.constants, C, kap, C0, geom.Ro),
+                            three_ring.ring_fields(xi[s], l1[s], v[s], rings.constants, *C, kap, C0, geom.Ro)):
+                _close(x, np.broadcast_to(y, x.shape), f"3r {radii}")
