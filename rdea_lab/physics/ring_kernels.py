@@ -32,7 +32,7 @@ from numba import prange
 
 from . import kernels
 from .branch import N_SCAN
-from .kernels import (_arr, _basis, _fields3, _gradient, _h_start, _jit, _one, _parallel, _slope,
+from .kernels import (_arr, _basis, _fields3, _gradient, _h_start, _jit, _one, _parallel, _scan_block, _slope,
                       _variants, free_stretch)
 from .models import continuum, one_ring, three_ring
 from .models._common import FREE_STRETCH_MAX
@@ -375,18 +375,150 @@ def _free_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfo
 
 
 _free = _variants(_free_loop)
+
+
+#: Lanes of `_free_lanes`: slack samples whose free-state searches run in lockstep, each round's trials in one
+#: batched root scan (`kernels._scan_block`).
+FREE_LANES = 128
+#: Slack samples per task of the threaded `free_states`.
+FREE_CHUNK = 1024
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done, i0, i1):
+    """`_free_loop` of the samples ``i0 <= i < i1``, `FREE_LANES` at a time in lockstep: each lane takes
+    `kernels.free_stretch`'s steps for its sample in the same order with the same numbers, each trial the
+    rising-ramp state of `_rising` (bounds, then `kernels._scan_block`, which equals `kernels._one` bit for
+    bit) and `_stress`, so the same result bit for bit; a lane that is done takes the next sample. A trial
+    that is not certified (or whose stress is not finite) ends its sample not done, as in `_trial`."""
+    nl = min(FREE_LANES, i1 - i0)
+    idx = np.full(nl, -1)
+    phase = np.zeros(nl, np.int8)  # 0: bracketing by 25 % steps, 1: the Illinois iteration
+    F = np.empty((11, nl))
+    x_try, vv, s1v, lo, s_lo, hi, a, b, fa, fb, tol = F[0], F[1], F[2], F[3], F[4], F[5], F[6], F[7], F[8], F[9], F[10]
+    side = np.zeros(nl, np.int8)
+    count = np.zeros(nl, np.int64)
+    act = np.empty(nl, np.int64)
+    T = np.empty((8, nl))  # the round's trials, compacted: the scan's arguments and results
+    lam, y0, y_max, K, xi0, x0, y, h0 = T[0], T[1], T[2], T[3], T[4], T[5], T[6], T[7]
+    ok = np.zeros(nl, np.int8)
+    nxt = i0
+    busy = 0
+    while True:
+        for k in range(nl):  # an idle lane takes the next sample
+            if idx[k] < 0 and nxt < i1:
+                i = nxt
+                idx[k] = i
+                phase[k] = 0
+                lo[k] = hi[k] = l1[i]
+                s_lo[k] = s1v[k] = s1[i]
+                vv[k] = v[i]
+                memo[i, 0] = memo[i, 1] = math.nan
+                done[i] = False
+                x_try[k] = min(hi[k] * 1.25, free_max)
+                nxt += 1
+                busy += 1
+        if busy == 0:
+            break
+        na = 0
+        for k in range(nl):  # `_rising`'s bounds
+            if idx[k] < 0:
+                continue
+            act[na] = k
+            t = x_try[k]
+            lam[na] = t
+            if code == 1:
+                y0[na], y_max[na], load = _bounds1(t, kap)
+            elif code == 3:
+                y0[na], y_max[na], load = _bounds3(t, kap, B)
+            else:
+                y0[na], y_max[na], load = _bounds_cr(t, kap, B[0], B[1])
+            K[na] = load * vv[k] * vv[k]
+            if code == 4:
+                xi0[na] = y0[na]
+                _, x0[na] = _basis(t)
+            else:
+                xi0[na] = x0[na] = t  # (unused)
+            na += 1
+        _scan_block(code, lam, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, False, 1e-14, 100, _N_SCAN,
+                    pitchfork, y, ok, h0, 0, na)
+        for j in range(na):
+            k = act[j]
+            i = idx[k]
+            trial = x_try[k]
+            fin = ok[j] == 1
+            ys = math.nan
+            if fin:
+                Rs = (xi0[j], x0[j], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) if code == 4 else R
+                ys = _stress(code, y[j], trial, vv[k], Rs, B, Q, W, C10, C20, C30, kap)
+                fin = np.isfinite(ys)
+            res = False
+            end = not fin
+            if fin and phase[k] == 0:
+                if ys >= 0.0:  # bracketed: the Illinois iteration from [lo, trial]
+                    a[k], b[k], fa[k], fb[k] = lo[k], trial, s_lo[k], ys
+                    tol[k] = 1e-10 * abs(s1v[k])
+                    side[k] = 0
+                    count[k] = 0
+                    phase[k] = 1
+                else:
+                    lo[k], s_lo[k] = trial, ys
+                    end = trial >= free_max
+                    hi[k] = trial
+                    x_try[k] = min(hi[k] * 1.25, free_max)
+            elif fin:
+                if ys < 0.0:
+                    fb[k] = 0.5 * fb[k] if side[k] == -1 else fb[k]
+                    a[k], fa[k] = trial, ys
+                    side[k] = -1
+                else:
+                    fa[k] = 0.5 * fa[k] if side[k] == 1 else fa[k]
+                    b[k], fb[k] = trial, ys
+                    side[k] = 1
+                count[k] += 1
+                if abs(ys) <= tol[k] or b[k] - a[k] <= 1e-13 * b[k]:
+                    end = True
+                    # the reference's final check at the free stretch: the stress vanishes (does not jump)
+                    res = abs(ys) <= 1e-6 * abs(s1v[k]) + 1e-6
+                else:
+                    end = count[k] >= 200
+            if end:
+                if res:
+                    memo[i, 0], memo[i, 1], memo[i, 2] = trial, y[j], ys
+                    done[i] = True
+                idx[k] = -1
+                busy -= 1
+            elif phase[k] == 1:
+                xa, xb = a[k], b[k]
+                xn = (xa * fb[k] - xb * fa[k]) / (fb[k] - fa[k])
+                if not (xn > xa and xn < xb):
+                    xn = 0.5 * (xa + xb)
+                x_try[k] = xn
+
+
+def _free_lanes_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done):
+    n = l1.size
+    for c in prange((n + FREE_CHUNK - 1) // FREE_CHUNK):
+        _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done,
+                    c * FREE_CHUNK, min(n, (c + 1) * FREE_CHUNK))
+
+
+_free_batched = _variants(_free_lanes_loop)
 #: A free state costs some 5-10 roots and stresses (its trials): calls of this many slack samples run on all
 #: cores.
 FREE_PARALLEL_MIN = 256
 
 
-def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.0,) * 4, cr=None):
+def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.0,) * 4, cr=None,
+                one_by_one=False):
     """The free states of slack samples (stretch ``l1``, voltage ``v``, stress ``s1 < 0`` there), compiled:
     ``(free stretch, y there, done)``; a sample not done goes to the numpy `free_state`.
 
     ``code``: `kernels.CODES`; ``offsets``: the scale nodes of the call's problem (`branch.scale_offsets`:
     those of its widest span, so each trial is scanned at least at the nodes the reference scans it at);
     ``R``, ``B``: 3R's ring and bound constants; ``cr``: CR's ``(Q, W, s_i, s_ie, Lb)`` (`cr_tables`).
+    The searches run in lockstep lanes (`_free_lanes`); ``one_by_one``: one sample after the other
+    (`_free_loop`, each trial `kernels._one`: the same numbers, bit for bit; the tests' reference).
     """
     n = l1.size
     memo, done = np.empty((n, 3)), np.empty(n, np.bool_)
@@ -398,9 +530,10 @@ def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.
     else:
         Q, W = _NO_Q, _NO_W
     par = int(n >= FREE_PARALLEL_MIN and _parallel(kernels.PARALLEL_MIN))
-    _free[par](code, _arr(l1), _arr(v, l1.shape), _arr(s1, l1.shape), tuple(float(r) for r in R),
-               tuple(float(b) for b in B), Q, W, *map(float, C), float(kap), _arr(offsets),
-               bool(pitchfork), _FREE_MAX, memo, done)
+    loop = _free if one_by_one else _free_batched
+    loop[par](code, _arr(l1), _arr(v, l1.shape), _arr(s1, l1.shape), tuple(float(r) for r in R),
+              tuple(float(b) for b in B), Q, W, *map(float, C), float(kap), _arr(offsets), bool(pitchfork), _FREE_MAX,
+              memo, done)
     return memo[:, 0].copy(), memo[:, 1].copy(), done
 
 

@@ -188,3 +188,35 @@ def test_split_field_passes_at_the_edges(radii):
             for x, y in zip(ring_kernels.fields3(xi[s], l1[s], v[s], rings.constants, C, kap, C0, geom.Ro),
                             three_ring.ring_fields(xi[s], l1[s], v[s], rings.constants, *C, kap, C0, geom.Ro)):
                 _close(x, np.broadcast_to(y, x.shape), f"3r {radii}")
+
+
+@pytest.mark.parametrize("model", ["1r", "3r", "cr"])
+def test_free_lanes_equal_one_by_one(model, monkeypatch):
+    """The lockstep free-state searches (`ring_kernels._free_lanes`, each round's trials in one batched scan)
+    against the one-by-one search (`_free_loop`, each trial `kernels._one`) bit for bit: the same samples done,
+    the same free stretches and fields, on the random families' slack scenes (more samples than one task of
+    lanes: `FREE_CHUNK`) and the bench scene."""
+    monkeypatch.setattr(ring_kernels, "FREE_CHUNK", 64)  # several tasks, some lanes idle at each one's end
+    rng = np.random.default_rng(5)
+    scenes = [(case.geom, case.mat) + _slack_scene(case, rng, 300)
+              for family in ("general", "small core", "hollow micro-core") for case in cases(family, 3)
+              if not (model == "cr" and case.geom.Ri == 0.0)]
+    scenes.append((core("hollow"), RIZZELLO) + _bench_scene(3000)[1:])
+    free_states = ring_kernels.free_states
+    n_done = 0
+    for geom, mat, l1, v in scenes:
+        ev = MODULES[model].evaluate(geom, mat, l1, v, kernel="numba")
+        sigma = np.asarray(ev.fields["sigma1"], float)
+        with np.errstate(invalid="ignore"):
+            slack = np.flatnonzero(is_valid(ev.status) & (sigma < 0.0))
+        out = {}
+        for one in (True, False):
+            monkeypatch.setattr(ring_kernels, "free_states", lambda *a, **k: free_states(*a, **k, one_by_one=one))
+            out[one] = ev.free(slack, sigma[slack])
+        (lam, f, done), (lam_l, f_l, done_l) = out[True], out[False]
+        assert np.array_equal(done, done_l) and np.array_equal(lam, lam_l, equal_nan=True), f"{model} {geom}"
+        for key in KEYS:
+            assert np.array_equal(np.broadcast_to(f[key], lam.shape), np.broadcast_to(f_l[key], lam.shape),
+                                  equal_nan=True), f"{model} {geom} {key}"
+        n_done += int(np.count_nonzero(done))
+    assert n_done > 200  # the lanes ran (a floor, not a figure)
