@@ -154,15 +154,38 @@ def _split(first, last, rings, own, n, args):
     """A split field pass over ``n`` samples, by blocks of `SPLIT_BLOCK`: ``first(W, lo, m, *args)`` writes the
     stretches whose logarithms `yeoh._invariant_terms` takes into the rows from ``_LOG`` (``l1``, then each of the
     ``rings``' hoop stretch) and what else it keeps into its ``own`` rows (from ``_EXP + 1 + 4 rings``); numpy
-    takes the logarithms; the ``expm1`` arguments (`_log_args`, called by ``first``'s second half ``args_``);
-    numpy takes ``expm1`` of the block (vectorized, where this numba calls them one at a time, several times
-    slower); ``last(W, lo, m, *args)`` combines them into the fields."""
-    B = min(SPLIT_BLOCK, max(n, 1))
+    takes their logarithms; `_log_args` writes the ``expm1`` arguments; numpy takes ``expm1`` (vectorized,
+    where this numba calls them one at a time, several times slower); ``last(W, lo, m, *args)`` combines them
+    into the fields. Where `kernels._parallel` allows, two threads take half the blocks each (the compiled
+    passes and numpy's run without the GIL)."""
+    if n >= 2 * SPLIT_BLOCK and _parallel(n):
+        mid = (n // 2 + SPLIT_BLOCK - 1) // SPLIT_BLOCK * SPLIT_BLOCK
+        other = _pool().submit(_split_blocks, first, last, rings, own, mid, n, args)
+        _split_blocks(first, last, rings, own, 0, mid, args)
+        other.result()
+    else:
+        _split_blocks(first, last, rings, own, 0, n, args)
+
+
+_POOL = []
+
+
+def _pool():
+    """The one helper thread of `_split` (started when first needed)."""
+    if not _POOL:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL.append(ThreadPoolExecutor(1, thread_name_prefix="rdea-split"))
+    return _POOL[0]
+
+
+def _split_blocks(first, last, rings, own, i0, i1, args):
+    B = min(SPLIT_BLOCK, max(i1 - i0, 1))
     W = np.empty((_EXP + 1 + 4 * rings + own, B))
     logs, exps = W[_LOG:_LOG + 1 + rings], W[_EXP:_EXP + 1 + 4 * rings]
     with np.errstate(all="ignore"):  # as the compiled passes: no warnings (NaN and inf carry through)
-        for lo in range(0, n, B):
-            m = min(B, n - lo)
+        for lo in range(i0, i1, B):
+            m = min(B, i1 - lo)
             first(W, lo, m, *args)
             t = logs[:, :m]
             np.log(t, out=t)
