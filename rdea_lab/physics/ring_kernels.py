@@ -25,6 +25,7 @@ reference (the tests check one against the other):
 from __future__ import annotations
 
 import math
+import os
 
 import numba
 import numpy as np
@@ -167,16 +168,19 @@ def _split(first, last, rings, own, n, args):
         _split_blocks(first, last, rings, own, 0, n, args)
 
 
-_POOL = []
+_POOL = {}
 
 
 def _pool():
-    """The one helper thread of `_split` (started when first needed)."""
-    if not _POOL:
+    """The one helper thread of `_split`, started when first needed: one per process (a forked child has
+    its parent's executor but not its thread, so it starts its own)."""
+    pid = os.getpid()
+    if pid not in _POOL:
         from concurrent.futures import ThreadPoolExecutor
 
-        _POOL.append(ThreadPoolExecutor(1, thread_name_prefix="rdea-split"))
-    return _POOL[0]
+        _POOL.clear()
+        _POOL[pid] = ThreadPoolExecutor(1, thread_name_prefix="rdea-split")
+    return _POOL[pid]
 
 
 def _split_blocks(first, last, rings, own, i0, i1, args):

@@ -220,3 +220,33 @@ def test_free_lanes_equal_one_by_one(model, monkeypatch):
                                   equal_nan=True), f"{model} {geom} {key}"
         n_done += int(np.count_nonzero(done))
     assert n_done > 200  # the lanes ran (a floor, not a figure)
+
+
+def _split_in_child(args, queue):
+    queue.put(ring_kernels.fields1(*args)[0])
+
+
+def test_split_pass_threads_in_a_forked_child():
+    """A process forked after the split passes started their helper thread (a design study's workers) runs
+    them on its own thread, with the same numbers (the parent's executor has no thread in the child: work
+    handed to it would wait for ever)."""
+    import multiprocessing
+
+    if "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("no fork here")
+    n = 3 * ring_kernels.SPLIT_BLOCK
+    l1 = np.linspace(1.0, 2.0, n)
+    args = (1.0 / np.sqrt(l1), l1, np.full(n, 1000.0), yeoh_coefficients(RIZZELLO), 1e-3, 1e-9, 1e-3, 5e-4)
+    here = ring_kernels.fields1(*args)[0]  # two threads (the load is read as 0 here)
+    assert ring_kernels._POOL, "the split pass ran on one thread"
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_split_in_child, args=(args, queue))
+    child.start()
+    try:
+        there = queue.get(timeout=20)
+    finally:
+        child.join(10)
+        if child.is_alive():
+            child.kill()
+    assert np.array_equal(there, here)
