@@ -24,8 +24,10 @@ reference (the tests check one against the other):
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import threading
 
 import numba
 import numpy as np
@@ -333,14 +335,39 @@ def _bounds_loop(code, l1, v, kap, B, y0, y_max, load, K):
         K[i] = load[i] * v[i] * v[i]
 
 
-def bounds(code, l1, v, kap, B=(0.0,) * 4):
+def bounds(code, l1, v, kap, B=(0.0,) * 4, out=None):
     """``(y0, y_max, load, K)`` of a model's `~rdea_lab.physics.branch.Problem` in one pass: its ``bounds``
     (`one_ring.bounds`, `three_ring.bounds` with ``B`` its bound constants, `continuum.bounds` with ``B = (s_i,
-    s_ie, 0, 0)``) and ``K = load v**2``."""
+    s_ie, 0, 0)``) and ``K = load v**2``; ``out``: four rows to write them to (`scratch`)."""
     l1 = _arr(l1)
-    out = np.empty((4, l1.size))
+    out = np.empty((4, l1.size)) if out is None else out
     _bounds_loop(code, l1, _arr(v, l1.shape), float(kap), tuple(float(b) for b in B), *out)
     return tuple(out)
+
+
+#: Calls of up to this many samples take their problem's bounds from `scratch` (a buffer of 8 MiB at most per
+#: thread).
+SCRATCH_MAX = 1 << 18
+_SCRATCH = threading.local()
+
+
+@contextlib.contextmanager
+def scratch(n):
+    """Four rows of ``n`` floats for `bounds` that live while the block runs: a buffer of the thread, reused
+    from call to call (fresh memory costs a page fault per 4 KiB when first written: some 750 of them on
+    1e5 samples, more than the bounds take to compute), fresh memory where the buffer is in use (a solve
+    inside the block) or ``n`` is above `SCRATCH_MAX`. Nothing written to it may outlive the block."""
+    buf = getattr(_SCRATCH, "buf", None)
+    if n > SCRATCH_MAX or getattr(_SCRATCH, "busy", False):
+        yield np.empty((4, n))
+        return
+    if buf is None or buf.shape[1] < n:
+        buf = _SCRATCH.buf = np.empty((4, max(n, 4096)))
+    _SCRATCH.busy = True
+    try:
+        yield buf[:, :n]
+    finally:
+        _SCRATCH.busy = False
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

@@ -250,3 +250,21 @@ def test_split_pass_threads_in_a_forked_child():
         if child.is_alive():
             child.kill()
     assert np.array_equal(there, here)
+
+
+@pytest.mark.parametrize("model", ["1r", "3r"])
+def test_bounds_scratch_never_reaches_a_result(model):
+    """The problem's bounds live in a reused buffer of the thread (`ring_kernels.scratch`): no field of a result
+    shares its memory, and a second solve leaves the first result as it was (the active core: samples of both
+    solves go to the numpy reference, whose free states solve inside the first solve's block)."""
+    from rdea_lab.physics.result import FIELDS
+
+    geom, l1, v = _bench_scene(3000)
+    first = solve(model, core("active"), RIZZELLO, l1, v, kernel="numba")
+    kept = {name: np.array(getattr(first, name)) for name in FIELDS if isinstance(getattr(first, name), np.ndarray)}
+    solve(model, geom, RIZZELLO, l1[::-1].copy(), v, kernel="numba")
+    buf = ring_kernels._SCRATCH.buf
+    for name, value in kept.items():
+        assert not np.shares_memory(getattr(first, name), buf), name
+        assert np.array_equal(getattr(first, name), value, equal_nan=True), name
+    assert_same(solve(model, core("active"), RIZZELLO, l1, v, kernel="numpy"), first, f"{model} active core")

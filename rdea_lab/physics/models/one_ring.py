@@ -47,9 +47,9 @@ def bounds(l1, kap):
     return y0, HOOP_STRETCH_CAP * y0, kap * l1 * l1
 
 
-def problem(geom, material, l1, v, fast=None) -> Problem:
+def problem(geom, material, l1, v, fast=None, out=None) -> Problem:
     """The 1R equilibrium in ``y = lambda2`` at clean 1-D inputs (eq. 33 as a stationary point); ``fast``:
-    `rdea_lab.physics.ring_kernels`, which computes its bounds in one pass."""
+    `rdea_lab.physics.ring_kernels`, which computes its bounds in one pass (into ``out``, four rows, if given)."""
     C = yeoh_coefficients(material)
     kap = kappa(geom, material)
 
@@ -58,7 +58,7 @@ def problem(geom, material, l1, v, fast=None) -> Problem:
         return p_y, p_yy, 2.0 * y, 2.0
 
     if fast is not None:
-        y0, y_max, load, K = fast.bounds(1, l1, v, kap)
+        y0, y_max, load, K = fast.bounds(1, l1, v, kap, out=out)
     else:
         y0, y_max, load = bounds(l1, kap)
         K = load * v * v
@@ -82,8 +82,14 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     def free(prob):
         return fast.free_hook(1, prob, l1, v, C, kap, at)
 
-    return evaluate_free(problem(geom, material, l1, v, fast), lambda l2: at(l2, l1, v), path=path, start=start,
-                         origin=origin, kernel=kernel, free=free if fast is not None else None)
+    def solved(out=None):
+        return evaluate_free(problem(geom, material, l1, v, fast, out), lambda l2: at(l2, l1, v), path=path,
+                             start=start, origin=origin, kernel=kernel, free=free if fast is not None else None)
+
+    if fast is None or path or origin is not None:
+        return solved()
+    with fast.scratch(l1.size) as out:  # the bounds: not read after the solve (the evaluation holds none of them)
+        return solved(out)
 
 
 def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,

@@ -232,12 +232,12 @@ def core_scale(rings) -> float | None:
     return float(rings.rho_ie) if rings.has_a else None
 
 
-def problem(geom, material, l1, v, fast=None) -> Problem:
+def problem(geom, material, l1, v, fast=None, out=None) -> Problem:
     """The 3R equilibrium in ``xi = r_i / Ro`` at clean 1-D inputs; ``fast``: `rdea_lab.physics.ring_kernels`,
-    which computes its bounds in one pass."""
+    which computes its bounds in one pass (into ``out``, four rows, if given)."""
     rings = _Rings(geom, l1)
     if fast is not None:
-        y0, y_max, load, K = fast.bounds(3, l1, v, kappa(geom, material), rings.bound_constants)
+        y0, y_max, load, K = fast.bounds(3, l1, v, kappa(geom, material), rings.bound_constants, out)
     else:
         y0, y_max, load = bounds(l1, kappa(geom, material), rings.bound_constants)
         K = load * v * v
@@ -269,8 +269,14 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     def free(prob):
         return fast.free_hook(3, prob, l1, v, C, kap, at, R=rings.constants, B=rings.bound_constants)
 
-    return evaluate_free(problem(geom, material, l1, v, fast), lambda xi: at(xi, l1, v), path=path, start=start,
-                         origin=origin, kernel=kernel, free=free if fast is not None else None)
+    def solved(out=None):
+        return evaluate_free(problem(geom, material, l1, v, fast, out), lambda xi: at(xi, l1, v), path=path,
+                             start=start, origin=origin, kernel=kernel, free=free if fast is not None else None)
+
+    if fast is None or path or origin is not None:
+        return solved()
+    with fast.scratch(l1.size) as out:  # the bounds: not read after the solve (the evaluation holds none of them)
+        return solved(out)
 
 
 def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,
