@@ -33,7 +33,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from . import kernels
+from . import kernels, yeoh
 from .branch import N_SCAN
 from .kernels import (_arr, _basis, _fields3, _gradient, _h_start, _jit, _one, _parallel, _scan_block, _slope,
                       _variants, free_stretch)
@@ -48,7 +48,8 @@ _bounds3 = _jit(three_ring.bounds, inline="always", xi_at_hoop_stretch=_xi_hoop)
 _bounds_cr = _jit(continuum.bounds, inline="always")
 _node_mech = _jit(continuum.node_mechanics, inline="always", slope=_slope)
 _closing = _jit(continuum.closing, inline="always")
-_radii = _jit(three_ring.radii, inline="always")  # inlined: the split pass's loop vectorizes
+_radii = _jit(three_ring.radii, inline="always")  # inlined: the split passes' loops vectorize
+_slope_inline = _jit(yeoh.slope, inline="always")
 
 _N_SCAN = N_SCAN
 _FREE_MAX = FREE_STRETCH_MAX
@@ -144,7 +145,7 @@ def _gradient_of(W, j, i, l1, l2, C10, C20, C30):
     x = W[_EXP, i] + W[_EXP + 1 + 4 * j, i] + W[_EXP + 2 + 4 * j, i]
     I_1 = -2.0 * l1 * W[_EXP + 3 + 4 * j, i]
     I_2 = -2.0 * l2 * W[_EXP + 4 + 4 * j, i]
-    W1, _ = _slope(x, (C10, C20, C30))
+    W1, _ = _slope_inline(x, (C10, C20, C30))
     return W1 * I_1, W1 * I_2
 
 
