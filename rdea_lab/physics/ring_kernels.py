@@ -16,10 +16,13 @@ reference (the tests check one against the other):
 - a slack roll's free state: `kernels.free_stretch` (the bracketing and
   Illinois iteration of `models._common.free_state`, the one compiled form of
   it), each trial the rising-ramp state at the trial stretch from the
-  certified `kernels._one` and its stress from the model's compiled fields.
-  A sample whose search meets a trial that is not certified, or that ends
+  certified `kernels._one` and its stress from the model's compiled fields;
+  `_free_lanes` takes the same steps for many samples in lockstep, each
+  round's trials in one batched scan (`kernels._scan_block`), bit for bit the
+  same. A sample whose search meets a trial that is not certified, or that ends
   without a free state, is reported as not done: the caller hands it to the
-  numpy `free_state` (so every status other than ``SLACK`` is the reference's).
+  numpy `free_state` (so every status other than ``SLACK`` is the reference's);
+- a buffer per thread for the problems' bounds (`scratch`).
 """
 
 from __future__ import annotations

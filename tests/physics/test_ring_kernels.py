@@ -7,9 +7,11 @@
   leaves go to the reference by construction (checked through `solve` against ``kernel="numpy"``, whose
   statuses must be identical). Cases: the seeded random families of test_random_cases (folds, small cores,
   micro-cores), each at stretches and voltages that make many rolls slack, and the bench scene.
+- The free-state searches in lockstep lanes (`_free_lanes`) against the one-by-one search, bit for bit.
 - The result fields: `fields1`, `fields3`, `fields_cr` against `one_ring.fields`, `three_ring.ring_fields` and
   `continuum.evaluate`'s numpy fields (the split passes also near stretch 1, with rings of zero volume and
-  non-finite coordinates); the problems' bounds (`ring_kernels.bounds`) against the models' `bounds`.
+  non-finite coordinates; their helper thread in a forked child); the problems' bounds (`ring_kernels.bounds`)
+  against the models' `bounds`, and the buffer they are kept in (`scratch`) shared by no result.
 """
 
 from __future__ import annotations
