@@ -4,32 +4,42 @@ The root of each sample is `kernels.branch_roots`' (a free state's trial: `kerne
 this module compiles is the rest of a `solve`, with the numpy code as the
 reference (the tests check one against the other):
 
-- the result fields at the equilibria, one parallel pass writing every field:
-  `three_ring.ring_fields` and `continuum.node_mechanics` / `continuum.closing`,
-  compiled as they are (`kernels._jit`); 1R's `one_ring.fields` stays numpy,
-  by blocks (`one_ring.BLOCK` says why);
+- the result fields at the equilibria: CR's `continuum.node_mechanics` /
+  `continuum.closing` compiled as they are (`kernels._jit`), one parallel pass;
+  1R's `one_ring.fields` and 3R's `three_ring.ring_fields` in split passes
+  (`fields1`, `fields3`: this numba has no vector math library, so its scalar
+  ``log`` and ``expm1`` cost 6-9 ns each against numpy's 1; the logarithms and
+  ``expm1`` of `yeoh.gradient_terms` are numpy's, over blocks, and the rest,
+  the same operations in the same order, compiled: equal to the numpy
+  functions bit for bit on the bench scene);
 - the problems' bounds and loads (`bounds`);
 - a slack roll's free state: `kernels.free_stretch` (the bracketing and
   Illinois iteration of `models._common.free_state`, the one compiled form of
   it), each trial the rising-ramp state at the trial stretch from the
-  certified `kernels._one` and its stress from the model's compiled fields.
-  A sample whose search meets a trial that is not certified, or that ends
+  certified `kernels._one` and its stress from the model's compiled fields;
+  `_free_lanes` takes the same steps for many samples in lockstep, each
+  round's trials in one batched scan (`kernels._scan_block`), bit for bit the
+  same. A sample whose search meets a trial that is not certified, or that ends
   without a free state, is reported as not done: the caller hands it to the
-  numpy `free_state` (so every status other than ``SLACK`` is the reference's).
+  numpy `free_state` (so every status other than ``SLACK`` is the reference's);
+- a buffer per thread for the problems' bounds (`scratch`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import threading
 
 import numba
 import numpy as np
 from numba import prange
 
-from . import kernels
+from . import kernels, yeoh
 from .branch import N_SCAN
-from .kernels import (_arr, _basis, _fields3, _gradient, _h_start, _jit, _one, _parallel, _slope, _variants,
-                      free_stretch)
+from .kernels import (_arr, _basis, _fields3, _gradient, _h_start, _jit, _one, _parallel, _scan_block, _slope,
+                      _variants, free_stretch)
 from .models import continuum, one_ring, three_ring
 from .models._common import FREE_STRETCH_MAX
 
@@ -41,6 +51,8 @@ _bounds3 = _jit(three_ring.bounds, inline="always", xi_at_hoop_stretch=_xi_hoop)
 _bounds_cr = _jit(continuum.bounds, inline="always")
 _node_mech = _jit(continuum.node_mechanics, inline="always", slope=_slope)
 _closing = _jit(continuum.closing, inline="always")
+_radii = _jit(three_ring.radii, inline="always")  # inlined: the split passes' loops vectorize
+_slope_inline = _jit(yeoh.slope, inline="always")
 
 _N_SCAN = N_SCAN
 _FREE_MAX = FREE_STRETCH_MAX
@@ -64,12 +76,6 @@ def _cr_mechanics(xi, l1, xi0, x0, lx0p, Q, W, C10, C20, C30):
         h1 += h * W[1, j]
         h2 += h * W[2, j]
     return mech, h0, h1, h2
-
-
-def _fields3_loop(y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
-    for i in prange(y.size):
-        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = _fields3(
-            y[i], l1[i], v[i], R, C10, C20, C30, kap, C0, Ro)
 
 
 #: Samples per block of the CR field pass: each node is applied to a block of samples in a loop the compiler
@@ -105,16 +111,192 @@ def _fields_cr_loop(y, l1, v, xi0, x0, lx0p, Q, W, present, C10, C20, C30, Lb, k
             out[3, k] = acc[3, i] if present[2] else math.nan
 
 
-_f3 = _variants(_fields3_loop)
 _fcr = _variants(_fields_cr_loop)
 
 
+#: Samples per block of the split field passes (`fields1`, `fields3`): their work rows (some 20 of them) stay in
+#: the core's cache between the passes.
+SPLIT_BLOCK = 4096
+
+
+#: Rows of a split pass's work array (`_split`): the stretches whose logarithms `yeoh._invariant_terms` takes
+#: (``l1``, then each ring's hoop stretch), then the arguments of its ``expm1`` calls (`_log_args`), then the
+#: pass's own.
+_LOG, _EXP = 0, 4
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True, inline="always")
+def _log_args(W, rings, m):
+    """The arguments of the ``expm1`` calls of `yeoh._invariant_terms` from the logarithms ``a = log l1``
+    (row ``_LOG``) and ``b = log l2`` of each ring (the rows after it), into the rows from ``_EXP``: ``2 a``,
+    then for each ring ``2 b``, ``-2 (a + b)``, ``-4 a - 2 b``, ``-2 a - 4 b`` (its operations, in its order)."""
+    for i in range(m):
+        W[_EXP, i] = 2.0 * W[_LOG, i]
+    for j in range(rings):
+        for i in range(m):
+            a = W[_LOG, i]
+            b = W[_LOG + 1 + j, i]
+            W[_EXP + 1 + 4 * j, i] = 2.0 * b
+            W[_EXP + 2 + 4 * j, i] = -2.0 * (a + b)
+            W[_EXP + 3 + 4 * j, i] = -4.0 * a - 2.0 * b
+            W[_EXP + 4 + 4 * j, i] = -2.0 * a - 4.0 * b
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _gradient_of(W, j, i, l1, l2, C10, C20, C30):
+    """`yeoh.gradient_terms` of ring ``j`` of sample ``i`` from the ``expm1`` values (`_log_args`)."""
+    x = W[_EXP, i] + W[_EXP + 1 + 4 * j, i] + W[_EXP + 2 + 4 * j, i]
+    I_1 = -2.0 * l1 * W[_EXP + 3 + 4 * j, i]
+    I_2 = -2.0 * l2 * W[_EXP + 4 + 4 * j, i]
+    W1, _ = _slope_inline(x, (C10, C20, C30))
+    return W1 * I_1, W1 * I_2
+
+
+#: Samples per block of the split field passes (`fields1`, `fields3`): their work rows (some 25) stay in the
+#: core's cache between the passes.
+SPLIT_BLOCK = 4096
+
+
+def _split(first, last, rings, own, n, args):
+    """A split field pass over ``n`` samples, by blocks of `SPLIT_BLOCK`: ``first(W, lo, m, *args)`` writes the
+    stretches whose logarithms `yeoh._invariant_terms` takes into the rows from ``_LOG`` (``l1``, then each of the
+    ``rings``' hoop stretch) and what else it keeps into its ``own`` rows (from ``_EXP + 1 + 4 rings``); numpy
+    takes their logarithms; `_log_args` writes the ``expm1`` arguments; numpy takes ``expm1`` (vectorized,
+    where this numba calls them one at a time, several times slower); ``last(W, lo, m, *args)`` combines them
+    into the fields. Where `kernels._parallel` allows, two threads take half the blocks each (the compiled
+    passes and numpy's run without the GIL)."""
+    if n >= 2 * SPLIT_BLOCK and _parallel(n):
+        mid = (n // 2 + SPLIT_BLOCK - 1) // SPLIT_BLOCK * SPLIT_BLOCK
+        other = _pool().submit(_split_blocks, first, last, rings, own, mid, n, args)
+        _split_blocks(first, last, rings, own, 0, mid, args)
+        other.result()
+    else:
+        _split_blocks(first, last, rings, own, 0, n, args)
+
+
+_POOL = {}
+
+
+def _pool():
+    """The one helper thread of `_split`, started when first needed: one per process (a forked child has
+    its parent's executor but not its thread, so it starts its own)."""
+    pid = os.getpid()
+    if pid not in _POOL:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL.clear()
+        _POOL[pid] = ThreadPoolExecutor(1, thread_name_prefix="rdea-split")
+    return _POOL[pid]
+
+
+def _split_blocks(first, last, rings, own, i0, i1, args):
+    B = min(SPLIT_BLOCK, max(i1 - i0, 1))
+    W = np.empty((_EXP + 1 + 4 * rings + own, B))
+    logs, exps = W[_LOG:_LOG + 1 + rings], W[_EXP:_EXP + 1 + 4 * rings]
+    with np.errstate(all="ignore"):  # as the compiled passes: no warnings (NaN and inf carry through)
+        for lo in range(i0, i1, B):
+            m = min(B, i1 - lo)
+            first(W, lo, m, *args)
+            t = logs[:, :m]
+            np.log(t, out=t)
+            _args[rings](W, m)
+            e = exps[:, :m]
+            np.expm1(e, out=e)
+            last(W, lo, m, *args)
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _args1(W, m):
+    _log_args(W, 1, m)
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _args3(W, m):
+    _log_args(W, 3, m)
+
+
+_args = {1: _args1, 3: _args3}
+_OWN3 = _EXP + 13  # 3R's own rows: dr_ie, dr_oe, dr_o, l2a, l2b, l2c
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _first3(W, lo, m, y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
+    Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c = R
+    for i in range(m):  # `three_ring.ring_state` up to its `gradient_terms`
+        xi, L = y[lo + i], l1[lo + i]
+        r_ie, r_oe, r_o = _radii(xi, L, Da, Dab, Dabc)
+        w = -0.5 / (L * L)
+        W[_OWN3, i] = 0.0 if Da == 0.0 else w * Da / r_ie
+        W[_OWN3 + 1, i] = 0.0 if Dab == 0.0 else w * Dab / r_oe
+        W[_OWN3 + 2, i] = 0.0 if Dabc == 0.0 else w * Dabc / r_o
+        l2a = (xi + r_ie) / Sa if eta_a > 0.0 else 1.0
+        l2b = (r_ie + r_oe) / Sb
+        l2c = (r_oe + r_o) / Sc if eta_c > 0.0 else 1.0
+        W[_LOG, i], W[_LOG + 1, i], W[_LOG + 2, i], W[_LOG + 3, i] = L, l2b, l2a, l2c
+        W[_OWN3 + 3, i], W[_OWN3 + 4, i], W[_OWN3 + 5, i] = l2a, l2b, l2c  # (the logarithms overwrite those)
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _last3(W, lo, m, y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
+    Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c = R
+    for i in range(m):  # the rest of `three_ring.ring_state` and `ring_fields`
+        k = lo + i
+        L, vk = l1[k], v[k]
+        dr_ie, dr_oe, dr_o = W[_OWN3, i], W[_OWN3 + 1, i], W[_OWN3 + 2, i]
+        l2b = W[_OWN3 + 4, i]
+        dl2b = (dr_ie + dr_oe) / Sb
+        psi_1, psi_2 = _gradient_of(W, 0, i, L, l2b, C10, C20, C30)
+        dg = eta_b * (psi_1 + psi_2 * dl2b)
+        l2a = math.nan
+        l2c = math.nan
+        if eta_a > 0.0:
+            l2a = W[_OWN3 + 3, i]
+            psi_1, psi_2 = _gradient_of(W, 1, i, L, l2a, C10, C20, C30)
+            dg = dg + eta_a * (psi_1 + psi_2 * dr_ie / Sa)
+        if eta_c > 0.0:
+            l2c = W[_OWN3 + 5, i]
+            psi_1, psi_2 = _gradient_of(W, 2, i, L, l2c, C10, C20, C30)
+            dg = dg + eta_c * (psi_1 + psi_2 * (dr_oe + dr_o) / Sc)
+        out[0, k] = L * dg - 2.0 * kap * vk * vk * L * L * l2b * (l2b + L * dl2b)
+        out[1, k], out[2, k], out[3, k] = l2a, l2b, l2c
+        out[4, k] = C0 * (L * l2b) ** 2
+        out[5, k] = y[k] * Ro
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _first1(W, lo, m, l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri, out):
+    for i in range(m):
+        W[_LOG, i], W[_LOG + 1, i] = l1[lo + i], l2[lo + i]
+
+
+@numba.njit(cache=True, error_model="numpy", nogil=True)
+def _last1(W, lo, m, l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri, out):
+    for i in range(m):  # `one_ring.fields` from its `gradient_terms`
+        k = lo + i
+        L, y = l1[k], l2[k]
+        psi_1, _ = _gradient_of(W, 0, i, L, y, C10, C20, C30)
+        out[0, k] = L * psi_1 - 2.0 * kap * (L * v[k]) ** 2 * y * y
+        out[1, k] = C0 * (L * y) ** 2
+        out[2, k] = 0.5 * (y * (Ro + Ri) - (Ro - Ri) / (L * y))
+
+
+def fields1(l2, l1, v, C, kap, C0, Ro, Ri):
+    """`one_ring.fields` of every sample, ``(sigma1, capacitance, r_i)``: split passes (`_split`), the logarithms
+    and ``expm1`` of `yeoh.gradient_terms` by numpy, the rest compiled."""
+    l2 = _arr(l2)
+    out = np.empty((3, l2.size))
+    _split(_first1, _last1, 1, 0, l2.size, (l2, _arr(l1, l2.shape), _arr(v, l2.shape), *map(float, C), float(kap),
+                                            float(C0), float(Ro), float(Ri), out))
+    return tuple(out)
+
+
 def fields3(y, l1, v, R, C, kap, C0, Ro):
-    """`three_ring.ring_fields` of every sample: the six rows of one block."""
+    """`three_ring.ring_fields` of every sample: the six rows of one block. Split passes (`_split`): the
+    logarithms and ``expm1`` of `yeoh.gradient_terms` by numpy, the rest compiled."""
     y = _arr(y)
     out = np.empty((6, y.size))
-    _f3[_parallel(y.size)](y, _arr(l1, y.shape), _arr(v, y.shape), tuple(float(r) for r in R), *map(float, C),
-                           float(kap), float(C0), float(Ro), out)
+    _split(_first3, _last3, 3, 6, y.size, (y, _arr(l1, y.shape), _arr(v, y.shape), tuple(float(r) for r in R),
+                                         *map(float, C), float(kap), float(C0), float(Ro), out))
     return tuple(out)
 
 
@@ -157,14 +339,39 @@ def _bounds_loop(code, l1, v, kap, B, y0, y_max, load, K):
         K[i] = load[i] * v[i] * v[i]
 
 
-def bounds(code, l1, v, kap, B=(0.0,) * 4):
+def bounds(code, l1, v, kap, B=(0.0,) * 4, out=None):
     """``(y0, y_max, load, K)`` of a model's `~rdea_lab.physics.branch.Problem` in one pass: its ``bounds``
     (`one_ring.bounds`, `three_ring.bounds` with ``B`` its bound constants, `continuum.bounds` with ``B = (s_i,
-    s_ie, 0, 0)``) and ``K = load v**2``."""
+    s_ie, 0, 0)``) and ``K = load v**2``; ``out``: four rows to write them to (`scratch`)."""
     l1 = _arr(l1)
-    out = np.empty((4, l1.size))
+    out = np.empty((4, l1.size)) if out is None else out
     _bounds_loop(code, l1, _arr(v, l1.shape), float(kap), tuple(float(b) for b in B), *out)
     return tuple(out)
+
+
+#: Calls of up to this many samples take their problem's bounds from `scratch` (a buffer of 8 MiB at most per
+#: thread).
+SCRATCH_MAX = 1 << 18
+_SCRATCH = threading.local()
+
+
+@contextlib.contextmanager
+def scratch(n):
+    """Four rows of ``n`` floats for `bounds` that live while the block runs: a buffer of the thread, reused
+    from call to call (fresh memory costs a page fault per 4 KiB when first written: some 750 of them on
+    1e5 samples, more than the bounds take to compute), fresh memory where the buffer is in use (a solve
+    inside the block) or ``n`` is above `SCRATCH_MAX`. Nothing written to it may outlive the block."""
+    buf = getattr(_SCRATCH, "buf", None)
+    if n > SCRATCH_MAX or getattr(_SCRATCH, "busy", False):
+        yield np.empty((4, n))
+        return
+    if buf is None or buf.shape[1] < n:
+        buf = _SCRATCH.buf = np.empty((4, max(n, 4096)))
+    _SCRATCH.busy = True
+    try:
+        yield buf[:, :n]
+    finally:
+        _SCRATCH.busy = False
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
@@ -226,18 +433,150 @@ def _free_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfo
 
 
 _free = _variants(_free_loop)
+
+
+#: Lanes of `_free_lanes`: slack samples whose free-state searches run in lockstep, each round's trials in one
+#: batched root scan (`kernels._scan_block`).
+FREE_LANES = 128
+#: Slack samples per task of the threaded `free_states`.
+FREE_CHUNK = 1024
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done, i0, i1):
+    """`_free_loop` of the samples ``i0 <= i < i1``, `FREE_LANES` at a time in lockstep: each lane takes
+    `kernels.free_stretch`'s steps for its sample in the same order with the same numbers, each trial the
+    rising-ramp state of `_rising` (bounds, then `kernels._scan_block`, which equals `kernels._one` bit for
+    bit) and `_stress`, so the same result bit for bit; a lane that is done takes the next sample. A trial
+    that is not certified (or whose stress is not finite) ends its sample not done, as in `_trial`."""
+    nl = min(FREE_LANES, i1 - i0)
+    idx = np.full(nl, -1)
+    phase = np.zeros(nl, np.int8)  # 0: bracketing by 25 % steps, 1: the Illinois iteration
+    F = np.empty((11, nl))
+    x_try, vv, s1v, lo, s_lo, hi, a, b, fa, fb, tol = F[0], F[1], F[2], F[3], F[4], F[5], F[6], F[7], F[8], F[9], F[10]
+    side = np.zeros(nl, np.int8)
+    count = np.zeros(nl, np.int64)
+    act = np.empty(nl, np.int64)
+    T = np.empty((8, nl))  # the round's trials, compacted: the scan's arguments and results
+    lam, y0, y_max, K, xi0, x0, y, h0 = T[0], T[1], T[2], T[3], T[4], T[5], T[6], T[7]
+    ok = np.zeros(nl, np.int8)
+    nxt = i0
+    busy = 0
+    while True:
+        for k in range(nl):  # an idle lane takes the next sample
+            if idx[k] < 0 and nxt < i1:
+                i = nxt
+                idx[k] = i
+                phase[k] = 0
+                lo[k] = hi[k] = l1[i]
+                s_lo[k] = s1v[k] = s1[i]
+                vv[k] = v[i]
+                memo[i, 0] = memo[i, 1] = math.nan
+                done[i] = False
+                x_try[k] = min(hi[k] * 1.25, free_max)
+                nxt += 1
+                busy += 1
+        if busy == 0:
+            break
+        na = 0
+        for k in range(nl):  # `_rising`'s bounds
+            if idx[k] < 0:
+                continue
+            act[na] = k
+            t = x_try[k]
+            lam[na] = t
+            if code == 1:
+                y0[na], y_max[na], load = _bounds1(t, kap)
+            elif code == 3:
+                y0[na], y_max[na], load = _bounds3(t, kap, B)
+            else:
+                y0[na], y_max[na], load = _bounds_cr(t, kap, B[0], B[1])
+            K[na] = load * vv[k] * vv[k]
+            if code == 4:
+                xi0[na] = y0[na]
+                _, x0[na] = _basis(t)
+            else:
+                xi0[na] = x0[na] = t  # (unused)
+            na += 1
+        _scan_block(code, lam, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, False, 1e-14, 100, _N_SCAN,
+                    pitchfork, y, ok, h0, 0, na)
+        for j in range(na):
+            k = act[j]
+            i = idx[k]
+            trial = x_try[k]
+            fin = ok[j] == 1
+            ys = math.nan
+            if fin:
+                Rs = (xi0[j], x0[j], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) if code == 4 else R
+                ys = _stress(code, y[j], trial, vv[k], Rs, B, Q, W, C10, C20, C30, kap)
+                fin = np.isfinite(ys)
+            res = False
+            end = not fin
+            if fin and phase[k] == 0:
+                if ys >= 0.0:  # bracketed: the Illinois iteration from [lo, trial]
+                    a[k], b[k], fa[k], fb[k] = lo[k], trial, s_lo[k], ys
+                    tol[k] = 1e-10 * abs(s1v[k])
+                    side[k] = 0
+                    count[k] = 0
+                    phase[k] = 1
+                else:
+                    lo[k], s_lo[k] = trial, ys
+                    end = trial >= free_max
+                    hi[k] = trial
+                    x_try[k] = min(hi[k] * 1.25, free_max)
+            elif fin:
+                if ys < 0.0:
+                    fb[k] = 0.5 * fb[k] if side[k] == -1 else fb[k]
+                    a[k], fa[k] = trial, ys
+                    side[k] = -1
+                else:
+                    fa[k] = 0.5 * fa[k] if side[k] == 1 else fa[k]
+                    b[k], fb[k] = trial, ys
+                    side[k] = 1
+                count[k] += 1
+                if abs(ys) <= tol[k] or b[k] - a[k] <= 1e-13 * b[k]:
+                    end = True
+                    # the reference's final check at the free stretch: the stress vanishes (does not jump)
+                    res = abs(ys) <= 1e-6 * abs(s1v[k]) + 1e-6
+                else:
+                    end = count[k] >= 200
+            if end:
+                if res:
+                    memo[i, 0], memo[i, 1], memo[i, 2] = trial, y[j], ys
+                    done[i] = True
+                idx[k] = -1
+                busy -= 1
+            elif phase[k] == 1:
+                xa, xb = a[k], b[k]
+                xn = (xa * fb[k] - xb * fa[k]) / (fb[k] - fa[k])
+                if not (xn > xa and xn < xb):
+                    xn = 0.5 * (xa + xb)
+                x_try[k] = xn
+
+
+def _free_lanes_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done):
+    n = l1.size
+    for c in prange((n + FREE_CHUNK - 1) // FREE_CHUNK):
+        _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done,
+                    c * FREE_CHUNK, min(n, (c + 1) * FREE_CHUNK))
+
+
+_free_batched = _variants(_free_lanes_loop)
 #: A free state costs some 5-10 roots and stresses (its trials): calls of this many slack samples run on all
 #: cores.
 FREE_PARALLEL_MIN = 256
 
 
-def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.0,) * 4, cr=None):
+def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.0,) * 4, cr=None,
+                one_by_one=False):
     """The free states of slack samples (stretch ``l1``, voltage ``v``, stress ``s1 < 0`` there), compiled:
     ``(free stretch, y there, done)``; a sample not done goes to the numpy `free_state`.
 
     ``code``: `kernels.CODES`; ``offsets``: the scale nodes of the call's problem (`branch.scale_offsets`:
     those of its widest span, so each trial is scanned at least at the nodes the reference scans it at);
     ``R``, ``B``: 3R's ring and bound constants; ``cr``: CR's ``(Q, W, s_i, s_ie, Lb)`` (`cr_tables`).
+    The searches run in lockstep lanes (`_free_lanes`); ``one_by_one``: one sample after the other
+    (`_free_loop`, each trial `kernels._one`: the same numbers, bit for bit; the tests' reference).
     """
     n = l1.size
     memo, done = np.empty((n, 3)), np.empty(n, np.bool_)
@@ -249,9 +588,10 @@ def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.
     else:
         Q, W = _NO_Q, _NO_W
     par = int(n >= FREE_PARALLEL_MIN and _parallel(kernels.PARALLEL_MIN))
-    _free[par](code, _arr(l1), _arr(v, l1.shape), _arr(s1, l1.shape), tuple(float(r) for r in R),
-               tuple(float(b) for b in B), Q, W, *map(float, C), float(kap), _arr(offsets),
-               bool(pitchfork), _FREE_MAX, memo, done)
+    loop = _free if one_by_one else _free_batched
+    loop[par](code, _arr(l1), _arr(v, l1.shape), _arr(s1, l1.shape), tuple(float(r) for r in R),
+              tuple(float(b) for b in B), Q, W, *map(float, C), float(kap), _arr(offsets), bool(pitchfork), _FREE_MAX,
+              memo, done)
     return memo[:, 0].copy(), memo[:, 1].copy(), done
 
 

@@ -7,8 +7,11 @@
   leaves go to the reference by construction (checked through `solve` against ``kernel="numpy"``, whose
   statuses must be identical). Cases: the seeded random families of test_random_cases (folds, small cores,
   micro-cores), each at stretches and voltages that make many rolls slack, and the bench scene.
-- The result fields: `fields3`, `fields_cr` against `three_ring.ring_fields` and `continuum.evaluate`'s numpy
-  fields; the problems' bounds (`ring_kernels.bounds`) against the models' `bounds`.
+- The free-state searches in lockstep lanes (`_free_lanes`) against the one-by-one search, bit for bit.
+- The result fields: `fields1`, `fields3`, `fields_cr` against `one_ring.fields`, `three_ring.ring_fields` and
+  `continuum.evaluate`'s numpy fields (the split passes also near stretch 1, with rings of zero volume and
+  non-finite coordinates; their helper thread in a forked child); the problems' bounds (`ring_kernels.bounds`)
+  against the models' `bounds`, and the buffer they are kept in (`scratch`) shared by no result.
 """
 
 from __future__ import annotations
@@ -39,6 +42,9 @@ KEYS = ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i")
 RTOL = 1e-12
 #: Cases of each family in the default run (a prefix; all of them under ``-m slow``).
 N_CASES = 6
+#: Rolls whose inner or outer passive ring has no volume, and the hollow core [m].
+CORES_SPLIT = {"no ring a": (0.86e-3, 0.86e-3, 1.76e-3, 1.8e-3), "no ring c": (0.86e-3, 0.88e-3, 1.8e-3, 1.8e-3),
+               "hollow": (0.86e-3, 0.88e-3, 1.76e-3, 1.8e-3)}
 
 
 def _close(x, y, what):
@@ -129,7 +135,7 @@ def test_bench_scene_whole_equal_reference(model):
 def test_fields_equal_numpy(geom):
     """Each compiled field pass against its numpy function at the same coordinates (not only at equilibria)."""
     rng = np.random.default_rng(7)
-    n = one_ring.BLOCK + 5000  # parallel from 4096 samples on; 1R's numpy in two blocks
+    n = 2 * ring_kernels.SPLIT_BLOCK + 1000  # parallel from 4096 samples on; the split passes in three blocks
     l1, v = rng.uniform(1.0, 2.0, n), rng.uniform(0.0, 4000.0, n)
     C, kap, C0 = yeoh_coefficients(RIZZELLO), kappa(geom, RIZZELLO), geom.C0(RIZZELLO.eps_r)
     # the problems' bounds and loads in one pass against the models' numpy `bounds`
@@ -142,9 +148,9 @@ def test_fields_equal_numpy(geom):
         for key in ("y0", "y_max", "K", "load"):
             _close(getattr(fast, key), getattr(prob, key), f"bounds {key}")
     l2 = rng.uniform(0.5, 2.0, n) / np.sqrt(l1)
-    for x, y in zip(one_ring._fields_by_blocks(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri),
+    for x, y in zip(ring_kernels.fields1(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri),
                     one_ring.fields(l2, l1, v, *C, kap, C0, geom.Ro, geom.Ri)):
-        _close(x, y, "1r by blocks")
+        _close(x, y, "1r")
     rings = three_ring._Rings(geom, l1)
     xi = rings.rho_i / np.sqrt(l1) + rng.uniform(0.0, 0.3, n)
     for x, y in zip(ring_kernels.fields3(xi, l1, v, rings.constants, C, kap, C0, geom.Ro),
@@ -157,3 +163,110 @@ def test_fields_equal_numpy(geom):
     for x, y, name in zip(ring_kernels.fields_cr(xi, l1, v, roll, C, kap, C0, geom.Ro),
                           (sigma1, *hoop, cap, r_i), ("sigma1", "lambda2a", "lambda2b", "lambda2c", "C", "r_i")):
         _close(x, y, f"cr {name}")
+
+
+@pytest.mark.parametrize("radii", [CORES_SPLIT["no ring a"], CORES_SPLIT["no ring c"], CORES_SPLIT["hollow"]])
+def test_split_field_passes_at_the_edges(radii):
+    """`fields1` and `fields3` (numpy's logarithms and ``expm1``, the rest compiled) against the numpy functions
+    where the logarithms matter: stretches 1e-14 to 1e-3 above 1, rings of zero volume (NaN stretch), NaN and
+    infinite coordinates, and a call shorter than a block."""
+    geom = core(radii)
+    rng = np.random.default_rng(3)
+    n = ring_kernels.SPLIT_BLOCK + 7
+    l1 = np.where(rng.random(n) < 0.5, 1.0 + 10.0 ** rng.uniform(-14, -3, n), rng.uniform(1.0, 3.0, n))
+    v = rng.uniform(0.0, 5000.0, n)
+    l1[:2], v[2] = np.nan, np.inf
+    C, kap, C0 = yeoh_coefficients(RIZZELLO), kappa(geom, RIZZELLO), geom.C0(RIZZELLO.eps_r)
+    rings = three_ring._Rings(geom, l1)
+    l2 = rng.uniform(0.9, 1.1, n) / np.sqrt(l1)
+    xi = rings.rho_i / np.sqrt(l1) + rng.uniform(0.0, 0.05, n) * (rng.random(n) < 0.9)
+    l2[3], xi[4] = np.nan, np.inf
+    with np.errstate(all="ignore"):
+        for m in (n, 100):
+            s = slice(0, m)
+            for x, y in zip(ring_kernels.fields1(l2[s], l1[s], v[s], C, kap, C0, geom.Ro, geom.Ri),
+                            one_ring.fields(l2[s], l1[s], v[s], *C, kap, C0, geom.Ro, geom.Ri)):
+                _close(x, y, f"1r {radii}")
+            for x, y in zip(ring_kernels.fields3(xi[s], l1[s], v[s], rings.constants, C, kap, C0, geom.Ro),
+                            three_ring.ring_fields(xi[s], l1[s], v[s], rings.constants, *C, kap, C0, geom.Ro)):
+                _close(x, np.broadcast_to(y, x.shape), f"3r {radii}")
+
+
+@pytest.mark.parametrize("model", ["1r", "3r", "cr"])
+def test_free_lanes_equal_one_by_one(model, monkeypatch):
+    """The lockstep free-state searches (`ring_kernels._free_lanes`, each round's trials in one batched scan)
+    against the one-by-one search (`_free_loop`, each trial `kernels._one`) bit for bit: the same samples done,
+    the same free stretches and fields, on the random families' slack scenes (more samples than one task of
+    lanes: `FREE_CHUNK`) and the bench scene."""
+    monkeypatch.setattr(ring_kernels, "FREE_CHUNK", 64)  # several tasks, some lanes idle at each one's end
+    rng = np.random.default_rng(5)
+    scenes = [(case.geom, case.mat) + _slack_scene(case, rng, 300)
+              for family in ("general", "small core", "hollow micro-core") for case in cases(family, 3)
+              if not (model == "cr" and case.geom.Ri == 0.0)]
+    scenes.append((core("hollow"), RIZZELLO) + _bench_scene(3000)[1:])
+    free_states = ring_kernels.free_states
+    n_done = 0
+    for geom, mat, l1, v in scenes:
+        ev = MODULES[model].evaluate(geom, mat, l1, v, kernel="numba")
+        sigma = np.asarray(ev.fields["sigma1"], float)
+        with np.errstate(invalid="ignore"):
+            slack = np.flatnonzero(is_valid(ev.status) & (sigma < 0.0))
+        out = {}
+        for one in (True, False):
+            monkeypatch.setattr(ring_kernels, "free_states", lambda *a, **k: free_states(*a, **k, one_by_one=one))
+            out[one] = ev.free(slack, sigma[slack])
+        (lam, f, done), (lam_l, f_l, done_l) = out[True], out[False]
+        assert np.array_equal(done, done_l) and np.array_equal(lam, lam_l, equal_nan=True), f"{model} {geom}"
+        for key in KEYS:
+            assert np.array_equal(np.broadcast_to(f[key], lam.shape), np.broadcast_to(f_l[key], lam.shape),
+                                  equal_nan=True), f"{model} {geom} {key}"
+        n_done += int(np.count_nonzero(done))
+    assert n_done > 200  # the lanes ran (a floor, not a figure)
+
+
+def _split_in_child(args, queue):
+    queue.put(ring_kernels.fields1(*args)[0])
+
+
+def test_split_pass_threads_in_a_forked_child():
+    """A process forked after the split passes started their helper thread (a design study's workers) runs
+    them on its own thread, with the same numbers (the parent's executor has no thread in the child: work
+    handed to it would wait for ever)."""
+    import multiprocessing
+
+    if "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("no fork here")
+    n = 3 * ring_kernels.SPLIT_BLOCK
+    l1 = np.linspace(1.0, 2.0, n)
+    args = (1.0 / np.sqrt(l1), l1, np.full(n, 1000.0), yeoh_coefficients(RIZZELLO), 1e-3, 1e-9, 1e-3, 5e-4)
+    here = ring_kernels.fields1(*args)[0]  # two threads (the load is read as 0 here)
+    assert ring_kernels._POOL, "the split pass ran on one thread"
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_split_in_child, args=(args, queue))
+    child.start()
+    try:
+        there = queue.get(timeout=20)
+    finally:
+        child.join(10)
+        if child.is_alive():
+            child.kill()
+    assert np.array_equal(there, here)
+
+
+@pytest.mark.parametrize("model", ["1r", "3r"])
+def test_bounds_scratch_never_reaches_a_result(model):
+    """The problem's bounds live in a reused buffer of the thread (`ring_kernels.scratch`): no field of a result
+    shares its memory, and a second solve leaves the first result as it was (the active core: samples of both
+    solves go to the numpy reference, whose free states solve inside the first solve's block)."""
+    from rdea_lab.physics.result import FIELDS
+
+    geom, l1, v = _bench_scene(3000)
+    first = solve(model, core("active"), RIZZELLO, l1, v, kernel="numba")
+    kept = {name: np.array(getattr(first, name)) for name in FIELDS if isinstance(getattr(first, name), np.ndarray)}
+    solve(model, geom, RIZZELLO, l1[::-1].copy(), v, kernel="numba")
+    buf = ring_kernels._SCRATCH.buf
+    for name, value in kept.items():
+        assert not np.shares_memory(getattr(first, name), buf), name
+        assert np.array_equal(getattr(first, name), value, equal_nan=True), name
+    assert_same(solve(model, core("active"), RIZZELLO, l1, v, kernel="numpy"), first, f"{model} active core")

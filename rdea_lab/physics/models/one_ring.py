@@ -34,28 +34,10 @@ def stress(l2, l1, v, C10, C20, C30, kap):
 def fields(l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri):
     """``(sigma1 [Pa], capacitance [F], r_i [m])`` at the equilibrium ``lambda2 = l2``: `stress`, eq. (34)
     ``C = C0 lambda1**2 lambda2**2``, and the inner radius of one hollow cylinder of mean hoop stretch ``l2``
-    and radial stretch ``1 / (l1 l2)``. Scalar or array arguments (compiled too:
-    `rdea_lab.physics.ring_kernels` runs it per sample)."""
+    and radial stretch ``1 / (l1 l2)``. Scalar or array arguments; `rdea_lab.physics.ring_kernels.fields1` is
+    its compiled form (tested against it)."""
     return (stress(l2, l1, v, C10, C20, C30, kap), C0 * (l1 * l2) ** 2,
             0.5 * (l2 * (Ro + Ri) - (Ro - Ri) / (l1 * l2)))
-
-
-#: Samples per block of `fields` on large calls: its temporaries stay in cache (half the time of one pass over
-#: 1e5 samples). Numpy, not compiled: its logarithms and ``expm1`` run several to a vector instruction, numba's
-#: one call each (6-9 ns against 1 ns), which made the compiled pass twice as slow on one core.
-BLOCK = 16384
-
-
-def _fields_by_blocks(l2, l1, v, C, kap, C0, Ro, Ri):
-    """`fields` of 1-D arrays and scalar coefficients, by blocks of `BLOCK` samples."""
-    n = l2.size
-    if n <= BLOCK:
-        return fields(l2, l1, v, *C, kap, C0, Ro, Ri)
-    out = np.empty((3, n))
-    for i in range(0, n, BLOCK):
-        s = slice(i, i + BLOCK)
-        out[0, s], out[1, s], out[2, s] = fields(l2[s], l1[s], v[s], *C, kap, C0, Ro, Ri)
-    return tuple(out)
 
 
 def bounds(l1, kap):
@@ -65,9 +47,9 @@ def bounds(l1, kap):
     return y0, HOOP_STRETCH_CAP * y0, kap * l1 * l1
 
 
-def problem(geom, material, l1, v, fast=None) -> Problem:
+def problem(geom, material, l1, v, fast=None, out=None) -> Problem:
     """The 1R equilibrium in ``y = lambda2`` at clean 1-D inputs (eq. 33 as a stationary point); ``fast``:
-    `rdea_lab.physics.ring_kernels`, which computes its bounds in one pass."""
+    `rdea_lab.physics.ring_kernels`, which computes its bounds in one pass (into ``out``, four rows, if given)."""
     C = yeoh_coefficients(material)
     kap = kappa(geom, material)
 
@@ -76,7 +58,7 @@ def problem(geom, material, l1, v, fast=None) -> Problem:
         return p_y, p_yy, 2.0 * y, 2.0
 
     if fast is not None:
-        y0, y_max, load, K = fast.bounds(1, l1, v, kap)
+        y0, y_max, load, K = fast.bounds(1, l1, v, kap, out=out)
     else:
         y0, y_max, load = bounds(l1, kap)
         K = load * v * v
@@ -91,8 +73,8 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     fast = ring_kernels(kernel, l1.size, *C, kap, C0)
 
     def at(l2, l1, v):
-        if fast is not None:  # numpy by blocks (see `BLOCK`): one number per coefficient
-            sigma1, cap, r_i = _fields_by_blocks(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri)
+        if fast is not None:  # one number per coefficient
+            sigma1, cap, r_i = fast.fields1(l2, l1, v, C, kap, C0, geom.Ro, geom.Ri)
         else:
             sigma1, cap, r_i = fields(l2, l1, v, *C, kap, C0, geom.Ro, geom.Ri)
         return {"sigma1": sigma1, "lambda2a": l2, "lambda2b": l2, "lambda2c": l2, "capacitance": cap, "r_i": r_i}
@@ -100,8 +82,14 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     def free(prob):
         return fast.free_hook(1, prob, l1, v, C, kap, at)
 
-    return evaluate_free(problem(geom, material, l1, v, fast), lambda l2: at(l2, l1, v), path=path, start=start,
-                         origin=origin, kernel=kernel, free=free if fast is not None else None)
+    def solved(out=None):
+        return evaluate_free(problem(geom, material, l1, v, fast, out), lambda l2: at(l2, l1, v), path=path,
+                             start=start, origin=origin, kernel=kernel, free=free if fast is not None else None)
+
+    if fast is None or path or origin is not None:
+        return solved()
+    with fast.scratch(l1.size) as out:  # the bounds: not read after the solve (the evaluation holds none of them)
+        return solved(out)
 
 
 def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,

@@ -174,7 +174,8 @@ def ring_state(xi, l1, v, R, C10, C20, C30, kap):
 def ring_fields(xi, l1, v, R, C10, C20, C30, kap, C0, Ro):
     """``(sigma1 [Pa], lambda2a, lambda2b, lambda2c, capacitance [F], r_i [m])`` at the equilibrium ``xi``:
     `ring_state` and eq. (29), ``C = C0 lambda1**2 lambda2b**2``. Scalar or array arguments (compiled too:
-    `rdea_lab.physics.ring_kernels.fields3` runs it per sample)."""
+    `rdea_lab.physics.kernels` compiles it as it is for one sample; `rdea_lab.physics.ring_kernels.fields3` is
+    its split form over blocks, tested against it)."""
     sigma1, l2a, l2b, l2c = ring_state(xi, l1, v, R, C10, C20, C30, kap)
     return sigma1, l2a, l2b, l2c, C0 * (l1 * l2b) ** 2, xi * Ro
 
@@ -231,12 +232,12 @@ def core_scale(rings) -> float | None:
     return float(rings.rho_ie) if rings.has_a else None
 
 
-def problem(geom, material, l1, v, fast=None) -> Problem:
+def problem(geom, material, l1, v, fast=None, out=None) -> Problem:
     """The 3R equilibrium in ``xi = r_i / Ro`` at clean 1-D inputs; ``fast``: `rdea_lab.physics.ring_kernels`,
-    which computes its bounds in one pass."""
+    which computes its bounds in one pass (into ``out``, four rows, if given)."""
     rings = _Rings(geom, l1)
     if fast is not None:
-        y0, y_max, load, K = fast.bounds(3, l1, v, kappa(geom, material), rings.bound_constants)
+        y0, y_max, load, K = fast.bounds(3, l1, v, kappa(geom, material), rings.bound_constants, out)
     else:
         y0, y_max, load = bounds(l1, kappa(geom, material), rings.bound_constants)
         K = load * v * v
@@ -268,8 +269,14 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
     def free(prob):
         return fast.free_hook(3, prob, l1, v, C, kap, at, R=rings.constants, B=rings.bound_constants)
 
-    return evaluate_free(problem(geom, material, l1, v, fast), lambda xi: at(xi, l1, v), path=path, start=start,
-                         origin=origin, kernel=kernel, free=free if fast is not None else None)
+    def solved(out=None):
+        return evaluate_free(problem(geom, material, l1, v, fast, out), lambda xi: at(xi, l1, v), path=path,
+                             start=start, origin=origin, kernel=kernel, free=free if fast is not None else None)
+
+    if fast is None or path or origin is not None:
+        return solved()
+    with fast.scratch(l1.size) as out:  # the bounds: not read after the solve (the evaluation holds none of them)
+        return solved(out)
 
 
 def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,
