@@ -38,8 +38,8 @@ from numba import prange
 
 from . import kernels, yeoh
 from .branch import N_SCAN
-from .kernels import (_arr, _basis, _fields3, _gradient, _h_start, _jit, _one, _parallel, _scan_block, _slope,
-                      _variants, free_stretch)
+from .kernels import (_arr, _basis, _fields3, _free_start, _free_step, _gradient, _h_start, _jit, _one, _parallel,
+                      _put, _scan_block, _slope, _variants, free_check, free_stretch)
 from .models import continuum, one_ring, three_ring
 from .models._common import FREE_STRETCH_MAX
 
@@ -114,7 +114,7 @@ def _fields_cr_loop(y, l1, v, xi0, x0, lx0p, Q, W, present, C10, C20, C30, Lb, k
 _fcr = _variants(_fields_cr_loop)
 
 
-#: Samples per block of the split field passes (`fields1`, `fields3`): their work rows (some 20 of them) stay in
+#: Samples per block of the split field passes (`fields1`, `fields3`): their work rows (some 25 of them) stay in
 #: the core's cache between the passes.
 SPLIT_BLOCK = 4096
 
@@ -150,11 +150,6 @@ def _gradient_of(W, j, i, l1, l2, C10, C20, C30):
     I_2 = -2.0 * l2 * W[_EXP + 4 + 4 * j, i]
     W1, _ = _slope_inline(x, (C10, C20, C30))
     return W1 * I_1, W1 * I_2
-
-
-#: Samples per block of the split field passes (`fields1`, `fields3`): their work rows (some 25) stay in the
-#: core's cache between the passes.
-SPLIT_BLOCK = 4096
 
 
 def _split(first, last, rings, own, n, args):
@@ -445,17 +440,17 @@ FREE_CHUNK = 1024
 @numba.njit(cache=True, error_model="numpy")
 def _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done, i0, i1):
     """`_free_loop` of the samples ``i0 <= i < i1``, `FREE_LANES` at a time in lockstep: each lane takes
-    `kernels.free_stretch`'s steps for its sample in the same order with the same numbers, each trial the
-    rising-ramp state of `_rising` (bounds, then `kernels._scan_block`, which equals `kernels._one` bit for
-    bit) and `_stress`, so the same result bit for bit; a lane that is done takes the next sample. A trial
-    that is not certified (or whose stress is not finite) ends its sample not done, as in `_trial`."""
+    `kernels.free_stretch`'s steps for its sample (`kernels._free_start`, `kernels._free_step`: the one compiled
+    form of them), each trial the rising-ramp state of `_rising` (bounds, then `kernels._scan_block`, which
+    equals `kernels._one` bit for bit) and `_stress`, so the same result bit for bit; a lane that is done takes
+    the next sample. A trial that is not certified (or whose stress is not finite) ends its sample not done,
+    as in `_trial`."""
     nl = min(FREE_LANES, i1 - i0)
     idx = np.full(nl, -1)
-    phase = np.zeros(nl, np.int8)  # 0: bracketing by 25 % steps, 1: the Illinois iteration
-    F = np.empty((11, nl))
-    x_try, vv, s1v, lo, s_lo, hi, a, b, fa, fb, tol = F[0], F[1], F[2], F[3], F[4], F[5], F[6], F[7], F[8], F[9], F[10]
-    side = np.zeros(nl, np.int8)
-    count = np.zeros(nl, np.int64)
+    state = np.empty((nl, 10))  # each lane's `_free_step` state
+    x_try = np.empty(nl)
+    vv = np.empty(nl)
+    s1v = np.empty(nl)
     act = np.empty(nl, np.int64)
     T = np.empty((8, nl))  # the round's trials, compacted: the scan's arguments and results
     lam, y0, y_max, K, xi0, x0, y, h0 = T[0], T[1], T[2], T[3], T[4], T[5], T[6], T[7]
@@ -467,13 +462,13 @@ def _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchf
             if idx[k] < 0 and nxt < i1:
                 i = nxt
                 idx[k] = i
-                phase[k] = 0
-                lo[k] = hi[k] = l1[i]
-                s_lo[k] = s1v[k] = s1[i]
+                st = _free_start(l1[i], s1[i], free_max)
+                _put(state, k, st)
+                x_try[k] = st[10]
+                s1v[k] = s1[i]
                 vv[k] = v[i]
                 memo[i, 0] = memo[i, 1] = math.nan
                 done[i] = False
-                x_try[k] = min(hi[k] * 1.25, free_max)
                 nxt += 1
                 busy += 1
         if busy == 0:
@@ -509,49 +504,19 @@ def _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchf
             if fin:
                 Rs = (xi0[j], x0[j], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) if code == 4 else R
                 ys = _stress(code, y[j], trial, vv[k], Rs, B, Q, W, C10, C20, C30, kap)
-                fin = np.isfinite(ys)
-            res = False
-            end = not fin
-            if fin and phase[k] == 0:
-                if ys >= 0.0:  # bracketed: the Illinois iteration from [lo, trial]
-                    a[k], b[k], fa[k], fb[k] = lo[k], trial, s_lo[k], ys
-                    tol[k] = 1e-10 * abs(s1v[k])
-                    side[k] = 0
-                    count[k] = 0
-                    phase[k] = 1
-                else:
-                    lo[k], s_lo[k] = trial, ys
-                    end = trial >= free_max
-                    hi[k] = trial
-                    x_try[k] = min(hi[k] * 1.25, free_max)
-            elif fin:
-                if ys < 0.0:
-                    fb[k] = 0.5 * fb[k] if side[k] == -1 else fb[k]
-                    a[k], fa[k] = trial, ys
-                    side[k] = -1
-                else:
-                    fa[k] = 0.5 * fa[k] if side[k] == 1 else fa[k]
-                    b[k], fb[k] = trial, ys
-                    side[k] = 1
-                count[k] += 1
-                if abs(ys) <= tol[k] or b[k] - a[k] <= 1e-13 * b[k]:
-                    end = True
-                    # the reference's final check at the free stretch: the stress vanishes (does not jump)
-                    res = abs(ys) <= 1e-6 * abs(s1v[k]) + 1e-6
-                else:
-                    end = count[k] >= 200
+            st = state[k]
+            p0, p1, p2, p3, p4, p5, p6, p7, p8, p9, x, end, found = _free_step(
+                st[0], st[1], st[2], st[3], st[4], st[5], st[6], st[7], st[8], st[9], trial, ys, fin, free_max)
             if end:
-                if res:
+                # the reference's final check at the free stretch (the last trial): the stress vanishes
+                if found == found and free_check(ys, s1v[k]):
                     memo[i, 0], memo[i, 1], memo[i, 2] = trial, y[j], ys
                     done[i] = True
                 idx[k] = -1
                 busy -= 1
-            elif phase[k] == 1:
-                xa, xb = a[k], b[k]
-                xn = (xa * fb[k] - xb * fa[k]) / (fb[k] - fa[k])
-                if not (xn > xa and xn < xb):
-                    xn = 0.5 * (xa + xb)
-                x_try[k] = xn
+            else:
+                _put(state, k, (p0, p1, p2, p3, p4, p5, p6, p7, p8, p9))
+                x_try[k] = x
 
 
 def _free_lanes_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done):
