@@ -403,22 +403,24 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     CR: ``xi0``, ``x0`` per sample, ``R = (0, 0, Lb, ...)``; the others ignore them."""
     nb = b1 - b0
     n_off = offsets.size
-    W = np.empty((23, nb))  # one allocation: rows as 1-D views
-    span, y_prev, h_prev, s_prev, lo, hi = W[0], W[1], W[2], W[3], W[4], W[5]
+    W = np.empty((2, 23, nb + 24))  # one allocation: rows as 1-D views (padded: rows 4 KiB apart alias)
+    S, T = W[0], W[1]
+    span, y_prev, h_prev, s_prev, lo, hi = S[0], S[1], S[2], S[3], S[4], S[5]
     # per sample still in play, compacted: the node, its arguments and terms (rows 6-15: `_terms_block`'s)
-    Y, L, XI, X0, P, PP, CY, CYY, H, S = W[6], W[7], W[8], W[9], W[10], W[11], W[12], W[13], W[16], W[17]
-    Y_new, LO, HI, KA, TOL = W[18], W[19], W[20], W[21], W[22]  # the Newton iteration's
-    N = np.empty((5, nb), np.int64)
+    Y, L, XI, X0, P, PP, CY, CYY, H, SL = S[6], S[7], S[8], S[9], S[10], S[11], S[12], S[13], S[16], S[17]
+    # the Newton iteration's lanes
+    TY, TL, TXI, TX0, TP, TPP, TCY, TCYY = T[6], T[7], T[8], T[9], T[10], T[11], T[12], T[13]
+    TLO, THI, TK, TTOL, TOUT = T[16], T[17], T[18], T[19], T[20]
+    N = np.empty((7, nb + 24), np.int64)
     jj, kk = N[0], N[1]
     act = N[2]  # the samples still scanning (block indices)
     ref = N[3]  # the samples to refine
-    idx = N[4]  # the samples refined, compacted
+    TB, LIVE = N[4], N[5]  # the samples refined, compacted; whether still iterating
     at_start = np.empty(nb, np.bool_)
-    done = np.empty(nb, np.bool_)
     if pitchfork:  # `_h_start`
         for b in range(nb):
             Y[b], L[b], XI[b], X0[b] = y0[b0 + b], l1[b0 + b], xi0[b0 + b], x0[b0 + b]
-        _terms_block(code, nb, W, R, Q, C10, C20, C30)
+        _terms_block(code, nb, S, R, Q, C10, C20, C30)
         for b in range(nb):
             h0[b0 + b] = PP[b] / CYY[b]
     else:
@@ -447,14 +449,14 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
             more = j < n_off
             Y[a], jj[b], kk[b] = _next_node(y0[i], span[b], more, offsets[j] if more else 0.0, j, kk[b], n_scan)
             L[a], XI[a], X0[a] = l1[i], xi0[i], x0[i]
-        _terms_block(code, na, W, R, Q, C10, C20, C30)
+        _terms_block(code, na, S, R, Q, C10, C20, C30)
         for a in range(na):
-            H[a], S[a] = _h_slope(P[a], PP[a], CY[a], CYY[a])
+            H[a], SL[a] = _h_slope(P[a], PP[a], CY[a], CYY[a])
         keep = 0
         for a in range(na):
             b = act[a]
             i = b0 + b
-            yk, h, slope = Y[a], H[a], S[a]
+            yk, h, slope = Y[a], H[a], SL[a]
             verdict = _verdict(y_prev[b], h_prev[b], s_prev[b], yk, h, slope, K[i])
             if verdict == _FALL:
                 y[i], ok[i] = y0[i], _fallen(code, l1[i], y0[i], span[b], K[i], h0[i],
@@ -483,35 +485,48 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
             act[keep] = b
             keep += 1
         na = keep
-    # Newton on g_y inside [lo, hi], bisection where it strays: `_root` for all at once, compacted (each
-    # iteration's steps in one vectorized loop)
+    # Newton on g_y inside [lo, hi], bisection where it strays: `_root` for all at once (each iteration's
+    # steps in one vectorized loop); a lane that converged keeps its result (TOUT) and runs on unused until
+    # a quarter of the lanes converged and they are packed
     for a in range(nr):
         b = ref[a]
         i = b0 + b
-        idx[a] = b
-        Y[a], LO[a], HI[a] = 0.5 * (lo[b] + hi[b]), lo[b], hi[b]
-        KA[a], TOL[a], L[a], XI[a], X0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
+        TB[a] = b
+        TY[a], TLO[a], THI[a] = 0.5 * (lo[b] + hi[b]), lo[b], hi[b]
+        TK[a], TTOL[a], TL[a], TXI[a], TX0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
+    for a in range(nr):
+        LIVE[a] = 1
+    live = nr
     for _ in range(max_iter):
-        if nr == 0:
+        if live == 0:
             break
-        _terms_block(code, nr, W, R, Q, C10, C20, C30)
+        _terms_block(code, nr, T, R, Q, C10, C20, C30)
+        live = 0
         for a in range(nr):
-            Y_new[a], LO[a], HI[a], done[a] = _newton(Y[a], LO[a], HI[a], P[a], PP[a], CY[a], CYY[a], KA[a], TOL[a],
-                                                      1.0)
-        keep = 0
-        for a in range(nr):
-            if done[a]:
-                i = b0 + idx[a]
-                y[i], ok[i] = Y_new[a], 1
-                continue
-            idx[keep] = idx[a]
-            Y[keep], LO[keep], HI[keep], KA[keep], TOL[keep] = Y_new[a], LO[a], HI[a], KA[a], TOL[a]
-            L[keep], XI[keep], X0[keep] = L[a], XI[a], X0[a]
-            keep += 1
-        nr = keep
-    for a in range(nr):  # not converged
-        i = b0 + idx[a]
-        y[i], ok[i] = y0[i], 0
+            y_new, TLO[a], THI[a], done = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a], TCYY[a], TK[a],
+                                                  TTOL[a], 1.0)
+            if LIVE[a] != 0 and done:
+                TOUT[a] = y_new
+                LIVE[a] = 0
+            TY[a] = y_new
+            live += LIVE[a]
+        if 4 * live <= 3 * nr:  # pack: the converged lanes' results out
+            keep = 0
+            for a in range(nr):
+                if LIVE[a] == 0:
+                    i = b0 + TB[a]
+                    y[i], ok[i] = TOUT[a], 1
+                    continue
+                TY[keep], TLO[keep], THI[keep], TK[keep], TTOL[keep] = TY[a], TLO[a], THI[a], TK[a], TTOL[a]
+                TL[keep], TXI[keep], TX0[keep], TB[keep], LIVE[keep] = TL[a], TXI[a], TX0[a], TB[a], 1
+                keep += 1
+            nr = keep
+    for a in range(nr):
+        i = b0 + TB[a]
+        if LIVE[a] == 0:
+            y[i], ok[i] = TOUT[a], 1
+        else:  # not converged
+            y[i], ok[i] = y0[i], 0
 
 
 #: Samples per block of the batched scan (`_scan_block`).
