@@ -437,18 +437,13 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         at_start[b] = not (K[i] > h0[i])
         y_prev[b], h_prev[b], s_prev[b] = y0[i], h0[i], np.nan
         lo[b], hi[b] = np.nan, np.nan
-        jj[b], kk[b] = 0, 1
+        more = n_off > 0
+        Y[na], jj[b], kk[b] = _next_node(y0[i], span[b], more, offsets[0] if more else 0.0, 0, 1, n_scan)
+        L[na], XI[na], X0[na] = l1[i], xi0[i], x0[i]
         act[na] = b
         na += 1
     nr = 0
     while na > 0:
-        for a in range(na):
-            b = act[a]
-            i = b0 + b
-            j = jj[b]
-            more = j < n_off
-            Y[a], jj[b], kk[b] = _next_node(y0[i], span[b], more, offsets[j] if more else 0.0, j, kk[b], n_scan)
-            L[a], XI[a], X0[a] = l1[i], xi0[i], x0[i]
         _terms_block(code, na, S, R, Q, C10, C20, C30)
         for a in range(na):
             H[a], SL[a] = _h_slope(P[a], PP[a], CY[a], CYY[a])
@@ -482,6 +477,11 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
                     ref[nr] = b
                     nr += 1
                 continue
+            # the next node, at the sample's packed place (the node before at ``a >= keep`` is done with)
+            j = jj[b]
+            more = j < n_off
+            Y[keep], jj[b], kk[b] = _next_node(y0[i], span[b], more, offsets[j] if more else 0.0, j, kk[b], n_scan)
+            L[keep], XI[keep], X0[keep] = l1[i], xi0[i], x0[i]
             act[keep] = b
             keep += 1
         na = keep
