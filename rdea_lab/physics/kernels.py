@@ -413,7 +413,8 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     TLO, THI, TK, TTOL, TOUT = T[16], T[17], T[18], T[19], T[20]
     N = np.empty((7, nb + 24), np.int64)
     jj, kk = N[0], N[1]
-    act = N[2]  # the samples still scanning (block indices)
+    act = np.empty(nb, np.uint64)  # the samples still scanning (block indices: unsigned, so no index is
+    b0u = np.uint64(b0)  # checked for a negative value)
     ref = N[3]  # the samples to refine
     TB, LIVE = N[4], N[5]  # the samples refined, compacted; whether still iterating
     at_start = np.empty(nb, np.bool_)
@@ -450,7 +451,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         keep = 0
         for a in range(na):
             b = act[a]
-            i = b0 + b
+            i = b0u + b
             yk, h, slope = Y[a], H[a], SL[a]
             verdict = _verdict(y_prev[b], h_prev[b], s_prev[b], yk, h, slope, K[i])
             if verdict == _FALL:
