@@ -416,7 +416,8 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     act = np.empty(nb, np.uint64)  # the samples still scanning (block indices: unsigned, so no index is
     b0u = np.uint64(b0)  # checked for a negative value)
     ref = N[3]  # the samples to refine
-    TB, LIVE = N[4], N[5]  # the samples refined, compacted; whether still iterating
+    TB = np.empty(nb, np.uint64)  # the samples refined, compacted
+    LIVE = N[5]  # whether still iterating
     at_start = np.empty(nb, np.bool_)
     if pitchfork:  # `_h_start`
         for b in range(nb):
@@ -513,17 +514,18 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
             live += LIVE[a]
         if 4 * live <= 3 * nr:  # pack: the converged lanes' results out
             keep = 0
-            for a in range(nr):
-                if LIVE[a] == 0:
-                    i = b0 + TB[a]
-                    y[i], ok[i] = TOUT[a], 1
-                    continue
+            for a in range(nr):  # no branch: every lane written out (a provisional result where it goes on)
+                b = TB[a]
+                i = b0u + b
+                y[i], ok[i] = TOUT[a], 1
                 TY[keep], TLO[keep], THI[keep], TK[keep], TTOL[keep] = TY[a], TLO[a], THI[a], TK[a], TTOL[a]
-                TL[keep], TXI[keep], TX0[keep], TB[keep], LIVE[keep] = TL[a], TXI[a], TX0[a], TB[a], 1
-                keep += 1
+                TL[keep], TXI[keep], TX0[keep], TB[keep] = TL[a], TXI[a], TX0[a], b
+                keep += LIVE[a]
+            for a in range(keep):
+                LIVE[a] = 1
             nr = keep
     for a in range(nr):
-        i = b0 + TB[a]
+        i = b0u + TB[a]
         if LIVE[a] == 0:
             y[i], ok[i] = TOUT[a], 1
         else:  # not converged
