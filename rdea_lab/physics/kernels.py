@@ -10,7 +10,8 @@ the work around them, fused per sample with no temporaries:
 - `branch_roots`: the 1R / 3R / CR equilibrium of one sample, *certified*:
   ``h = psi_y / c_y`` is scanned at the reference solver's own nodes
   (:func:`rdea_lab.physics.branch.scan_nodes`) and the root is refined by its
-  own Newton iteration (`branch._refine_root`), but a sample is accepted only
+  own Newton iteration (`branch._refine_root`, from `branch.newton_start` on
+  the ramp rule, as `branch.follow_branch`), but a sample is accepted only
   where ``h`` rises strictly at every node scanned (its slope > 0, no value
   falls, no hidden dip of the cubic fit between nodes): one basin, no fold,
   so the state is the one root whatever the history. Every other sample (a
@@ -53,7 +54,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from . import viscoelastic, yeoh
+from . import branch, viscoelastic, yeoh
 from .models import continuum, su, three_ring
 
 
@@ -336,7 +337,12 @@ def _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_sc
 def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
     """`branch._refine_root` for one root: ``(y, ok)``. Newton on ``g_y = psi_y - K c_y`` inside ``[lo, hi]``
     (``sgn`` -1: a falling crossing), bisection where it strays, to ``rtol scale``."""
-    y = 0.5 * (lo + hi)
+    return _refine(code, l1, R, Q, C10, C20, C30, 0.5 * (lo + hi), lo, hi, K, scale, rtol, max_iter, sgn)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _refine(code, l1, R, Q, C10, C20, C30, y, lo, hi, K, scale, rtol, max_iter, sgn):
+    """`_root` from ``y`` in ``[lo, hi]``."""
     tol = rtol * scale
     for _ in range(max_iter):
         p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
@@ -345,6 +351,15 @@ def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
             return y_new, True
         y = y_new
     return y, False
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _pick(c, a, b):
+    return a if c else b
+
+
+#: `branch.newton_start`: where the certified Newton iteration starts in its bracket.
+_start = _jit(branch.newton_start, inline="always", _pick=_pick)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -357,7 +372,7 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
         return y0, first
     done_at_start = not (K > h0)
     y_prev, h_prev, s_prev = y0, h0, np.nan
-    lo, hi = np.nan, np.nan
+    lo, hi, y_start = np.nan, np.nan, np.nan
     j = 0  # next scale offset
     k = 1  # next regular node
     while k <= n_scan:
@@ -372,6 +387,7 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
             return y0, 0
         if verdict == _CROSS and lo != lo and not done_at_start:
             lo, hi = y_prev, yk
+            y_start = 0.5 * (lo + hi) if whole else _start(y_prev, yk, h_prev, h, s_prev, slope, K)
             if not whole:
                 break
         y_prev, h_prev, s_prev = yk, h, slope
@@ -379,8 +395,9 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
         return y0, 1
     if lo != lo:
         return y0, 0  # no crossing in the range: the reference says what it is
-    # Newton on g_y inside [lo, hi], bisection where it strays: `branch._refine_root`
-    y, ok = _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, span, rtol, max_iter, 1.0)
+    # Newton on g_y inside [lo, hi], bisection where it strays: `branch._refine_root` from `branch.newton_start`
+    # (the ramp rule, as `branch.follow_branch`), from the midpoint on a path (as `branch.follow_path`)
+    y, ok = _refine(code, l1, R, Q, C10, C20, C30, y_start, lo, hi, K, span, rtol, max_iter, 1.0)
     return (y, 1) if ok else (y0, 0)
 
 
@@ -399,7 +416,9 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     """`_h_start` and `_one` of the samples ``b0 <= i < b1``, node by node for all of them at once: at each
     node the terms of every sample still scanning in one vectorized call (`_terms_block`), then each sample's
     steps (`_begin`, `_next_node`, `_verdict`, `_fallen`) as `_one` takes them, so the same nodes, verdicts
-    and brackets; the samples that end drop out. The Newton refinement likewise (`_newton`, as `_root`).
+    and brackets; the samples that end drop out. The Newton refinement likewise (`_newton`, as `_one`'s
+    `_refine`), its lanes packed once a quarter of them converged (a converged lane runs on unused, its
+    result kept: packing after every step cost a third of the refinement).
     CR: ``xi0``, ``x0`` per sample, ``R = (0, 0, Lb, ...)``; the others ignore them."""
     nb = b1 - b0
     n_off = offsets.size
@@ -408,6 +427,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     span, y_prev, h_prev, s_prev, lo, hi = S[0], S[1], S[2], S[3], S[4], S[5]
     # per sample still in play, compacted: the node, its arguments and terms (rows 6-15: `_terms_block`'s)
     Y, L, XI, X0, P, PP, CY, CYY, H, SL = S[6], S[7], S[8], S[9], S[10], S[11], S[12], S[13], S[16], S[17]
+    ys = S[18]  # where the Newton iteration starts (`_start`)
     # the Newton iteration's lanes
     TY, TL, TXI, TX0, TP, TPP, TCY, TCYY = T[6], T[7], T[8], T[9], T[10], T[11], T[12], T[13]
     TLO, THI, TK, TTOL, TOUT = T[16], T[17], T[18], T[19], T[20]
@@ -465,6 +485,8 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
                 continue
             if verdict == _CROSS and lo[b] != lo[b] and not at_start[b]:
                 lo[b], hi[b] = y_prev[b], yk
+                ys[b] = (0.5 * (lo[b] + hi[b]) if whole
+                         else _start(y_prev[b], yk, h_prev[b], h, s_prev[b], slope, K[i]))
                 if not whole:
                     ref[nr] = b
                     nr += 1
@@ -494,7 +516,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         b = ref[a]
         i = b0 + b
         TB[a] = b
-        TY[a], TLO[a], THI[a] = 0.5 * (lo[b] + hi[b]), lo[b], hi[b]
+        TY[a], TLO[a], THI[a] = ys[b], lo[b], hi[b]
         TK[a], TTOL[a], TL[a], TXI[a], TX0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
     for a in range(nr):
         LIVE[a] = 1
