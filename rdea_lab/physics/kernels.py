@@ -431,13 +431,13 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     # the Newton iteration's lanes
     TY, TL, TXI, TX0, TP, TPP, TCY, TCYY = T[6], T[7], T[8], T[9], T[10], T[11], T[12], T[13]
     TLO, THI, TK, TTOL, TOUT = T[16], T[17], T[18], T[19], T[20]
-    N = np.empty((7, nb + 24), np.int64)
+    N = np.empty((4, nb + 24), np.int64)
     jj, kk = N[0], N[1]
-    act = np.empty(nb, np.uint64)  # the samples still scanning (block indices: unsigned, so no index is
-    b0u = np.uint64(b0)  # checked for a negative value)
-    ref = N[3]  # the samples to refine
-    TB = np.empty(nb, np.uint64)  # the samples refined, compacted
-    LIVE = N[5]  # whether still iterating
+    ref = N[2]  # the samples to refine
+    LIVE = N[3]  # whether a Newton lane still iterates
+    U = np.empty((2, nb + 24), np.uint64)  # block indices, unsigned (no index checked for a negative value):
+    act, TB = U[0], U[1]  # the samples still scanning; the samples refined, packed
+    b0u = np.uint64(b0)
     at_start = np.empty(nb, np.bool_)
     if pitchfork:  # `_h_start`
         for b in range(nb):
