@@ -10,7 +10,8 @@ the work around them, fused per sample with no temporaries:
 - `branch_roots`: the 1R / 3R / CR equilibrium of one sample, *certified*:
   ``h = psi_y / c_y`` is scanned at the reference solver's own nodes
   (:func:`rdea_lab.physics.branch.scan_nodes`) and the root is refined by its
-  own Newton iteration (`branch._refine_root`), but a sample is accepted only
+  own Newton iteration (`branch._refine_root`, from `branch.newton_start` on
+  the ramp rule, as `branch.follow_branch`), but a sample is accepted only
   where ``h`` rises strictly at every node scanned (its slope > 0, no value
   falls, no hidden dip of the cubic fit between nodes): one basin, no fold,
   so the state is the one root whatever the history. Every other sample (a
@@ -55,7 +56,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from . import viscoelastic, yeoh
+from . import branch, viscoelastic, yeoh
 from .models import _common, continuum, su, three_ring
 
 
@@ -338,7 +339,12 @@ def _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_sc
 def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
     """`branch._refine_root` for one root: ``(y, ok)``. Newton on ``g_y = psi_y - K c_y`` inside ``[lo, hi]``
     (``sgn`` -1: a falling crossing), bisection where it strays, to ``rtol scale``."""
-    y = 0.5 * (lo + hi)
+    return _refine(code, l1, R, Q, C10, C20, C30, 0.5 * (lo + hi), lo, hi, K, scale, rtol, max_iter, sgn)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _refine(code, l1, R, Q, C10, C20, C30, y, lo, hi, K, scale, rtol, max_iter, sgn):
+    """`_root` from ``y`` in ``[lo, hi]``."""
     tol = rtol * scale
     for _ in range(max_iter):
         p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
@@ -347,6 +353,15 @@ def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
             return y_new, True
         y = y_new
     return y, False
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _pick(c, a, b):
+    return a if c else b
+
+
+#: `branch.newton_start`: where the certified Newton iteration starts in its bracket.
+_start = _jit(branch.newton_start, inline="always", _pick=_pick)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -359,7 +374,7 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
         return y0, first
     done_at_start = not (K > h0)
     y_prev, h_prev, s_prev = y0, h0, np.nan
-    lo, hi = np.nan, np.nan
+    lo, hi, y_start = np.nan, np.nan, np.nan
     j = 0  # next scale offset
     k = 1  # next regular node
     while k <= n_scan:
@@ -374,6 +389,7 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
             return y0, 0
         if verdict == _CROSS and lo != lo and not done_at_start:
             lo, hi = y_prev, yk
+            y_start = 0.5 * (lo + hi) if whole else _start(y_prev, yk, h_prev, h, s_prev, slope, K)
             if not whole:
                 break
         y_prev, h_prev, s_prev = yk, h, slope
@@ -381,8 +397,9 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
         return y0, 1
     if lo != lo:
         return y0, 0  # no crossing in the range: the reference says what it is
-    # Newton on g_y inside [lo, hi], bisection where it strays: `branch._refine_root`
-    y, ok = _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, span, rtol, max_iter, 1.0)
+    # Newton on g_y inside [lo, hi], bisection where it strays: `branch._refine_root` from `branch.newton_start`
+    # (the ramp rule, as `branch.follow_branch`), from the midpoint on a path (as `branch.follow_path`)
+    y, ok = _refine(code, l1, R, Q, C10, C20, C30, y_start, lo, hi, K, span, rtol, max_iter, 1.0)
     return (y, 1) if ok else (y0, 0)
 
 
@@ -401,26 +418,33 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     """`_h_start` and `_one` of the samples ``b0 <= i < b1``, node by node for all of them at once: at each
     node the terms of every sample still scanning in one vectorized call (`_terms_block`), then each sample's
     steps (`_begin`, `_next_node`, `_verdict`, `_fallen`) as `_one` takes them, so the same nodes, verdicts
-    and brackets; the samples that end drop out. The Newton refinement likewise (`_newton`, as `_root`).
+    and brackets; the samples that end drop out. The Newton refinement likewise (`_newton`, as `_one`'s
+    `_refine`), its lanes packed once a quarter of them converged (a converged lane runs on unused, its
+    result kept: packing after every step cost a third of the refinement).
     CR: ``xi0``, ``x0`` per sample, ``R = (0, 0, Lb, ...)``; the others ignore them."""
     nb = b1 - b0
     n_off = offsets.size
-    W = np.empty((23, nb))  # one allocation: rows as 1-D views
-    span, y_prev, h_prev, s_prev, lo, hi = W[0], W[1], W[2], W[3], W[4], W[5]
+    W = np.empty((2, 23, nb + 24))  # one allocation: rows as 1-D views (padded: rows 4 KiB apart alias)
+    S, T = W[0], W[1]
+    span, y_prev, h_prev, s_prev, lo, hi = S[0], S[1], S[2], S[3], S[4], S[5]
     # per sample still in play, compacted: the node, its arguments and terms (rows 6-15: `_terms_block`'s)
-    Y, L, XI, X0, P, PP, CY, CYY, H, S = W[6], W[7], W[8], W[9], W[10], W[11], W[12], W[13], W[16], W[17]
-    Y_new, LO, HI, KA, TOL = W[18], W[19], W[20], W[21], W[22]  # the Newton iteration's
-    N = np.empty((5, nb), np.int64)
+    Y, L, XI, X0, P, PP, CY, CYY, H, SL = S[6], S[7], S[8], S[9], S[10], S[11], S[12], S[13], S[16], S[17]
+    ys = S[18]  # where the Newton iteration starts (`_start`)
+    # the Newton iteration's lanes
+    TY, TL, TXI, TX0, TP, TPP, TCY, TCYY = T[6], T[7], T[8], T[9], T[10], T[11], T[12], T[13]
+    TLO, THI, TK, TTOL, TOUT = T[16], T[17], T[18], T[19], T[20]
+    N = np.empty((4, nb + 24), np.int64)
     jj, kk = N[0], N[1]
-    act = N[2]  # the samples still scanning (block indices)
-    ref = N[3]  # the samples to refine
-    idx = N[4]  # the samples refined, compacted
+    ref = N[2]  # the samples to refine
+    LIVE = N[3]  # whether a Newton lane still iterates
+    U = np.empty((2, nb + 24), np.uint64)  # block indices, unsigned (no index checked for a negative value):
+    act, TB = U[0], U[1]  # the samples still scanning; the samples refined, packed
+    b0u = np.uint64(b0)
     at_start = np.empty(nb, np.bool_)
-    done = np.empty(nb, np.bool_)
     if pitchfork:  # `_h_start`
         for b in range(nb):
             Y[b], L[b], XI[b], X0[b] = y0[b0 + b], l1[b0 + b], xi0[b0 + b], x0[b0 + b]
-        _terms_block(code, nb, W, R, Q, C10, C20, C30)
+        _terms_block(code, nb, S, R, Q, C10, C20, C30)
         for b in range(nb):
             h0[b0 + b] = PP[b] / CYY[b]
     else:
@@ -437,26 +461,21 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         at_start[b] = not (K[i] > h0[i])
         y_prev[b], h_prev[b], s_prev[b] = y0[i], h0[i], np.nan
         lo[b], hi[b] = np.nan, np.nan
-        jj[b], kk[b] = 0, 1
+        more = n_off > 0
+        Y[na], jj[b], kk[b] = _next_node(y0[i], span[b], more, offsets[0] if more else 0.0, 0, 1, n_scan)
+        L[na], XI[na], X0[na] = l1[i], xi0[i], x0[i]
         act[na] = b
         na += 1
     nr = 0
     while na > 0:
+        _terms_block(code, na, S, R, Q, C10, C20, C30)
         for a in range(na):
-            b = act[a]
-            i = b0 + b
-            j = jj[b]
-            more = j < n_off
-            Y[a], jj[b], kk[b] = _next_node(y0[i], span[b], more, offsets[j] if more else 0.0, j, kk[b], n_scan)
-            L[a], XI[a], X0[a] = l1[i], xi0[i], x0[i]
-        _terms_block(code, na, W, R, Q, C10, C20, C30)
-        for a in range(na):
-            H[a], S[a] = _h_slope(P[a], PP[a], CY[a], CYY[a])
+            H[a], SL[a] = _h_slope(P[a], PP[a], CY[a], CYY[a])
         keep = 0
         for a in range(na):
             b = act[a]
-            i = b0 + b
-            yk, h, slope = Y[a], H[a], S[a]
+            i = b0u + b
+            yk, h, slope = Y[a], H[a], SL[a]
             verdict = _verdict(y_prev[b], h_prev[b], s_prev[b], yk, h, slope, K[i])
             if verdict == _FALL:
                 y[i], ok[i] = y0[i], _fallen(code, l1[i], y0[i], span[b], K[i], h0[i],
@@ -468,6 +487,8 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
                 continue
             if verdict == _CROSS and lo[b] != lo[b] and not at_start[b]:
                 lo[b], hi[b] = y_prev[b], yk
+                ys[b] = (0.5 * (lo[b] + hi[b]) if whole
+                         else _start(y_prev[b], yk, h_prev[b], h, s_prev[b], slope, K[i]))
                 if not whole:
                     ref[nr] = b
                     nr += 1
@@ -482,38 +503,57 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
                     ref[nr] = b
                     nr += 1
                 continue
+            # the next node, at the sample's packed place (the node before at ``a >= keep`` is done with)
+            j = jj[b]
+            more = j < n_off
+            Y[keep], jj[b], kk[b] = _next_node(y0[i], span[b], more, offsets[j] if more else 0.0, j, kk[b], n_scan)
+            L[keep], XI[keep], X0[keep] = l1[i], xi0[i], x0[i]
             act[keep] = b
             keep += 1
         na = keep
-    # Newton on g_y inside [lo, hi], bisection where it strays: `_root` for all at once, compacted (each
-    # iteration's steps in one vectorized loop)
+    # Newton on g_y inside [lo, hi], bisection where it strays: `_root` for all at once (each iteration's
+    # steps in one vectorized loop); a lane that converged keeps its result (TOUT) and runs on unused until
+    # a quarter of the lanes converged and they are packed
     for a in range(nr):
         b = ref[a]
         i = b0 + b
-        idx[a] = b
-        Y[a], LO[a], HI[a] = 0.5 * (lo[b] + hi[b]), lo[b], hi[b]
-        KA[a], TOL[a], L[a], XI[a], X0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
+        TB[a] = b
+        TY[a], TLO[a], THI[a] = ys[b], lo[b], hi[b]
+        TK[a], TTOL[a], TL[a], TXI[a], TX0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
+    for a in range(nr):
+        LIVE[a] = 1
+    live = nr
     for _ in range(max_iter):
-        if nr == 0:
+        if live == 0:
             break
-        _terms_block(code, nr, W, R, Q, C10, C20, C30)
+        _terms_block(code, nr, T, R, Q, C10, C20, C30)
+        live = 0
         for a in range(nr):
-            Y_new[a], LO[a], HI[a], done[a] = _newton(Y[a], LO[a], HI[a], P[a], PP[a], CY[a], CYY[a], KA[a], TOL[a],
-                                                      1.0)
-        keep = 0
-        for a in range(nr):
-            if done[a]:
-                i = b0 + idx[a]
-                y[i], ok[i] = Y_new[a], 1
-                continue
-            idx[keep] = idx[a]
-            Y[keep], LO[keep], HI[keep], KA[keep], TOL[keep] = Y_new[a], LO[a], HI[a], KA[a], TOL[a]
-            L[keep], XI[keep], X0[keep] = L[a], XI[a], X0[a]
-            keep += 1
-        nr = keep
-    for a in range(nr):  # not converged
-        i = b0 + idx[a]
-        y[i], ok[i] = y0[i], 0
+            y_new, TLO[a], THI[a], done = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a], TCYY[a], TK[a],
+                                                  TTOL[a], 1.0)
+            if LIVE[a] != 0 and done:
+                TOUT[a] = y_new
+                LIVE[a] = 0
+            TY[a] = y_new
+            live += LIVE[a]
+        if 4 * live <= 3 * nr:  # pack: the converged lanes' results out
+            keep = 0
+            for a in range(nr):  # no branch: every lane written out (a provisional result where it goes on)
+                b = TB[a]
+                i = b0u + b
+                y[i], ok[i] = TOUT[a], 1
+                TY[keep], TLO[keep], THI[keep], TK[keep], TTOL[keep] = TY[a], TLO[a], THI[a], TK[a], TTOL[a]
+                TL[keep], TXI[keep], TX0[keep], TB[keep] = TL[a], TXI[a], TX0[a], b
+                keep += LIVE[a]
+            for a in range(keep):
+                LIVE[a] = 1
+            nr = keep
+    for a in range(nr):
+        i = b0u + TB[a]
+        if LIVE[a] == 0:
+            y[i], ok[i] = TOUT[a], 1
+        else:  # not converged
+            y[i], ok[i] = y0[i], 0
 
 
 #: Samples per block of the batched scan (`_scan_block`).
