@@ -163,9 +163,10 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
     more to a caller that reads every field, 30 % less to one that reads the stress alone), then the slack
     rolls' free states and the fields there. A caller that reads the stress alone pays for no free state.
     The result holds no reference to the caller's arrays beyond ``stretch`` and ``voltage``, so a later
-    change to those changes no field computed later. Every array of the result is read-only (nor can a
-    view of it be made writeable): the fields are rows of one block (`su_solve`), and the later ones are
-    computed from the earlier."""
+    change to those changes no field computed later. Every array the result computes (the tension, status,
+    convergence and fields) is read-only, nor can a view of one be made writeable: the fields are rows of one
+    block (`su_solve`), and the later ones are computed from the earlier. (``stretch`` and ``voltage`` are
+    read-only views of the caller's arrays; nothing is computed from them later.)"""
     end = check_start("su", path, start)
     kap = float(kappa(geom, material))
     l1c, vc = np.ascontiguousarray(l1), np.ascontiguousarray(v)
