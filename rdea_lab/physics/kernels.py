@@ -105,7 +105,7 @@ _radius = _jit(three_ring._radius)
 _ring = _jit(three_ring.ring_terms, inline="always", _radius=_radius, psi2_terms=_psi2, psi2_first=_psi2_first)
 _node = _jit(continuum.node_terms, inline="always", slope=_slope)
 _invariant = _jit(yeoh._invariant_terms, invariant_args=_jit(yeoh.invariant_args),
-                  invariant_from=_jit(yeoh.invariant_from))
+                  invariant_from=_jit(yeoh.invariant_from), _expm1_own=np.expm1)
 _gradient = _jit(yeoh.gradient_terms, _invariant_terms=_invariant, gradient_from=_jit(yeoh.gradient_from, slope=_slope))
 _radii = _jit(three_ring.radii)
 _state3 = _jit(three_ring.ring_state, ring_geometry=_jit(three_ring.ring_geometry, radii=_radii),

@@ -143,10 +143,12 @@ def _log_args(W, rings, m):
     """`yeoh.invariant_args` of each ring from the logarithms ``a = log l1`` (row ``_LOG``) and ``b = log l2`` of
     each ring (the rows after it), into the rows from ``_EXP``: its first value (``2 a``, the same for every
     ring) once, then its other four for each ring."""
-    for j in range(rings):
+    for i in range(m):
+        e0, e1, e2, e3, e4 = _inv_args(W[_LOG, i], W[_LOG + 1, i])
+        W[_EXP, i], W[_EXP + 1, i], W[_EXP + 2, i], W[_EXP + 3, i], W[_EXP + 4, i] = e0, e1, e2, e3, e4
+    for j in range(1, rings):
         for i in range(m):
-            e0, e1, e2, e3, e4 = _inv_args(W[_LOG, i], W[_LOG + 1 + j, i])
-            W[_EXP, i] = e0
+            _, e1, e2, e3, e4 = _inv_args(W[_LOG, i], W[_LOG + 1 + j, i])
             W[_EXP + 1 + 4 * j, i], W[_EXP + 2 + 4 * j, i] = e1, e2
             W[_EXP + 3 + 4 * j, i], W[_EXP + 4 + 4 * j, i] = e3, e4
 

@@ -22,7 +22,14 @@ def _invariant_terms(l1, l2):
     `rdea_lab.physics.kernels`; `rdea_lab.physics.ring_kernels`' split passes take the logarithms and ``expm1``
     by numpy over blocks and call the two pieces compiled)."""
     e0, e1, e2, e3, e4 = invariant_args(np.log(l1), np.log(l2))
-    return invariant_from(l1, l2, np.expm1(e0), np.expm1(e1), np.expm1(e2), np.expm1(e3), np.expm1(e4))
+    return invariant_from(l1, l2, _expm1_own(e0), _expm1_own(e1), _expm1_own(e2), _expm1_own(e3), _expm1_own(e4))
+
+
+def _expm1_own(t):
+    """``np.expm1(t)``, in place where ``t`` is an array (`invariant_args`' values are new arrays of
+    `_invariant_terms`' own: five held at once, with a new array for each ``expm1`` too, took twice the memory
+    and time). The compiled forms bind it to ``np.expm1``."""
+    return np.expm1(t, out=t) if isinstance(t, np.ndarray) else np.expm1(t)
 
 
 def invariant_args(a, b):
