@@ -57,7 +57,8 @@ _bounds_cr = _jit(continuum.bounds, inline="always")
 _node_mech = _jit(continuum.node_mechanics, inline="always", slope=_slope)
 _closing = _jit(continuum.closing, inline="always")
 _slope_inline = _jit(yeoh.slope, inline="always")
-# the pieces of the numpy field functions the split passes compose, inlined: their loops vectorize
+# the pieces of the numpy field functions that the split passes compose, inlined into their loops (those of
+# `_log_args` and `_first3` vectorize)
 _radii = _jit(three_ring.radii, inline="always")
 _inv_args = _jit(yeoh.invariant_args, inline="always")
 _inv_from = _jit(yeoh.invariant_from, inline="always")
@@ -272,7 +273,9 @@ def _last1(W, lo, m, l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri, out):
 
 def fields1(l2, l1, v, C, kap, C0, Ro, Ri):
     """`one_ring.fields` of every sample, ``(sigma1, capacitance, r_i)``: split passes (`_split`), the logarithms
-    and ``expm1`` of `yeoh.gradient_terms` by numpy, the rest compiled."""
+    and ``expm1`` of `yeoh._invariant_terms` by numpy, the rest the pieces `one_ring.fields` is composed of
+    (`yeoh.invariant_args`, `yeoh.invariant_from`, `yeoh.gradient_from`, `one_ring.stress_from`,
+    `one_ring.fields_from`) compiled: the numpy function's numbers bit for bit."""
     l2 = _arr(l2)
     out = np.empty((3, l2.size))
     _split(_first1, _last1, 1, 0, l2.size, (l2, _arr(l1, l2.shape), _arr(v, l2.shape), *map(float, C), float(kap),
@@ -282,7 +285,10 @@ def fields1(l2, l1, v, C, kap, C0, Ro, Ri):
 
 def fields3(y, l1, v, R, C, kap, C0, Ro):
     """`three_ring.ring_fields` of every sample: the six rows of one block. Split passes (`_split`): the
-    logarithms and ``expm1`` of `yeoh.gradient_terms` by numpy, the rest compiled."""
+    logarithms and ``expm1`` of `yeoh._invariant_terms` by numpy, the rest the pieces `three_ring.ring_fields`
+    is composed of (`three_ring.ring_geometry`, `yeoh.invariant_args`, `yeoh.invariant_from`,
+    `yeoh.gradient_from`, `three_ring.ring_stress`, `three_ring.fields_from`) compiled: the numpy function's
+    numbers bit for bit."""
     y = _arr(y)
     out = np.empty((6, y.size))
     _split(_first3, _last3, 3, 6, y.size, (y, _arr(l1, y.shape), _arr(v, y.shape), tuple(float(r) for r in R),
