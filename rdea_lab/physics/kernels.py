@@ -104,10 +104,13 @@ _basis = _jit(su.basis)
 _radius = _jit(three_ring._radius)
 _ring = _jit(three_ring.ring_terms, inline="always", _radius=_radius, psi2_terms=_psi2, psi2_first=_psi2_first)
 _node = _jit(continuum.node_terms, inline="always", slope=_slope)
-_gradient = _jit(yeoh.gradient_terms, _invariant_terms=_jit(yeoh._invariant_terms), slope=_slope)
+_invariant = _jit(yeoh._invariant_terms, invariant_args=_jit(yeoh.invariant_args),
+                  invariant_from=_jit(yeoh.invariant_from), _expm1_own=np.expm1)
+_gradient = _jit(yeoh.gradient_terms, _invariant_terms=_invariant, gradient_from=_jit(yeoh.gradient_from, slope=_slope))
 _radii = _jit(three_ring.radii)
-_state3 = _jit(three_ring.ring_state, radii=_radii, gradient_terms=_gradient)
-_fields3 = _jit(three_ring.ring_fields, inline="always", ring_state=_state3)
+_state3 = _jit(three_ring.ring_state, ring_geometry=_jit(three_ring.ring_geometry, radii=_radii),
+               ring_stress=_jit(three_ring.ring_stress), gradient_terms=_gradient)
+_fields3 = _jit(three_ring.ring_fields, inline="always", ring_state=_state3, fields_from=_jit(three_ring.fields_from))
 
 #: Model codes of `branch_roots`.
 CODES = {"1r": 1, "3r": 3, "cr": 4}

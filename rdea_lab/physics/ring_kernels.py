@@ -9,9 +9,13 @@ reference (the tests check one against the other):
   1R's `one_ring.fields` and 3R's `three_ring.ring_fields` in split passes
   (`fields1`, `fields3`: this numba has no vector math library, so its scalar
   ``log`` and ``expm1`` cost 6-9 ns each against numpy's 1; the logarithms and
-  ``expm1`` of `yeoh.gradient_terms` are numpy's, over blocks, and the rest,
-  the same operations in the same order, compiled: equal to the numpy
-  functions bit for bit on the bench scene);
+  ``expm1`` of `yeoh._invariant_terms` are numpy's, over blocks, and the rest
+  is the pieces the numpy functions are composed of, compiled as they are
+  (`yeoh.invariant_args`, `yeoh.invariant_from`, `yeoh.gradient_from`,
+  `three_ring.ring_geometry`, `three_ring.ring_stress`,
+  `three_ring.fields_from`, `one_ring.stress_from`, `one_ring.fields_from`):
+  the same operations in the same order, so equal to the numpy functions bit
+  for bit);
 - the problems' bounds and loads (`bounds`);
 - a slack roll's free state: `kernels.free_stretch` (the bracketing and
   Illinois iteration of `models._common.free_state`, the one compiled form of
@@ -43,7 +47,8 @@ from .kernels import (_arr, _basis, _fields3, _free_start, _free_step, _gradient
 from .models import continuum, one_ring, three_ring
 from .models._common import FREE_STRETCH_MAX
 
-_stress1 = _jit(one_ring.stress, gradient_terms=_gradient)
+_stress_from1 = _jit(one_ring.stress_from, inline="always")
+_stress1 = _jit(one_ring.stress, gradient_terms=_gradient, stress_from=_stress_from1)
 # inlined: the loop over samples of `bounds` vectorizes
 _bounds1 = _jit(one_ring.bounds, inline="always")
 _xi_hoop = _jit(three_ring.xi_at_hoop_stretch, inline="always")
@@ -51,8 +56,17 @@ _bounds3 = _jit(three_ring.bounds, inline="always", xi_at_hoop_stretch=_xi_hoop)
 _bounds_cr = _jit(continuum.bounds, inline="always")
 _node_mech = _jit(continuum.node_mechanics, inline="always", slope=_slope)
 _closing = _jit(continuum.closing, inline="always")
-_radii = _jit(three_ring.radii, inline="always")  # inlined: the split passes' loops vectorize
 _slope_inline = _jit(yeoh.slope, inline="always")
+# the pieces of the numpy field functions that the split passes compose, inlined into their loops (those of
+# `_log_args` and `_first3` vectorize)
+_radii = _jit(three_ring.radii, inline="always")
+_inv_args = _jit(yeoh.invariant_args, inline="always")
+_inv_from = _jit(yeoh.invariant_from, inline="always")
+_grad_from = _jit(yeoh.gradient_from, inline="always", slope=_slope_inline)
+_geometry3 = _jit(three_ring.ring_geometry, inline="always", radii=_radii)
+_ring_stress = _jit(three_ring.ring_stress, inline="always")
+_fields_from3 = _jit(three_ring.fields_from, inline="always")
+_fields_from1 = _jit(one_ring.fields_from, inline="always")
 
 _N_SCAN = N_SCAN
 _FREE_MAX = FREE_STRETCH_MAX
@@ -127,29 +141,27 @@ _LOG, _EXP = 0, 4
 
 @numba.njit(cache=True, error_model="numpy", nogil=True, inline="always")
 def _log_args(W, rings, m):
-    """The arguments of the ``expm1`` calls of `yeoh._invariant_terms` from the logarithms ``a = log l1``
-    (row ``_LOG``) and ``b = log l2`` of each ring (the rows after it), into the rows from ``_EXP``: ``2 a``,
-    then for each ring ``2 b``, ``-2 (a + b)``, ``-4 a - 2 b``, ``-2 a - 4 b`` (its operations, in its order)."""
+    """`yeoh.invariant_args` of each ring from the logarithms ``a = log l1`` (row ``_LOG``) and ``b = log l2`` of
+    each ring (the rows after it), into the rows from ``_EXP``: its first value (``2 a``, the same for every
+    ring) once, then its other four for each ring (in two loops, as one loop writing five rows 32 KiB apart was
+    slower)."""
     for i in range(m):
-        W[_EXP, i] = 2.0 * W[_LOG, i]
+        e0, _, _, _, _ = _inv_args(W[_LOG, i], W[_LOG + 1, i])
+        W[_EXP, i] = e0
     for j in range(rings):
         for i in range(m):
-            a = W[_LOG, i]
-            b = W[_LOG + 1 + j, i]
-            W[_EXP + 1 + 4 * j, i] = 2.0 * b
-            W[_EXP + 2 + 4 * j, i] = -2.0 * (a + b)
-            W[_EXP + 3 + 4 * j, i] = -4.0 * a - 2.0 * b
-            W[_EXP + 4 + 4 * j, i] = -2.0 * a - 4.0 * b
+            _, e1, e2, e3, e4 = _inv_args(W[_LOG, i], W[_LOG + 1 + j, i])
+            W[_EXP + 1 + 4 * j, i], W[_EXP + 2 + 4 * j, i] = e1, e2
+            W[_EXP + 3 + 4 * j, i], W[_EXP + 4 + 4 * j, i] = e3, e4
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _gradient_of(W, j, i, l1, l2, C10, C20, C30):
-    """`yeoh.gradient_terms` of ring ``j`` of sample ``i`` from the ``expm1`` values (`_log_args`)."""
-    x = W[_EXP, i] + W[_EXP + 1 + 4 * j, i] + W[_EXP + 2 + 4 * j, i]
-    I_1 = -2.0 * l1 * W[_EXP + 3 + 4 * j, i]
-    I_2 = -2.0 * l2 * W[_EXP + 4 + 4 * j, i]
-    W1, _ = _slope_inline(x, (C10, C20, C30))
-    return W1 * I_1, W1 * I_2
+    """`yeoh.gradient_terms` of ring ``j`` of sample ``i`` from the ``expm1`` of `_log_args`' rows:
+    `yeoh.invariant_from`, then `yeoh.gradient_from`."""
+    x, I_1, I_2 = _inv_from(l1, l2, W[_EXP, i], W[_EXP + 1 + 4 * j, i], W[_EXP + 2 + 4 * j, i],
+                            W[_EXP + 3 + 4 * j, i], W[_EXP + 4 + 4 * j, i])
+    return _grad_from(x, I_1, I_2, C10, C20, C30)
 
 
 def _split(first, last, rings, own, n, args):
@@ -216,46 +228,32 @@ _OWN3 = _EXP + 13  # 3R's own rows: dr_ie, dr_oe, dr_o, l2a, l2b, l2c
 
 @numba.njit(cache=True, error_model="numpy", nogil=True)
 def _first3(W, lo, m, y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
-    Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c = R
-    for i in range(m):  # `three_ring.ring_state` up to its `gradient_terms`
-        xi, L = y[lo + i], l1[lo + i]
-        r_ie, r_oe, r_o = _radii(xi, L, Da, Dab, Dabc)
-        w = -0.5 / (L * L)
-        W[_OWN3, i] = 0.0 if Da == 0.0 else w * Da / r_ie
-        W[_OWN3 + 1, i] = 0.0 if Dab == 0.0 else w * Dab / r_oe
-        W[_OWN3 + 2, i] = 0.0 if Dabc == 0.0 else w * Dabc / r_o
-        l2a = (xi + r_ie) / Sa if eta_a > 0.0 else 1.0
-        l2b = (r_ie + r_oe) / Sb
-        l2c = (r_oe + r_o) / Sc if eta_c > 0.0 else 1.0
-        W[_LOG, i], W[_LOG + 1, i], W[_LOG + 2, i], W[_LOG + 3, i] = L, l2b, l2a, l2c
+    eta_a, eta_c = R[6], R[8]
+    for i in range(m):  # `three_ring.ring_state` up to its `gradient_terms`: `ring_geometry`
+        L = l1[lo + i]
+        l2a, l2b, l2c, dr_ie, dr_oe, dr_o = _geometry3(y[lo + i], L, R)
+        W[_OWN3, i], W[_OWN3 + 1, i], W[_OWN3 + 2, i] = dr_ie, dr_oe, dr_o
         W[_OWN3 + 3, i], W[_OWN3 + 4, i], W[_OWN3 + 5, i] = l2a, l2b, l2c  # (the logarithms overwrite those)
+        # a ring of zero volume: its row unused (1, not its NaN stretch: no special values for numpy's log)
+        W[_LOG, i], W[_LOG + 1, i] = L, l2b
+        W[_LOG + 2, i] = l2a if eta_a > 0.0 else 1.0
+        W[_LOG + 3, i] = l2c if eta_c > 0.0 else 1.0
 
 
 @numba.njit(cache=True, error_model="numpy", nogil=True)
 def _last3(W, lo, m, y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
-    Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c = R
-    for i in range(m):  # the rest of `three_ring.ring_state` and `ring_fields`
+    eta_a, eta_c = R[6], R[8]
+    for i in range(m):  # the rest of `three_ring.ring_state` (`ring_stress`) and `ring_fields` (`fields_from`)
         k = lo + i
-        L, vk = l1[k], v[k]
+        L = l1[k]
         dr_ie, dr_oe, dr_o = W[_OWN3, i], W[_OWN3 + 1, i], W[_OWN3 + 2, i]
-        l2b = W[_OWN3 + 4, i]
-        dl2b = (dr_ie + dr_oe) / Sb
-        psi_1, psi_2 = _gradient_of(W, 0, i, L, l2b, C10, C20, C30)
-        dg = eta_b * (psi_1 + psi_2 * dl2b)
-        l2a = math.nan
-        l2c = math.nan
-        if eta_a > 0.0:
-            l2a = W[_OWN3 + 3, i]
-            psi_1, psi_2 = _gradient_of(W, 1, i, L, l2a, C10, C20, C30)
-            dg = dg + eta_a * (psi_1 + psi_2 * dr_ie / Sa)
-        if eta_c > 0.0:
-            l2c = W[_OWN3 + 5, i]
-            psi_1, psi_2 = _gradient_of(W, 2, i, L, l2c, C10, C20, C30)
-            dg = dg + eta_c * (psi_1 + psi_2 * (dr_oe + dr_o) / Sc)
-        out[0, k] = L * dg - 2.0 * kap * vk * vk * L * L * l2b * (l2b + L * dl2b)
-        out[1, k], out[2, k], out[3, k] = l2a, l2b, l2c
-        out[4, k] = C0 * (L * l2b) ** 2
-        out[5, k] = y[k] * Ro
+        l2a, l2b, l2c = W[_OWN3 + 3, i], W[_OWN3 + 4, i], W[_OWN3 + 5, i]
+        grad_b = _gradient_of(W, 0, i, L, l2b, C10, C20, C30)
+        grad_a = _gradient_of(W, 1, i, L, l2a, C10, C20, C30) if eta_a > 0.0 else grad_b
+        grad_c = _gradient_of(W, 2, i, L, l2c, C10, C20, C30) if eta_c > 0.0 else grad_b
+        sigma1 = _ring_stress(L, v[k], R, kap, l2b, dr_ie, dr_oe, dr_o, grad_a, grad_b, grad_c)
+        out[0, k], out[1, k], out[2, k], out[3, k], out[4, k], out[5, k] = _fields_from3(
+            y[k], L, sigma1, l2a, l2b, l2c, C0, Ro)
 
 
 @numba.njit(cache=True, error_model="numpy", nogil=True)
@@ -266,18 +264,19 @@ def _first1(W, lo, m, l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri, out):
 
 @numba.njit(cache=True, error_model="numpy", nogil=True)
 def _last1(W, lo, m, l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri, out):
-    for i in range(m):  # `one_ring.fields` from its `gradient_terms`
+    for i in range(m):  # `one_ring.fields` from its `gradient_terms`: `stress_from`, `fields_from`
         k = lo + i
         L, y = l1[k], l2[k]
         psi_1, _ = _gradient_of(W, 0, i, L, y, C10, C20, C30)
-        out[0, k] = L * psi_1 - 2.0 * kap * (L * v[k]) ** 2 * y * y
-        out[1, k] = C0 * (L * y) ** 2
-        out[2, k] = 0.5 * (y * (Ro + Ri) - (Ro - Ri) / (L * y))
+        sigma1 = _stress_from1(y, L, v[k], kap, psi_1)
+        out[0, k], out[1, k], out[2, k] = _fields_from1(y, L, sigma1, C0, Ro, Ri)
 
 
 def fields1(l2, l1, v, C, kap, C0, Ro, Ri):
     """`one_ring.fields` of every sample, ``(sigma1, capacitance, r_i)``: split passes (`_split`), the logarithms
-    and ``expm1`` of `yeoh.gradient_terms` by numpy, the rest compiled."""
+    and ``expm1`` of `yeoh._invariant_terms` by numpy, the rest the pieces `one_ring.fields` is composed of
+    (`yeoh.invariant_args`, `yeoh.invariant_from`, `yeoh.gradient_from`, `one_ring.stress_from`,
+    `one_ring.fields_from`) compiled: the numpy function's numbers bit for bit."""
     l2 = _arr(l2)
     out = np.empty((3, l2.size))
     _split(_first1, _last1, 1, 0, l2.size, (l2, _arr(l1, l2.shape), _arr(v, l2.shape), *map(float, C), float(kap),
@@ -287,7 +286,10 @@ def fields1(l2, l1, v, C, kap, C0, Ro, Ri):
 
 def fields3(y, l1, v, R, C, kap, C0, Ro):
     """`three_ring.ring_fields` of every sample: the six rows of one block. Split passes (`_split`): the
-    logarithms and ``expm1`` of `yeoh.gradient_terms` by numpy, the rest compiled."""
+    logarithms and ``expm1`` of `yeoh._invariant_terms` by numpy, the rest the pieces `three_ring.ring_fields`
+    is composed of (`three_ring.ring_geometry`, `yeoh.invariant_args`, `yeoh.invariant_from`,
+    `yeoh.gradient_from`, `three_ring.ring_stress`, `three_ring.fields_from`) compiled: the numpy function's
+    numbers bit for bit."""
     y = _arr(y)
     out = np.empty((6, y.size))
     _split(_first3, _last3, 3, 6, y.size, (y, _arr(l1, y.shape), _arr(v, y.shape), tuple(float(r) for r in R),

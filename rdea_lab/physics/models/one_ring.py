@@ -26,18 +26,30 @@ def enthalpy(geom, material, stretch, voltage, lambda2):
 
 def stress(l2, l1, v, C10, C20, C30, kap):
     """Axial stress [Pa] at the equilibrium ``lambda2 = l2``: ``lambda1 dpsi_m/dlambda1 - alpha_e1
-    eta_b eps E**2`` (eq. (33) of [1]); scalar or array arguments (compiled too)."""
+    eta_b eps E**2`` (eq. (33) of [1]): `yeoh.gradient_terms`, then `stress_from`. Scalar or array arguments
+    (compiled too: `rdea_lab.physics.ring_kernels`)."""
     psi_1, _ = gradient_terms(l1, l2, C10, C20, C30)
+    return stress_from(l2, l1, v, kap, psi_1)
+
+
+def stress_from(l2, l1, v, kap, psi_1):
+    """`stress` from ``psi_1 = dpsi_m/dlambda1`` (`yeoh.gradient_terms`), the one implementation of eq. (33)'s
+    stress."""
     return l1 * psi_1 - 2.0 * kap * (l1 * v) ** 2 * l2 * l2
 
 
 def fields(l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri):
-    """``(sigma1 [Pa], capacitance [F], r_i [m])`` at the equilibrium ``lambda2 = l2``: `stress`, eq. (34)
+    """``(sigma1 [Pa], capacitance [F], r_i [m])`` at the equilibrium ``lambda2 = l2``: `stress`, then
+    `fields_from`. Scalar or array arguments; `rdea_lab.physics.ring_kernels.fields1` composes the same pieces
+    in split passes (tested against it bit for bit)."""
+    return fields_from(l2, l1, stress(l2, l1, v, C10, C20, C30, kap), C0, Ro, Ri)
+
+
+def fields_from(l2, l1, sigma1, C0, Ro, Ri):
+    """`fields` from the stress ``sigma1`` (`stress`), the one implementation of the rest: eq. (34)
     ``C = C0 lambda1**2 lambda2**2``, and the inner radius of one hollow cylinder of mean hoop stretch ``l2``
-    and radial stretch ``1 / (l1 l2)``. Scalar or array arguments; `rdea_lab.physics.ring_kernels.fields1` is
-    its compiled form (tested against it)."""
-    return (stress(l2, l1, v, C10, C20, C30, kap), C0 * (l1 * l2) ** 2,
-            0.5 * (l2 * (Ro + Ri) - (Ro - Ri) / (l1 * l2)))
+    and radial stretch ``1 / (l1 l2)``."""
+    return sigma1, C0 * (l1 * l2) ** 2, 0.5 * (l2 * (Ro + Ri) - (Ro - Ri) / (l1 * l2))
 
 
 def bounds(l1, kap):

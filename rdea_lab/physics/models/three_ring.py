@@ -146,7 +146,21 @@ def ring_terms(xi, l1, R, C10, C20, C30, second=True):
 def ring_state(xi, l1, v, R, C10, C20, C30, kap):
     """``(sigma1 [Pa], lambda2a, lambda2b, lambda2c)`` at the equilibrium ``xi``: ``sigma1 = lambda1
     dg/dlambda1`` at fixed ``xi`` (eq. (27) row 1 as corrected in ERRATA); a ring of zero volume has a
-    NaN stretch. ``R`` as in `ring_terms`; scalar or array arguments (compiled too)."""
+    NaN stretch. ``R`` as in `ring_terms`; scalar or array arguments (compiled too). Composed of
+    `ring_geometry`, `yeoh.gradient_terms` of each ring and `ring_stress`, the one implementation of each part
+    (`rdea_lab.physics.ring_kernels.fields3` composes the same pieces in split passes)."""
+    eta_a, eta_c = R[6], R[8]
+    l2a, l2b, l2c, dr_ie, dr_oe, dr_o = ring_geometry(xi, l1, R)
+    grad_b = gradient_terms(l1, l2b, C10, C20, C30)
+    grad_a = gradient_terms(l1, l2a, C10, C20, C30) if eta_a > 0.0 else grad_b  # (zero volume: not read)
+    grad_c = gradient_terms(l1, l2c, C10, C20, C30) if eta_c > 0.0 else grad_b
+    return ring_stress(l1, v, R, kap, l2b, dr_ie, dr_oe, dr_o, grad_a, grad_b, grad_c), l2a, l2b, l2c
+
+
+def ring_geometry(xi, l1, R):
+    """``(lambda2a, lambda2b, lambda2c, dr_ie, dr_oe, dr_o)`` at inner radius ``xi`` [Ro]: the hoop stretches
+    (NaN for a ring of zero volume) and ``dr/dlambda1`` at fixed ``xi`` of the radii (`radii`), what
+    `ring_stress` needs besides the rings' energy gradients."""
     Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c = R
     r_ie, r_oe, r_o = radii(xi, l1, Da, Dab, Dabc)
     # dr/dlambda1 at fixed xi: -D / (2 l1**2 r)
@@ -155,28 +169,40 @@ def ring_state(xi, l1, v, R, C10, C20, C30, kap):
     dr_oe = 0.0 if Dab == 0.0 else w * Dab / r_oe
     dr_o = 0.0 if Dabc == 0.0 else w * Dabc / r_o
     l2b = (r_ie + r_oe) / Sb
+    l2a = (xi + r_ie) / Sa if eta_a > 0.0 else l2b * np.nan
+    l2c = (r_oe + r_o) / Sc if eta_c > 0.0 else l2b * np.nan
+    return l2a, l2b, l2c, dr_ie, dr_oe, dr_o
+
+
+def ring_stress(l1, v, R, kap, l2b, dr_ie, dr_oe, dr_o, grad_a, grad_b, grad_c):
+    """``sigma1 = lambda1 dg/dlambda1`` [Pa] at fixed ``xi`` (eq. (27) row 1 as corrected in ERRATA) from
+    `ring_geometry`'s ``lambda2b`` and ``dr/dlambda1`` and each ring's ``(psi_1, psi_2)``
+    (`yeoh.gradient_terms`; that of a ring of zero volume is not read)."""
+    Da, Dab, Dabc, Sa, Sb, Sc, eta_a, eta_b, eta_c = R
     dl2b = (dr_ie + dr_oe) / Sb
-    psi_1, psi_2 = gradient_terms(l1, l2b, C10, C20, C30)
+    psi_1, psi_2 = grad_b
     dg = eta_b * (psi_1 + psi_2 * dl2b)
-    l2a = l2b * np.nan
-    l2c = l2b * np.nan
     if eta_a > 0.0:
-        l2a = (xi + r_ie) / Sa
-        psi_1, psi_2 = gradient_terms(l1, l2a, C10, C20, C30)
+        psi_1, psi_2 = grad_a
         dg = dg + eta_a * (psi_1 + psi_2 * dr_ie / Sa)
     if eta_c > 0.0:
-        l2c = (r_oe + r_o) / Sc
-        psi_1, psi_2 = gradient_terms(l1, l2c, C10, C20, C30)
+        psi_1, psi_2 = grad_c
         dg = dg + eta_c * (psi_1 + psi_2 * (dr_oe + dr_o) / Sc)
-    return l1 * dg - 2.0 * kap * v * v * l1 * l1 * l2b * (l2b + l1 * dl2b), l2a, l2b, l2c
+    return l1 * dg - 2.0 * kap * v * v * l1 * l1 * l2b * (l2b + l1 * dl2b)
 
 
 def ring_fields(xi, l1, v, R, C10, C20, C30, kap, C0, Ro):
     """``(sigma1 [Pa], lambda2a, lambda2b, lambda2c, capacitance [F], r_i [m])`` at the equilibrium ``xi``:
-    `ring_state` and eq. (29), ``C = C0 lambda1**2 lambda2b**2``. Scalar or array arguments (compiled too:
-    `rdea_lab.physics.kernels` compiles it as it is for one sample; `rdea_lab.physics.ring_kernels.fields3` is
-    its split form over blocks, tested against it)."""
+    `ring_state`, then `fields_from`. Scalar or array arguments (compiled too: `rdea_lab.physics.kernels`
+    compiles it as it is for one sample; `rdea_lab.physics.ring_kernels.fields3` composes the same pieces in
+    split passes over blocks, tested against it bit for bit)."""
     sigma1, l2a, l2b, l2c = ring_state(xi, l1, v, R, C10, C20, C30, kap)
+    return fields_from(xi, l1, sigma1, l2a, l2b, l2c, C0, Ro)
+
+
+def fields_from(xi, l1, sigma1, l2a, l2b, l2c, C0, Ro):
+    """`ring_fields` from `ring_state`'s values: they, eq. (29) ``C = C0 lambda1**2 lambda2b**2`` and
+    ``r_i = xi Ro``."""
     return sigma1, l2a, l2b, l2c, C0 * (l1 * l2b) ** 2, xi * Ro
 
 
