@@ -34,6 +34,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import sys
 import threading
 
 import numba
@@ -174,11 +175,23 @@ def _split(first, last, rings, own, n, args):
     passes and numpy's run without the GIL)."""
     if n >= 2 * SPLIT_BLOCK and _parallel(n):
         mid = (n // 2 + SPLIT_BLOCK - 1) // SPLIT_BLOCK * SPLIT_BLOCK
-        other = _pool().submit(_split_blocks, first, last, rings, own, mid, n, args)
-        _split_blocks(first, last, rings, own, 0, mid, args)
-        other.result()
-    else:
-        _split_blocks(first, last, rings, own, 0, n, args)
+        other = _submit(_split_blocks, first, last, rings, own, mid, n, args)
+        if other is not None:
+            _split_blocks(first, last, rings, own, 0, mid, args)
+            other.result()
+            return
+    _split_blocks(first, last, rings, own, 0, n, args)
+
+
+def _submit(fn, *args):
+    """``fn(*args)`` handed to the helper thread (`_pool`), or None where the interpreter is shutting down (a
+    solve from an ``atexit`` handler or a finalizer: no thread starts then, and the caller does the work)."""
+    if sys.is_finalizing():
+        return None
+    try:
+        return _pool().submit(fn, *args)
+    except RuntimeError:  # the executor or `concurrent.futures` refuses work once shutdown has begun
+        return None
 
 
 _POOL = {}

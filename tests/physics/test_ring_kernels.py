@@ -228,7 +228,7 @@ def _split_in_child(args, queue):
     queue.put(ring_kernels.fields1(*args)[0])
 
 
-def test_split_pass_threads_in_a_forked_child():
+def test_split_pass_threads_in_a_forked_child(monkeypatch):
     """A process forked after the split passes started their helper thread (a design study's workers) runs
     them on its own thread, with the same numbers (the parent's executor has no thread in the child: work
     handed to it would wait for ever)."""
@@ -239,6 +239,7 @@ def test_split_pass_threads_in_a_forked_child():
     n = 3 * ring_kernels.SPLIT_BLOCK
     l1 = np.linspace(1.0, 2.0, n)
     args = (1.0 / np.sqrt(l1), l1, np.full(n, 1000.0), yeoh_coefficients(RIZZELLO), 1e-3, 1e-9, 1e-3, 5e-4)
+    monkeypatch.setattr(ring_kernels, "_POOL", {})  # (an earlier test's pool would pass the check below)
     here = ring_kernels.fields1(*args)[0]  # two threads (the load is read as 0 here)
     assert ring_kernels._POOL, "the split pass ran on one thread"
     ctx = multiprocessing.get_context("fork")
@@ -252,6 +253,45 @@ def test_split_pass_threads_in_a_forked_child():
         if child.is_alive():
             child.kill()
     assert np.array_equal(there, here)
+
+
+_AT_EXIT = """
+import atexit, os, sys
+import numpy as np
+os.getloadavg = lambda: (0.0, 0.0, 0.0)  # threads, as on an idle machine
+sys.path.insert(0, sys.argv[1])
+from physics_cases import RIZZELLO, core
+from rdea_lab.physics.models import solve
+
+n = 10000
+l1, v = np.linspace(1.0, 1.7, n), np.full(n, 2000.0)
+ref = solve(sys.argv[2], core("hollow"), RIZZELLO, l1, v, kernel="numpy")
+
+def at_exit():
+    r = solve(sys.argv[2], core("hollow"), RIZZELLO, l1, v, kernel="numba")
+    print(bool(np.array_equal(r.status, ref.status) and np.allclose(r.sigma1, ref.sigma1, rtol=1e-12, atol=0.0)))
+
+atexit.register(at_exit)
+"""
+
+
+@pytest.mark.parametrize("model", ["1r", "3r"])
+def test_split_pass_from_an_atexit_handler(model, tmp_path):
+    """A solve while the interpreter shuts down (an ``atexit`` handler, a finalizer) runs the split passes
+    on its own thread (no thread can start then) and gives the reference's result."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = tmp_path / "at_exit.py"
+    script.write_text(_AT_EXIT)
+    here = Path(__file__).parent
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(here.parents[1]), os.environ.get("PYTHONPATH", "")]))
+    out = subprocess.run([sys.executable, str(script), str(here), model], capture_output=True, text=True,
+                         timeout=300, env=env)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["True"], out.stdout + out.stderr[-2000:]
 
 
 @pytest.mark.parametrize("model", ["1r", "3r"])
