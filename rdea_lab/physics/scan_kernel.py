@@ -31,8 +31,9 @@ import math
 
 import numba
 import numpy as np
+from numba import prange
 
-from .kernels import _root, _terms
+from .kernels import _h_start, _next_node, _psi2_first, _refine, _ring, _root, _start, _terms, _variants
 from .result import LIMIT_POINT, NOT_CONVERGED, OK, OUTSIDE_RANGE, SNAPPED
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)  # as `branch._GOLDEN`
@@ -63,6 +64,13 @@ def nodes(y0, y_max, offsets, n_scan, Y):
 
 @_jit
 def _h(code, y, l1, R, Q, C10, C20, C30):
+    """``h = psi_y / c_y`` from the first derivatives alone, as the reference's ``terms(y, idx, False)`` (1R, 3R:
+    the same operations as their first derivatives in `_terms`; CR: `_terms`)."""
+    if code == 1:
+        return _psi2_first(l1, y, C10, C20, C30) / (2.0 * y)
+    if code == 3:
+        p_y, _, c_y, _ = _ring(y, l1, R, C10, C20, C30, False)
+        return p_y / c_y
     p_y, _, c_y, _ = _terms(code, y, l1, R, Q, C10, C20, C30)
     return p_y / c_y
 
@@ -341,3 +349,133 @@ def follow_runs(problem, y, ok, y_start, label, status, K_crit, K_range, rtol=1e
                                _arr(scale_offsets(problem)), N_SCAN, bool(problem.pitchfork), y, ok, start,
                                has_label, int(lab_s), float(lab_k), status, K_crit, K_range, rtol, max_iter)
     return float(y[-1]), ((int(lab_s), float(lab_k)) if lost else None)
+
+
+# --- the rising-ramp rule (`branch.follow_branch`) for one sample
+
+
+@_jit
+def branch_rule(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan, pitchfork, rtol, max_iter):
+    """`branch.follow_branch` for one sample: ``(y, status, K_crit, K_range)``, the same steps in the same
+    order (``h0``: `branch.Problem.h_start`; ``offsets``: `branch.scale_offsets` of the problem)."""
+    if not (K > h0):
+        return y0, OK, math.nan, math.nan
+    span = y_max - y0
+    folded = False
+    fold_lo, fold_hi, fold_y, fold_h = math.nan, math.nan, math.nan, math.nan
+    # the largest h scanned (for a sample left without a state): its node and the nodes either side
+    top_y, top_h, top_lo, top_hi = y0, h0, y0, math.nan
+    y_prev2, y_prev, h_prev, s_prev = y0, y0, h0, math.nan
+    lo, hi, start = math.nan, math.nan, math.nan
+    found = False
+    first = True
+    j = 0  # next scale offset
+    k = 1  # next regular node
+    while k <= n_scan:
+        more = j < offsets.size
+        yk, j, k = _next_node(y0, span, more, offsets[j] if more else 0.0, j, k, n_scan)
+        p_y, p_yy, c_y, c_yy = _terms(code, yk, l1, R, Q, C10, C20, C30)
+        h = p_y / c_y
+        slope = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+        # h falls from the last node, or is falling at this one; or a shallow fold pair hides between two
+        # nodes that both rise (a cubic Hermite fit of h falls in between: `branch._hidden_dip`)
+        dy = yk - y_prev
+        m0, m1, d = s_prev * dy, slope * dy, h - h_prev
+        b = 6.0 * d - 4.0 * m0 - 2.0 * m1
+        a = 3.0 * m0 + 3.0 * m1 - 6.0 * d
+        dip = (b < 0.0) and (-b < 2.0 * a) and (b * b > 4.0 * a * m0) and (m0 >= 0.0) and (m1 >= 0.0)
+        fell = not ((h >= h_prev) and (slope >= 0.0)) and not folded
+        hidden = dip and not fell and not folded
+        y_mid = math.nan
+        if hidden:  # a fit is only a hint: h must really fall at the steepest point
+            y_mid = y_prev + (-b / (2.0 * a)) * (yk - y_prev)
+            hidden = _slope(code, y_mid, l1, R, Q, C10, C20, C30) < 0.0
+        if fell:
+            folded = True
+            fold_lo = y_prev2 if not first else y_prev
+            fold_hi, fold_y, fold_h = yk, y_prev, h_prev
+        if hidden:  # the maximum lies before the steepest fall
+            folded = True
+            fold_lo, fold_hi, fold_y, fold_h = y_prev, y_mid, y_prev, h_prev
+        if top_hi != top_hi:
+            top_hi = yk  # the node after the top so far
+        if h > top_h:
+            top_y, top_h, top_lo, top_hi = yk, h, y_prev, math.nan
+        if h >= K:
+            lo, hi = y_prev, yk
+            # Newton from `newton_start` where h rose at every node so far, else from the midpoint
+            start = 0.5 * (y_prev + yk) if folded else _start(y_prev, yk, h_prev, h, s_prev, slope, K)
+            found = True
+            break
+        y_prev2, y_prev, h_prev, s_prev = y_prev, yk, h, slope
+        first = False
+    status, K_crit, K_range = OK, math.nan, math.nan
+    if not found:  # no stable state within the admissible range
+        status = LIMIT_POINT
+    if folded:
+        y_top, K_crit = _extremum(code, l1, R, Q, C10, C20, C30, fold_lo, fold_hi, fold_y, fold_h, True, y0,
+                                  pitchfork)
+        # just below a fold h >= K holds only in a window around the maximum that can be narrower than
+        # the scan step: such a sample has not folded; its root lies between the node before and the top
+        if K <= K_crit:
+            folded = False
+            status = OK
+            K_crit = math.nan
+            lo, hi = fold_lo, y_top
+            start = 0.5 * (lo + hi)
+    if status == LIMIT_POINT:
+        # past a limit point where the largest load in range is a fold's (pull-in there); outside the
+        # solved range where it is the range end's (the branch climbs on beyond the range)
+        if not (abs(top_hi) < math.inf):
+            return y0, OUTSIDE_RANGE, math.nan, top_h
+        _, K_crit = _extremum(code, l1, R, Q, C10, C20, C30, top_lo, top_hi, top_y, top_h, True, y0, pitchfork)
+        return y0, LIMIT_POINT, K_crit, math.nan
+    y, ok = _refine(code, l1, R, Q, C10, C20, C30, start, lo, hi, K, span, rtol, max_iter, 1.0)
+    if not ok:
+        status = NOT_CONVERGED
+    elif folded:
+        status = SNAPPED
+    return y, status, K_crit, K_range
+
+
+def _branch_loop(code, sel, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, C30, offsets, n_scan, pitchfork, rtol,
+                 max_iter, y, status, K_crit, K_range):
+    for t in prange(sel.size):
+        i = sel[t]
+        Ri = R
+        if code == 4:  # CR: the unloaded state and x0 are the sample's own
+            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        h0 = _h_start(code, y0[i], l1[i], Ri, Q, C[0], C[1], C[2], pitchfork)
+        y[t], status[t], K_crit[t], K_range[t] = branch_rule(code, l1[i], y0[i], y_max[i], K[i], h0, Ri, Q, C[0],
+                                                             C[1], C[2], offsets, n_scan, pitchfork, rtol, max_iter)
+
+
+_branch = _variants(_branch_loop)
+#: A sample the certified kernel leaves costs some 4-5 us (a scan to its fold and beyond, 80 golden-section steps,
+#: Newton's), some 30 certified samples' worth: calls of this many run on all cores (`kernels._parallel`).
+BRANCH_PARALLEL_MIN = 128
+
+
+def follow_branch_at(problem, sel, rtol=1e-14, max_iter=100):
+    """`branch.follow_branch` of ``problem.subset(sel)`` (a problem with a compiled ``kernel``; ``sel`` an integer
+    array): `branch.BranchResult` of the samples ``sel``."""
+    from .branch import N_SCAN, BranchResult, scale_offsets
+    from .kernels import _EMPTY_Q, _NO_RING, PARALLEL_MIN, _arr, _parallel
+
+    code, consts = problem.kernel
+    n = problem.K.size
+    sel = np.ascontiguousarray(sel, dtype=np.int64)
+    C = tuple(np.atleast_1d(_arr(c)) for c in consts["C"])
+    if code == 4:
+        R, xi0, x0, Q = (0.0, 0.0, consts["Lb"]) + (0.0,) * 6, _arr(consts["xi0"], (n,)), _arr(consts["x0"], (n,)), \
+            _arr(consts["Q"])
+    else:
+        R, xi0, x0, Q = consts.get("R", _NO_RING), np.zeros(0), np.zeros(0), _EMPTY_Q
+    m = sel.size
+    y, status, K_crit, K_range = np.empty(m), np.empty(m, np.int8), np.empty(m), np.empty(m)
+    par = int(m >= BRANCH_PARALLEL_MIN and _parallel(PARALLEL_MIN))
+    _branch[par](code, sel, _arr(consts["l1"], (n,)), _arr(problem.y0, (n,)), _arr(problem.y_max, (n,)),
+                 _arr(problem.K, (n,)), tuple(float(r) for r in R), xi0, x0, Q, *C, _arr(scale_offsets(problem)),
+                 N_SCAN, bool(problem.pitchfork), rtol, max_iter, y, status, K_crit, K_range)
+    return BranchResult(y, status, K_crit, K_range)
