@@ -351,15 +351,13 @@ def follow_runs(problem, y, ok, y_start, label, status, K_crit, K_range, rtol=1e
     return float(y[-1]), ((int(lab_s), float(lab_k)) if lost else None)
 
 
-# --- the rising-ramp rule (`branch.follow_branch`) for one sample
+# --- the rising-ramp rule (`branch.follow_branch`)
 
 
 @_jit
-def branch_rule(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan, pitchfork, rtol, max_iter):
-    """`branch.follow_branch` for one sample: ``(y, status, K_crit, K_range)``, the same steps in the same
-    order (``h0``: `branch.Problem.h_start`; ``offsets``: `branch.scale_offsets` of the problem)."""
-    if not (K > h0):
-        return y0, OK, math.nan, math.nan
+def _ramp_scan(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan):
+    """`branch.follow_branch`'s scan of one sample with ``K > h0``, to the first node with ``h >= K``:
+    ``(found, folded, lo, hi, start, fold_lo, fold_hi, fold_y, fold_h, top_y, top_h, top_lo, top_hi)``."""
     span = y_max - y0
     folded = False
     fold_lo, fold_hi, fold_y, fold_h = math.nan, math.nan, math.nan, math.nan
@@ -409,12 +407,19 @@ def branch_rule(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan
             break
         y_prev2, y_prev, h_prev, s_prev = y_prev, yk, h, slope
         first = False
+    return found, folded, lo, hi, start, fold_lo, fold_hi, fold_y, fold_h, top_y, top_h, top_lo, top_hi
+
+
+@_jit
+def _ramp_finish(code, l1, y0, y_max, K, R, Q, C10, C20, C30, pitchfork, rtol, max_iter, found, folded, lo, hi,
+                 start, fold_lo, y_top, K_fold, top_y, top_h, top_lo, top_hi):
+    """`branch.follow_branch` after the scan (`_ramp_scan`) and the first fold's maximum ``(y_top, K_fold)`` where
+    it folded: ``(y, status, K_crit, K_range)``."""
     status, K_crit, K_range = OK, math.nan, math.nan
     if not found:  # no stable state within the admissible range
         status = LIMIT_POINT
     if folded:
-        y_top, K_crit = _extremum(code, l1, R, Q, C10, C20, C30, fold_lo, fold_hi, fold_y, fold_h, True, y0,
-                                  pitchfork)
+        K_crit = K_fold
         # just below a fold h >= K holds only in a window around the maximum that can be narrower than
         # the scan step: such a sample has not folded; its root lies between the node before and the top
         if K <= K_crit:
@@ -430,7 +435,7 @@ def branch_rule(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan
             return y0, OUTSIDE_RANGE, math.nan, top_h
         _, K_crit = _extremum(code, l1, R, Q, C10, C20, C30, top_lo, top_hi, top_y, top_h, True, y0, pitchfork)
         return y0, LIMIT_POINT, K_crit, math.nan
-    y, ok = _refine(code, l1, R, Q, C10, C20, C30, start, lo, hi, K, span, rtol, max_iter, 1.0)
+    y, ok = _refine(code, l1, R, Q, C10, C20, C30, start, lo, hi, K, y_max - y0, rtol, max_iter, 1.0)
     if not ok:
         status = NOT_CONVERGED
     elif folded:
@@ -438,8 +443,144 @@ def branch_rule(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan
     return y, status, K_crit, K_range
 
 
+@_jit
+def branch_rule(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan, pitchfork, rtol, max_iter):
+    """`branch.follow_branch` for one sample: ``(y, status, K_crit, K_range)``, the same steps in the same
+    order (``h0``: `branch.Problem.h_start`; ``offsets``: `branch.scale_offsets` of the problem)."""
+    if not (K > h0):
+        return y0, OK, math.nan, math.nan
+    found, folded, lo, hi, start, fold_lo, fold_hi, fold_y, fold_h, top_y, top_h, top_lo, top_hi = _ramp_scan(
+        code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan)
+    y_top, K_fold = math.nan, math.nan
+    if folded:
+        y_top, K_fold = _extremum(code, l1, R, Q, C10, C20, C30, fold_lo, fold_hi, fold_y, fold_h, True, y0,
+                                  pitchfork)
+    return _ramp_finish(code, l1, y0, y_max, K, R, Q, C10, C20, C30, pitchfork, rtol, max_iter, found, folded, lo,
+                        hi, start, fold_lo, y_top, K_fold, top_y, top_h, top_lo, top_hi)
+
+
+@_jit
+def _h_lanes(code, n, X, L1, R, C10, C20, C30, F):
+    """``F[a] = h(X[a])`` at stretch ``L1[a]`` for ``a < n`` (1R, 3R), as `_h`: one loop the compiler vectorizes."""
+    if code == 1:
+        for a in range(n):
+            F[a] = _psi2_first(L1[a], X[a], C10, C20, C30) / (2.0 * X[a])
+    else:
+        for a in range(n):
+            p_y, _, c_y, _ = _ring(X[a], L1[a], R, C10, C20, C30, False)
+            F[a] = p_y / c_y
+
+
+@_jit
+def _golden_lanes(code, n, G, R, C10, C20, C30, left):
+    """`_extremum`'s golden section for a maximum (``s = 1``) in lanes ``a < n`` in lockstep, the same steps:
+    ``G[0], G[1]``: the brackets' ends ``a, b`` (a pitchfork's ``a`` moved as `_extremum` moves it), ``G[2]``
+    the stretches; leaves ``c, d, f(c), f(d)`` in ``G[3:7]`` (``G[7], G[8]``: scratch)."""
+    A, B, L1, C, D, FC, FD, X, F = G[0], G[1], G[2], G[3], G[4], G[5], G[6], G[7], G[8]
+    for a in range(n):
+        C[a] = B[a] - _GOLDEN * (B[a] - A[a])
+        D[a] = A[a] + _GOLDEN * (B[a] - A[a])
+    _h_lanes(code, n, C, L1, R, C10, C20, C30, FC)
+    _h_lanes(code, n, D, L1, R, C10, C20, C30, FD)
+    for _ in range(80):
+        for a in range(n):
+            if FC[a] > FD[a]:
+                B[a] = D[a]
+                x = B[a] - _GOLDEN * (B[a] - A[a])
+                D[a], C[a], FD[a] = C[a], x, FC[a]
+                left[a] = True
+            else:
+                A[a] = C[a]
+                x = A[a] + _GOLDEN * (B[a] - A[a])
+                C[a], D[a], FC[a] = D[a], x, FD[a]
+                left[a] = False
+            X[a] = x
+        _h_lanes(code, n, X, L1, R, C10, C20, C30, F)
+        for a in range(n):
+            if left[a]:
+                FC[a] = F[a]
+            else:
+                FD[a] = F[a]
+
+
+#: Samples of a block of `_branch_block`: their first folds' golden sections run in lockstep.
+LANES = 64
+
+
+@_jit
+def _branch_block(code, sel, t0, t1, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, C30, offsets, n_scan, pitchfork,
+                  rtol, max_iter, y, status, K_crit, K_range):
+    """`branch_rule` of the samples ``sel[t0:t1]``: each sample's scan (`_ramp_scan`), then the golden sections of
+    their first folds in lockstep (`_golden_lanes`; CR's, and a design study's per-sample materials, one by one
+    by `_extremum`), then each sample's rest (`_ramp_finish`): the same steps, so the same numbers bit for bit."""
+    nl = t1 - t0
+    S = np.empty((nl, 13))  # the scans' results; S[., 0] < 0: decided before the scan
+    G = np.empty((9, nl))
+    left = np.empty(nl, np.bool_)
+    lane = np.empty(nl, np.int64)
+    top = np.full((nl, 2), math.nan)  # (y_top, K_fold) of the first fold
+    lanes = code != 4 and C10.size == 1 and C20.size == 1 and C30.size == 1
+    ng = 0
+    for t in range(t0, t1):
+        i = sel[t]
+        Ri = R
+        if code == 4:  # CR: the unloaded state and x0 are the sample's own
+            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        h0 = _h_start(code, y0[i], l1[i], Ri, Q, C[0], C[1], C[2], pitchfork)
+        r = t - t0
+        if not (K[i] > h0):
+            y[t], status[t], K_crit[t], K_range[t] = y0[i], OK, math.nan, math.nan
+            S[r, 0] = -1.0
+            continue
+        found, folded, lo, hi, start, fold_lo, fold_hi, fold_y, fold_h, top_y, top_h, top_lo, top_hi = _ramp_scan(
+            code, l1[i], y0[i], y_max[i], K[i], h0, Ri, Q, C[0], C[1], C[2], offsets, n_scan)
+        S[r, 0], S[r, 1], S[r, 2], S[r, 3], S[r, 4] = 1.0 if found else 0.0, 1.0 if folded else 0.0, lo, hi, start
+        S[r, 5], S[r, 6], S[r, 7], S[r, 8] = fold_lo, fold_hi, fold_y, fold_h
+        S[r, 9], S[r, 10], S[r, 11], S[r, 12] = top_y, top_h, top_lo, top_hi
+        if folded:  # the fold's maximum
+            if lanes:
+                lo_, hi_ = fold_lo, fold_hi
+                G[0, ng] = lo_ + 1e-12 * (hi_ - lo_) if pitchfork and lo_ <= y0[i] else lo_
+                G[1, ng], G[2, ng] = hi_, l1[i]
+                lane[ng] = r
+                ng += 1
+            else:
+                top[r, 0], top[r, 1] = _extremum(code, l1[i], Ri, Q, C[0], C[1], C[2], fold_lo, fold_hi, fold_y,
+                                                 fold_h, True, y0[i], pitchfork)
+    if ng:
+        _golden_lanes(code, ng, G, R, C10[0], C20[0], C30[0], left)
+        for g in range(ng):  # `_extremum`'s end: the better of c and d, or the scan node itself
+            r = lane[g]
+            y_top, f_top = (G[3, g], G[5, g]) if G[5, g] >= G[6, g] else (G[4, g], G[6, g])
+            if S[r, 8] > f_top:
+                y_top, f_top = S[r, 7], 1.0 * (1.0 * S[r, 8])
+            top[r, 0], top[r, 1] = y_top, 1.0 * f_top
+    for t in range(t0, t1):
+        r = t - t0
+        if S[r, 0] < 0.0:
+            continue
+        i = sel[t]
+        Ri = R
+        if code == 4:
+            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        y[t], status[t], K_crit[t], K_range[t] = _ramp_finish(
+            code, l1[i], y0[i], y_max[i], K[i], Ri, Q, C[0], C[1], C[2], pitchfork, rtol, max_iter, S[r, 0] > 0.0,
+            S[r, 1] > 0.0, S[r, 2], S[r, 3], S[r, 4], S[r, 5], top[r, 0], top[r, 1], S[r, 9], S[r, 10], S[r, 11],
+            S[r, 12])
+
+
 def _branch_loop(code, sel, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, C30, offsets, n_scan, pitchfork, rtol,
                  max_iter, y, status, K_crit, K_range):
+    m = sel.size
+    for c in prange((m + LANES - 1) // LANES):
+        _branch_block(code, sel, c * LANES, min(m, (c + 1) * LANES), l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, C30,
+                      offsets, n_scan, pitchfork, rtol, max_iter, y, status, K_crit, K_range)
+
+
+def _branch_one_loop(code, sel, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, C30, offsets, n_scan, pitchfork, rtol,
+                     max_iter, y, status, K_crit, K_range):
     for t in prange(sel.size):
         i = sel[t]
         Ri = R
@@ -452,14 +593,16 @@ def _branch_loop(code, sel, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, C30, offs
 
 
 _branch = _variants(_branch_loop)
-#: A sample the certified kernel leaves costs some 4-5 us (a scan to its fold and beyond, 80 golden-section steps,
+_branch_one = _variants(_branch_one_loop)
+#: A sample the certified kernel leaves costs some 3-5 us (a scan to its fold and beyond, 80 golden-section steps,
 #: Newton's), some 30 certified samples' worth: calls of this many run on all cores (`kernels._parallel`).
 BRANCH_PARALLEL_MIN = 128
 
 
-def follow_branch_at(problem, sel, rtol=1e-14, max_iter=100):
+def follow_branch_at(problem, sel, rtol=1e-14, max_iter=100, one_by_one=False):
     """`branch.follow_branch` of ``problem.subset(sel)`` (a problem with a compiled ``kernel``; ``sel`` an integer
-    array): `branch.BranchResult` of the samples ``sel``."""
+    array): `branch.BranchResult` of the samples ``sel``. The samples run in blocks (`_branch_block`);
+    ``one_by_one``: each by `branch_rule` (the same numbers, bit for bit; the tests' check of the blocks)."""
     from .branch import N_SCAN, BranchResult, scale_offsets
     from .kernels import _EMPTY_Q, _NO_RING, PARALLEL_MIN, _arr, _parallel
 
@@ -475,7 +618,8 @@ def follow_branch_at(problem, sel, rtol=1e-14, max_iter=100):
     m = sel.size
     y, status, K_crit, K_range = np.empty(m), np.empty(m, np.int8), np.empty(m), np.empty(m)
     par = int(m >= BRANCH_PARALLEL_MIN and _parallel(PARALLEL_MIN))
-    _branch[par](code, sel, _arr(consts["l1"], (n,)), _arr(problem.y0, (n,)), _arr(problem.y_max, (n,)),
-                 _arr(problem.K, (n,)), tuple(float(r) for r in R), xi0, x0, Q, *C, _arr(scale_offsets(problem)),
-                 N_SCAN, bool(problem.pitchfork), rtol, max_iter, y, status, K_crit, K_range)
+    (_branch_one if one_by_one else _branch)[par](
+        code, sel, _arr(consts["l1"], (n,)), _arr(problem.y0, (n,)), _arr(problem.y_max, (n,)), _arr(problem.K, (n,)),
+        tuple(float(r) for r in R), xi0, x0, Q, *C, _arr(scale_offsets(problem)), N_SCAN, bool(problem.pitchfork), rtol,
+        max_iter, y, status, K_crit, K_range)
     return BranchResult(y, status, K_crit, K_range)
