@@ -1,18 +1,28 @@
-"""The reference's full scan and path rule for one sample, compiled (numba, ``cache=True``).
+"""The reference's scans, path rule and rising-ramp rule for one sample, compiled (numba, ``cache=True``).
 
 `rdea_lab.physics.branch.follow_path` decides a sample the certified kernel
 (`rdea_lab.physics.kernels._one`) cannot (a fold, a snap, pull-in, the end of the
 range) from `branch._full_scan`: ``h`` at the scan nodes, its extrema refined by
 golden section, the crossings of the load refined by Newton's method, the basin
-the previous state lies in. This module is that code for one sample, step by step
-in the same order and the same floating-point operations (the equations are the
-compiled `kernels._terms`), so that a stepped sample never leaves compiled code:
+the previous state lies in; `branch.follow_branch` (the rising-ramp rule, no
+history) from its scan up to the first node where ``h`` reaches the load, the first
+fold's maximum and one Newton iteration. This module is that code for one sample,
+step by step in the same order and the same floating-point operations (the equations
+are the compiled `kernels._terms`; ``h`` alone, in a golden section, from the first
+derivatives as the reference's ``terms(y, idx, False)``), so that a stepped sample
+never leaves compiled code:
 
 - `scan`: the knots ``kx, kh`` (nodes and extrema in order of ``y``) and the
   extrema ``ext_y, ext_h, ext_max`` of `branch._full_scan` (without its padding);
 - `path_rule`: `branch.follow_path`'s state, status, ``K_crit`` and ``K_range`` of
   one sample coming from ``y_prev`` (a series, with the previous sample's label where
-  it had no state, or an ``origin``).
+  it had no state, or an ``origin``);
+- `branch_rule`: `branch.follow_branch`'s state, status, ``K_crit`` and ``K_range`` of
+  one sample; `follow_branch_at` runs it on samples of a problem in blocks
+  (`_branch_block`: each sample's scan, then the golden sections of the block's first
+  folds in lockstep, `_golden_lanes`, then each sample's rest; bit for bit
+  `branch_rule`), on all cores from `BRANCH_PARALLEL_MIN` samples. A compiled ramp
+  solve gives it the samples the certified kernel leaves (`models._common`).
 
 The scan's nodes are the reference's: ``y0``, then `branch.scan_nodes`' regular
 nodes merged with the scale offsets the caller takes from `branch.scale_offsets`
