@@ -1,18 +1,28 @@
-"""The reference's full scan and path rule for one sample, compiled (numba, ``cache=True``).
+"""The reference's scans, path rule and rising-ramp rule for one sample, compiled (numba, ``cache=True``).
 
 `rdea_lab.physics.branch.follow_path` decides a sample the certified kernel
 (`rdea_lab.physics.kernels._one`) cannot (a fold, a snap, pull-in, the end of the
 range) from `branch._full_scan`: ``h`` at the scan nodes, its extrema refined by
 golden section, the crossings of the load refined by Newton's method, the basin
-the previous state lies in. This module is that code for one sample, step by step
-in the same order and the same floating-point operations (the equations are the
-compiled `kernels._terms`), so that a stepped sample never leaves compiled code:
+the previous state lies in; `branch.follow_branch` (the rising-ramp rule, no
+history) from its scan up to the first node where ``h`` reaches the load, the first
+fold's maximum and one Newton iteration. This module is that code for one sample,
+step by step in the same order and the same floating-point operations (the equations
+are the compiled `kernels._terms`; ``h`` alone, in a golden section, from the first
+derivatives as the reference's ``terms(y, idx, False)``), so that a stepped sample
+never leaves compiled code:
 
 - `scan`: the knots ``kx, kh`` (nodes and extrema in order of ``y``) and the
   extrema ``ext_y, ext_h, ext_max`` of `branch._full_scan` (without its padding);
 - `path_rule`: `branch.follow_path`'s state, status, ``K_crit`` and ``K_range`` of
   one sample coming from ``y_prev`` (a series, with the previous sample's label where
-  it had no state, or an ``origin``).
+  it had no state, or an ``origin``);
+- `branch_rule`: `branch.follow_branch`'s state, status, ``K_crit`` and ``K_range`` of
+  one sample; `follow_branch_at` runs it on samples of a problem in blocks
+  (`_branch_block`: each sample's scan, then the golden sections of the block's first
+  folds in lockstep, `_golden_lanes`, then each sample's rest; bit for bit
+  `branch_rule`), on all cores from `BRANCH_PARALLEL_MIN` samples. A compiled ramp
+  solve gives it the samples the certified kernel leaves (`models._common`).
 
 The scan's nodes are the reference's: ``y0``, then `branch.scan_nodes`' regular
 nodes merged with the scale offsets the caller takes from `branch.scale_offsets`
@@ -31,8 +41,9 @@ import math
 
 import numba
 import numpy as np
+from numba import prange
 
-from .kernels import _root, _terms
+from .kernels import _h_start, _next_node, _psi2_first, _refine, _ring, _root, _start, _terms, _variants
 from .result import LIMIT_POINT, NOT_CONVERGED, OK, OUTSIDE_RANGE, SNAPPED
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)  # as `branch._GOLDEN`
@@ -63,6 +74,13 @@ def nodes(y0, y_max, offsets, n_scan, Y):
 
 @_jit
 def _h(code, y, l1, R, Q, C10, C20, C30):
+    """``h = psi_y / c_y`` from the first derivatives alone, as the reference's ``terms(y, idx, False)`` (1R, 3R:
+    the same operations as their first derivatives in `_terms`; CR: `_terms`)."""
+    if code == 1:
+        return _psi2_first(l1, y, C10, C20, C30) / (2.0 * y)
+    if code == 3:
+        p_y, _, c_y, _ = _ring(y, l1, R, C10, C20, C30, False)
+        return p_y / c_y
     p_y, _, c_y, _ = _terms(code, y, l1, R, Q, C10, C20, C30)
     return p_y / c_y
 
@@ -341,3 +359,277 @@ def follow_runs(problem, y, ok, y_start, label, status, K_crit, K_range, rtol=1e
                                _arr(scale_offsets(problem)), N_SCAN, bool(problem.pitchfork), y, ok, start,
                                has_label, int(lab_s), float(lab_k), status, K_crit, K_range, rtol, max_iter)
     return float(y[-1]), ((int(lab_s), float(lab_k)) if lost else None)
+
+
+# --- the rising-ramp rule (`branch.follow_branch`)
+
+
+@_jit
+def _ramp_scan(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan):
+    """`branch.follow_branch`'s scan of one sample with ``K > h0``, to the first node with ``h >= K``:
+    ``(found, folded, lo, hi, start, fold_lo, fold_hi, fold_y, fold_h, top_y, top_h, top_lo, top_hi)``."""
+    span = y_max - y0
+    folded = False
+    fold_lo, fold_hi, fold_y, fold_h = math.nan, math.nan, math.nan, math.nan
+    # the largest h scanned (for a sample left without a state): its node and the nodes either side
+    top_y, top_h, top_lo, top_hi = y0, h0, y0, math.nan
+    y_prev2, y_prev, h_prev, s_prev = y0, y0, h0, math.nan
+    lo, hi, start = math.nan, math.nan, math.nan
+    found = False
+    first = True
+    j = 0  # next scale offset
+    k = 1  # next regular node
+    while k <= n_scan:
+        more = j < offsets.size
+        yk, j, k = _next_node(y0, span, more, offsets[j] if more else 0.0, j, k, n_scan)
+        p_y, p_yy, c_y, c_yy = _terms(code, yk, l1, R, Q, C10, C20, C30)
+        h = p_y / c_y
+        slope = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+        # h falls from the last node, or is falling at this one; or a shallow fold pair hides between two
+        # nodes that both rise (a cubic Hermite fit of h falls in between: `branch._hidden_dip`)
+        dy = yk - y_prev
+        m0, m1, d = s_prev * dy, slope * dy, h - h_prev
+        b = 6.0 * d - 4.0 * m0 - 2.0 * m1
+        a = 3.0 * m0 + 3.0 * m1 - 6.0 * d
+        dip = (b < 0.0) and (-b < 2.0 * a) and (b * b > 4.0 * a * m0) and (m0 >= 0.0) and (m1 >= 0.0)
+        fell = not ((h >= h_prev) and (slope >= 0.0)) and not folded
+        hidden = dip and not fell and not folded
+        y_mid = math.nan
+        if hidden:  # a fit is only a hint: h must really fall at the steepest point
+            y_mid = y_prev + (-b / (2.0 * a)) * (yk - y_prev)
+            hidden = _slope(code, y_mid, l1, R, Q, C10, C20, C30) < 0.0
+        if fell:
+            folded = True
+            fold_lo = y_prev2 if not first else y_prev
+            fold_hi, fold_y, fold_h = yk, y_prev, h_prev
+        if hidden:  # the maximum lies before the steepest fall
+            folded = True
+            fold_lo, fold_hi, fold_y, fold_h = y_prev, y_mid, y_prev, h_prev
+        if top_hi != top_hi:
+            top_hi = yk  # the node after the top so far
+        if h > top_h:
+            top_y, top_h, top_lo, top_hi = yk, h, y_prev, math.nan
+        if h >= K:
+            lo, hi = y_prev, yk
+            # Newton from `newton_start` where h rose at every node so far, else from the midpoint
+            start = 0.5 * (y_prev + yk) if folded else _start(y_prev, yk, h_prev, h, s_prev, slope, K)
+            found = True
+            break
+        y_prev2, y_prev, h_prev, s_prev = y_prev, yk, h, slope
+        first = False
+    return found, folded, lo, hi, start, fold_lo, fold_hi, fold_y, fold_h, top_y, top_h, top_lo, top_hi
+
+
+@_jit
+def _ramp_finish(code, l1, y0, y_max, K, R, Q, C10, C20, C30, pitchfork, rtol, max_iter, found, folded, lo, hi,
+                 start, fold_lo, y_top, K_fold, top_y, top_h, top_lo, top_hi):
+    """`branch.follow_branch` after the scan (`_ramp_scan`) and the first fold's maximum ``(y_top, K_fold)`` where
+    it folded: ``(y, status, K_crit, K_range)``."""
+    status, K_crit, K_range = OK, math.nan, math.nan
+    if not found:  # no stable state within the admissible range
+        status = LIMIT_POINT
+    if folded:
+        K_crit = K_fold
+        # just below a fold h >= K holds only in a window around the maximum that can be narrower than
+        # the scan step: such a sample has not folded; its root lies between the node before and the top
+        if K <= K_crit:
+            folded = False
+            status = OK
+            K_crit = math.nan
+            lo, hi = fold_lo, y_top
+            start = 0.5 * (lo + hi)
+    if status == LIMIT_POINT:
+        # past a limit point where the largest load in range is a fold's (pull-in there); outside the
+        # solved range where it is the range end's (the branch climbs on beyond the range)
+        if not (abs(top_hi) < math.inf):
+            return y0, OUTSIDE_RANGE, math.nan, top_h
+        _, K_crit = _extremum(code, l1, R, Q, C10, C20, C30, top_lo, top_hi, top_y, top_h, True, y0, pitchfork)
+        return y0, LIMIT_POINT, K_crit, math.nan
+    y, ok = _refine(code, l1, R, Q, C10, C20, C30, start, lo, hi, K, y_max - y0, rtol, max_iter, 1.0)
+    if not ok:
+        status = NOT_CONVERGED
+    elif folded:
+        status = SNAPPED
+    return y, status, K_crit, K_range
+
+
+@_jit
+def branch_rule(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan, pitchfork, rtol, max_iter):
+    """`branch.follow_branch` for one sample: ``(y, status, K_crit, K_range)``, the same steps in the same
+    order (``h0``: `branch.Problem.h_start`; ``offsets``: `branch.scale_offsets` of the problem)."""
+    if not (K > h0):
+        return y0, OK, math.nan, math.nan
+    found, folded, lo, hi, start, fold_lo, fold_hi, fold_y, fold_h, top_y, top_h, top_lo, top_hi = _ramp_scan(
+        code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan)
+    y_top, K_fold = math.nan, math.nan
+    if folded:
+        y_top, K_fold = _extremum(code, l1, R, Q, C10, C20, C30, fold_lo, fold_hi, fold_y, fold_h, True, y0,
+                                  pitchfork)
+    return _ramp_finish(code, l1, y0, y_max, K, R, Q, C10, C20, C30, pitchfork, rtol, max_iter, found, folded, lo,
+                        hi, start, fold_lo, y_top, K_fold, top_y, top_h, top_lo, top_hi)
+
+
+@_jit
+def _h_lanes(code, n, X, L1, R, C10, C20, C30, F):
+    """``F[a] = h(X[a])`` at stretch ``L1[a]`` for ``a < n`` (1R, 3R), as `_h`: one loop the compiler vectorizes."""
+    if code == 1:
+        for a in range(n):
+            F[a] = _psi2_first(L1[a], X[a], C10, C20, C30) / (2.0 * X[a])
+    else:
+        for a in range(n):
+            p_y, _, c_y, _ = _ring(X[a], L1[a], R, C10, C20, C30, False)
+            F[a] = p_y / c_y
+
+
+@_jit
+def _golden_lanes(code, n, G, R, C10, C20, C30, left):
+    """`_extremum`'s golden section for a maximum (``s = 1``) in lanes ``a < n`` in lockstep, the same steps:
+    ``G[0], G[1]``: the brackets' ends ``a, b`` (a pitchfork's ``a`` moved as `_extremum` moves it), ``G[2]``
+    the stretches; leaves ``c, d, f(c), f(d)`` in ``G[3:7]`` (``G[7], G[8]``: scratch)."""
+    A, B, L1, C, D, FC, FD, X, F = G[0], G[1], G[2], G[3], G[4], G[5], G[6], G[7], G[8]
+    for a in range(n):
+        C[a] = B[a] - _GOLDEN * (B[a] - A[a])
+        D[a] = A[a] + _GOLDEN * (B[a] - A[a])
+    _h_lanes(code, n, C, L1, R, C10, C20, C30, FC)
+    _h_lanes(code, n, D, L1, R, C10, C20, C30, FD)
+    for _ in range(80):
+        for a in range(n):
+            if FC[a] > FD[a]:
+                B[a] = D[a]
+                x = B[a] - _GOLDEN * (B[a] - A[a])
+                D[a], C[a], FD[a] = C[a], x, FC[a]
+                left[a] = True
+            else:
+                A[a] = C[a]
+                x = A[a] + _GOLDEN * (B[a] - A[a])
+                C[a], D[a], FC[a] = D[a], x, FD[a]
+                left[a] = False
+            X[a] = x
+        _h_lanes(code, n, X, L1, R, C10, C20, C30, F)
+        for a in range(n):
+            if left[a]:
+                FC[a] = F[a]
+            else:
+                FD[a] = F[a]
+
+
+#: Samples of a block of `_branch_block`: their first folds' golden sections run in lockstep.
+LANES = 64
+
+
+@_jit
+def _branch_block(code, sel, t0, t1, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, C30, offsets, n_scan, pitchfork,
+                  rtol, max_iter, y, status, K_crit, K_range):
+    """`branch_rule` of the samples ``sel[t0:t1]``: each sample's scan (`_ramp_scan`), then the golden sections of
+    their first folds in lockstep (`_golden_lanes`; CR's, and a design study's per-sample materials, one by one
+    by `_extremum`), then each sample's rest (`_ramp_finish`): the same steps, so the same numbers bit for bit."""
+    nl = t1 - t0
+    S = np.empty((nl, 13))  # the scans' results; S[., 0] < 0: decided before the scan
+    G = np.empty((9, nl))
+    left = np.empty(nl, np.bool_)
+    lane = np.empty(nl, np.int64)
+    top = np.full((nl, 2), math.nan)  # (y_top, K_fold) of the first fold
+    lanes = code != 4 and C10.size == 1 and C20.size == 1 and C30.size == 1
+    ng = 0
+    for t in range(t0, t1):
+        i = sel[t]
+        Ri = R
+        if code == 4:  # CR: the unloaded state and x0 are the sample's own
+            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        h0 = _h_start(code, y0[i], l1[i], Ri, Q, C[0], C[1], C[2], pitchfork)
+        r = t - t0
+        if not (K[i] > h0):
+            y[t], status[t], K_crit[t], K_range[t] = y0[i], OK, math.nan, math.nan
+            S[r, 0] = -1.0
+            continue
+        found, folded, lo, hi, start, fold_lo, fold_hi, fold_y, fold_h, top_y, top_h, top_lo, top_hi = _ramp_scan(
+            code, l1[i], y0[i], y_max[i], K[i], h0, Ri, Q, C[0], C[1], C[2], offsets, n_scan)
+        S[r, 0], S[r, 1], S[r, 2], S[r, 3], S[r, 4] = 1.0 if found else 0.0, 1.0 if folded else 0.0, lo, hi, start
+        S[r, 5], S[r, 6], S[r, 7], S[r, 8] = fold_lo, fold_hi, fold_y, fold_h
+        S[r, 9], S[r, 10], S[r, 11], S[r, 12] = top_y, top_h, top_lo, top_hi
+        if folded:  # the fold's maximum
+            if lanes:
+                lo_, hi_ = fold_lo, fold_hi
+                G[0, ng] = lo_ + 1e-12 * (hi_ - lo_) if pitchfork and lo_ <= y0[i] else lo_
+                G[1, ng], G[2, ng] = hi_, l1[i]
+                lane[ng] = r
+                ng += 1
+            else:
+                top[r, 0], top[r, 1] = _extremum(code, l1[i], Ri, Q, C[0], C[1], C[2], fold_lo, fold_hi, fold_y,
+                                                 fold_h, True, y0[i], pitchfork)
+    if ng:
+        _golden_lanes(code, ng, G, R, C10[0], C20[0], C30[0], left)
+        for g in range(ng):  # `_extremum`'s end: the better of c and d, or the scan node itself
+            r = lane[g]
+            y_top, f_top = (G[3, g], G[5, g]) if G[5, g] >= G[6, g] else (G[4, g], G[6, g])
+            if S[r, 8] > f_top:
+                y_top, f_top = S[r, 7], 1.0 * (1.0 * S[r, 8])
+            top[r, 0], top[r, 1] = y_top, 1.0 * f_top
+    for t in range(t0, t1):
+        r = t - t0
+        if S[r, 0] < 0.0:
+            continue
+        i = sel[t]
+        Ri = R
+        if code == 4:
+            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        y[t], status[t], K_crit[t], K_range[t] = _ramp_finish(
+            code, l1[i], y0[i], y_max[i], K[i], Ri, Q, C[0], C[1], C[2], pitchfork, rtol, max_iter, S[r, 0] > 0.0,
+            S[r, 1] > 0.0, S[r, 2], S[r, 3], S[r, 4], S[r, 5], top[r, 0], top[r, 1], S[r, 9], S[r, 10], S[r, 11],
+            S[r, 12])
+
+
+def _branch_loop(code, sel, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, C30, offsets, n_scan, pitchfork, rtol,
+                 max_iter, y, status, K_crit, K_range):
+    m = sel.size
+    for c in prange((m + LANES - 1) // LANES):
+        _branch_block(code, sel, c * LANES, min(m, (c + 1) * LANES), l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, C30,
+                      offsets, n_scan, pitchfork, rtol, max_iter, y, status, K_crit, K_range)
+
+
+def _branch_one_loop(code, sel, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, C30, offsets, n_scan, pitchfork, rtol,
+                     max_iter, y, status, K_crit, K_range):
+    for t in prange(sel.size):
+        i = sel[t]
+        Ri = R
+        if code == 4:  # CR: the unloaded state and x0 are the sample's own
+            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        h0 = _h_start(code, y0[i], l1[i], Ri, Q, C[0], C[1], C[2], pitchfork)
+        y[t], status[t], K_crit[t], K_range[t] = branch_rule(code, l1[i], y0[i], y_max[i], K[i], h0, Ri, Q, C[0],
+                                                             C[1], C[2], offsets, n_scan, pitchfork, rtol, max_iter)
+
+
+_branch = _variants(_branch_loop)
+_branch_one = _variants(_branch_one_loop)
+#: A sample the certified kernel leaves costs some 3-5 us (a scan to its fold and beyond, 80 golden-section steps,
+#: Newton's), some 30 certified samples' worth: calls of this many run on all cores (`kernels._parallel`).
+BRANCH_PARALLEL_MIN = 128
+
+
+def follow_branch_at(problem, sel, rtol=1e-14, max_iter=100, one_by_one=False):
+    """`branch.follow_branch` of ``problem.subset(sel)`` (a problem with a compiled ``kernel``; ``sel`` an integer
+    array): `branch.BranchResult` of the samples ``sel``. The samples run in blocks (`_branch_block`);
+    ``one_by_one``: each by `branch_rule` (the same numbers, bit for bit; the tests' check of the blocks)."""
+    from .branch import N_SCAN, BranchResult, scale_offsets
+    from .kernels import _EMPTY_Q, _NO_RING, PARALLEL_MIN, _arr, _parallel
+
+    code, consts = problem.kernel
+    n = problem.K.size
+    sel = np.ascontiguousarray(sel, dtype=np.int64)
+    C = tuple(np.atleast_1d(_arr(c)) for c in consts["C"])
+    if code == 4:
+        R, xi0, x0, Q = (0.0, 0.0, consts["Lb"]) + (0.0,) * 6, _arr(consts["xi0"], (n,)), _arr(consts["x0"], (n,)), \
+            _arr(consts["Q"])
+    else:
+        R, xi0, x0, Q = consts.get("R", _NO_RING), np.zeros(0), np.zeros(0), _EMPTY_Q
+    m = sel.size
+    y, status, K_crit, K_range = np.empty(m), np.empty(m, np.int8), np.empty(m), np.empty(m)
+    par = int(m >= BRANCH_PARALLEL_MIN and _parallel(PARALLEL_MIN))
+    (_branch_one if one_by_one else _branch)[par](
+        code, sel, _arr(consts["l1"], (n,)), _arr(problem.y0, (n,)), _arr(problem.y_max, (n,)), _arr(problem.K, (n,)),
+        tuple(float(r) for r in R), xi0, x0, Q, *C, _arr(scale_offsets(problem)), N_SCAN, bool(problem.pitchfork), rtol,
+        max_iter, y, status, K_crit, K_range)
+    return BranchResult(y, status, K_crit, K_range)

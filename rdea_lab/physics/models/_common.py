@@ -121,8 +121,9 @@ def _voltage(problem, K):
 
 
 def _branch_certified(fast, problem):
-    """`follow_branch` with the compiled kernel's certified samples (the rest by the reference); ``K_crit``,
-    ``K_range`` None where every sample is certified (no fold, no range end)."""
+    """`follow_branch` with the compiled kernel's certified samples, the rest by the reference's steps compiled
+    (`rdea_lab.physics.scan_kernel.follow_branch_at`); ``K_crit``, ``K_range`` None where every sample is
+    certified (no fold, no range end)."""
     y, ok = fast.branch_roots(problem, whole=False)
     n = y.size
     status = np.full(n, OK, dtype=np.int8)
@@ -130,7 +131,9 @@ def _branch_certified(fast, problem):
     if not bad.size:
         return BranchResult(y, status, None, None)
     K_crit, K_range = np.full(n, np.nan), np.full(n, np.nan)
-    y[bad], status[bad], K_crit[bad], K_range[bad] = follow_branch(problem.subset(bad))
+    from ..scan_kernel import follow_branch_at  # the reference's rising-ramp rule, compiled
+
+    y[bad], status[bad], K_crit[bad], K_range[bad] = follow_branch_at(problem, bad)
     return BranchResult(y, status, K_crit, K_range)
 
 
