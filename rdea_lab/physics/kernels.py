@@ -16,7 +16,8 @@ the work around them, fused per sample with no temporaries:
   falls, no hidden dip of the cubic fit between nodes): one basin, no fold,
   so the state is the one root whatever the history. Every other sample (a
   fold, a snap, pull-in, outside the range, not converged, NaN) goes back to
-  the reference solver, so the hard cases are the reference's by
+  the reference's rule (compiled step by step in `scan_kernel`: its ramp rule
+  and its path rule), so the hard cases are the reference's by
   construction. With ``whole=False`` (the rising-ramp rule) the scan stops at
   the bracketing node, as the reference's does; with ``whole=True`` (a path)
   it covers the whole range, which certifies the sample's single basin.

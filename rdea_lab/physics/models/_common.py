@@ -94,7 +94,8 @@ def evaluate_free(problem, state, *, path=False, start=None, origin=None, kernel
 
     ``state(y)`` returns the fields dict at the equilibrium coordinates. With a
     compiled ``kernel``, the samples it certifies (one basin, no fold) are its
-    and every other sample is the reference solver's; ``free(problem)`` then
+    and every other sample is the reference's rule (compiled too:
+    `_branch_certified`, `follow_path`); ``free(problem)`` then
     gives the compiled free state of its slack samples (`Evaluation.free`).
     """
     fast = compiled(kernel, problem.K.size) if (problem.kernel is not None and origin is None) else None
