@@ -1,0 +1,53 @@
+"""Two checkouts of rdea-lab timed in turn on the bench's scenes: a before/after comparison that a change of the
+machine's speed during the session does not bias.
+
+Each round runs one process per tree (``PYTHONPATH`` set to it), old first, each timing `bench_models._scene` (the
+median of ``--repeat`` whole `solve` calls per model, after a warm-up) on the bench scene (hollow core, 1e5 samples)
+and 3R on the active core, and prints one JSON line per process with the load average before it.
+
+    python3 benchmarks/ab_scenes.py OLD_TREE NEW_TREE [--rounds 3] [--repeat 5]
+
+e.g. ``git worktree add /tmp/old <rev>`` for OLD_TREE and this checkout for NEW_TREE.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+
+_ONE = """
+import json, os, sys
+sys.path.insert(0, os.path.join(sys.argv[1], "benchmarks"))
+import bench_models as bm
+l1, v = bm._envelope(100_000, 1.75, 3500.0)
+out = bm._scene(bm._core("hollow-core"), bm.RIZZELLO, l1, v, int(sys.argv[2]))
+act = bm._scene(bm._core("active-core"), bm.RIZZELLO, l1, v, int(sys.argv[2]), ("3r",))
+r = {m: out[m]["samples_per_s"] for m in out}
+r["su_every_field_read_ratio"] = out["su"]["every_field_read_ratio"]
+r["3r_active_core"] = act["3r"]["samples_per_s"]
+print(json.dumps(r))
+"""
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("old")
+    ap.add_argument("new")
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--repeat", type=int, default=5)
+    a = ap.parse_args()
+    for _ in range(a.rounds):
+        for name, tree in (("old", a.old), ("new", a.new)):
+            tree = os.path.abspath(tree)
+            load = os.getloadavg()[0]
+            env = dict(os.environ, PYTHONPATH=tree)
+            out = subprocess.run([sys.executable, "-c", _ONE, tree, str(a.repeat)], env=env, capture_output=True,
+                                 text=True, check=True).stdout.strip().splitlines()[-1]
+            print(json.dumps({"tree": name, "load_before": load, **json.loads(out)}), flush=True)
+
+
+if __name__ == "__main__":
+    main()
