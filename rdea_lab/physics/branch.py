@@ -520,10 +520,16 @@ def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, 
     return PathResult(y, status, K_crit, K_range, (float(y[-1]), end_label))
 
 
+def h_slope(p_y, p_yy, c_y, c_yy):
+    """``dh/dy`` of ``h = psi_y / c_y``: ``(psi_yy c_y - psi_y c_yy) / c_y**2``; scalar or array arguments (the
+    one form: the compiled kernels compile it)."""
+    return (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+
+
 def _h_slope(p_y, p_yy, c_y, c_yy):
-    """``dh/dy`` of ``h = psi_y / c_y``: ``(psi_yy c_y - psi_y c_yy) / c_y**2``."""
+    """`h_slope` of arrays, without warnings."""
     with np.errstate(invalid="ignore", divide="ignore"):
-        return (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+        return h_slope(p_y, p_yy, c_y, c_yy)
 
 
 def _slope(terms, y, idx):

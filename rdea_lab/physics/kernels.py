@@ -218,10 +218,13 @@ def _next_node(y0, span, more, off, j, k, n_scan):
     return reg, j, k + 1
 
 
+_dh = _jit(branch.h_slope, inline="always")
+
+
 @numba.njit(cache=True, error_model="numpy", inline="always")
 def _h_slope(p_y, p_yy, c_y, c_yy):
-    """``h = psi_y / c_y`` and its slope in ``y``."""
-    return p_y / c_y, (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+    """``h = psi_y / c_y`` and its slope in ``y`` (`branch.h_slope`)."""
+    return p_y / c_y, _dh(p_y, p_yy, c_y, c_yy)
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")

@@ -43,7 +43,7 @@ import numba
 import numpy as np
 from numba import prange
 
-from .kernels import _h_start, _next_node, _psi2_first, _refine, _ring, _root, _start, _terms, _variants
+from .kernels import _dh, _h_start, _next_node, _psi2_first, _refine, _ring, _root, _start, _terms, _variants
 from .result import LIMIT_POINT, NOT_CONVERGED, OK, OUTSIDE_RANGE, SNAPPED
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)  # as `branch._GOLDEN`
@@ -88,7 +88,7 @@ def _h(code, y, l1, R, Q, C10, C20, C30):
 @_jit
 def _slope(code, y, l1, R, Q, C10, C20, C30):
     p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
-    return (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+    return _dh(p_y, p_yy, c_y, c_yy)
 
 
 @_jit
@@ -144,7 +144,7 @@ def scan(code, l1, y0, y_max, h0, R, Q, C10, C20, C30, offsets, n_scan, pitchfor
     for k in range(1, m):
         p_y, p_yy, c_y, c_yy = _terms(code, Y[k], l1, R, Q, C10, C20, C30)
         H[k] = p_y / c_y
-        S[k] = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+        S[k] = _dh(p_y, p_yy, c_y, c_yy)
     # the extrema to refine, in the reference's order: node extrema, dips' maxima, dips' minima,
     # pairs' first, pairs' second, the pitchfork's
     cap = 4 * m
@@ -220,6 +220,16 @@ def scan(code, l1, y0, y_max, h0, R, Q, C10, C20, C30, offsets, n_scan, pitchfor
             j -= 1
         kx[j + 1], kh[j + 1] = x, h
     return nk, ne
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _own(code, i, R, xi0, x0, C10, C20, C30):
+    """Sample ``i``'s constants: its ring constants ``R`` (CR: its own unloaded state and ``x0``) and its Yeoh
+    coefficients (one per sample or one for all)."""
+    Ri = R
+    if code == 4:  # CR: the unloaded state and x0 are the sample's own
+        Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    return Ri, (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
 
 
 @_jit
@@ -322,10 +332,7 @@ def _runs(code, l1, y0, y_max, K, h0, R, xi0, x0, Q, C10, C20, C30, offsets, n_s
         if ok[i]:
             lost, prev = False, y[i]
             continue
-        Ri = R
-        if code == 4:  # CR: the unloaded state and x0 are the sample's own
-            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        Ri, C = _own(code, i, R, xi0, x0, C10, C20, C30)
         y[i], status[i], K_crit[i], K_range[i], was_lost = path_rule(
             code, l1[i], y0[i], y_max[i], K[i], h0[i], Ri, Q, C[0], C[1], C[2], offsets, n_scan, pitchfork,
             y0[i] if prev != prev else prev, lost, label_status, label_K, False, rtol, max_iter)
@@ -384,7 +391,7 @@ def _ramp_scan(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan)
         yk, j, k = _next_node(y0, span, more, offsets[j] if more else 0.0, j, k, n_scan)
         p_y, p_yy, c_y, c_yy = _terms(code, yk, l1, R, Q, C10, C20, C30)
         h = p_y / c_y
-        slope = (p_yy * c_y - p_y * c_yy) / (c_y * c_y)
+        slope = _dh(p_y, p_yy, c_y, c_yy)
         # h falls from the last node, or is falling at this one; or a shallow fold pair hides between two
         # nodes that both rise (a cubic Hermite fit of h falls in between: `branch._hidden_dip`)
         dy = yk - y_prev
@@ -533,10 +540,7 @@ def _branch_block(code, sel, t0, t1, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, 
     ng = 0
     for t in range(t0, t1):
         i = sel[t]
-        Ri = R
-        if code == 4:  # CR: the unloaded state and x0 are the sample's own
-            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        Ri, C = _own(code, i, R, xi0, x0, C10, C20, C30)
         h0 = _h_start(code, y0[i], l1[i], Ri, Q, C[0], C[1], C[2], pitchfork)
         r = t - t0
         if not (K[i] > h0):
@@ -571,10 +575,7 @@ def _branch_block(code, sel, t0, t1, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, 
         if S[r, 0] < 0.0:
             continue
         i = sel[t]
-        Ri = R
-        if code == 4:
-            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        Ri, C = _own(code, i, R, xi0, x0, C10, C20, C30)
         y[t], status[t], K_crit[t], K_range[t] = _ramp_finish(
             code, l1[i], y0[i], y_max[i], K[i], Ri, Q, C[0], C[1], C[2], pitchfork, rtol, max_iter, S[r, 0] > 0.0,
             S[r, 1] > 0.0, S[r, 2], S[r, 3], S[r, 4], S[r, 5], top[r, 0], top[r, 1], S[r, 9], S[r, 10], S[r, 11],
@@ -593,10 +594,7 @@ def _branch_one_loop(code, sel, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, C30, 
                      max_iter, y, status, K_crit, K_range):
     for t in prange(sel.size):
         i = sel[t]
-        Ri = R
-        if code == 4:  # CR: the unloaded state and x0 are the sample's own
-            Ri = (xi0[i], x0[i], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        C = (C10[min(i, C10.size - 1)], C20[min(i, C20.size - 1)], C30[min(i, C30.size - 1)])
+        Ri, C = _own(code, i, R, xi0, x0, C10, C20, C30)
         h0 = _h_start(code, y0[i], l1[i], Ri, Q, C[0], C[1], C[2], pitchfork)
         y[t], status[t], K_crit[t], K_range[t] = branch_rule(code, l1[i], y0[i], y_max[i], K[i], h0, Ri, Q, C[0],
                                                              C[1], C[2], offsets, n_scan, pitchfork, rtol, max_iter)

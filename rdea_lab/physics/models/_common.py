@@ -88,6 +88,17 @@ def ring_kernels(kernel, n, *coefficients):
     return module
 
 
+def with_bounds_buffer(fast, n, path, origin, solved):
+    """``solved(out)``: a model's evaluation with its problem's bounds written into ``out``, the thread's reused
+    buffer (`rdea_lab.physics.ring_kernels.scratch`) where the compiled rising-ramp rule runs (``fast``, no path,
+    no ``origin``), else ``solved()`` (fresh arrays). The bounds are not read after the solve: the evaluation
+    holds none of them."""
+    if fast is None or path or origin is not None:
+        return solved()
+    with fast.scratch(n) as out:
+        return solved(out)
+
+
 def evaluate_free(problem, state, *, path=False, start=None, origin=None, kernel="auto", free=None) -> Evaluation:
     """Solve a one-coordinate problem (rising-ramp rule, the path, or descent from
     ``origin`` per sample) and assemble its fields.

@@ -9,7 +9,7 @@ from ..yeoh import gradient_terms
 from ..branch import Problem
 from ..result import ModelResult
 from ._common import (HOOP_STRETCH_CAP, Evaluation, evaluate_free, kappa, ring_kernels, solve_model,
-                      yeoh_coefficients)
+                      with_bounds_buffer, yeoh_coefficients)
 
 
 def enthalpy(geom, material, stretch, voltage, lambda2):
@@ -98,10 +98,7 @@ def evaluate(geom, material, l1, v, *, path=False, start=None, origin=None, kern
         return evaluate_free(problem(geom, material, l1, v, fast, out), lambda l2: at(l2, l1, v), path=path,
                              start=start, origin=origin, kernel=kernel, free=free if fast is not None else None)
 
-    if fast is None or path or origin is not None:
-        return solved()
-    with fast.scratch(l1.size) as out:  # the bounds: not read after the solve (the evaluation holds none of them)
-        return solved(out)
+    return with_bounds_buffer(fast, l1.size, path, origin, solved)
 
 
 def solve(geom, material, stretch, voltage, *, path=False, start=None, slack=True,
