@@ -43,7 +43,8 @@ import numba
 import numpy as np
 from numba import prange
 
-from .kernels import _dh, _h_start, _next_node, _psi2_first, _refine, _ring, _root, _start, _terms, _variants
+from .kernels import (_EMPTY_Q, _NO_RING, _arr, _dh, _h_start, _next_node, _psi2_first, _refine, _ring, _root, _start,
+                      _terms, _variants)
 from .result import LIMIT_POINT, NOT_CONVERGED, OK, OUTSIDE_RANGE, SNAPPED
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)  # as `branch._GOLDEN`
@@ -342,22 +343,26 @@ def _runs(code, l1, y0, y_max, K, h0, R, xi0, x0, Q, C10, C20, C30, offsets, n_s
     return lost, label_status, label_K
 
 
+def _constants(code, consts, n):
+    """``(C, R, xi0, x0, Q)`` of a `~rdea_lab.physics.branch.Problem`'s kernel constants ``consts`` (``n``
+    samples) as the compiled rules take them: the Yeoh coefficients as arrays (one or one per sample), the ring
+    constants, CR's per-sample unloaded state and ``x0`` and its quadrature table (empty for 1R and 3R)."""
+    C = tuple(np.atleast_1d(_arr(c)) for c in consts["C"])
+    if code == 4:
+        return C, (0.0, 0.0, consts["Lb"]) + (0.0,) * 6, _arr(consts["xi0"], (n,)), _arr(consts["x0"], (n,)), \
+            _arr(consts["Q"])
+    return C, consts.get("R", _NO_RING), np.zeros(0), np.zeros(0), _EMPTY_Q
+
+
 def follow_runs(problem, y, ok, y_start, label, status, K_crit, K_range, rtol=1e-14, max_iter=100):
     """`branch.follow_path` of a problem with a compiled ``kernel`` at the samples ``ok`` does not certify (the
     others keep their state ``y``): ``y``, ``status``, ``K_crit``, ``K_range`` written in place. Returns
     the path's end ``(y, label)`` as `follow_path`'s."""
     from .branch import N_SCAN, scale_offsets
-    from .kernels import _EMPTY_Q, _NO_RING, _arr
-
     code, consts = problem.kernel
     n = y.size
     h0 = problem.h_start(np.arange(n))
-    C = tuple(np.atleast_1d(_arr(c)) for c in consts["C"])
-    if code == 4:
-        R, xi0, x0, Q = (0.0, 0.0, consts["Lb"]) + (0.0,) * 6, _arr(consts["xi0"], (n,)), _arr(consts["x0"], (n,)), \
-            _arr(consts["Q"])
-    else:
-        R, xi0, x0, Q = consts.get("R", _NO_RING), np.zeros(0), np.zeros(0), _EMPTY_Q
+    C, R, xi0, x0, Q = _constants(code, consts, n)
     has_label = label is not None
     lab_s, lab_k = label if has_label else (0, np.nan)
     start = np.nan if y_start is None else float(y_start)
@@ -612,17 +617,12 @@ def follow_branch_at(problem, sel, rtol=1e-14, max_iter=100, one_by_one=False):
     array): `branch.BranchResult` of the samples ``sel``. The samples run in blocks (`_branch_block`);
     ``one_by_one``: each by `branch_rule` (the same numbers, bit for bit; the tests' check of the blocks)."""
     from .branch import N_SCAN, BranchResult, scale_offsets
-    from .kernels import _EMPTY_Q, _NO_RING, PARALLEL_MIN, _arr, _parallel
+    from .kernels import PARALLEL_MIN, _parallel
 
     code, consts = problem.kernel
     n = problem.K.size
     sel = np.ascontiguousarray(sel, dtype=np.int64)
-    C = tuple(np.atleast_1d(_arr(c)) for c in consts["C"])
-    if code == 4:
-        R, xi0, x0, Q = (0.0, 0.0, consts["Lb"]) + (0.0,) * 6, _arr(consts["xi0"], (n,)), _arr(consts["x0"], (n,)), \
-            _arr(consts["Q"])
-    else:
-        R, xi0, x0, Q = consts.get("R", _NO_RING), np.zeros(0), np.zeros(0), _EMPTY_Q
+    C, R, xi0, x0, Q = _constants(code, consts, n)
     m = sel.size
     y, status, K_crit, K_range = np.empty(m), np.empty(m, np.int8), np.empty(m), np.empty(m)
     par = int(m >= BRANCH_PARALLEL_MIN and _parallel(PARALLEL_MIN))
