@@ -28,6 +28,7 @@ act = bm._scene(bm._core("active-core"), bm.RIZZELLO, l1, v, int(sys.argv[2]), (
 r = {m: out[m]["samples_per_s"] for m in out}
 r["su_every_field_read_ratio"] = out["su"]["every_field_read_ratio"]
 r["3r_active_core"] = act["3r"]["samples_per_s"]
+r["rdea_lab"] = os.path.dirname(sys.modules["rdea_lab"].__file__)  # which tree was measured
 print(json.dumps(r))
 """
 
@@ -44,8 +45,9 @@ def main() -> None:
             tree = os.path.abspath(tree)
             load = os.getloadavg()[0]
             env = dict(os.environ, PYTHONPATH=tree)
-            out = subprocess.run([sys.executable, "-c", _ONE, tree, str(a.repeat)], env=env, capture_output=True,
-                                 text=True, check=True).stdout.strip().splitlines()[-1]
+            # run in the tree: ``python -c`` puts the working directory first on the path
+            out = subprocess.run([sys.executable, "-c", _ONE, tree, str(a.repeat)], env=env, cwd=tree,
+                                 capture_output=True, text=True, check=True).stdout.strip().splitlines()[-1]
             print(json.dumps({"tree": name, "load_before": load, **json.loads(out)}), flush=True)
 
 
