@@ -58,6 +58,9 @@ _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)
 _EPS = np.finfo(float).eps
 #: Regular scan: fractions ``(k / N_SCAN)**2`` of the admissible range.
 N_SCAN = 24
+#: The refinement's relative tolerance and iterations (every solver's and kernel's default: one value each).
+RTOL = 1e-14
+MAX_ITER = 100
 
 
 @dataclass
@@ -191,7 +194,7 @@ class BranchResult(NamedTuple):
     K_range: np.ndarray
 
 
-def follow_branch(problem: Problem, *, rtol=1e-14, max_iter=100) -> BranchResult:
+def follow_branch(problem: Problem, *, rtol=RTOL, max_iter=MAX_ITER) -> BranchResult:
     """Per sample, the stable equilibrium a voltage ramp reaches from ``y0`` (no history).
 
     Parameters
@@ -359,8 +362,8 @@ class PathResult(NamedTuple):
     end: tuple
 
 
-def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, rtol=1e-14,
-                max_iter=100) -> PathResult:
+def follow_path(problem: Problem, start=None, *, start_label=None, origin=None, rtol=RTOL,
+                max_iter=MAX_ITER) -> PathResult:
     """Per sample of a time series, the state descent of ``g`` reaches from the previous state.
 
     Parameters

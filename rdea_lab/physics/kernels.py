@@ -629,7 +629,7 @@ def _chain(ok, y, y0, y_start):
             ok[i] = 1 if (prev_ok and prev_y <= y0[i]) else 0
 
 
-def _roots_args(problem, whole, rtol=1e-14, max_iter=100):
+def _roots_args(problem, whole, rtol=branch.RTOL, max_iter=branch.MAX_ITER):
     """The arguments of `_roots_loop` (without the outputs) for a `~rdea_lab.physics.branch.Problem`."""
     from .branch import N_SCAN, scale_offsets
 
@@ -645,7 +645,7 @@ def _roots_args(problem, whole, rtol=1e-14, max_iter=100):
             bool(problem.pitchfork))
 
 
-def branch_roots(problem, *, whole, start=None, rtol=1e-14, max_iter=100):
+def branch_roots(problem, *, whole, start=None, rtol=branch.RTOL, max_iter=branch.MAX_ITER):
     """``(y, certified)`` of every sample of a `~rdea_lab.physics.branch.Problem` with a ``kernel``.
 
     ``certified`` marks the samples whose state is the one root of a strictly

@@ -42,7 +42,7 @@ import numpy as np
 from numba import prange
 
 from . import kernels, yeoh
-from .branch import N_SCAN
+from .branch import MAX_ITER, N_SCAN, RTOL
 from .kernels import (_arr, _basis, _fields3, _free_start, _free_step, _gradient, _h_start, _jit, _one, _parallel,
                       _put, _scan_block, _slope, _variants, free_check, free_stretch)
 from .models import continuum, one_ring, three_ring
@@ -70,6 +70,7 @@ _fields_from3 = _jit(three_ring.fields_from, inline="always")
 _fields_from1 = _jit(one_ring.fields_from, inline="always")
 
 _N_SCAN = N_SCAN
+_RTOL, _MAX_ITER = RTOL, MAX_ITER
 _FREE_MAX = FREE_STRETCH_MAX
 
 
@@ -397,7 +398,7 @@ def _rising(code, lam, v, R, B, Q, C10, C20, C30, kap, offsets, pitchfork):
         _, x0 = _basis(lam)
         R = (y0, x0, R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     h0 = _h_start(code, y0, lam, R, Q, C10, C20, C30, pitchfork)
-    y, cert = _one(code, lam, y0, y_max, load * v * v, h0, R, Q, C10, C20, C30, offsets, False, 1e-14, 100,
+    y, cert = _one(code, lam, y0, y_max, load * v * v, h0, R, Q, C10, C20, C30, offsets, False, _RTOL, _MAX_ITER,
                    _N_SCAN, pitchfork)
     return y, cert == 1, R
 
@@ -508,7 +509,7 @@ def _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchf
             else:
                 xi0[na] = x0[na] = t  # (unused)
             na += 1
-        _scan_block(code, lam, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, False, 1e-14, 100, _N_SCAN,
+        _scan_block(code, lam, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, False, _RTOL, _MAX_ITER, _N_SCAN,
                     pitchfork, y, ok, h0, 0, na)
         for j in range(na):
             k = act[j]

@@ -45,6 +45,7 @@ from numba import prange
 
 from .kernels import (_EMPTY_Q, _NO_RING, _arr, _dh, _h_start, _next_node, _psi2_first, _refine, _ring, _root, _start,
                       _terms, _variants)
+from .branch import MAX_ITER, RTOL
 from .result import LIMIT_POINT, NOT_CONVERGED, OK, OUTSIDE_RANGE, SNAPPED
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)  # as `branch._GOLDEN`
@@ -354,7 +355,7 @@ def _constants(code, consts, n):
     return C, consts.get("R", _NO_RING), np.zeros(0), np.zeros(0), _EMPTY_Q
 
 
-def follow_runs(problem, y, ok, y_start, label, status, K_crit, K_range, rtol=1e-14, max_iter=100):
+def follow_runs(problem, y, ok, y_start, label, status, K_crit, K_range, rtol=RTOL, max_iter=MAX_ITER):
     """`branch.follow_path` of a problem with a compiled ``kernel`` at the samples ``ok`` does not certify (the
     others keep their state ``y``): ``y``, ``status``, ``K_crit``, ``K_range`` written in place. Returns
     the path's end ``(y, label)`` as `follow_path`'s."""
@@ -612,7 +613,7 @@ _branch_one = _variants(_branch_one_loop)
 BRANCH_PARALLEL_MIN = 128
 
 
-def follow_branch_at(problem, sel, rtol=1e-14, max_iter=100, one_by_one=False):
+def follow_branch_at(problem, sel, rtol=RTOL, max_iter=MAX_ITER, one_by_one=False):
     """`branch.follow_branch` of ``problem.subset(sel)`` (a problem with a compiled ``kernel``; ``sel`` an integer
     array): `branch.BranchResult` of the samples ``sel``. The samples run in blocks (`_branch_block`);
     ``one_by_one``: each by `branch_rule` (the same numbers, bit for bit; the tests' check of the blocks)."""

@@ -39,7 +39,7 @@ from . import _branch_kernels as _bk
 from .kernels import _fields3, _basis, _one, _slope, _terms, free_check, free_stretch
 from .ring_kernels import _bounds1, _bounds3, _stress1
 from .models import one_ring, three_ring
-from .branch import N_SCAN, scale_offsets
+from .branch import MAX_ITER, N_SCAN, RTOL, scale_offsets
 from .models._common import FREE_STRETCH_MAX, kappa, yeoh_coefficients
 from .result import OK, OVERFLOW, SLACK, SNAPPED
 from .scan_kernel import path_rule
@@ -51,6 +51,7 @@ CODES = {"su": 0, "1r": 1, "3r": 3}
 #: `step` results.
 DONE, NEEDS_REFERENCE, TIME_NOT_INCREASING = 0, 1, -1
 _N_SCAN = N_SCAN
+_RTOL, _MAX_ITER = RTOL, MAX_ITER
 _FREE_MAX = FREE_STRETCH_MAX
 _Q = np.zeros((4, 0))
 #: Where the branches' strains start in ``S``.
@@ -167,13 +168,13 @@ def _path_state(code, l1, y0, y_max, K, h0, R, C10, C20, C30, offsets, pitchfork
         n_off += 1
     off = offsets[:n_off]
     if K > h0:  # (at or below h0 `_one` certifies only the state y0 from below it, which `_state` took)
-        y, cert = _one(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, off, True, 1e-14, 100, _N_SCAN,
+        y, cert = _one(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, off, True, _RTOL, _MAX_ITER, _N_SCAN,
                        pitchfork)
         if cert == 1:
             return y, OK, math.nan, False
     start = y0 if y_prev != y_prev else y_prev
     y, status, K_crit, _, lost = path_rule(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, off, _N_SCAN,
-                                           pitchfork, start, label, label_status, label_K, origin, 1e-14, 100)
+                                           pitchfork, start, label, label_status, label_K, origin, _RTOL, _MAX_ITER)
     return y, status, K_crit, lost
 
 
