@@ -22,7 +22,17 @@ a general-purpose kernel is 50-100 us late): it takes one core for the run.
 CPython's garbage collector is switched off for the run (what a control loop
 in Python does first).
 
-    python3 benchmarks/realtime_loop.py [--seconds 5] [--model su] [--rate 10000] [--json]
+``--realtime`` runs it as a real-time control loop is run: the loop thread
+under ``SCHED_FIFO`` (no ordinary process preempts it), on one core, its
+memory locked (``mlockall``: no page fault mid-tick). A FIFO thread that never
+sleeps is stopped by the kernel's real-time throttling (``sched_rt_runtime_us``,
+by default 50 ms of every second), so it sleeps until ``--spin-us`` before each
+tick (a FIFO thread's wake-up is a few us late) and spins the rest. Each of the
+three is asked for and the output says which the system granted (needs root or
+``CAP_SYS_NICE``/``CAP_IPC_LOCK``; otherwise the loop runs as without the flag).
+
+    python3 benchmarks/realtime_loop.py [--seconds 5] [--model su] [--rate 10000] [--realtime [--spin-us 40]]
+                                        [--json]
 
 Prints the ticks, the missed deadlines (count and share), the work per tick
 (median, p99, p99.9, max, in us), the same for the loop thread's CPU time in
@@ -38,6 +48,7 @@ own cost: the only kind the code can remove).
 from __future__ import annotations
 
 import argparse
+import ctypes
 import gc
 import json
 import os
@@ -63,7 +74,36 @@ def _steal_ms() -> float | None:
         return None
 
 
-def loop(seconds=5.0, model="su", rate=10_000.0, gain=(2e3, 2e5)) -> dict:
+def _realtime() -> dict:
+    """Ask for the real-time set-up (`--realtime`): ``SCHED_FIFO``, the last core, memory locked; what was granted,
+    and how to undo the scheduling."""
+    granted = {}
+    try:
+        os.sched_setaffinity(0, {max(os.sched_getaffinity(0))})
+        granted["core"] = max(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        granted["core"] = None
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        granted["mlockall"] = libc.mlockall(3) == 0  # MCL_CURRENT | MCL_FUTURE
+    except (OSError, AttributeError):
+        granted["mlockall"] = False
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(50))
+        granted["sched_fifo"] = True
+    except (AttributeError, OSError):
+        granted["sched_fifo"] = False
+    return granted
+
+
+def _ordinary() -> None:
+    try:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    except (AttributeError, OSError):
+        pass
+
+
+def loop(seconds=5.0, model="su", rate=10_000.0, gain=(2e3, 2e5), realtime=False, spin_us=40.0) -> dict:
     params = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
     card = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
     n = int(seconds * rate)
@@ -85,11 +125,18 @@ def loop(seconds=5.0, model="su", rate=10_000.0, gain=(2e3, 2e5)) -> dict:
     preempted = 0  # missed ticks whose work took longer than a period, its CPU time did not: off the core meanwhile
     tl = t.tolist()
     period = int(round(dt * 1e9))
+    granted = _realtime() if realtime else {}
+    # under SCHED_FIFO: sleep until `spin_us` before the tick (a FIFO thread that never sleeps is throttled)
+    spin = int(spin_us * 1e3) if granted.get("sched_fifo") else None
     steal0 = _steal_ms()
     gc.disable()
     try:
         deadline = time.perf_counter_ns() + 2 * period
         for i in range(n):
+            if spin is not None:
+                rest = deadline - period - spin - time.perf_counter_ns()
+                if rest > 0:
+                    time.sleep(rest / 1e9)
             while time.perf_counter_ns() < deadline - period:  # wait for the tick
                 pass
             t0 = time.perf_counter_ns()
@@ -111,11 +158,15 @@ def loop(seconds=5.0, model="su", rate=10_000.0, gain=(2e3, 2e5)) -> dict:
             deadline += period
     finally:
         gc.enable()
+        if granted.get("sched_fifo"):
+            _ordinary()
     steal1 = _steal_ms()
     err = np.asarray(f_ref) - force
     swing = float(np.max(f_ref) - np.min(f_ref))
     settled = slice(int(0.5 * rate), None)  # after the first half second
-    return {"model": model, "rate_hz": rate, "ticks": n, "missed": int(missed), "missed_share": missed / n,
+    return {"model": model, "rate_hz": rate, "realtime": granted or None,
+            "spin_us": spin_us if spin is not None else None, "ticks": n, "missed": int(missed),
+            "missed_share": missed / n,
             "missed_started_late": int(started_late), "missed_preempted": int(preempted),
             "missed_over_budget": int(missed - started_late - preempted),
             "work_us": _percentiles(work), "cpu_us": _percentiles(cpu),
@@ -135,14 +186,21 @@ def main():
     ap.add_argument("--seconds", type=float, default=5.0)
     ap.add_argument("--model", default="su", choices=["su", "1r", "3r", "cr"])
     ap.add_argument("--rate", type=float, default=10_000.0)
+    ap.add_argument("--realtime", action="store_true",
+                    help="SCHED_FIFO, one core, memory locked, where the system grants them")
+    ap.add_argument("--spin-us", type=float, default=40.0, help="under SCHED_FIFO: spin this long before each tick")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
-    r = loop(a.seconds, a.model, a.rate)
+    r = loop(a.seconds, a.model, a.rate, realtime=a.realtime, spin_us=a.spin_us)
     if a.json:
         print(json.dumps(r, indent=2))
         return
     w, c = r["work_us"], r["cpu_us"]
-    print(f"{r['model']} at {r['rate_hz']:.0f} Hz: {r['ticks']} ticks, {r['missed']} missed deadlines "
+    rt = r["realtime"]
+    how = ("" if rt is None else f" (realtime: SCHED_FIFO {'granted' if rt['sched_fifo'] else 'refused'}, core "
+           f"{rt['core']}, mlockall {'granted' if rt['mlockall'] else 'refused'}"
+           + (f", spinning the last {r['spin_us']:.0f} us before each tick)" if r["spin_us"] is not None else ")"))
+    print(f"{r['model']} at {r['rate_hz']:.0f} Hz{how}: {r['ticks']} ticks, {r['missed']} missed deadlines "
           f"({100 * r['missed_share']:.3f} %; {r['missed_started_late']} of them started late, their work in time; "
           f"{r['missed_preempted']} off the core during their work, its CPU time in time; "
           f"{r['missed_over_budget']} with more CPU work than a tick); "
