@@ -53,12 +53,18 @@ import os
 import threading
 import types
 
-import numba
-import numpy as np
-from numba import prange
+# numba's OpenMP threads (libgomp) spin after each parallel loop by default, on the cores the next pass needs: the
+# ring models' fields (the calling thread and `ring_kernels`' helper thread) waited for them, a 3R call of 1e5
+# samples 5-40 % slower (`benchmarks/bench_models.py`). Waiting threads sleep instead, unless the process says
+# otherwise; read when numba first loads libgomp (its first parallel loop).
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
-from . import branch, viscoelastic, yeoh
-from .models import _common, continuum, su, three_ring
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
+from numba import prange  # noqa: E402
+
+from . import branch, viscoelastic, yeoh  # noqa: E402
+from .models import _common, continuum, su, three_ring  # noqa: E402
 
 
 def _check_cache():

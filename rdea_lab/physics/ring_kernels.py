@@ -449,7 +449,7 @@ _free = _variants(_free_loop)
 #: Lanes of `_free_lanes`: slack samples whose free-state searches run in lockstep, each round's trials in one
 #: batched root scan (`kernels._scan_block`).
 FREE_LANES = 128
-#: Slack samples per task of the threaded `free_states`.
+#: Slack samples per task of the threaded `free_states`, at most (`free_chunk`).
 FREE_CHUNK = 1024
 
 
@@ -535,11 +535,20 @@ def _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchf
                 x_try[k] = x
 
 
-def _free_lanes_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done):
+def _free_lanes_loop(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done,
+                     chunk):
     n = l1.size
-    for c in prange((n + FREE_CHUNK - 1) // FREE_CHUNK):
+    for c in prange((n + chunk - 1) // chunk):
         _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchfork, free_max, memo, done,
-                    c * FREE_CHUNK, min(n, (c + 1) * FREE_CHUNK))
+                    c * chunk, min(n, (c + 1) * chunk))
+
+
+def free_chunk(n, threads):
+    """Slack samples per task of `_free_lanes_loop` for ``n`` samples on ``threads`` threads: at most `FREE_CHUNK`,
+    the tasks a multiple of the threads and of equal size (numba splits a ``prange`` into one contiguous share
+    per thread: 3 tasks on 2 threads left one thread a third of the call idle)."""
+    tasks = threads * -(-n // (threads * FREE_CHUNK))
+    return max(1, -(-n // tasks))
 
 
 _free_batched = _variants(_free_lanes_loop)
@@ -549,7 +558,7 @@ FREE_PARALLEL_MIN = 256
 
 
 def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.0,) * 4, cr=None,
-                one_by_one=False):
+                one_by_one=False, chunk=None):
     """The free states of slack samples (stretch ``l1``, voltage ``v``, stress ``s1 < 0`` there), compiled:
     ``(free stretch, y there, done)``; a sample not done goes to the numpy `free_state`.
 
@@ -558,6 +567,7 @@ def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.
     ``R``, ``B``: 3R's ring and bound constants; ``cr``: CR's ``(Q, W, s_i, s_ie, Lb)`` (`cr_tables`).
     The searches run in lockstep lanes (`_free_lanes`); ``one_by_one``: one sample after the other
     (`_free_loop`, each trial `kernels._one`: the same numbers, bit for bit; the tests' reference).
+    ``chunk``: the slack samples of one task of lanes (default `free_chunk`; any gives the same numbers).
     """
     n = l1.size
     memo, done = np.empty((n, 3)), np.empty(n, np.bool_)
@@ -569,10 +579,13 @@ def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.
     else:
         Q, W = _NO_Q, _NO_W
     par = int(n >= FREE_PARALLEL_MIN and _parallel(kernels.PARALLEL_MIN))
-    loop = _free if one_by_one else _free_batched
-    loop[par](code, _arr(l1), _arr(v, l1.shape), _arr(s1, l1.shape), tuple(float(r) for r in R),
-              tuple(float(b) for b in B), Q, W, *map(float, C), float(kap), _arr(offsets), bool(pitchfork), _FREE_MAX,
-              memo, done)
+    args = (code, _arr(l1), _arr(v, l1.shape), _arr(s1, l1.shape), tuple(float(r) for r in R),
+            tuple(float(b) for b in B), Q, W, *map(float, C), float(kap), _arr(offsets), bool(pitchfork), _FREE_MAX,
+            memo, done)
+    if one_by_one:
+        _free[par](*args)
+    else:
+        _free_batched[par](*args, free_chunk(n, numba.get_num_threads() if par else 1) if chunk is None else chunk)
     return memo[:, 0].copy(), memo[:, 1].copy(), done
 
 

@@ -197,8 +197,7 @@ def test_free_lanes_equal_one_by_one(model, monkeypatch):
     """The lockstep free-state searches (`ring_kernels._free_lanes`, each round's trials in one batched scan)
     against the one-by-one search (`_free_loop`, each trial `kernels._one`) bit for bit: the same samples done,
     the same free stretches and fields, on the random families' slack scenes (more samples than one task of
-    lanes: `FREE_CHUNK`) and the bench scene."""
-    monkeypatch.setattr(ring_kernels, "FREE_CHUNK", 64)  # several tasks, some lanes idle at each one's end
+    lanes) and the bench scene."""
     rng = np.random.default_rng(5)
     scenes = [(case.geom, case.mat) + _slack_scene(case, rng, 300)
               for family in ("general", "small core", "hollow micro-core") for case in cases(family, 3)
@@ -213,7 +212,9 @@ def test_free_lanes_equal_one_by_one(model, monkeypatch):
             slack = np.flatnonzero(is_valid(ev.status) & (sigma < 0.0))
         out = {}
         for one in (True, False):
-            monkeypatch.setattr(ring_kernels, "free_states", lambda *a, **k: free_states(*a, **k, one_by_one=one))
+            # several tasks of lanes, some lanes idle at each one's end
+            monkeypatch.setattr(ring_kernels, "free_states",
+                                lambda *a, **k: free_states(*a, **k, one_by_one=one, chunk=64))
             out[one] = ev.free(slack, sigma[slack])
         (lam, f, done), (lam_l, f_l, done_l) = out[True], out[False]
         assert np.array_equal(done, done_l) and np.array_equal(lam, lam_l, equal_nan=True), f"{model} {geom}"
@@ -310,3 +311,14 @@ def test_bounds_scratch_never_reaches_a_result(model):
         assert not np.shares_memory(getattr(first, name), buf), name
         assert np.array_equal(getattr(first, name), value, equal_nan=True), name
     assert_same(solve(model, core("active"), RIZZELLO, l1, v, kernel="numpy"), first, f"{model} active core")
+
+
+@pytest.mark.parametrize("n, threads", [(1, 1), (100, 2), (1023, 2), (2210, 2), (2049, 2), (5000, 3), (4096, 1)])
+def test_free_chunk_covers_the_samples_in_equal_tasks(n, threads):
+    """`ring_kernels.free_chunk`: the tasks cover every sample, none is empty or over `FREE_CHUNK`, and their count
+    is a multiple of the threads wherever the samples fill one task per thread."""
+    chunk = ring_kernels.free_chunk(n, threads)
+    tasks = -(-n // chunk)
+    assert 1 <= chunk <= ring_kernels.FREE_CHUNK and tasks * chunk >= n and (tasks - 1) * chunk < n
+    if n >= threads * chunk:
+        assert tasks % threads == 0 or n < threads
