@@ -17,8 +17,9 @@ import numpy as np
 from scipy.optimize import least_squares, minimize
 
 from ..specs import ParameterSet, SpecError
-from ..specs.params import yeoh_slope_nonpositive_at
-from .objective import residual_scale, residuals
+from ..specs.params import material_problems, yeoh_slope_nonpositive_at
+from ..twin import viscous
+from .objective import FusedRuns, residual_scale, residuals
 from .parameters import values_of, with_values
 
 #: The methods `calibrate` offers.
@@ -111,6 +112,62 @@ def _fast_builder(start: ParameterSet, M: int):
     return build
 
 
+class _Trial:
+    """What the compiled residual pass and :func:`~rdea_lab.twin.viscous` read of a parameter set (law linear),
+    without pydantic: a trial point's values, already checked physical."""
+
+    __slots__ = ("C10", "C20", "C30", "eps_r", "branches", "eta_v0", "law")
+
+    def __init__(self, C10, C20, C30, eps_r, branches, eta_v0):
+        self.C10, self.C20, self.C30, self.eps_r, self.branches, self.eta_v0 = C10, C20, C30, eps_r, branches, eta_v0
+        self.law = "linear"
+
+
+class _TrialBranch:
+    __slots__ = ("modulus", "eta")
+
+    def __init__(self, modulus, eta):
+        self.modulus, self.eta = modulus, eta
+
+
+#: What `_lean_residuals`' function returns for a point the physics refuses.
+REFUSED = object()
+
+
+def _lean_residuals(start: ParameterSet, runs, model, scale):
+    """``residuals_of(values)``: the residuals `residuals` gives for the set `_fast_builder` builds of
+    ``values``, `REFUSED` where it refuses the set, None where the compiled pass does not apply to it
+    (then the full path); or None (no such function) where the pass does not apply to these runs
+    (`FusedRuns.of`) or the set is not of the layout `_fast_builder` builds (law linear).
+
+    The check of a point is the set's own (`~rdea_lab.specs.params.material_problems`, once; the layout's
+    other rules, one spring kind per branch and of the set's law, hold for every point as they hold for
+    ``start``), the physics inputs are read from ``values`` (`_Trial`), and the runs' data and the pass's
+    scratch are prepared once (`FusedRuns`): no parameter set is built, the pass and its inputs are the same.
+    """
+    if _fast_builder(start, start.M) is None or start.law != "linear":
+        return None
+    fused = FusedRuns.of(runs, scale, model, start.M)
+    if fused is None:
+        return None
+    eps_r = float(start.eps_r)
+    keys = [(f"k_v{j}", f"eta_v{j}") for j in range(1, start.M + 1)]
+
+    def residuals_of(values):
+        C10, C20, C30 = float(values["C10"]), float(values["C20"]), float(values["C30"])
+        if not _yeoh_admissible(C10, C20, C30):
+            return REFUSED
+        ks = [float(values[k]) for k, _ in keys]
+        etas = [float(values[e]) for _, e in keys]
+        eta_v0 = float(values["eta_v0"])
+        if material_problems(C10, C20, C30, eps_r, ks, etas, eta_v0):
+            return REFUSED
+        trial = _Trial(C10, C20, C30, eps_r, tuple(map(_TrialBranch, ks, etas)), eta_v0)
+        return fused(trial, viscous(trial))
+
+    return residuals_of
+
+
 #: Seconds between two calls of an objective's ``progress`` (twice a second: a live line, not a log).
 REPORT_EVERY = 0.5
 
@@ -150,6 +207,7 @@ class Objective:
         self._build = _fast_builder(start, start.M)
         self.ndata = int(sum(r.n for r in runs))
         self.scale = residual_scale(runs) if runs else []  # of the data alone: once, not per evaluation
+        self._lean = _lean_residuals(start, runs, model, self.scale)
         self._last = None
 
     # ---- variables
@@ -195,6 +253,20 @@ class Objective:
             v["C20"] = m - math.sqrt(3.0 * v["C10"] * v["C30"])
         return v
 
+    def values_unit_moved(self, u, values, i) -> dict:
+        """`values_unit` of ``u``, given ``values``, those of a point that differs from ``u`` in variable
+        ``i`` alone (a Jacobian's probe): that parameter's value is computed again, and C20 where it is the
+        Yeoh margin, by the same operations; the others are taken from ``values`` (the same numbers)."""
+        z = np.arcsin(np.clip(2.0 * u - 1.0, -1.0, 1.0))
+        v = dict(values)
+        p = self.free[i]
+        v[p.name] = p.to_physical(z[i])
+        s = self._margin_slot()
+        if s is not None:
+            m = self._margin.to_physical(float(np.arcsin(np.clip(2.0 * u[s] - 1.0, -1.0, 1.0))))
+            v["C20"] = m - math.sqrt(3.0 * v["C10"] * v["C30"])
+        return v
+
     def internal_of(self, values) -> np.ndarray:
         """Nelder-Mead's sine-mapped internal variables of the free parameters' ``values`` [SI]."""
         return np.array([p.to_internal(values[p.name]) for p in self.free])
@@ -219,9 +291,12 @@ class Objective:
             return None  # the physics refuses it: the objective is infinite there
 
     def score_residuals(self, r) -> float:
-        if r is None or not np.all(np.isfinite(r)):
+        """The objective of residuals ``r`` (None: refused), infinite where one is not finite."""
+        if r is None:
             return np.inf
-        return float(np.sqrt(np.mean(r * r))) if self.metric == "rms" else float(np.max(np.abs(r)))
+        # a residual inf or NaN makes the mean square (and the largest |r|) inf or NaN: no separate test
+        f = float(np.sqrt(np.mean(r * r))) if self.metric == "rms" else float(np.max(np.abs(r)))
+        return f if f < np.inf else np.inf
 
     def score(self, params) -> float:
         """The objective of a parameter set (not counted)."""
@@ -236,8 +311,12 @@ class Objective:
         if self.nfev >= self.max_evals or self._clock() - self.t0 > self.max_time:
             raise OutOfBudget
         self.nfev += 1
-        params = self.paramset(values)
-        r = None if params is None else residuals(self.runs, params, self.model, self.scale)
+        r = self._lean(values) if self._lean is not None else None
+        if r is REFUSED:
+            r = None
+        elif r is None:  # the full path: the set built and checked, `residuals`
+            params = self.paramset(values)
+            r = None if params is None else residuals(self.runs, params, self.model, self.scale)
         f = self.score_residuals(r)
         if f < self.best_f:
             self.best_f, self.best_values, self.best_x = f, values, np.array(x, float) if x is not None else None
@@ -254,10 +333,14 @@ class Objective:
 
     def residual_vector(self, u) -> np.ndarray:
         """Least squares' residuals of `values_unit` variables (infinite where the physics refuses)."""
-        _, r = self.evaluate(self.values_unit(u), u)
+        return self.residuals_at(u, self.values_unit(u))[1]
+
+    def residuals_at(self, u, values):
+        """`residual_vector` at ``u`` whose `values_unit` are ``values``, with the objective: ``(f, r)``."""
+        f, r = self.evaluate(values, u)
         r = np.full(self.ndata, np.inf) if r is None else r
         self._last = (np.array(u, float), r)
-        return r
+        return f, r
 
     def last_residuals(self, u) -> np.ndarray:
         """`residual_vector` at ``u``, reusing the last evaluation when it was there."""
@@ -308,15 +391,16 @@ def _jacobian(obj: Objective):
     def jac(u):
         u = np.asarray(u, float)
         r0 = obj.last_residuals(u)
+        values = obj.values_unit(u)  # a probe moves one variable: its values are these but one (not counted)
         J = np.zeros((r0.size, u.size), order="F")  # filled by columns; handed on in C order, as before
         for i in range(u.size):
             for sign in ((1.0, -1.0) if u[i] + h <= 1.0 else (-1.0, 1.0)):
                 ui = u.copy()
-                ui[i] = np.clip(u[i] + sign * h, 0.0, 1.0)
+                ui[i] = min(max(u[i] + sign * h, 0.0), 1.0)  # np.clip's number, without its overhead
                 if ui[i] == u[i]:
                     continue
-                r = obj.residual_vector(ui)
-                if np.all(np.isfinite(r)):
+                f, r = obj.residuals_at(ui, obj.values_unit_moved(ui, values, i))
+                if f < np.inf or np.all(np.isfinite(r)):  # f finite: every residual is
                     J[:, i] = (r - r0) / (ui[i] - u[i])
                     break
         return np.ascontiguousarray(J)

@@ -262,6 +262,48 @@ def residuals(runs, params, model, scale=None) -> np.ndarray:
     return out
 
 
+class FusedRuns:
+    """`residuals` of many parameter sets on the same runs, by the compiled pass alone, with what does not
+    depend on the parameters prepared once: each run's stress basis, history, arrays, its place in the
+    residual vector and the pass's scratch (for ``M`` branches). The same pass with the same inputs as
+    `residuals` takes, so the same numbers to the last bit; `of` gives None where `residuals` would not
+    take the pass for every run whatever the parameters (no compiled kernels, another model at voltage,
+    a run with a non-finite sample or a single one, a scale of another shape).
+    """
+
+    def __init__(self, fused, items, ndata):
+        self._fused, self._items, self.ndata = fused, items, ndata
+
+    @classmethod
+    def of(cls, runs, scale, model, M):
+        fused = _fused_kernel() if runs else None
+        if fused is None:
+            return None
+        items, start = [], 0
+        for r, s in zip(runs, scale):
+            history = r.visco_history()
+            if not ((model == "su" or r.zero_voltage) and history.all_finite and history.t.size > 1
+                    and np.shape(s) == (r.n,)):
+                return None
+            items.append((r.su_basis(), r.geom, history, r.stretch, r.force, s, start, start + r.n,
+                          np.empty((M, r.n))))
+            start += r.n
+        return cls(fused, items, start)
+
+    def __call__(self, params, visco):
+        """The residuals of ``params`` (what the pass reads of a parameter set: ``C10``, ``C20``, ``C30``,
+        ``eps_r``) with ``visco`` (:func:`~rdea_lab.twin.viscous` of it, ``M`` branches), or None where the
+        pass does not apply to them (the law not linear, or an ``eta / k`` not positive): `residuals` then."""
+        k, eta, _, law = visco
+        if not (law == "linear" and bool(np.all(eta / k > 0))):
+            return None
+        out = np.empty(self.ndata)
+        fused = self._fused
+        for basis, geom, history, stretch, force, s, start, end, work in self._items:
+            fused(basis, geom, params, visco, history, stretch, force, s, out[start:end], work)
+        return out
+
+
 def _fused_kernel():
     """The compiled residual pass (`rdea_lab.physics.models.su.residual_pass`: SU's stress basis, linear law,
     every sample finite), or None where the compiled kernels are off or numba is missing (the branch update's

@@ -1052,17 +1052,53 @@ _update = _jit(viscoelastic._linear_update, inline="always")
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _coefficients(lengths, tau, a, c):
+    for k in range(lengths.size):  # the coefficients of each distinct interval, b per unit slope
+        a[k], c[k] = _update(lengths[k], 1.0, tau)
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _linear(lengths, index, slope, tau, q0, q):
-    a = np.empty(lengths.size)
-    c = np.empty(lengths.size)
-    for j in range(tau.size):
-        for k in range(lengths.size):  # the coefficients of each distinct interval, b per unit slope
-            a[k], c[k] = _update(lengths[k], 1.0, tau[j])
+    # each branch's update is a chain of dependent multiply-adds, bound by their latency: up to three
+    # branches' chains go through one loop side by side, each in its own order (the same numbers), in
+    # about the time of one
+    L = lengths.size
+    a0, c0, a1, c1, a2, c2 = (np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L), np.empty(L))
+    M = tau.size
+    j = 0
+    while M - j >= 3:
+        _coefficients(lengths, tau[j], a0, c0)
+        _coefficients(lengths, tau[j + 1], a1, c1)
+        _coefficients(lengths, tau[j + 2], a2, c2)
+        x, y, z = q0[j], q0[j + 1], q0[j + 2]
+        q[j, 0], q[j + 1, 0], q[j + 2, 0] = x, y, z
+        for i in range(index.size):
+            k = index[i]
+            x = a0[k] * x + slope[i] * c0[k]
+            y = a1[k] * y + slope[i] * c1[k]
+            z = a2[k] * z + slope[i] * c2[k]
+            q[j, i + 1] = x
+            q[j + 1, i + 1] = y
+            q[j + 2, i + 1] = z
+        j += 3
+    if M - j == 2:
+        _coefficients(lengths, tau[j], a0, c0)
+        _coefficients(lengths, tau[j + 1], a1, c1)
+        x, y = q0[j], q0[j + 1]
+        q[j, 0], q[j + 1, 0] = x, y
+        for i in range(index.size):
+            k = index[i]
+            x = a0[k] * x + slope[i] * c0[k]
+            y = a1[k] * y + slope[i] * c1[k]
+            q[j, i + 1] = x
+            q[j + 1, i + 1] = y
+    elif M - j == 1:
+        _coefficients(lengths, tau[j], a0, c0)
         x = q0[j]
         q[j, 0] = x
         for i in range(index.size):
             k = index[i]
-            x = a[k] * x + slope[i] * c[k]
+            x = a0[k] * x + slope[i] * c0[k]
             q[j, i + 1] = x
 
 

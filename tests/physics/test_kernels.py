@@ -277,3 +277,24 @@ def test_kernels_turned_off_load_no_numba():
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize("M", range(1, 8))
+def test_the_linear_update_takes_each_branch_alone(M):
+    """`kernels.linear_strains` runs up to three branches' updates side by side (`_linear`): each branch's
+    strains are those it has updated alone, to the last bit, whatever its neighbours (every grouping of
+    1 to 7 branches), and the sequential reference's to 1e-12."""
+    rng = np.random.default_rng(M)
+    t, lam = _random_history(rng, 3000)
+    tau = 10.0 ** rng.uniform(-4.0, 3.0, M)
+    q0 = rng.normal(0.0, 0.05, M)
+    lengths, index = np.unique(np.diff(t), return_inverse=True)
+    slope = np.diff(lam) / np.diff(t)
+    q = np.empty((M, t.size))
+    kernels.linear_strains(lengths, index, slope, tau, q0, q)
+    for j in range(M):
+        alone = np.empty((1, t.size))
+        kernels.linear_strains(lengths, index, slope, tau[j:j + 1], q0[j:j + 1], alone)
+        assert np.array_equal(q[j], alone[0]), j
+    q_seq = _sequential(t[:1000], lam[:1000], tau, q0)
+    assert np.all(np.abs(q[:, :1000] - q_seq) <= 1e-12 * np.max(np.abs(q_seq), axis=1, keepdims=True))

@@ -74,18 +74,22 @@ def residual_pass(kernel="auto"):
     callable ``f(basis, geom, material, visco, history, stretch, force, scale, out)``: ``basis`` of
     :func:`stress_basis`, ``visco`` the twin's ``(k, eta, eta_v0, law)`` (the law linear, every ``eta / k``
     positive), ``history`` the run's `~rdea_lab.physics.viscoelastic.History` (finite, two samples or
-    more); it writes ``out``.
+    more); it writes ``out``. ``work``, optional: the pass's scratch, a C-contiguous float array of shape
+    (branches, samples) that a caller evaluating many sets of one branch count reuses (its content does
+    not matter: the pass overwrites it before reading it); else a new one per call.
     """
     fast = compiled(kernel, AUTO_MIN_SAMPLES)
     if fast is None:
         return None
 
-    def run(basis, geom, material, visco, history, stretch, force, scale, out):
+    def run(basis, geom, material, visco, history, stretch, force, scale, out, work=None):
         b, x, lv2 = basis
         k, eta, eta_v0, _ = visco
+        if work is None or work.shape != (k.size, stretch.size):
+            work = np.empty((k.size, stretch.size))
         fast._su_linear_residual(b, x, lv2, yeoh_coefficients(material), kappa(geom, material), k, eta,
                                  history.lengths, history.length_index, history.slope, eta_v0, history.rate,
-                                 float(geom.area), stretch, force, scale, np.empty((k.size, stretch.size)), out)
+                                 float(geom.area), stretch, force, scale, work, out)
     return run
 
 
