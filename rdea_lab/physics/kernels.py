@@ -786,18 +786,16 @@ def _su_free(l1, v, s1, C10, C20, C30, kap, free_max):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, status, converged, lo, hi):
-    """What a whole SU solve computes up front, in one loop over the inputs as given (samples ``lo <= i <
-    hi``): the tension (eq. (39) at the given stretch), the stretch of the state (the given one; a slack
-    sample's free stretch comes later), the status and whether it converged; NaN where the sample has no
-    state (a NaN or infinite input: `BAD_INPUT`). Returns ``(slack samples, finite samples with a stretch
-    below 1)``."""
+def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, status, converged):
+    """What a whole SU solve computes up front, in one loop over the inputs as given: the tension (eq. (39)
+    at the given stretch), the stretch of the state (the given one; a slack sample's free stretch comes
+    later), the status and whether it converged; NaN where the sample has no state (a NaN or infinite
+    input: `BAD_INPUT`). Returns ``(slack samples, finite samples with a stretch below 1)``."""
     OK_, SLACK_, BAD_, OVER_ = codes[0], codes[1], codes[2], codes[3]
     n_slack = 0
     n_low = 0
-    # without branches (`&`, selects), so that the compiler vectorizes the loop (unsigned: no wraparound
-    # check of a negative index)
-    for i in range(np.uint64(lo), np.uint64(hi)):
+    # without branches (`&`, selects), so that the compiler vectorizes the loop
+    for i in range(l1.size):
         lam = l1[i]
         w = v[i]
         given = (np.abs(lam) < np.inf) & (np.abs(w) < np.inf)
@@ -895,14 +893,13 @@ def _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, start, stop):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _su_state_pass(tension, state, slack, area, C0, Ri, sigma, force, l2, cap, r_i, lo, hi):
+def _su_state_pass(tension, state, slack, area, C0, Ri, sigma, force, l2, cap, r_i):
     """The fields of an SU solve at the stretch of each sample's state (``state``: the given one; NaN where
-    the sample has no state: its tension is NaN too), in one pass over ``lo <= i < hi``: the stress (the
-    tension; 0 where slack), the force ``sigma area / lambda1``, the hoop stretch, capacitance and inner
-    radius. Slack where ``slack`` (the solve's) and the tension is negative, as `_su_tension` has it; the
-    force there is 0, as ``0 area / lambda1`` is, and the other fields are the clamped state's until
-    `_su_free_fields`."""
-    for i in range(np.uint64(lo), np.uint64(hi)):  # unsigned: vectorized (no wraparound check)
+    the sample has no state: its tension is NaN too), in one pass: the stress (the tension; 0 where
+    slack), the force ``sigma area / lambda1``, the hoop stretch, capacitance and inner radius. Slack where
+    ``slack`` (the solve's) and the tension is negative, as `_su_tension` has it; the force there is 0, as
+    ``0 area / lambda1`` is, and the other fields are the clamped state's until `_su_free_fields`."""
+    for i in range(tension.size):
         t = tension[i]
         at = state[i]
         free = slack & (t < 0.0)
@@ -953,36 +950,14 @@ def su_state(l1, v, C, kap, C0, out=None):
 SU_ROWS = ("tension", "state", "sigma1", "force", "lambda2", "capacitance", "r_i")
 
 
-#: Samples per task of the SU passes on several threads (`_su_tension_rows`, `_su_state_rows`).
-SU_BLOCK = 16384
+@numba.njit(cache=True, error_model="numpy")
+def _su_tension_rows(l1, v, C10, C20, C30, kap, area, slack, codes, work, status, converged):
+    return _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, work[0], work[1], status, converged)
 
 
-def _su_tension_loop(l1, v, C10, C20, C30, kap, area, slack, codes, work, status, converged, counts):
-    n = l1.size
-    for c in prange(counts.shape[0]):
-        counts[c, 0], counts[c, 1] = _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, work[0], work[1],
-                                                 status, converged, c * SU_BLOCK, min(n, (c + 1) * SU_BLOCK))
-
-
-def _su_state_loop(work, slack, area, C0, Ri):
-    n = work.shape[1]
-    for c in prange((n + SU_BLOCK - 1) // SU_BLOCK):
-        _su_state_pass(work[0], work[1], slack, area, C0, Ri, work[2], work[3], work[4], work[5], work[6],
-                       c * SU_BLOCK, min(n, (c + 1) * SU_BLOCK))
-
-
-def _su_free_loop(l1, v, s1, C10, C20, C30, kap, free_max, out, tasks):
-    n = l1.size
-    for c in prange(tasks):
-        _su_free_lanes(l1, v, s1, C10, C20, C30, kap, free_max, out, c * n // tasks, (c + 1) * n // tasks)
-
-
-_su_tension_rows = _variants(_su_tension_loop)
-_su_state_rows = _variants(_su_state_loop)
-_su_free_tasks = _variants(_su_free_loop)
-#: Slack samples from which an SU call's free states run on several threads (a free state costs some ten
-#: stresses: about 0.1 us).
-SU_FREE_PARALLEL_MIN = 2048
+@numba.njit(cache=True, error_model="numpy")
+def _su_state_rows(work, slack, area, C0, Ri):
+    _su_state_pass(work[0], work[1], slack, area, C0, Ri, work[2], work[3], work[4], work[5], work[6])
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -1013,12 +988,9 @@ def su_solve(l1, v, C, kap, area, slack, codes):
     status = np.empty(n, np.int8)
     converged = np.empty(n, np.bool_)
     codes = np.asarray(codes, np.int8)
-    # on several threads where `_parallel` allows (busy cores made the threaded form up to 10x slower than one
-    # thread, while numba's waiting threads spun: `OMP_WAIT_POLICY`)
-    counts = np.empty(((n + SU_BLOCK - 1) // SU_BLOCK, 2), np.int64)
-    _su_tension_rows[_parallel(n)](l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, work, status, converged,
-                                   counts)
-    count, low = int(counts[:, 0].sum()), int(counts[:, 1].sum())
+    # one thread: the pass is memory-bound, and a shared machine's busy cores made the threaded
+    # form up to 10x slower than this one
+    count, low = _su_tension_rows(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, work, status, converged)
     idx = _su_slack_index(status, codes[1], count) if count else np.empty(0, np.intp)
     return block, work, status, converged, idx, low
 
@@ -1027,11 +999,8 @@ def su_free(l1, v, s1, C, kap, free_max):
     """The free stretch of slack SU samples (1-D ``l1``, ``v`` and their stress ``s1 < 0``), NaN where
     there is none (`free_stretch`: the reference `free_state`'s steps), several samples in lockstep
     (`_su_free_lanes`)."""
-    n = l1.size
-    out = np.empty(n)
-    par = int(n >= SU_FREE_PARALLEL_MIN and _parallel(PARALLEL_MIN))
-    _su_free_tasks[par](_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out,
-                        numba.get_num_threads() if par else 1)
+    out = np.empty(l1.size)
+    _su_free_lanes(_arr(l1), _arr(v), _arr(s1), C[0], C[1], C[2], kap, free_max, out, 0, l1.size)
     return out
 
 
@@ -1040,9 +1009,11 @@ def su_fields(work, idx, v_slack, C, kap, free_max, slack, area, C0, Ri, which):
     their rows: ``which`` 0, the stress, force, hoop stretch, capacitance and inner radius at the state
     stretch, in one pass (`_su_state_pass`); 1 (after 0), the slack samples' free stretches by `su_free`
     (``v_slack``: their voltages) and the fields there (`_su_free_fields`): the state stretch becomes the
-    free stretch. On several threads where `_parallel` allows, as `su_solve`."""
+    free stretch. One thread, as `su_solve`: the passes are memory-bound, and on a shared machine's busy
+    cores numba's threads waited some 8 ms per pass (24 ms for every field of 1e5 samples, against 1 ms on
+    one thread)."""
     if which == 0:
-        _su_state_rows[_parallel(work.shape[1])](work, slack, area, C0, Ri)
+        _su_state_rows(work, slack, area, C0, Ri)
     elif idx.size:
         found = su_free(work[1][idx], v_slack, work[0][idx], C, kap, free_max)
         _su_free_rows(work, idx, found, C0, Ri)

@@ -71,24 +71,6 @@ def test_su_fused_pass_equals_reference_on_random_families(seed, slack):
         assert np.any((ref.status == SLACK) & np.isnan(ref.free_stretch)) or mat.C30 > 0.0
 
 
-@pytest.mark.parametrize("seed", range(2))
-def test_su_threaded_passes_equal_reference(seed, monkeypatch):
-    """The SU passes on several threads (blocks of `kernels.SU_BLOCK`, the free states in one task per thread),
-    as on an idle machine (the load average read as 0), against the numpy reference: calls of more samples
-    than a block and more slack samples than `kernels.SU_FREE_PARALLEL_MIN`, every field read."""
-    import os
-
-    from rdea_lab.physics import kernels
-
-    monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))
-    geom, mat, l1, v = random_family(seed, n=3 * kernels.SU_BLOCK + 123)
-    ref = reference(geom, mat, l1, v)
-    fast = solve("su", geom, mat, l1, v, kernel="numba")
-    assert kernels._parallel(l1.size) == 1
-    assert np.count_nonzero(ref.status == SLACK) > kernels.SU_FREE_PARALLEL_MIN
-    assert_same(ref, fast, f"seed {seed}, threaded")
-
-
 def test_su_fused_pass_on_the_bench_scene_and_shapes():
     """Specimen-like material, stretch 1-1.5 at 2.6 kV (about 3 % slack), as 1-D, 2-D and broadcast inputs."""
     geom = core("hollow")
