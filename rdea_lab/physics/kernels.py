@@ -245,21 +245,13 @@ def _verdict(y_prev, h_prev, s_prev, y, h, slope, K):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn):
-    """One step of `_root`: ``(y_new, lo, hi, done)``."""
-    g1 = p_y - K * c_y
-    g2 = p_yy - K * c_yy
-    if sgn * g1 < 0.0:
-        lo = y
-    else:
-        hi = y
-    y_new = y - g1 / g2
-    floor = abs(g1) <= 64.0 * _EPS * (abs(p_y) + abs(K * c_y))
-    if floor:
-        y_new = y
-    elif not ((y_new >= lo) and (y_new <= hi)):
-        y_new = 0.5 * (lo + hi)
-    return y_new, lo, hi, floor or abs(y_new - y) <= tol or hi - lo <= tol
+def _pick(c, a, b):
+    return a if c else b
+
+
+#: `branch.newton_step`: one step of the refinement of a root, ``(y_new, lo, hi, dx, done)`` (`_refine` and
+#: `_scan_block`'s lanes).
+_newton = _jit(branch.newton_step, inline="always", _pick=_pick)
 
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)
@@ -353,18 +345,14 @@ def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
 def _refine(code, l1, R, Q, C10, C20, C30, y, lo, hi, K, scale, rtol, max_iter, sgn):
     """`_root` from ``y`` in ``[lo, hi]``."""
     tol = rtol * scale
+    dx1, dx2 = np.inf, np.inf  # the last step and the one before it
     for _ in range(max_iter):
         p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
-        y_new, lo, hi, done = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn)
+        y_new, lo, hi, dx, done = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx2)
         if done:
             return y_new, True
-        y = y_new
+        y, dx2, dx1 = y_new, dx1, dx
     return y, False
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _pick(c, a, b):
-    return a if c else b
 
 
 #: `branch.newton_start`: where the certified Newton iteration starts in its bracket.
@@ -440,6 +428,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     # the Newton iteration's lanes
     TY, TL, TXI, TX0, TP, TPP, TCY, TCYY = T[6], T[7], T[8], T[9], T[10], T[11], T[12], T[13]
     TLO, THI, TK, TTOL, TOUT = T[16], T[17], T[18], T[19], T[20]
+    TD1, TD2 = T[21], T[22]  # the last step and the one before it
     N = np.empty((4, nb + 24), np.int64)
     jj, kk = N[0], N[1]
     ref = N[2]  # the samples to refine
@@ -529,6 +518,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         TK[a], TTOL[a], TL[a], TXI[a], TX0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
     for a in range(nr):
         LIVE[a] = 1
+        TD1[a], TD2[a] = np.inf, np.inf
     live = nr
     for _ in range(max_iter):
         if live == 0:
@@ -536,12 +526,12 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         _terms_block(code, nr, T, R, Q, C10, C20, C30)
         live = 0
         for a in range(nr):
-            y_new, TLO[a], THI[a], done = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a], TCYY[a], TK[a],
-                                                  TTOL[a], 1.0)
+            y_new, TLO[a], THI[a], dx, done = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a], TCYY[a],
+                                                      TK[a], TTOL[a], 1.0, TD2[a])
             if LIVE[a] != 0 and done:
                 TOUT[a] = y_new
                 LIVE[a] = 0
-            TY[a] = y_new
+            TY[a], TD2[a], TD1[a] = y_new, TD1[a], dx
             live += LIVE[a]
         if 4 * live <= 3 * nr:  # pack: the converged lanes' results out
             keep = 0
@@ -551,6 +541,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
                 y[i], ok[i] = TOUT[a], 1
                 TY[keep], TLO[keep], THI[keep], TK[keep], TTOL[keep] = TY[a], TLO[a], THI[a], TK[a], TTOL[a]
                 TL[keep], TXI[keep], TX0[keep], TB[keep] = TL[a], TXI[a], TX0[a], b
+                TD1[keep], TD2[keep] = TD1[a], TD2[a]
                 keep += LIVE[a]
             for a in range(keep):
                 LIVE[a] = 1
