@@ -10,8 +10,8 @@ the work around them, fused per sample with no temporaries:
 - `branch_roots`: the 1R / 3R / CR equilibrium of one sample, *certified*:
   ``h = psi_y / c_y`` is scanned at the reference solver's own nodes
   (:func:`rdea_lab.physics.branch.scan_nodes`) and the root is refined by its
-  own Newton iteration (`branch._refine_root`, from `branch.newton_start` on
-  the ramp rule, as `branch.follow_branch`), but a sample is accepted only
+  own safeguarded Newton iteration (`branch._refine_root`: `branch.newton_step`
+  compiled, from `branch.newton_start` on the ramp rule, as `branch.follow_branch`), but a sample is accepted only
   where ``h`` rises strictly at every node scanned (its slope > 0, no value
   falls, no hidden dip of the cubic fit between nodes): one basin, no fold,
   so the state is the one root whatever the history. Every other sample (a
@@ -337,7 +337,8 @@ def _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_sc
 @numba.njit(cache=True, error_model="numpy")
 def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
     """`branch._refine_root` for one root: ``(y, ok)``. Newton on ``g_y = psi_y - K c_y`` inside ``[lo, hi]``
-    (``sgn`` -1: a falling crossing), bisection where it strays, to ``rtol scale``."""
+    (``sgn`` -1: a falling crossing), bisection where it strays or slows (`branch.newton_step`), to
+    ``rtol scale``."""
     return _refine(code, l1, R, Q, C10, C20, C30, 0.5 * (lo + hi), lo, hi, K, scale, rtol, max_iter, sgn)
 
 
@@ -392,8 +393,9 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
         return y0, 1
     if lo != lo:
         return y0, 0  # no crossing in the range: the reference says what it is
-    # Newton on g_y inside [lo, hi], bisection where it strays: `branch._refine_root` from `branch.newton_start`
-    # (the ramp rule, as `branch.follow_branch`), from the midpoint on a path (as `branch.follow_path`)
+    # Newton on g_y inside [lo, hi], bisection where it strays or slows: `branch._refine_root` from
+    # `branch.newton_start` (the ramp rule, as `branch.follow_branch`), from the midpoint on a path (as
+    # `branch.follow_path`)
     y, ok = _refine(code, l1, R, Q, C10, C20, C30, y_start, lo, hi, K, span, rtol, max_iter, 1.0)
     return (y, 1) if ok else (y0, 0)
 
@@ -507,9 +509,9 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
             act[keep] = b
             keep += 1
         na = keep
-    # Newton on g_y inside [lo, hi], bisection where it strays: `_root` for all at once (each iteration's
-    # steps in one vectorized loop); a lane that converged keeps its result (TOUT) and runs on unused until
-    # a quarter of the lanes converged and they are packed
+    # Newton on g_y inside [lo, hi], bisection where it strays or slows: `_root` for all at once (each
+    # iteration's steps in one vectorized loop); a lane that converged keeps its result (TOUT) and runs on
+    # unused until a quarter of the lanes converged and they are packed
     for a in range(nr):
         b = ref[a]
         i = b0 + b
