@@ -723,17 +723,17 @@ def newton_start(lo, hi, h_lo, h_hi, s_lo, s_hi, K):
 
 
 def newton_step(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before):
-    """One step of the safeguarded Newton iteration on ``g_y = p_y - K c_y`` (``p_y ... c_yy``: the terms at
+    """One step of the refinement of a root: Newton on ``g_y = p_y - K c_y`` (``p_y ... c_yy``: the terms at
     ``y``) in the bracket ``[lo, hi]`` of a root (``sgn`` +1 where ``g_y`` rises through it, -1 where it
-    falls): ``(y_new, lo, hi, dx, done)``, the bracket narrowed to the side of ``y`` that keeps the sign
-    change and ``dx = |y_new - y|``. Scalars or arrays (compiled too: `rdea_lab.physics.kernels`).
+    falls), bisection where it leaves the bracket or does not shrink: ``(y_new, lo, hi, dx, done)``, the
+    bracket narrowed to the side of ``y`` that keeps the sign change and ``dx = |y_new - y|``. Scalars or
+    arrays (compiled too: `rdea_lab.physics.kernels`).
 
-    Newton's step is taken where it stays in the bracket and is at most half ``dx_before``, the step before
-    the last (inf for the first two), else the bracket is bisected: on a bracket holding several roots
-    (a wiggly ``h``) Newton can wander between them, and then the bracket halves. Done where ``g_y`` is at
-    the rounding floor of its two terms (``y`` kept: Newton cannot improve on it, bisection would crawl),
-    where the step or the bracket is within ``tol``, or where the bracket is two adjacent floats (a ``tol``
-    below the float spacing at ``y``: Newton would cycle between them).
+    Newton's step is taken where it stays in the bracket and (the safeguard, see `_refine_root`) is at most
+    half ``dx_before``, the step before the last (inf: no safeguard). Done where ``g_y`` is at the rounding
+    floor of its two terms (``y`` kept: Newton cannot improve on it, bisection would crawl), where the step or
+    the bracket is within ``tol``, or where the bracket is two adjacent floats (a ``tol`` below the float
+    spacing at ``y``: Newton would cycle between them).
     """
     g1 = p_y - K * c_y
     g2 = p_yy - K * c_yy
@@ -752,17 +752,34 @@ def newton_step(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before):
 
 
 def _refine_root(terms, idx, lo, hi, K, scale, rtol, max_iter, sign=None, start=None):
-    """`newton_step` on ``g_y = 0`` inside ``[lo, hi]`` until done: ``(y, converged)``.
+    """The root of ``g_y`` inside ``[lo, hi]``: ``(y, converged)``. `newton_step` from ``start`` (the midpoint
+    by default) for up to ``max_iter`` steps; where that has not converged (Newton may wander on a bracket
+    holding several roots), up to ``max_iter`` more from the middle of the bracket it narrowed, safeguarded:
+    bisection wherever Newton's step is more than half the step before the last (so it shrinks).
 
     ``sign`` is +1 where ``g_y`` rises through the root (a minimum of ``g``:
-    the default) and -1 where it falls (a maximum). ``start``: where it starts (the midpoint by default).
+    the default) and -1 where it falls (a maximum).
     """
     y = 0.5 * (lo + hi) if start is None else start
-    out = np.empty_like(y)
-    ok = np.zeros(y.size, dtype=bool)
-    active = np.arange(y.size)
     tol = rtol * scale
     sgn = np.ones(y.size) if sign is None else np.asarray(sign, float)
+    y, lo, hi, ok = _iterate(terms, idx, y, lo, hi, K, tol, sgn, max_iter, False)
+    again = np.flatnonzero(~ok)
+    if again.size:
+        a_lo, a_hi = lo[again], hi[again]
+        y[again], _, _, ok[again] = _iterate(terms, idx[again], 0.5 * (a_lo + a_hi), a_lo, a_hi, K[again],
+                                             tol[again], sgn[again], max_iter, True)
+    return y, ok
+
+
+def _iterate(terms, idx, y, lo, hi, K, tol, sgn, max_iter, safeguard):
+    """`newton_step` until done, at most ``max_iter`` times: ``(y, lo, hi, done)`` (the brackets as they
+    ended); ``safeguard``: with the steps before the last (else inf)."""
+    out = np.empty_like(y)
+    lo, hi = lo.copy(), hi.copy()
+    ok = np.zeros(y.size, dtype=bool)
+    active = np.arange(y.size)
+    a_lo, a_hi = lo, hi
     dx1 = np.full(y.size, np.inf)  # the last step and the one before it
     dx2 = np.full(y.size, np.inf)
     for _ in range(max_iter):
@@ -770,12 +787,17 @@ def _refine_root(terms, idx, lo, hi, K, scale, rtol, max_iter, sign=None, start=
             break
         p_y, p_yy, c_y, c_yy = terms(y, idx[active], True)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            y_new, lo, hi, dx, done = newton_step(y, lo, hi, p_y, p_yy, c_y, c_yy, K[active], tol[active],
-                                                  sgn[active], dx2)
+            y_new, a_lo, a_hi, dx, done = newton_step(y, a_lo, a_hi, p_y, p_yy, c_y, c_yy, K[active],
+                                                      tol[active], sgn[active], dx2)
         out[active[done]] = y_new[done]
         ok[active[done]] = True
         keep = ~done
-        active, y, lo, hi, dx2, dx1 = active[keep], y_new[keep], lo[keep], hi[keep], dx1[keep], dx[keep]
+        lo[active], hi[active] = a_lo, a_hi
+        active, y, a_lo, a_hi = active[keep], y_new[keep], a_lo[keep], a_hi[keep]
+        if safeguard:
+            dx2, dx1 = dx1[keep], dx[keep]
+        else:
+            dx2 = dx2[keep]
     out[active] = y
-    return out, ok
+    return out, lo, hi, ok
 

@@ -344,8 +344,23 @@ def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
 
 @numba.njit(cache=True, error_model="numpy")
 def _refine(code, l1, R, Q, C10, C20, C30, y, lo, hi, K, scale, rtol, max_iter, sgn):
-    """`_root` from ``y`` in ``[lo, hi]``."""
+    """`_root` from ``y`` in ``[lo, hi]``: `newton_step` up to ``max_iter`` times, then `_guarded` (as
+    `branch._refine_root`)."""
     tol = rtol * scale
+    for _ in range(max_iter):
+        p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
+        y, lo, hi, _, done = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, np.inf)
+        if done:
+            return y, True
+    return _guarded(code, l1, R, Q, C10, C20, C30, lo, hi, K, tol, max_iter, sgn)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _guarded(code, l1, R, Q, C10, C20, C30, lo, hi, K, tol, max_iter, sgn):
+    """The refinement's second pass where the first has not converged (`branch._refine_root`): from the
+    middle of the bracket left, safeguarded (bisection where Newton's step is more than half the step
+    before the last): ``(y, ok)``."""
+    y = 0.5 * (lo + hi)
     dx1, dx2 = np.inf, np.inf  # the last step and the one before it
     for _ in range(max_iter):
         p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
@@ -430,7 +445,6 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     # the Newton iteration's lanes
     TY, TL, TXI, TX0, TP, TPP, TCY, TCYY = T[6], T[7], T[8], T[9], T[10], T[11], T[12], T[13]
     TLO, THI, TK, TTOL, TOUT = T[16], T[17], T[18], T[19], T[20]
-    TD1, TD2 = T[21], T[22]  # the last step and the one before it
     N = np.empty((4, nb + 24), np.int64)
     jj, kk = N[0], N[1]
     ref = N[2]  # the samples to refine
@@ -520,7 +534,6 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         TK[a], TTOL[a], TL[a], TXI[a], TX0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
     for a in range(nr):
         LIVE[a] = 1
-        TD1[a], TD2[a] = np.inf, np.inf
     live = nr
     for _ in range(max_iter):
         if live == 0:
@@ -528,12 +541,12 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         _terms_block(code, nr, T, R, Q, C10, C20, C30)
         live = 0
         for a in range(nr):
-            y_new, TLO[a], THI[a], dx, done = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a], TCYY[a],
-                                                      TK[a], TTOL[a], 1.0, TD2[a])
+            y_new, TLO[a], THI[a], _, done = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a], TCYY[a],
+                                                     TK[a], TTOL[a], 1.0, np.inf)
             if LIVE[a] != 0 and done:
                 TOUT[a] = y_new
                 LIVE[a] = 0
-            TY[a], TD2[a], TD1[a] = y_new, TD1[a], dx
+            TY[a] = y_new
             live += LIVE[a]
         if 4 * live <= 3 * nr:  # pack: the converged lanes' results out
             keep = 0
@@ -543,7 +556,6 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
                 y[i], ok[i] = TOUT[a], 1
                 TY[keep], TLO[keep], THI[keep], TK[keep], TTOL[keep] = TY[a], TLO[a], THI[a], TK[a], TTOL[a]
                 TL[keep], TXI[keep], TX0[keep], TB[keep] = TL[a], TXI[a], TX0[a], b
-                TD1[keep], TD2[keep] = TD1[a], TD2[a]
                 keep += LIVE[a]
             for a in range(keep):
                 LIVE[a] = 1
@@ -552,8 +564,10 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         i = b0u + TB[a]
         if LIVE[a] == 0:
             y[i], ok[i] = TOUT[a], 1
-        else:  # not converged
-            y[i], ok[i] = y0[i], 0
+        else:  # not converged: `_refine`'s second pass (`_guarded`) for this sample
+            yg, good = _guarded(code, TL[a], (TXI[a], TX0[a], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) if code == 4 else R,
+                                Q, C10, C20, C30, TLO[a], THI[a], TK[a], TTOL[a], max_iter, 1.0)
+            y[i], ok[i] = (yg, 1) if good else (y0[i], 0)
 
 
 #: Samples per block of the batched scan (`_scan_block`).

@@ -1,5 +1,5 @@
-"""The refinement of a root (`branch.newton_step`, the safeguarded Newton-bisection that `branch._refine_root`
-and the kernels iterate) on a synthetic wiggly ``h``, checked against the function itself in long double: the
+"""The refinement of a root (`branch.newton_step`, which `branch._refine_root` and the kernels iterate, with a
+safeguarded second pass) on a synthetic wiggly ``h``, checked against the function itself in long double: the
 ramp rule never leaves a bracketed root unconverged, and each root it returns is one to the float spacing
 (``h - K`` changes sign within two floats of it, or ``h = K`` to the refinement's rounding floor) beyond ``y0``
 and no later than the first scan node where ``h`` reaches ``K``; and the compiled step gives the numpy step's
@@ -8,9 +8,9 @@ bits.
 The family: ``h(y) = x + a (sin(w x + p) - sin p)``, ``x = y - y0``, with ``a w`` from 0.3 to 5 (``h`` falls
 between rises where it exceeds 1) and up to a thousand wiggles in the range, so that a scan bracket often
 holds several roots; ``y0`` from 3 to 5 and a range of 0.01 to 0.1, so that the tolerance ``1e-14 * span`` is
-at or below the float spacing at ``y`` (4.4e-16 or 8.9e-16). There the Newton iteration before the safeguard
-cycled between two adjacent floats on either side of the root until it ran out of iterations (NOT_CONVERGED,
-9 of these 20000 samples), from the inverse-Hermite start and from the midpoint alike.
+at or below the float spacing at ``y`` (4.4e-16 or 8.9e-16). There the refinement cycled between two adjacent
+floats on either side of the root until it ran out of iterations (NOT_CONVERGED, 9 of these 20000 samples
+before it stopped at such a bracket), from the inverse-Hermite start and from the midpoint alike.
 """
 
 from __future__ import annotations
@@ -119,3 +119,42 @@ def test_compiled_step_same_bits():
     for j, name in enumerate(("y_new", "lo", "hi", "dx", "done")):
         assert np.array_equal(got[j], np.asarray(ref[j], float), equal_nan=True), name
     assert 0 < np.sum(ref[4]) < args[0].size  # both outcomes seen
+
+
+@pytest.mark.parametrize("model", ["1r", "3r", "cr"])
+def test_second_pass_the_same_in_the_reference_and_the_kernels(model, monkeypatch):
+    """With a budget of 2 steps most samples need the refinement's second pass (from the middle of the bracket
+    the first left, safeguarded), which converges some of them: the reference (`follow_branch`), its rule
+    compiled (`scan_kernel.follow_branch_at`, `kernels._refine`) and the certified kernel (`branch_roots`,
+    whose lanes hand their unconverged samples to `kernels._guarded`) agree on it as with the full budget."""
+    pytest.importorskip("numba")
+    from rdea_lab.physics import kernels, scan_kernel
+    from rdea_lab.physics.models import continuum, one_ring, three_ring
+
+    from physics_cases import RIZZELLO, core
+
+    second = []  # the samples the reference's second pass converged
+    iterate = branch._iterate
+
+    def spy(*args):
+        out = iterate(*args)
+        if args[-1]:
+            second.append(int(np.sum(out[3])))
+        return out
+
+    monkeypatch.setattr(branch, "_iterate", spy)
+    rng = np.random.default_rng(5)
+    l1, v = rng.uniform(1.0, 1.75, 2000), rng.uniform(0.0, 3500.0, 2000)
+    problem = {"1r": one_ring, "3r": three_ring, "cr": continuum}[model].problem(core("hollow"), RIZZELLO, l1, v)
+    for max_iter in (2, branch.MAX_ITER):
+        second.clear()
+        ref = branch.follow_branch(problem, max_iter=max_iter)
+        if max_iter == 2:  # the second pass converges some samples, not all
+            assert sum(second) > 0 and np.any(ref.status == NOT_CONVERGED), (second, np.bincount(ref.status))
+        comp = scan_kernel.follow_branch_at(problem, np.arange(l1.size), max_iter=max_iter)
+        assert np.array_equal(comp.status, ref.status)
+        assert np.allclose(comp.y, ref.y, rtol=1e-12, atol=0.0)
+        y, certified = kernels.branch_roots(problem, whole=False, max_iter=max_iter)
+        # on this scene h rises over every bracket: the kernel certifies exactly the samples the reference solved
+        assert np.array_equal(certified, ref.status == OK)
+        assert np.allclose(y[certified], ref.y[certified], rtol=1e-12, atol=0.0)
