@@ -10,8 +10,9 @@ the work around them, fused per sample with no temporaries:
 - `branch_roots`: the 1R / 3R / CR equilibrium of one sample, *certified*:
   ``h = psi_y / c_y`` is scanned at the reference solver's own nodes
   (:func:`rdea_lab.physics.branch.scan_nodes`) and the root is refined by its
-  own safeguarded Newton iteration (`branch._refine_root`: `branch.newton_step`
-  compiled, from `branch.newton_start` on the ramp rule, as `branch.follow_branch`), but a sample is accepted only
+  own Newton iteration (`branch._refine_root`: `branch.newton_step` compiled, with
+  its safeguarded second pass, from `branch.newton_start` on the ramp rule, as
+  `branch.follow_branch`), but a sample is accepted only
   where ``h`` rises strictly at every node scanned (its slope > 0, no value
   falls, no hidden dip of the cubic fit between nodes): one basin, no fold,
   so the state is the one root whatever the history. Every other sample (a
@@ -408,7 +409,7 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
         return y0, 1
     if lo != lo:
         return y0, 0  # no crossing in the range: the reference says what it is
-    # Newton on g_y inside [lo, hi], bisection where it strays or slows: `branch._refine_root` from
+    # Newton on g_y inside [lo, hi], bisection where it strays (or slows): `branch._refine_root` from
     # `branch.newton_start` (the ramp rule, as `branch.follow_branch`), from the midpoint on a path (as
     # `branch.follow_path`)
     y, ok = _refine(code, l1, R, Q, C10, C20, C30, y_start, lo, hi, K, span, rtol, max_iter, 1.0)
@@ -523,9 +524,10 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
             act[keep] = b
             keep += 1
         na = keep
-    # Newton on g_y inside [lo, hi], bisection where it strays or slows: `_root` for all at once (each
+    # Newton on g_y inside [lo, hi], bisection where it strays: `_refine`'s first pass for all at once (each
     # iteration's steps in one vectorized loop); a lane that converged keeps its result (TOUT) and runs on
-    # unused until a quarter of the lanes converged and they are packed
+    # unused until a quarter of the lanes converged and they are packed. The lanes left unconverged take
+    # `_refine`'s second pass (`_guarded`) one by one.
     for a in range(nr):
         b = ref[a]
         i = b0 + b
