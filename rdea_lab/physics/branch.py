@@ -722,40 +722,82 @@ def newton_start(lo, hi, h_lo, h_hi, s_lo, s_hi, K):
     return _pick((y >= lo) & (y <= hi), y, 0.5 * (lo + hi))
 
 
+def newton_step(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before):
+    """One step of the refinement of a root: Newton on ``g_y = p_y - K c_y`` (``p_y ... c_yy``: the terms at
+    ``y``) in the bracket ``[lo, hi]`` of a root (``sgn`` +1 where ``g_y`` rises through it, -1 where it
+    falls), bisection where it leaves the bracket or does not shrink: ``(y_new, lo, hi, dx, done)``, the
+    bracket narrowed to the side of ``y`` that keeps the sign change and ``dx = |y_new - y|``. Scalars or
+    arrays (compiled too: `rdea_lab.physics.kernels`).
+
+    Newton's step is taken where it stays in the bracket and (the safeguard, see `_refine_root`) is at most
+    half ``dx_before``, the step before the last (inf: no safeguard). Done where ``g_y`` is at the rounding
+    floor of its two terms (``y`` kept: Newton cannot improve on it, bisection would crawl), where the step or
+    the bracket is within ``tol``, or where the bracket is two adjacent floats (a ``tol`` below the float
+    spacing at ``y``: Newton would cycle between them).
+    """
+    g1 = p_y - K * c_y
+    g2 = p_yy - K * c_yy
+    below = sgn * g1 < 0.0
+    lo = _pick(below, y, lo)
+    hi = _pick(below, hi, y)
+    y_n = y - g1 / g2
+    d = abs(y_n - y)
+    mid = 0.5 * (lo + hi)
+    newton = (y_n >= lo) & (y_n <= hi) & ((d <= 0.5 * dx_before) | (d <= tol))
+    floor = abs(g1) <= 64.0 * _EPS * (abs(p_y) + abs(K * c_y))
+    y_new = _pick(floor, y, _pick(newton, y_n, mid))
+    dx = abs(y_new - y)
+    done = floor | (dx <= tol) | (hi - lo <= tol) | (mid == lo) | (mid == hi)
+    return y_new, lo, hi, dx, done
+
+
 def _refine_root(terms, idx, lo, hi, K, scale, rtol, max_iter, sign=None, start=None):
-    """Newton's method on ``g_y = 0`` inside ``[lo, hi]``, bisection when it strays.
+    """The root of ``g_y`` inside ``[lo, hi]``: ``(y, converged)``. `newton_step` from ``start`` (the midpoint
+    by default) for up to ``max_iter`` steps; where that has not converged (Newton may wander on a bracket
+    holding several roots), up to ``max_iter`` more from the middle of the bracket it narrowed, safeguarded:
+    bisection wherever Newton's step is more than half the step before the last (so it shrinks).
 
     ``sign`` is +1 where ``g_y`` rises through the root (a minimum of ``g``:
-    the default) and -1 where it falls (a maximum). ``start``: where it starts (the midpoint by default).
+    the default) and -1 where it falls (a maximum).
     """
     y = 0.5 * (lo + hi) if start is None else start
-    out = np.empty_like(y)
-    ok = np.zeros(y.size, dtype=bool)
-    active = np.arange(y.size)
     tol = rtol * scale
     sgn = np.ones(y.size) if sign is None else np.asarray(sign, float)
+    y, lo, hi, ok = _iterate(terms, idx, y, lo, hi, K, tol, sgn, max_iter, False)
+    again = np.flatnonzero(~ok)
+    if again.size:
+        a_lo, a_hi = lo[again], hi[again]
+        y[again], _, _, ok[again] = _iterate(terms, idx[again], 0.5 * (a_lo + a_hi), a_lo, a_hi, K[again],
+                                             tol[again], sgn[again], max_iter, True)
+    return y, ok
+
+
+def _iterate(terms, idx, y, lo, hi, K, tol, sgn, max_iter, safeguard):
+    """`newton_step` until done, at most ``max_iter`` times: ``(y, lo, hi, done)`` (the brackets as they
+    ended); ``safeguard``: with the steps before the last (else inf)."""
+    out = np.empty_like(y)
+    lo, hi = lo.copy(), hi.copy()
+    ok = np.zeros(y.size, dtype=bool)
+    active = np.arange(y.size)
+    a_lo, a_hi = lo, hi
+    dx1 = np.full(y.size, np.inf)  # the last step and the one before it
+    dx2 = np.full(y.size, np.inf)
     for _ in range(max_iter):
         if active.size == 0:
             break
         p_y, p_yy, c_y, c_yy = terms(y, idx[active], True)
-        Ka = K[active]
-        g1 = p_y - Ka * c_y
-        g2 = p_yy - Ka * c_yy
-        below = sgn[active] * g1 < 0.0
-        lo = np.where(below, y, lo)
-        hi = np.where(below, hi, y)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            y_new = y - g1 / g2
-        # stop once the residual is at the rounding floor of its two terms
-        # (Newton cannot improve on it; bisection would crawl): keep y itself
-        floor = np.abs(g1) <= 64.0 * _EPS * (np.abs(p_y) + np.abs(Ka * c_y))
-        stray = ~((y_new >= lo) & (y_new <= hi))
-        y_new = np.where(floor, y, np.where(stray, 0.5 * (lo + hi), y_new))
-        done = floor | (np.abs(y_new - y) <= tol[active]) | (hi - lo <= tol[active])
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            y_new, a_lo, a_hi, dx, done = newton_step(y, a_lo, a_hi, p_y, p_yy, c_y, c_yy, K[active],
+                                                      tol[active], sgn[active], dx2)
         out[active[done]] = y_new[done]
         ok[active[done]] = True
         keep = ~done
-        active, y, lo, hi = active[keep], y_new[keep], lo[keep], hi[keep]
+        lo[active], hi[active] = a_lo, a_hi
+        active, y, a_lo, a_hi = active[keep], y_new[keep], a_lo[keep], a_hi[keep]
+        if safeguard:
+            dx2, dx1 = dx1[keep], dx[keep]
+        else:
+            dx2 = dx2[keep]
     out[active] = y
-    return out, ok
+    return out, lo, hi, ok
 

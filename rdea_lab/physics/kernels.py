@@ -10,8 +10,9 @@ the work around them, fused per sample with no temporaries:
 - `branch_roots`: the 1R / 3R / CR equilibrium of one sample, *certified*:
   ``h = psi_y / c_y`` is scanned at the reference solver's own nodes
   (:func:`rdea_lab.physics.branch.scan_nodes`) and the root is refined by its
-  own Newton iteration (`branch._refine_root`, from `branch.newton_start` on
-  the ramp rule, as `branch.follow_branch`), but a sample is accepted only
+  own Newton iteration (`branch._refine_root`: `branch.newton_step` compiled, with
+  its safeguarded second pass, from `branch.newton_start` on the ramp rule, as
+  `branch.follow_branch`), but a sample is accepted only
   where ``h`` rises strictly at every node scanned (its slope > 0, no value
   falls, no hidden dip of the cubic fit between nodes): one basin, no fold,
   so the state is the one root whatever the history. Every other sample (a
@@ -251,21 +252,13 @@ def _verdict(y_prev, h_prev, s_prev, y, h, slope, K):
 
 
 @numba.njit(cache=True, error_model="numpy", inline="always")
-def _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn):
-    """One step of `_root`: ``(y_new, lo, hi, done)``."""
-    g1 = p_y - K * c_y
-    g2 = p_yy - K * c_yy
-    if sgn * g1 < 0.0:
-        lo = y
-    else:
-        hi = y
-    y_new = y - g1 / g2
-    floor = abs(g1) <= 64.0 * _EPS * (abs(p_y) + abs(K * c_y))
-    if floor:
-        y_new = y
-    elif not ((y_new >= lo) and (y_new <= hi)):
-        y_new = 0.5 * (lo + hi)
-    return y_new, lo, hi, floor or abs(y_new - y) <= tol or hi - lo <= tol
+def _pick(c, a, b):
+    return a if c else b
+
+
+#: `branch.newton_step`: one step of the refinement of a root, ``(y_new, lo, hi, dx, done)`` (`_refine` and
+#: `_scan_block`'s lanes).
+_newton = _jit(branch.newton_step, inline="always", _pick=_pick)
 
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)
@@ -351,26 +344,38 @@ def _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_sc
 @numba.njit(cache=True, error_model="numpy")
 def _root(code, l1, R, Q, C10, C20, C30, lo, hi, K, scale, rtol, max_iter, sgn):
     """`branch._refine_root` for one root: ``(y, ok)``. Newton on ``g_y = psi_y - K c_y`` inside ``[lo, hi]``
-    (``sgn`` -1: a falling crossing), bisection where it strays, to ``rtol scale``."""
+    (``sgn`` -1: a falling crossing), bisection where it strays or slows (`branch.newton_step`), to
+    ``rtol scale``."""
     return _refine(code, l1, R, Q, C10, C20, C30, 0.5 * (lo + hi), lo, hi, K, scale, rtol, max_iter, sgn)
 
 
 @numba.njit(cache=True, error_model="numpy")
 def _refine(code, l1, R, Q, C10, C20, C30, y, lo, hi, K, scale, rtol, max_iter, sgn):
-    """`_root` from ``y`` in ``[lo, hi]``."""
+    """`_root` from ``y`` in ``[lo, hi]``: `newton_step` up to ``max_iter`` times, then `_guarded` (as
+    `branch._refine_root`)."""
     tol = rtol * scale
     for _ in range(max_iter):
         p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
-        y_new, lo, hi, done = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn)
+        y, lo, hi, _, done = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, np.inf)
+        if done:
+            return y, True
+    return _guarded(code, l1, R, Q, C10, C20, C30, lo, hi, K, tol, max_iter, sgn)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _guarded(code, l1, R, Q, C10, C20, C30, lo, hi, K, tol, max_iter, sgn):
+    """The refinement's second pass where the first has not converged (`branch._refine_root`): from the
+    middle of the bracket left, safeguarded (bisection where Newton's step is more than half the step
+    before the last): ``(y, ok)``."""
+    y = 0.5 * (lo + hi)
+    dx1, dx2 = np.inf, np.inf  # the last step and the one before it
+    for _ in range(max_iter):
+        p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
+        y_new, lo, hi, dx, done = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx2)
         if done:
             return y_new, True
-        y = y_new
+        y, dx2, dx1 = y_new, dx1, dx
     return y, False
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _pick(c, a, b):
-    return a if c else b
 
 
 #: `branch.newton_start`: where the certified Newton iteration starts in its bracket.
@@ -410,8 +415,9 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
         return y0, 1
     if lo != lo:
         return y0, 0  # no crossing in the range: the reference says what it is
-    # Newton on g_y inside [lo, hi], bisection where it strays: `branch._refine_root` from `branch.newton_start`
-    # (the ramp rule, as `branch.follow_branch`), from the midpoint on a path (as `branch.follow_path`)
+    # Newton on g_y inside [lo, hi], bisection where it strays (or slows): `branch._refine_root` from
+    # `branch.newton_start` (the ramp rule, as `branch.follow_branch`), from the midpoint on a path (as
+    # `branch.follow_path`)
     y, ok = _refine(code, l1, R, Q, C10, C20, C30, y_start, lo, hi, K, span, rtol, max_iter, 1.0)
     return (y, 1) if ok else (y0, 0)
 
@@ -524,9 +530,10 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
             act[keep] = b
             keep += 1
         na = keep
-    # Newton on g_y inside [lo, hi], bisection where it strays: `_root` for all at once (each iteration's
-    # steps in one vectorized loop); a lane that converged keeps its result (TOUT) and runs on unused until
-    # a quarter of the lanes converged and they are packed
+    # Newton on g_y inside [lo, hi], bisection where it strays: `_refine`'s first pass for all at once (each
+    # iteration's steps in one vectorized loop); a lane that converged keeps its result (TOUT) and runs on
+    # unused until a quarter of the lanes converged and they are packed. The lanes left unconverged take
+    # `_refine`'s second pass (`_guarded`) one by one.
     for a in range(nr):
         b = ref[a]
         i = b0 + b
@@ -542,8 +549,8 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         _terms_block(code, nr, T, R, Q, C10, C20, C30)
         live = 0
         for a in range(nr):
-            y_new, TLO[a], THI[a], done = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a], TCYY[a], TK[a],
-                                                  TTOL[a], 1.0)
+            y_new, TLO[a], THI[a], _, done = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a], TCYY[a],
+                                                     TK[a], TTOL[a], 1.0, np.inf)
             if LIVE[a] != 0 and done:
                 TOUT[a] = y_new
                 LIVE[a] = 0
@@ -565,8 +572,10 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         i = b0u + TB[a]
         if LIVE[a] == 0:
             y[i], ok[i] = TOUT[a], 1
-        else:  # not converged
-            y[i], ok[i] = y0[i], 0
+        else:  # not converged: `_refine`'s second pass (`_guarded`) for this sample
+            yg, good = _guarded(code, TL[a], (TXI[a], TX0[a], R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0) if code == 4 else R,
+                                Q, C10, C20, C30, TLO[a], THI[a], TK[a], TTOL[a], max_iter, 1.0)
+            y[i], ok[i] = (yg, 1) if good else (y0[i], 0)
 
 
 #: Samples per block of the batched scan (`_scan_block`).
