@@ -74,10 +74,13 @@ def _steal_ms() -> float | None:
         return None
 
 
-def _realtime() -> dict:
-    """Ask for the real-time set-up (`--realtime`): ``SCHED_FIFO``, the last core, memory locked; what was granted,
-    and how to undo the scheduling."""
-    granted = {}
+def _realtime(granted: dict) -> None:
+    """Ask for the real-time set-up (`--realtime`): ``SCHED_FIFO``, the last core, memory locked. ``granted`` gets
+    what was granted and what `_restore` puts back (the scheduling and the cores the process had)."""
+    try:
+        granted["before"] = (os.sched_getscheduler(0), os.sched_getparam(0), os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        granted["before"] = None
     try:
         os.sched_setaffinity(0, {max(os.sched_getaffinity(0))})
         granted["core"] = max(os.sched_getaffinity(0))
@@ -93,17 +96,28 @@ def _realtime() -> dict:
         granted["sched_fifo"] = True
     except (AttributeError, OSError):
         granted["sched_fifo"] = False
-    return granted
 
 
-def _ordinary() -> None:
-    try:
-        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-    except (AttributeError, OSError):
-        pass
+def _restore(granted: dict) -> None:
+    """Undo `_realtime`: the process's scheduling and cores as they were, its memory unlocked."""
+    before = granted.pop("before", None)
+    if granted.get("mlockall"):
+        try:
+            ctypes.CDLL(None).munlockall()
+        except (OSError, AttributeError):
+            pass
+    if before is not None:
+        policy, param, cores = before
+        try:
+            os.sched_setscheduler(0, policy, param)
+            os.sched_setaffinity(0, cores)
+        except (AttributeError, OSError):
+            pass
 
 
 def loop(seconds=5.0, model="su", rate=10_000.0, gain=(2e3, 2e5), realtime=False, spin_us=40.0) -> dict:
+    if not 0.0 <= spin_us * 1e-6 < 1.0 / rate:
+        raise ValueError(f"spin_us {spin_us}: allowed 0 <= spin_us < one period ({1e6 / rate:g} us)")
     params = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
     card = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
     n = int(seconds * rate)
@@ -125,12 +139,15 @@ def loop(seconds=5.0, model="su", rate=10_000.0, gain=(2e3, 2e5), realtime=False
     preempted = 0  # missed ticks whose work took longer than a period, its CPU time did not: off the core meanwhile
     tl = t.tolist()
     period = int(round(dt * 1e9))
-    granted = _realtime() if realtime else {}
-    # under SCHED_FIFO: sleep until `spin_us` before the tick (a FIFO thread that never sleeps is throttled)
-    spin = int(spin_us * 1e3) if granted.get("sched_fifo") else None
+    granted = {}
+    spin = None
     steal0 = _steal_ms()
     gc.disable()
     try:
+        if realtime:
+            _realtime(granted)
+        # under SCHED_FIFO: sleep until `spin_us` before the tick (a FIFO thread that never sleeps is throttled)
+        spin = int(spin_us * 1e3) if granted.get("sched_fifo") else None
         deadline = time.perf_counter_ns() + 2 * period
         for i in range(n):
             if spin is not None:
@@ -158,8 +175,7 @@ def loop(seconds=5.0, model="su", rate=10_000.0, gain=(2e3, 2e5), realtime=False
             deadline += period
     finally:
         gc.enable()
-        if granted.get("sched_fifo"):
-            _ordinary()
+        _restore(granted)
     steal1 = _steal_ms()
     err = np.asarray(f_ref) - force
     swing = float(np.max(f_ref) - np.min(f_ref))
@@ -191,6 +207,8 @@ def main():
     ap.add_argument("--spin-us", type=float, default=40.0, help="under SCHED_FIFO: spin this long before each tick")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
+    if not 0.0 <= a.spin_us * 1e-6 < 1.0 / a.rate:
+        ap.error(f"--spin-us {a.spin_us:g}: allowed 0 <= spin-us < one period ({1e6 / a.rate:g} us)")
     r = loop(a.seconds, a.model, a.rate, realtime=a.realtime, spin_us=a.spin_us)
     if a.json:
         print(json.dumps(r, indent=2))

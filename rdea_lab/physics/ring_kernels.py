@@ -547,6 +547,8 @@ def free_chunk(n, threads):
     """Slack samples per task of `_free_lanes_loop` for ``n`` samples on ``threads`` threads: at most `FREE_CHUNK`,
     the tasks a multiple of the threads and of equal size (numba splits a ``prange`` into one contiguous share
     per thread: 3 tasks on 2 threads left one thread a third of the call idle)."""
+    if n <= 0:
+        return 1
     tasks = threads * -(-n // (threads * FREE_CHUNK))
     return max(1, -(-n // tasks))
 

@@ -321,4 +321,5 @@ def test_free_chunk_covers_the_samples_in_equal_tasks(n, threads):
     tasks = -(-n // chunk)
     assert 1 <= chunk <= ring_kernels.FREE_CHUNK and tasks * chunk >= n and (tasks - 1) * chunk < n
     if n >= threads * chunk:
-        assert tasks % threads == 0 or n < threads
+        assert tasks % threads == 0
+    assert ring_kernels.free_chunk(0, threads) >= 1  # no samples: no task, and no division by zero
