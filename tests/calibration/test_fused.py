@@ -2,21 +2,17 @@
 replaces (`predict_force`: `rdea_lab.twin.compose` on the SU stress basis): the same numbers to the last bit,
 so a fit takes the same path, evaluation for evaluation (issue 30, reproduce's calibration stage)."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from rdea_lab.calibration import Budget, calibrate, gather_runs, initial_guess
 from rdea_lab.calibration import objective
 from rdea_lab.calibration.branches import calibrate_auto
-from rdea_lab.specs import ViscoBranch, load_params
+from rdea_lab.specs import ViscoBranch
+
+from calibration_cases import SPECIMEN2, TABLE3
 
 pytest.importorskip("numba")
-
-ROOT = Path(__file__).resolve().parents[2]
-SPECIMEN2 = ROOT / "datasets" / "paper2021" / "specimen-2"
-TABLE3 = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
 
 
 @pytest.fixture(scope="module")

@@ -4,8 +4,6 @@ each set, `_fast_builder`, and `residuals` composing it): the same refusals and 
 same Jacobian probes, so a fit takes the same path, evaluation for evaluation (issue 30, reproduce's
 calibration stage)."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -14,13 +12,11 @@ from rdea_lab.calibration.branches import calibrate_auto
 from rdea_lab.calibration.fit import fit_parameters
 from rdea_lab.calibration.methods import Objective
 from rdea_lab.calibration.parameters import values_of
-from rdea_lab.specs import ViscoBranch, load_params
+from rdea_lab.specs import ViscoBranch
+
+from calibration_cases import SPECIMEN2, TABLE3
 
 pytest.importorskip("numba")
-
-ROOT = Path(__file__).resolve().parents[2]
-SPECIMEN2 = ROOT / "datasets" / "paper2021" / "specimen-2"
-TABLE3 = load_params(ROOT / "rdea_lab" / "data" / "params" / "paper2021_table3.yaml")
 
 
 @pytest.fixture(scope="module")
