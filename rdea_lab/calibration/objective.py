@@ -247,14 +247,12 @@ def residuals(runs, params, model, scale=None) -> np.ndarray:
         return np.concatenate([(predict_force(r, params, model) - r.force) * s for r, s in zip(runs, scale)])
     out = np.empty(sum(r.n for r in runs))
     visco = viscous(params)
-    k, eta, _, law = visco
-    linear = law == "linear" and bool(np.all(eta / k > 0))  # (what branch_strains refuses: the physics' check
-    start = 0                                                # refuses it first)
+    linear = _fused_law(visco)
+    start = 0
     for r, s in zip(runs, scale):
         end = start + r.n
         history = r.visco_history()
-        if (linear and (model == "su" or r.zero_voltage) and history.all_finite and history.t.size > 1
-                and np.shape(s) == (r.n,)):
+        if linear and _fused_run(r, s, model, history):
             fused(r.su_basis(), r.geom, params, visco, history, r.stretch, r.force, s, out[start:end])
         else:
             out[start:end] = (predict_force(r, params, model) - r.force) * s
@@ -282,8 +280,7 @@ class FusedRuns:
         items, start = [], 0
         for r, s in zip(runs, scale):
             history = r.visco_history()
-            if not ((model == "su" or r.zero_voltage) and history.all_finite and history.t.size > 1
-                    and np.shape(s) == (r.n,)):
+            if not _fused_run(r, s, model, history):
                 return None
             items.append((r.su_basis(), r.geom, history, r.stretch, r.force, s, start, start + r.n,
                           np.empty((M, r.n))))
@@ -294,14 +291,29 @@ class FusedRuns:
         """The residuals of ``params`` (what the pass reads of a parameter set: ``C10``, ``C20``, ``C30``,
         ``eps_r``) with ``visco`` (:func:`~rdea_lab.twin.viscous` of it, ``M`` branches), or None where the
         pass does not apply to them (the law not linear, or an ``eta / k`` not positive): `residuals` then."""
-        k, eta, _, law = visco
-        if not (law == "linear" and bool(np.all(eta / k > 0))):
+        if not _fused_law(visco):
             return None
         out = np.empty(self.ndata)
         fused = self._fused
         for basis, geom, history, stretch, force, s, start, end, work in self._items:
             fused(basis, geom, params, visco, history, stretch, force, s, out[start:end], work)
         return out
+
+
+def _fused_law(visco) -> bool:
+    """Whether the compiled residual pass takes a parameter set's viscoelastic branches (`twin.viscous`'s
+    ``(k, eta, eta_v0, law)``): the linear law, every ``eta / k`` positive (what `branch_strains` refuses, the
+    physics' check refuses first)."""
+    k, eta, _, law = visco
+    return law == "linear" and bool(np.all(eta / k > 0))
+
+
+def _fused_run(run, scale, model, history) -> bool:
+    """Whether the compiled residual pass takes ``run`` (its `History` ``history``, its `residual_scale`
+    ``scale``) whatever the parameters: SU's stress basis applies (``model`` SU or the run at 0 V), every
+    sample finite, two samples or more."""
+    return ((model == "su" or run.zero_voltage) and history.all_finite and history.t.size > 1
+            and np.shape(scale) == (run.n,))
 
 
 def _fused_kernel():
