@@ -246,12 +246,7 @@ class Objective:
         which no box on C20 can express, is then a box bound that trf follows.
         """
         u = np.asarray(u, float)
-        v = self.values(np.arcsin(np.clip(2.0 * u - 1.0, -1.0, 1.0)))
-        i = self._margin_slot()
-        if i is not None:
-            m = self._margin.to_physical(float(np.arcsin(np.clip(2.0 * u[i] - 1.0, -1.0, 1.0))))
-            v["C20"] = m - math.sqrt(3.0 * v["C10"] * v["C30"])
-        return v
+        return self._with_margin(self.values(np.arcsin(np.clip(2.0 * u - 1.0, -1.0, 1.0))), u)
 
     def values_unit_moved(self, u, values, i) -> dict:
         """`values_unit` of ``u``, given ``values``, those of a point that differs from ``u`` in variable
@@ -261,9 +256,13 @@ class Objective:
         v = dict(values)
         p = self.free[i]
         v[p.name] = p.to_physical(z[i])
-        s = self._margin_slot()
-        if s is not None:
-            m = self._margin.to_physical(float(np.arcsin(np.clip(2.0 * u[s] - 1.0, -1.0, 1.0))))
+        return self._with_margin(v, u)
+
+    def _with_margin(self, v, u) -> dict:
+        """``v`` with C20 from the Yeoh margin's [0, 1] variable in ``u``, where least squares fits C20 so."""
+        i = self._margin_slot()
+        if i is not None:
+            m = self._margin.to_physical(float(np.arcsin(np.clip(2.0 * u[i] - 1.0, -1.0, 1.0))))
             v["C20"] = m - math.sqrt(3.0 * v["C10"] * v["C30"])
         return v
 
