@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 import types
 
 # numba's OpenMP threads (libgomp) spin after each parallel loop by default, on the cores the next pass needs: the
@@ -626,14 +627,76 @@ def _parallel(n) -> int:
 
 
 def _core_free() -> bool:
-    """Whether the machine has a core to spare (its 1-minute load average at most the cores less a half).
-    On busy cores numba's threads cost a call 8-16 ms of waiting (2 cores at load 4: 1R and 3R calls of
-    4096 samples 7-14x slower than one thread, slower than numpy), more than they can save. The result is
-    the same either way: each sample is computed on its own."""
+    """Whether the machine has a core to spare for numba's second thread: the other processes' CPU use
+    (`_other_load`, in cores) at most the cores less one and a half (this process's own thread and half a
+    core of slack). On busy cores numba's threads cost a call 8-16 ms of waiting (2 cores at load 4: 1R and
+    3R calls of 4096 samples 7-14x slower than one thread, slower than numpy), more than they can save. The
+    result is the same either way: each sample is computed on its own."""
+    return _other_load() <= (os.cpu_count() or 1) - 1.5
+
+
+#: `_other_load`'s window: its start ``(time, machine busy, process CPU)`` and the last estimate.
+_LOAD = {"pid": -1, "start": None, "last": 0.0, "others": None}
+#: [s]: the shortest window an estimate is taken over, when a window starts afresh, and past which it is stale
+_WINDOW = (0.2, 1.0, 5.0)
+
+
+def _busy() -> float | None:
+    """The machine's CPU time spent on anything but idling [s], all cores (``/proc/stat``'s first line:
+    user, nice, system, irq, softirq and steal, the hypervisor's share; guest time is in user), or None."""
     try:
-        return os.getloadavg()[0] <= (os.cpu_count() or 1) - 0.5
-    except OSError:  # no load average here: threads as before
-        return True
+        with open("/proc/stat", "rb") as f:
+            ticks = f.readline().split()[1:9]
+        user, nice, system, _idle, _iowait, irq, softirq, steal = map(int, ticks)
+    except (OSError, ValueError):
+        return None
+    return (user + nice + system + irq + softirq + steal) / _HZ
+
+
+try:
+    _HZ = float(os.sysconf("SC_CLK_TCK"))
+except (AttributeError, OSError, ValueError):  # not on a POSIX system: `_busy` reads nothing there
+    _HZ = 100.0
+
+
+def _other_load() -> float:
+    """The CPU use of every process but this one, in cores: the machine's busy time (`_busy`) less this
+    process's CPU time (all its threads: numba's included) over the last 0.2-1 s, the latest such estimate
+    between windows (read at most every 0.1 s). Not the load average, which counts this process's own
+    threads (a run that keeps both cores busy raised it until it took itself for other work and left one
+    core idle) and lags a minute behind. Before the first window closes, after this process was idle for
+    over 5 s (other work may have begun since: the load average, less this process's share, if larger), and
+    where ``/proc/stat`` is not readable, the 1-minute load average stands in for it."""
+    state = _LOAD
+    now = time.monotonic()
+    if state["pid"] != os.getpid():  # a forked child: its parent's window is not its own
+        state.update(pid=os.getpid(), start=None, last=0.0, others=None)
+    start = state["start"]
+    if start is None or (now - start[0] >= _WINDOW[0] and now - state["last"] >= 0.5 * _WINDOW[0]):
+        busy = _busy()
+        if busy is not None:
+            own = time.process_time()
+            if start is not None:
+                span = now - start[0]
+                others = max(0.0, (busy - start[1]) - (own - start[2])) / span
+                if span > _WINDOW[2]:  # this process was idle a while: what the last minute's load says
+                    others = _load_average(others, (own - start[2]) / span)
+                state["others"] = others
+                state["last"] = now
+            if start is None or now - start[0] >= _WINDOW[1]:
+                state["start"] = (now, busy, own)
+    if state["others"] is not None:
+        return state["others"]
+    return _load_average(0.0, 1.0)  # the load average counts this process's running thread
+
+
+def _load_average(others, own):
+    """The 1-minute load average less ``own`` (this process's share, in cores), or ``others`` where it is
+    larger or there is no load average."""
+    try:
+        return max(others, os.getloadavg()[0] - own)
+    except OSError:  # no load average here
+        return others
 
 
 @numba.njit(cache=True)

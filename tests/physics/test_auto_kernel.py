@@ -55,14 +55,81 @@ def test_thread_choice_follows_free_cores(monkeypatch):
     """The threaded variant only where a core is free (the result is the same either way)."""
     from rdea_lab.physics import kernels
 
-    monkeypatch.setattr(kernels.os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)
     assert kernels._parallel(kernels.PARALLEL_MIN) == 1
-    monkeypatch.setattr(kernels.os, "getloadavg", lambda: (float(kernels.os.cpu_count() or 1), 0.0, 0.0))
+    monkeypatch.setattr(kernels, "_other_load", lambda: float(kernels.os.cpu_count() or 1))
     assert kernels._parallel(kernels.PARALLEL_MIN) == 0
     geom = core("hollow")
     l1 = np.linspace(1.0, 1.6, kernels.PARALLEL_MIN)
     serial = solve("3r", geom, TABLE3, l1, 2000.0, kernel="numba")
-    monkeypatch.setattr(kernels.os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)
     threaded = solve("3r", geom, TABLE3, l1, 2000.0, kernel="numba")
     for name in ("status", "sigma1", "lambda2b", "r_i"):
         np.testing.assert_array_equal(getattr(serial, name), getattr(threaded, name))
+
+
+class _Clock:
+    """The readings `kernels._other_load` takes, set by hand: the time, the machine's busy CPU seconds, this
+    process's CPU seconds and the load average."""
+
+    def __init__(self, monkeypatch, kernels):
+        self.t, self.busy, self.own, self.load = 100.0, 5000.0, 10.0, 0.0
+        monkeypatch.setattr(kernels, "_LOAD", {"pid": -1, "start": None, "last": 0.0, "others": None})
+        monkeypatch.setattr(kernels.time, "monotonic", lambda: self.t)
+        monkeypatch.setattr(kernels.time, "process_time", lambda: self.own)
+        monkeypatch.setattr(kernels, "_busy", lambda: self.busy)
+        monkeypatch.setattr(kernels.os, "getloadavg", lambda: (self.load, 0.0, 0.0))
+
+    def advance(self, seconds, machine, own):
+        """``seconds`` pass with ``machine`` cores busy, ``own`` of them this process's."""
+        self.t += seconds
+        self.busy += machine * seconds
+        self.own += own * seconds
+
+
+def test_other_load_leaves_out_this_process(monkeypatch):
+    """The other processes' CPU use is the machine's less this process's (both cores busy with this process's
+    two threads: no other load; one of them another process's: one core), and before any window closes the
+    load average less this process's running thread stands in."""
+    from rdea_lab.physics import kernels
+
+    clock = _Clock(monkeypatch, kernels)
+    clock.load = 1.25
+    assert kernels._other_load() == 0.25  # no window yet: the load average less one
+    clock.advance(0.5, machine=2.0, own=2.0)
+    assert abs(kernels._other_load()) < 1e-9
+    assert kernels._core_free()
+    clock.load = 2.0  # what a minute of this process's two threads does to the load average: not other work
+    clock.advance(0.5, machine=2.0, own=1.0)
+    assert abs(kernels._other_load() - 0.5) < 1e-9  # the window so far: 1 s, half a core another's
+    clock.advance(1.0, machine=2.0, own=1.0)  # a window starts afresh past 1 s
+    clock.advance(0.5, machine=2.0, own=1.0)
+    assert abs(kernels._other_load() - 1.0) < 1e-9
+    assert not kernels._core_free()
+
+
+def test_other_load_reads_the_load_average_after_a_long_idle(monkeypatch):
+    """A window over 5 s long (this process idle): the load average less this process's share where that is
+    larger (work that began a moment ago), else the window's own figure."""
+    from rdea_lab.physics import kernels
+
+    clock = _Clock(monkeypatch, kernels)
+    kernels._other_load()
+    clock.advance(60.0, machine=0.1, own=0.0)
+    clock.load = 1.6  # another process began lately
+    assert abs(kernels._other_load() - 1.6) < 1e-9
+    clock.advance(0.05, machine=1.0, own=0.0)  # within 0.1 s of the last reading: the last estimate
+    assert abs(kernels._other_load() - 1.6) < 1e-9
+
+
+def test_other_load_starts_afresh_in_a_forked_child(monkeypatch):
+    """A child's window is its own: its parent's readings are not carried over."""
+    from rdea_lab.physics import kernels
+
+    clock = _Clock(monkeypatch, kernels)
+    kernels._other_load()
+    clock.advance(0.5, machine=2.0, own=0.0)
+    assert abs(kernels._other_load() - 2.0) < 1e-9
+    kernels._LOAD["pid"] = -2  # as after a fork
+    clock.load = 0.5
+    assert kernels._other_load() == 0.0  # no window yet: the load average less one, not below 0

@@ -26,10 +26,10 @@ from test_random_cases import cases
 @pytest.fixture(autouse=True)
 def _threads_whatever_the_load(monkeypatch):
     """The threaded variants run from their sample counts on, as on an idle machine (`kernels._core_free`
-    reads the load average, which any test run raises)."""
-    import os
+    reads the other processes' CPU use, which the other test worker raises)."""
+    from rdea_lab.physics import kernels
 
-    monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)
 
 MODULES = {"1r": one_ring, "3r": three_ring, "cr": continuum}
 #: Cases of each seeded family (a prefix; all of them under ``-m slow``).

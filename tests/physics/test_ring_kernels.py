@@ -32,10 +32,10 @@ from test_random_cases import cases
 @pytest.fixture(autouse=True)
 def _threads_whatever_the_load(monkeypatch):
     """The threaded variants run from their sample counts on, as on an idle machine (`kernels._core_free`
-    reads the load average, which any test run raises)."""
-    import os
+    reads the other processes' CPU use, which the other test worker raises)."""
+    from rdea_lab.physics import kernels
 
-    monkeypatch.setattr(os, "getloadavg", lambda: (0.0, 0.0, 0.0))
+    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)
 
 MODULES = {"1r": one_ring, "3r": three_ring, "cr": continuum}
 KEYS = ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i")
@@ -259,10 +259,11 @@ def test_split_pass_threads_in_a_forked_child(monkeypatch):
 _AT_EXIT = """
 import atexit, os, sys
 import numpy as np
-os.getloadavg = lambda: (0.0, 0.0, 0.0)  # threads, as on an idle machine
 sys.path.insert(0, sys.argv[1])
 from physics_cases import RIZZELLO, core
+from rdea_lab.physics import kernels
 from rdea_lab.physics.models import solve
+kernels._other_load = lambda: 0.0  # threads, as on an idle machine
 
 n = 10000
 l1, v = np.linspace(1.0, 1.7, n), np.full(n, 2000.0)
