@@ -7,9 +7,10 @@ and 3R on the active core, and prints one JSON line per process with the load av
 
     python3 benchmarks/ab_scenes.py OLD_TREE NEW_TREE [--rounds 3] [--repeat 5] [--as-idle]
 
-``--as-idle``: numba's threads run from their sample counts on whatever the load average says (as on an idle
-machine; `kernels._core_free` reads the load average, which other work on the machine raises): with other work
-running and this script under ``nice -n -20``, how the threads fare next to it.
+``--as-idle``: numba's threads run from their sample counts on whatever the machine's load (as on an idle
+machine; `kernels._core_free` reads the other processes' CPU use, the load average in trees before 2026-12-06,
+which other work on the machine raises): with other work running and this script under ``nice -n -20``, how the
+threads fare next to it.
 
 e.g. ``git worktree add /tmp/old <rev>`` for OLD_TREE and this checkout for NEW_TREE.
 """
@@ -48,7 +49,7 @@ def main() -> None:
     ap.add_argument("new")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--as-idle", action="store_true", help="numba's threads whatever the load average")
+    ap.add_argument("--as-idle", action="store_true", help="numba's threads whatever the load")
     a = ap.parse_args()
     for _ in range(a.rounds):
         for name, tree in (("old", a.old), ("new", a.new)):
