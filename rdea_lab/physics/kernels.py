@@ -629,9 +629,10 @@ def _parallel(n) -> int:
 def _core_free() -> bool:
     """Whether the machine has a core to spare for numba's second thread: the other processes' CPU use
     (`_other_load`, in cores) at most the cores less one and a half (this process's own thread and half a
-    core of slack). On busy cores numba's threads cost a call 8-16 ms of waiting (2 cores at load 4: 1R and
-    3R calls of 4096 samples 7-14x slower than one thread, slower than numpy), more than they can save. The
-    result is the same either way: each sample is computed on its own."""
+    core of slack). On busy cores a second thread gains little: it waits for its turn on a core (while
+    numba's waiting threads spun, 2 cores at load 4 made 1R and 3R calls of 4096 samples 7-14x slower than one
+    thread; asleep, as now, about as fast as one, and 1e5-sample calls 0.7-1.5x its time), and what it takes
+    it takes from the other work. The result is the same either way: each sample is computed on its own."""
     return _other_load() <= (os.cpu_count() or 1) - 1.5
 
 
