@@ -631,7 +631,7 @@ def _core_free() -> bool:
     (`_other_load`, in cores) at most the cores less one and a half (this process's own thread and half a
     core of slack). On busy cores a second thread gains little: it waits for its turn on a core (while
     numba's waiting threads spun, 2 cores at load 4 made 1R and 3R calls of 4096 samples 7-14x slower than one
-    thread; asleep, as now, about as fast as one, and 1e5-sample calls 0.7-1.5x its time), and what it takes
+    thread; asleep, as now, about as fast as one, and 1e5-sample calls 0.5-2x its time, mostly less), and what it takes
     it takes from the other work. The result is the same either way: each sample is computed on its own."""
     return _other_load() <= (os.cpu_count() or 1) - 1.5
 
