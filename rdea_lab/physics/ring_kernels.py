@@ -335,19 +335,22 @@ def fields_cr(y, l1, v, roll, C, kap, C0, Ro, tables=None):
     return tuple(out)
 
 
-@numba.njit(cache=True, error_model="numpy")
 def _bounds_loop(code, l1, v, kap, B, y0, y_max, load, K):
     if code == 1:
-        for i in range(l1.size):
+        for i in prange(l1.size):
             y0[i], y_max[i], load[i] = _bounds1(l1[i], kap)
+            K[i] = load[i] * v[i] * v[i]
     elif code == 3:
-        for i in range(l1.size):
+        for i in prange(l1.size):
             y0[i], y_max[i], load[i] = _bounds3(l1[i], kap, B)
+            K[i] = load[i] * v[i] * v[i]
     else:
-        for i in range(l1.size):
+        for i in prange(l1.size):
             y0[i], y_max[i], load[i] = _bounds_cr(l1[i], kap, B[0], B[1])
-    for i in range(l1.size):
-        K[i] = load[i] * v[i] * v[i]
+            K[i] = load[i] * v[i] * v[i]
+
+
+_bounds_pass = _variants(_bounds_loop)
 
 
 def bounds(code, l1, v, kap, B=(0.0,) * 4, out=None):
@@ -356,7 +359,7 @@ def bounds(code, l1, v, kap, B=(0.0,) * 4, out=None):
     s_ie, 0, 0)``) and ``K = load v**2``; ``out``: four rows to write them to (`scratch`)."""
     l1 = _arr(l1)
     out = np.empty((4, l1.size)) if out is None else out
-    _bounds_loop(code, l1, _arr(v, l1.shape), float(kap), tuple(float(b) for b in B), *out)
+    _bounds_pass[_parallel(l1.size)](code, l1, _arr(v, l1.shape), float(kap), tuple(float(b) for b in B), *out)
     return tuple(out)
 
 
