@@ -37,7 +37,10 @@ outright (SIGKILL, power loss) the journal stays and the OS drops its lock;
 :func:`recover` rebuilds the dataset from every whole row written, with
 ``status: interrupted``, streaming as well. A journal whose writer still holds
 its lock is a run in progress: `recover` leaves it alone (`RunInProgress`) and
-the catalogue lists it as ``running``.
+the catalogue lists it as ``running``. The dataset is written as ``<out>.tmp``
+(renamed into place) only by the holder of the journal's lock, so a ``<out>.tmp``
+found when a conversion begins is a dead conversion's: it is discarded, and the
+dataset written from the journal (`_Converter`).
 """
 from __future__ import annotations
 
@@ -602,9 +605,20 @@ class _Converter:
     """A journal written into a netCDF file chunk by chunk: the layout (variables, attributes, encoding)
     from an empty dataset through xarray, as `write_dataset` writes it, then `READ_ROWS` rows at a time
     with netCDF4, each float variable's ``actual_range`` kept as it goes; `close` sets the final
-    attributes and renames the file into place."""
+    attributes and renames the file into place.
+
+    The file is made afresh and opened once, for the whole conversion. Only the holder of the journal's
+    lock writes it (a run's `JournalWriter.finish`, or `recover`), so a file found at its path is what a
+    conversion that died left (a killed process's half file): it is discarded, never reopened, and the
+    dataset is written from the journal. Never opening the file a second time matters: HDF5 holds an
+    ``flock`` on a file for as long as it is open, and an ``flock`` belongs to the open file description,
+    which a process forked meanwhile by another thread (a subprocess starting) holds too until it closes its
+    copy; a second open of the same file is refused by that lock ("NetCDF: HDF error") though nobody
+    else writes it. A new file (a new inode) carries no such lock."""
 
     def __init__(self, folder: Path, tmp: Path):
+        import netCDF4
+        from xarray.backends import NetCDF4DataStore
         from xarray.backends.locks import HDF5_LOCK
 
         self.folder, self.tmp, self._lock = Path(folder), Path(tmp), HDF5_LOCK
@@ -613,16 +627,18 @@ class _Converter:
         layout = _dataset(header, np.empty((0, len(self.columns))))
         self.attrs = dict(layout.attrs)
         self.tmp.parent.mkdir(parents=True, exist_ok=True)
-        self.done, self.ranges, self._nc = 0, {}, None
+        self.done, self.ranges, self._nc, self._made = 0, {}, None, False
         self.overview = OverviewBuilder()  # min/max per block, for the figure of a long run (store.overview)
         self.edges = _pauses.PauseEdges() if "paused" in self.columns else None  # the pauses so far
+        self.tmp.unlink(missing_ok=True)  # a dead conversion's file, whatever is in it (the journal is the record)
         try:
             layout.attrs = netcdf_attrs(layout.attrs)
-            layout.to_netcdf(self.tmp, engine="netcdf4", unlimited_dims=["time"], encoding=_encoding(layout))
-            import netCDF4
-
+            with self._lock:  # made here (not clobbering: nobody else may make it meanwhile), kept open
+                self._nc = netCDF4.Dataset(self.tmp, "w", clobber=False, format="NETCDF4")
+            self._made = True
+            # the layout through xarray, into the open file (xarray takes the HDF5 lock itself)
+            layout.dump_to_store(NetCDF4DataStore(self._nc), unlimited_dims=["time"], encoding=_encoding(layout))
             with self._lock:
-                self._nc = netCDF4.Dataset(self.tmp, "a")
                 self._nc.set_auto_maskandscale(False)
                 for name in self.columns:  # a small cache: the chunks are written once, in order
                     self._nc[name].set_var_chunk_cache(size=4 * CHUNK * 8, nelems=17, preemption=1.0)
@@ -681,7 +697,7 @@ class _Converter:
         _fsync_dir(Path(out).parent)
 
     def discard(self, keep: bool = False) -> None:
-        """Close and remove the file (never a half-written one left behind; ``keep``: close only)."""
+        """Close and remove the file it made (never a half-written one left behind; ``keep``: close only)."""
         if self._nc is not None:
             try:
                 with self._lock:
@@ -689,7 +705,7 @@ class _Converter:
             except Exception:  # noqa: BLE001 - a broken file (full disk) is removed all the same
                 pass
             self._nc = None
-        if not keep:
+        if not keep and self._made:
             self.tmp.unlink(missing_ok=True)
 
 

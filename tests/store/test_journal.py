@@ -3,8 +3,10 @@
 import errno
 import json
 import os
+import subprocess
 from pathlib import Path
 
+import netCDF4
 import numpy as np
 import pytest
 import xarray as xr
@@ -197,7 +199,7 @@ def test_a_full_disk_while_running_keeps_every_sample_and_says_where(tmp_path, m
             seen.append(len(block))
             if len(seen) == 2:  # from now on the disk is full
                 monkeypatch.setattr(J.os, "write", _full)
-                monkeypatch.setattr(J.xr.Dataset, "to_netcdf", _full)
+                monkeypatch.setattr(J.xr.Dataset, "dump_to_store", _full)  # the dataset's layout
 
     card = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
     with pytest.raises(J.DiskFull, match=r"samples are safe in .*run\.nc\.part; free space and run rdea-lab recover"):
@@ -220,11 +222,11 @@ def test_write_dataset_leaves_no_tmp_when_it_fails(tmp_path, monkeypatch):
     w = JournalWriter(out, ATTRS)
     w.append(block(0.0, 10))
 
-    def half_then_full(self, path, *a, **k):
-        Path(path).write_bytes(b"half a file")
+    def half_then_full(self, store, *a, **k):  # the file is made, its layout half written
+        assert Path(store.ds.filepath()).is_file()
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(J.xr.Dataset, "to_netcdf", half_then_full)
+    monkeypatch.setattr(J.xr.Dataset, "dump_to_store", half_then_full)
     with pytest.raises(J.DiskFull):
         w.finish("complete", "")
     assert not list(tmp_path.glob("*.tmp")) and journal_path(out).is_dir()
@@ -255,7 +257,7 @@ def test_netcdfs_hdf_error_on_a_full_file_system_is_a_full_disk(tmp_path, monkey
         raise RuntimeError("NetCDF: HDF error")
 
     usage = namedtuple("usage", "total used free")
-    monkeypatch.setattr(J.xr.Dataset, "to_netcdf", hdf_error)
+    monkeypatch.setattr(J.xr.Dataset, "dump_to_store", hdf_error)
     out = tmp_path / "run.nc"
     w = JournalWriter(out, ATTRS)
     w.append(block(0.0, 10))
@@ -409,3 +411,91 @@ def test_a_claim_never_makes_its_lock_file_again_in_a_folder_being_removed(tmp_p
         recover(out)
     w.finish("complete", "")
     assert open_run(out).sizes["time"] == 3
+
+
+def _holders_of(path) -> list[int]:
+    """This process's descriptors open on ``path`` (Linux: /proc/self/fd)."""
+    fds = []
+    for name in os.listdir("/proc/self/fd"):
+        try:
+            if os.readlink(f"/proc/self/fd/{name}") == str(path):
+                fds.append(int(name))
+        except OSError:  # the descriptor of the listing itself, gone
+            pass
+    return fds
+
+
+class ForkedMeanwhile(netCDF4.Dataset):
+    """netCDF4's Dataset, each ``*.nc.tmp`` it opens followed by a child process holding this process's
+    descriptors on it (as a subprocess another thread starts just then does until it closes them)."""
+
+    children: list = []
+
+    def __new__(cls, filename, *args, **kwargs):
+        if not str(filename).endswith(".nc.tmp"):  # any other file: netCDF4's own
+            return cls.__base__(filename, *args, **kwargs)
+        return super().__new__(cls)
+
+    def __init__(self, filename, *args, **kwargs):
+        super().__init__(filename, *args, **kwargs)
+        self.children.append(subprocess.Popen(["sleep", "30"], pass_fds=_holders_of(filename)))
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="finds the open descriptors in /proc")
+@pytest.mark.parametrize("by", ["finish", "recover"])
+def test_a_process_forked_while_the_dataset_is_written_cannot_make_the_conversion_fail(tmp_path, monkeypatch, by):
+    """The interrupt soak's 'NetCDF: HDF error' opening <out>.nc.tmp: HDF5 holds an flock on a file as long as
+    it is open, and a flock belongs to the open file description, which a process forked by another thread (a
+    subprocess starting: fork, preexec_fn, closing its descriptors, exec) holds too until it closes its copy. A
+    converter that wrote the file, closed it and opened it again was refused by that lock, held by nobody that
+    writes. Here every open of the temporary is followed by such a child, holding its copy until the end."""
+    children = ForkedMeanwhile.children = []
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS, extra=("model_status",))
+    blocks = [block(0.0, 100), block(1.0, 57)]
+    for b in blocks:
+        w.append(b)
+    monkeypatch.setattr(netCDF4, "Dataset", ForkedMeanwhile)
+    try:
+        if by == "finish":
+            w.finish("complete", "")
+        else:
+            w.close()  # killed
+            recover(journal_path(out))
+    finally:
+        monkeypatch.undo()
+        for child in children:
+            child.kill()
+            child.wait()
+    assert children  # the temporary was opened, and a child held it meanwhile
+    ds = open_run(out)
+    np.testing.assert_array_equal(ds["force"].values, np.concatenate([b["force"] for b in blocks]))
+    assert ds.attrs["status"] == ("complete" if by == "finish" else "interrupted")
+    assert not journal_path(out).exists() and not list(tmp_path.glob("*.tmp"))
+
+
+@pytest.mark.parametrize("by", ["finish", "recover"])
+def test_a_stale_temporary_is_discarded_and_the_journal_converted_afresh(tmp_path, by):
+    """A ``<out>.nc.tmp`` the lock's holder did not write in this conversion (a killed conversion's half file,
+    here junk whose file is still locked through a description another process holds) is no part of the run:
+    it is discarded and the dataset written from the journal, every row of it."""
+    import sys
+
+    out = tmp_path / "run.nc"
+    stale = tmp_path / "run.nc.tmp"
+    stale.write_bytes(b"\x89HDF\r\n\x1a\n" + bytes(4000))
+    with subprocess.Popen([sys.executable, "-c", "import fcntl, sys\nf = open(sys.argv[1], 'rb')\n"
+                           "fcntl.flock(f, fcntl.LOCK_EX)\nprint(1, flush=True)\nsys.stdin.read()", str(stale)],
+                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True) as holder:
+        assert holder.stdout.readline().strip() == "1"
+        w = JournalWriter(out, ATTRS)
+        w.append(block(0.0, 120))
+        if by == "finish":
+            w.finish("complete", "")
+        else:
+            w.close()
+            recover(out)
+        holder.stdin.close()
+    ds = open_run(out)
+    np.testing.assert_array_equal(ds["time"].values, block(0.0, 120)["time"])
+    assert not journal_path(out).exists() and not stale.exists()
