@@ -24,6 +24,7 @@ are `bench_kernels.py`'s (keys ``kernels``, ``step_latency_us``, ``compile_s``).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import platform
 import time
@@ -79,6 +80,23 @@ def _envelope(n, stretch_max, voltage_max, seed=0):
     return rng.uniform(1.0, stretch_max, n), rng.uniform(0.0, voltage_max, n)
 
 
+@contextlib.contextmanager
+def _others():
+    """``{"cores": ...}`` after the block: the CPU the other processes on the machine used while it ran, in
+    cores (`kernels._busy`, the machine's busy time, less this process's), None where the kernels or
+    ``/proc/stat`` are absent. The headline's figures are this process's only where it is near 0."""
+    out = {"cores": None}
+    try:
+        from rdea_lab.physics.kernels import _busy
+    except ImportError:  # no numba
+        _busy = lambda: None  # noqa: E731
+    t0, b0, o0 = time.monotonic(), _busy(), time.process_time()
+    yield out
+    t1, b1, o1 = time.monotonic(), _busy(), time.process_time()
+    if b0 is not None and b1 is not None and t1 > t0:
+        out["cores"] = max(0.0, (b1 - b0) - (o1 - o0)) / (t1 - t0)
+
+
 def plain_numpy(model, geom, material, l1, v):
     """The plain numpy expression of ``model``'s stress equation on the same arrays, a callable: for SU
     eq. (39) written out (no slack, no status, no result), for 1R, 3R and CR their stress equation
@@ -131,7 +149,8 @@ def run(samples=100_000, baseline_samples=1000, repeat=5, vhb=True, steps=20_000
     """Measure and return the figures as a JSON-able dict (``vhb=False``: without the VHB calibrations)."""
     l1, v = _envelope(samples, 1.75, 3500.0)
     hollow = _core("hollow-core")
-    headline = _scene(hollow, RIZZELLO, l1, v, repeat)
+    with _others() as others:
+        headline = _scene(hollow, RIZZELLO, l1, v, repeat)
     rate = {m: x["samples_per_s"] for m, x in headline.items()}
     spread = {m: x["spread"] for m, x in headline.items()}
 
@@ -183,7 +202,8 @@ def run(samples=100_000, baseline_samples=1000, repeat=5, vhb=True, steps=20_000
         "samples": int(samples),
         "scenes_samples_per_s": scenes,
         "machine": {"cpus": os.cpu_count(), "python": platform.python_version(),
-                    "processor": platform.machine(), "numpy": np.__version__},
+                    "processor": platform.machine(), "numpy": np.__version__,
+                    "other_processes_cores": others.get("cores")},
         "rdea_lab_version": __version__,
         "notes": ("headline: hollow core, lambda1 U[1,1.75], v U[0,3.5kV]; max_rel_diff = max |dsigma1| / "
                   "max |sigma1| over samples both converge on"),
@@ -254,8 +274,10 @@ def bench_calibration(repeat: int = 3, vhb: bool = True) -> dict:
 
 
 def format_text(r: dict) -> str:
+    others = r.get("machine", {}).get("other_processes_cores")
+    busy = "" if others is None else f"; other processes used {others:.2f} of {r['machine']['cpus']} cores meanwhile"
     lines = [f"quasi-static solvers, {r['samples']} samples (hollow core, lambda1 1-1.75, 0-3.5 kV), "
-             "median (slowest-fastest) of the runs:"]
+             f"median (slowest-fastest) of the runs{busy}:"]
     for m, x in r["samples_per_s"].items():
         lo, hi = r["samples_per_s_spread"][m]
         extra = ""
