@@ -667,7 +667,8 @@ def _other_load() -> float:
     threads (a run that keeps both cores busy raised it until it took itself for other work and left one
     core idle) and lags a minute behind. Before the first window closes, after this process was idle for
     over 5 s (other work may have begun since: the load average, less this process's share, if larger), and
-    where ``/proc/stat`` is not readable, the 1-minute load average stands in for it."""
+    where ``/proc/stat`` is not readable, the 1-minute load average stands in for it. This process's other
+    threads count as its own, not as other work: numba's cannot be told apart from them."""
     state = _LOAD
     now = time.monotonic()
     if state["pid"] != os.getpid():  # a forked child: its parent's window is not its own
