@@ -62,7 +62,8 @@ import xarray as xr
 
 from ..specs.errors import SpecError, UserError
 from . import pauses as _pauses
-from .overview import OVERVIEW_ABOVE, OverviewBuilder, write_overview
+from ._hdf5 import close_unlocked
+from .overview import OVERVIEW_ABOVE, OverviewBuilder, add_overview
 from .schema import EXTRA_VARIABLES, TEXT_VARIABLES, TIME_ENCODING, VARIABLES, time_attrs, variable_attrs
 
 FORMAT = "rdea-lab-journal-1"
@@ -614,7 +615,9 @@ class _Converter:
     ``flock`` on a file for as long as it is open, and an ``flock`` belongs to the open file description,
     which a process forked meanwhile by another thread (a subprocess starting) holds too until it closes its
     copy; a second open of the same file is refused by that lock ("NetCDF: HDF error") though nobody
-    else writes it. A new file (a new inode) carries no such lock."""
+    else writes it. A new file (a new inode) carries no such lock. And `close` undoes the writer's own lock
+    before closing (`_hdf5.close_unlocked`), so that no copy of its descriptor keeps it either: what reads
+    the dataset at once (its catalogue row, `open_run`) would be refused the same way."""
 
     def __init__(self, folder: Path, tmp: Path):
         import netCDF4
@@ -689,8 +692,8 @@ class _Converter:
                 self._nc.setncattr(key, value)
             if self.done > OVERVIEW_ABOVE:
                 self.overview.write(self._nc)
-            self._nc.close()
-            self._nc = None
+            nc, self._nc = self._nc, None
+            close_unlocked(nc)  # no lock left on the file for what reads it next (its catalogue row, open_run)
         with open(self.tmp, "rb") as fh:
             os.fsync(fh.fileno())
         os.replace(self.tmp, out)
@@ -701,7 +704,7 @@ class _Converter:
         if self._nc is not None:
             try:
                 with self._lock:
-                    self._nc.close()
+                    close_unlocked(self._nc)
             except Exception:  # noqa: BLE001 - a broken file (full disk) is removed all the same
                 pass
             self._nc = None
@@ -711,7 +714,19 @@ class _Converter:
 
 def write_dataset(ds: xr.Dataset, out: Path) -> None:
     """Write ``ds`` to ``out`` atomically (temporary file, fsync, rename), compressed as a run's journal is
-    (`COMPRESSION`, chunks of `CHUNK`), each float data variable with its ``actual_range``."""
+    (`COMPRESSION`, chunks of `CHUNK`), each float data variable with its ``actual_range``, and a long run's
+    overview (`~rdea_lab.store.overview`).
+
+    The temporary file is made afresh (one left by a write that died is discarded), opened once, written
+    through xarray and the overview added into the same open file, and closed with no lock of HDF5's left on
+    it (`_hdf5.close_unlocked`): a file closed and opened again can be refused by HDF5's lock, held through a
+    descriptor a process forked meanwhile copied (see `_Converter`), and so can what reads the dataset next.
+    """
+    import netCDF4
+    from xarray.backends import NetCDF4DataStore
+    from xarray.backends.common import ArrayWriter
+    from xarray.backends.locks import HDF5_LOCK
+
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     ds.attrs = netcdf_attrs(ds.attrs)
@@ -724,15 +739,32 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
             span = actual_range(np.asarray(var.values))
             if span is not None:
                 var.attrs["actual_range"] = span
+    tmp.unlink(missing_ok=True)  # a dead write's half file (this one's is a new file, carrying no old lock)
+    nc = made = None
     try:
-        ds.to_netcdf(tmp, engine="netcdf4", unlimited_dims=["time"], encoding=_encoding(ds))
-        if ds.sizes.get("time", 0) > OVERVIEW_ABOVE:  # a long run: its figure drawn from the overview
-            write_overview(tmp)
+        with HDF5_LOCK:  # made here, not clobbering: what is at the path now is another writer's
+            nc = made = netCDF4.Dataset(tmp, "w", clobber=False, format="NETCDF4")
+        # as to_netcdf writes it, into the open file (xarray takes the HDF5 lock itself; dask data at sync)
+        writer = ArrayWriter()
+        ds.dump_to_store(NetCDF4DataStore(nc), writer=writer, unlimited_dims=["time"], encoding=_encoding(ds))
+        writer.sync()
+        with HDF5_LOCK:
+            if ds.sizes.get("time", 0) > OVERVIEW_ABOVE:  # a long run: its figure drawn from the overview
+                add_overview(nc)
+            nc = None
+            close_unlocked(made)
         with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, out)
     except BaseException:
-        tmp.unlink(missing_ok=True)  # never a half-written file left behind
+        if nc is not None:
+            try:
+                with HDF5_LOCK:
+                    close_unlocked(nc)
+            except Exception:  # noqa: BLE001 - a broken file (full disk) is removed all the same
+                pass
+        if made is not None:
+            tmp.unlink(missing_ok=True)  # never a half-written file left behind
         raise
     _fsync_dir(out.parent)
 
