@@ -360,12 +360,13 @@ def test_a_lock_taken_on_a_journal_being_removed_is_no_lock(tmp_path, monkeypatc
     real_flock = fcntl.flock
 
     class Racing:
-        LOCK_EX, LOCK_NB = fcntl.LOCK_EX, fcntl.LOCK_NB
+        LOCK_EX, LOCK_NB, LOCK_UN = fcntl.LOCK_EX, fcntl.LOCK_NB, fcntl.LOCK_UN
 
         @staticmethod
         def flock(fd, op):  # between the recover's open and its lock, the writer removes the lock file and lets go
-            os.unlink(journal_path(out) / jr.LOCK)
-            w._release()
+            if op & fcntl.LOCK_EX:  # (the writer's letting go undoes its lock: LOCK_UN)
+                os.unlink(journal_path(out) / jr.LOCK)
+                w._release()
             return real_flock(fd, op)
 
     monkeypatch.setattr(jr, "fcntl", Racing)
@@ -565,3 +566,42 @@ def test_a_dataset_written_while_a_process_was_forked_is_read_and_indexed_at_onc
 
         with sqlite3.connect(tmp_path / "catalogue.sqlite") as db:
             assert db.execute("select samples, status from runs").fetchall() == [(157, "interrupted")]
+
+
+@pytest.mark.parametrize("by", ["close", "failed recover"])
+def test_a_journal_let_go_is_not_held_by_a_process_forked_meanwhile(tmp_path, by):
+    """A journal's lock is an flock too: a child forked while a writer (or a recover) held it keeps a copy of
+    its descriptor until it closes it. A journal let go (`JournalWriter.close`, a `recover` that could not
+    write its dataset) must be free for a `recover` at once, not taken for a run in progress meanwhile."""
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS)
+    w.append(block(0.0, 30))
+    child = subprocess.Popen(["sleep", "30"], pass_fds=[w._lock])
+    try:
+        w.close()  # killed, as far as the journal is concerned
+        if by == "failed recover":  # this one holds the lock and lets go of it (the dataset is in the way)
+            import fcntl
+
+            out.write_bytes(b"in the way")
+            real = fcntl.flock
+
+            def forking(fd, op):  # a child forked once recover holds the journal's lock
+                real(fd, op)
+                if op & fcntl.LOCK_EX:
+                    child.kill()
+                    child.wait()
+                    holders.append(subprocess.Popen(["sleep", "30"], pass_fds=[fd]))
+
+            holders = []
+            with pytest.MonkeyPatch.context() as patched:
+                patched.setattr(fcntl, "flock", forking)
+                with pytest.raises(FileExistsError):
+                    recover(out)
+            assert holders
+            child = holders[0]
+            out.unlink()
+        assert recover(out) == out
+    finally:
+        child.kill()
+        child.wait()
+    np.testing.assert_array_equal(open_run(out)["time"].values, block(0.0, 30)["time"])
