@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..specs.variables import variable_attrs
+from ._hdf5 import unlock
 from .journal import CHUNK, COMPRESSION, _fsync_dir, actual_range, netcdf_attrs
 from .outputs import check_dataset_name, check_new
 
@@ -74,6 +75,7 @@ def write_blocks(path, samples: int, blocks, attrs, *, time_attrs=None, overwrit
                 if span is not None:
                     made[name].setncattr("actual_range", span)
             nc.setncatts(netcdf_attrs(attrs()))
+            unlock(nc)  # no lock of HDF5's outlives the close, in a descriptor a process forked meanwhile holds
         with open(tmp, "rb") as fh:  # as the journal's datasets: a file that is there is whole
             os.fsync(fh.fileno())
         os.replace(tmp, path)

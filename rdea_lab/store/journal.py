@@ -62,7 +62,8 @@ import xarray as xr
 
 from ..specs.errors import SpecError, UserError
 from . import pauses as _pauses
-from .overview import OVERVIEW_ABOVE, OverviewBuilder, write_overview
+from ._hdf5 import close_unlocked
+from .overview import OVERVIEW_ABOVE, OverviewBuilder, add_overview
 from .schema import EXTRA_VARIABLES, TEXT_VARIABLES, TIME_ENCODING, VARIABLES, time_attrs, variable_attrs
 
 FORMAT = "rdea-lab-journal-1"
@@ -172,6 +173,19 @@ def _try_lock(folder: Path, create: bool = True):
     return fd
 
 
+def _let_go(fd: int, owner: int | None = None) -> None:
+    """Undo a journal's lock (`_try_lock`'s descriptor ``fd``) and close it. Undone first: the ``flock``
+    belongs to the open file description, of which a process forked meanwhile by another thread (a subprocess
+    starting) holds a copy until it closes it; closing ours alone would leave the journal locked meanwhile,
+    and a `recover` (in this process too) would find it a run in progress. ``owner``: the pid that took the
+    lock; another process (a child forked with a copy of the descriptor) only closes its copy."""
+    try:
+        if owner is None or owner == os.getpid():
+            fcntl.flock(fd, fcntl.LOCK_UN)
+    finally:
+        os.close(fd)
+
+
 def _remove_journal(folder: Path, held: int | None = None, ignore_errors: bool = False) -> None:
     """Remove a journal whose lock the caller holds (``held``, its descriptor): its files, then
     ``writer.lock``, then the folder (so a lock another process takes meanwhile is on a file gone from its
@@ -221,7 +235,7 @@ def journal_writer(folder: Path) -> dict | None:
     except FileNotFoundError:  # the journal went meanwhile
         return None
     if fd is not None:
-        os.close(fd)  # nobody held it: the writer is gone (the lock goes with the descriptor)
+        _let_go(fd)  # nobody held it: the writer is gone (the lock goes with the descriptor)
         return None
     try:
         header = json.loads((folder / "header.json").read_text())
@@ -422,7 +436,7 @@ class JournalWriter:
 
     def _release(self):
         if getattr(self, "_lock", None) is not None:
-            os.close(self._lock)
+            _let_go(self._lock, getattr(self, "writer", {}).get("pid"))
             self._lock = None
 
     def _stop_shadow(self):
@@ -483,9 +497,11 @@ class _Shadow(threading.Thread):
                 # whole reads only (the HDF5 chunks are written once each); the tail is finish's
                 self.converter.convert(self.writer.samples // READ_ROWS * READ_ROWS, stop=lambda: self.stop)
         except BaseException as exc:  # noqa: BLE001 - kept for finish, which falls back to the journal
-            self.failed = exc
-            if self.converter is not None:
-                self.converter.discard()  # at once: a full disk gets the space back
+            try:
+                if self.converter is not None:
+                    self.converter.discard()  # at once: a full disk gets the space back
+            finally:
+                self.failed = exc  # said once the file is gone
 
 
 def final_attrs(attrs: dict, status: str, reason: str, history: str) -> dict:
@@ -614,7 +630,9 @@ class _Converter:
     ``flock`` on a file for as long as it is open, and an ``flock`` belongs to the open file description,
     which a process forked meanwhile by another thread (a subprocess starting) holds too until it closes its
     copy; a second open of the same file is refused by that lock ("NetCDF: HDF error") though nobody
-    else writes it. A new file (a new inode) carries no such lock."""
+    else writes it. A new file (a new inode) carries no such lock. And `close` undoes the writer's own lock
+    before closing (`_hdf5.close_unlocked`), so that no copy of its descriptor keeps it either: what reads
+    the dataset at once (its catalogue row, `open_run`) would be refused the same way."""
 
     def __init__(self, folder: Path, tmp: Path):
         import netCDF4
@@ -627,7 +645,7 @@ class _Converter:
         layout = _dataset(header, np.empty((0, len(self.columns))))
         self.attrs = dict(layout.attrs)
         self.tmp.parent.mkdir(parents=True, exist_ok=True)
-        self.done, self.ranges, self._nc, self._made = 0, {}, None, False
+        self.done, self.ranges, self._nc, self._made, self._pid = 0, {}, None, False, os.getpid()
         self.overview = OverviewBuilder()  # min/max per block, for the figure of a long run (store.overview)
         self.edges = _pauses.PauseEdges() if "paused" in self.columns else None  # the pauses so far
         self.tmp.unlink(missing_ok=True)  # a dead conversion's file, whatever is in it (the journal is the record)
@@ -689,8 +707,11 @@ class _Converter:
                 self._nc.setncattr(key, value)
             if self.done > OVERVIEW_ABOVE:
                 self.overview.write(self._nc)
-            self._nc.close()
-            self._nc = None
+            nc, self._nc = self._nc, None
+            if os.getpid() == self._pid:  # no lock left on the file for what reads it next (its row, open_run)
+                close_unlocked(nc)
+            else:  # a copy of the converter in a forked child: its copy of the descriptor closed, no more
+                nc.close()
         with open(self.tmp, "rb") as fh:
             os.fsync(fh.fileno())
         os.replace(self.tmp, out)
@@ -711,7 +732,19 @@ class _Converter:
 
 def write_dataset(ds: xr.Dataset, out: Path) -> None:
     """Write ``ds`` to ``out`` atomically (temporary file, fsync, rename), compressed as a run's journal is
-    (`COMPRESSION`, chunks of `CHUNK`), each float data variable with its ``actual_range``."""
+    (`COMPRESSION`, chunks of `CHUNK`), each float data variable with its ``actual_range``, and a long run's
+    overview (`~rdea_lab.store.overview`).
+
+    The temporary file is made afresh (one left by a write that died is discarded), opened once, written
+    through xarray and the overview added into the same open file, and closed with no lock of HDF5's left on
+    it (`_hdf5.close_unlocked`): a file closed and opened again can be refused by HDF5's lock, held through a
+    descriptor a process forked meanwhile copied (see `_Converter`), and so can what reads the dataset next.
+    """
+    import netCDF4
+    from xarray.backends import NetCDF4DataStore
+    from xarray.backends.common import ArrayWriter
+    from xarray.backends.locks import HDF5_LOCK
+
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     ds.attrs = netcdf_attrs(ds.attrs)
@@ -724,15 +757,32 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
             span = actual_range(np.asarray(var.values))
             if span is not None:
                 var.attrs["actual_range"] = span
+    tmp.unlink(missing_ok=True)  # a dead write's half file (this one's is a new file, carrying no old lock)
+    nc = made = None
     try:
-        ds.to_netcdf(tmp, engine="netcdf4", unlimited_dims=["time"], encoding=_encoding(ds))
-        if ds.sizes.get("time", 0) > OVERVIEW_ABOVE:  # a long run: its figure drawn from the overview
-            write_overview(tmp)
+        with HDF5_LOCK:  # made here, not clobbering: what is at the path now is another writer's
+            nc = made = netCDF4.Dataset(tmp, "w", clobber=False, format="NETCDF4")
+        # as to_netcdf writes it, into the open file (xarray takes the HDF5 lock itself; dask data at sync)
+        writer = ArrayWriter()
+        ds.dump_to_store(NetCDF4DataStore(nc), writer=writer, unlimited_dims=["time"], encoding=_encoding(ds))
+        writer.sync()
+        with HDF5_LOCK:
+            if ds.sizes.get("time", 0) > OVERVIEW_ABOVE:  # a long run: its figure drawn from the overview
+                add_overview(nc)
+            nc = None
+            close_unlocked(made)
         with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, out)
     except BaseException:
-        tmp.unlink(missing_ok=True)  # never a half-written file left behind
+        if nc is not None:
+            try:
+                with HDF5_LOCK:
+                    close_unlocked(nc)
+            except Exception:  # noqa: BLE001 - a broken file (full disk) is removed all the same
+                pass
+        if made is not None:
+            tmp.unlink(missing_ok=True)  # never a half-written file left behind
         raise
     _fsync_dir(out.parent)
 
@@ -802,7 +852,7 @@ def recover(path: Path, out: Path | None = None) -> Path:
                 try:  # a claim whose run never began (killed before it started): removed holding its lock
                     _remove_journal(folder, claim, ignore_errors=True)
                 finally:
-                    os.close(claim)
+                    _let_go(claim)
                 raise EmptyJournal(f"{folder}: the claim of a run that never started (no samples); removed")
         raise FileNotFoundError(f"{path}: no run journal here (expected {folder}/header.json)")
     gone = FileNotFoundError(f"{path}: no run journal here (its run closed it meanwhile)")
@@ -815,7 +865,7 @@ def recover(path: Path, out: Path | None = None) -> Path:
         raise RunInProgress(f"{folder}: a run is still writing it (pid {w.get('pid', '?')} on "
                             f"{w.get('host', '?')} since {w.get('started', '?')}); left alone")
     if not (folder / "header.json").is_file():  # the run closed it between the look and the lock
-        os.close(lock)
+        _let_go(lock)
         raise gone
     from .outputs import OutputError, check_dataset_name, check_writable, shown
 
@@ -831,7 +881,7 @@ def recover(path: Path, out: Path | None = None) -> Path:
                 raise OutputError(shown(folder), "dataset", f"{exc.message}; give --out NAME.nc to write its "
                                   "samples there instead") from None
     except BaseException:
-        os.close(lock)
+        _let_go(lock)
         raise
     try:
         out = Path(out)
@@ -860,7 +910,7 @@ def recover(path: Path, out: Path | None = None) -> Path:
             raise
         _remove_journal(folder, lock)
     finally:
-        os.close(lock)
+        _let_go(lock)
     from .index import index_quietly
 
     index_quietly(out)  # the catalogue row; a catalogue that cannot be written says so and changes nothing else

@@ -236,8 +236,8 @@ class OverviewBuilder:
 
 
 def write_overview(path, block: int = BLOCK, chunk: int = CHUNK) -> None:
-    """Add the overview group to a run's netCDF file written by any writer (read chunk by chunk: every float
-    variable over ``time``, then position and force again for the loop's raster).
+    """Add the overview group to a run's netCDF file written by any writer (`add_overview`, the file opened
+    for appending; closed with no lock of HDF5's left on it, `rdea_lab.store._hdf5.close_unlocked`).
 
     Parameters
     ----------
@@ -256,15 +256,34 @@ def write_overview(path, block: int = BLOCK, chunk: int = CHUNK) -> None:
     import netCDF4
     from xarray.backends.locks import HDF5_LOCK  # HDF5 is not thread-safe: one call at a time, as xarray's
 
-    with HDF5_LOCK, netCDF4.Dataset(path, "a") as nc:
-        n = len(nc.dimensions["time"])
-        names = [k for k, v in nc.variables.items() if v.dimensions == ("time",) and v.dtype.kind == "f"]
-        for k in names:
-            nc.variables[k].set_auto_maskandscale(False)  # the raw values (NaN is NaN); no masked arrays
-        builder = OverviewBuilder(block)
-        for a in range(0, n, chunk):
-            builder.add({k: nc.variables[k][a:min(a + chunk, n)] for k in names})
-        builder.write(nc)
+    from ._hdf5 import close_unlocked
+
+    with HDF5_LOCK:
+        nc = netCDF4.Dataset(path, "a")
+        try:
+            add_overview(nc, block, chunk)
+        finally:
+            close_unlocked(nc)
+
+
+def add_overview(nc, block: int = BLOCK, chunk: int = CHUNK) -> None:
+    """Add the overview group to a run's netCDF file open for writing (``nc``, a netCDF4.Dataset holding
+    the run's variables: read chunk by chunk, every float variable over ``time``, then position and force
+    again for the loop's raster). Call it holding xarray's ``HDF5_LOCK``.
+
+    Raises
+    ------
+    ValueError
+        The file already has an overview.
+    """
+    n = len(nc.dimensions["time"])
+    names = [k for k, v in nc.variables.items() if v.dimensions == ("time",) and v.dtype.kind == "f"]
+    for k in names:
+        nc.variables[k].set_auto_maskandscale(False)  # the raw values (NaN is NaN); no masked arrays
+    builder = OverviewBuilder(block)
+    for a in range(0, n, chunk):
+        builder.add({k: nc.variables[k][a:min(a + chunk, n)] for k in names})
+    builder.write(nc)
 
 
 def read_overview(ds) -> Overview | None:

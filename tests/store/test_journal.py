@@ -360,12 +360,13 @@ def test_a_lock_taken_on_a_journal_being_removed_is_no_lock(tmp_path, monkeypatc
     real_flock = fcntl.flock
 
     class Racing:
-        LOCK_EX, LOCK_NB = fcntl.LOCK_EX, fcntl.LOCK_NB
+        LOCK_EX, LOCK_NB, LOCK_UN = fcntl.LOCK_EX, fcntl.LOCK_NB, fcntl.LOCK_UN
 
         @staticmethod
         def flock(fd, op):  # between the recover's open and its lock, the writer removes the lock file and lets go
-            os.unlink(journal_path(out) / jr.LOCK)
-            w._release()
+            if op & fcntl.LOCK_EX:  # (the writer's letting go undoes its lock: LOCK_UN)
+                os.unlink(journal_path(out) / jr.LOCK)
+                w._release()
             return real_flock(fd, op)
 
     monkeypatch.setattr(jr, "fcntl", Racing)
@@ -474,11 +475,12 @@ def test_a_process_forked_while_the_dataset_is_written_cannot_make_the_conversio
     assert not journal_path(out).exists() and not list(tmp_path.glob("*.tmp"))
 
 
-@pytest.mark.parametrize("by", ["finish", "recover"])
+@pytest.mark.parametrize("by", ["finish", "recover", "write_dataset"])
 def test_a_stale_temporary_is_discarded_and_the_journal_converted_afresh(tmp_path, by):
     """A ``<out>.nc.tmp`` the lock's holder did not write in this conversion (a killed conversion's half file,
     here junk whose file is still locked through a description another process holds) is no part of the run:
-    it is discarded and the dataset written from the journal, every row of it."""
+    it is discarded and the dataset written from the journal, every row of it; `write_dataset` discards its
+    temporary likewise."""
     import sys
 
     out = tmp_path / "run.nc"
@@ -488,14 +490,118 @@ def test_a_stale_temporary_is_discarded_and_the_journal_converted_afresh(tmp_pat
                            "fcntl.flock(f, fcntl.LOCK_EX)\nprint(1, flush=True)\nsys.stdin.read()", str(stale)],
                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True) as holder:
         assert holder.stdout.readline().strip() == "1"
-        w = JournalWriter(out, ATTRS)
-        w.append(block(0.0, 120))
-        if by == "finish":
-            w.finish("complete", "")
+        if by == "write_dataset":  # an import's, a self-sensing estimate's: no journal, the same temporary
+            from rdea_lab.store.journal import write_dataset
+
+            b = block(0.0, 120)
+            write_dataset(xr.Dataset({k: ("time", b[k]) for k in VARIABLES if k != "time"},
+                                     coords={"time": b["time"]}, attrs=ATTRS), out)
         else:
-            w.close()
-            recover(out)
+            w = JournalWriter(out, ATTRS)
+            w.append(block(0.0, 120))
+            if by == "finish":
+                w.finish("complete", "")
+            else:
+                w.close()
+                recover(out)
         holder.stdin.close()
     ds = open_run(out)
     np.testing.assert_array_equal(ds["time"].values, block(0.0, 120)["time"])
     assert not journal_path(out).exists() and not stale.exists()
+
+
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="finds the open descriptors in /proc")
+@pytest.mark.parametrize("by", ["finish", "recover", "write_dataset", "write_blocks"])
+def test_a_dataset_written_while_a_process_was_forked_is_read_and_indexed_at_once(tmp_path, monkeypatch, capsys, by):
+    """What follows a dataset's writing in the same process (its catalogue row, `open_run`, the overview) reads
+    the file at once, while a child forked meanwhile may still hold a copy of the writer's descriptor: the
+    writer's lock must not outlive its own close through that copy ("NetCDF: HDF error" reading it), and
+    `write_dataset` must write a long run's overview without opening its file a second time. So for the
+    dataset of a run (`JournalWriter.finish`), of a killed run (`recover`, which indexes it), of an import
+    or a self-sensing estimate (`write_dataset`) and of a prediction written block by block (`write_blocks`)."""
+    from rdea_lab.store import journal as J
+    from rdea_lab.store.blocks import write_blocks
+    from rdea_lab.store.index import read_row
+    from rdea_lab.store.overview import read_overview
+
+    monkeypatch.setenv("RDEA_LAB_CATALOG", str(tmp_path / "catalogue.sqlite"))
+    monkeypatch.setattr(J, "OVERVIEW_ABOVE", 100)  # an overview for these few samples, as for a day-long run
+    children = ForkedMeanwhile.children = []
+    out = tmp_path / "run.nc"
+    blocks = [block(0.0, 100), block(1.0, 57)]
+    with monkeypatch.context() as patched:
+        patched.setattr(netCDF4, "Dataset", ForkedMeanwhile)
+        try:
+            if by == "write_blocks":  # a prediction written block by block (no overview)
+                write_blocks(out, 157, [(0, 100, blocks[0]), (100, 157, blocks[1])], lambda: ATTRS)
+            elif by == "write_dataset":
+                ds = xr.Dataset({k: ("time", np.concatenate([b[k] for b in blocks])) for k in VARIABLES if k != "time"},
+                                coords={"time": np.concatenate([b["time"] for b in blocks])}, attrs=ATTRS)
+                J.write_dataset(ds, out)
+            else:
+                w = JournalWriter(out, ATTRS, extra=("model_status",))
+                for b in blocks:
+                    w.append(b)
+                if by == "finish":
+                    w.finish("complete", "")
+                else:
+                    w.close()
+                    recover(journal_path(out))  # indexes the dataset it wrote
+            assert children  # the temporary was opened, and a child holds it still
+            row, _ = read_row(out)  # while the children live
+            with open_run(out) as ds:
+                np.testing.assert_array_equal(ds["force"].values, np.concatenate([b["force"] for b in blocks]))
+            view = read_overview(out)
+        finally:
+            for child in children:
+                child.kill()
+                child.wait()
+    assert row["samples"] == 157 and row["peak_force"] == max(np.abs(b["force"]).max() for b in blocks)
+    if by != "write_blocks":
+        assert view is not None and view.samples == 157
+        np.testing.assert_array_equal(view.envelopes["force"][1], [max(b["force"].max() for b in blocks)])
+    assert "not in the catalogue" not in capsys.readouterr().err
+    if by == "recover":
+        import sqlite3
+
+        with sqlite3.connect(tmp_path / "catalogue.sqlite") as db:
+            assert db.execute("select samples, status from runs").fetchall() == [(157, "interrupted")]
+
+
+@pytest.mark.parametrize("by", ["close", "failed recover"])
+def test_a_journal_let_go_is_not_held_by_a_process_forked_meanwhile(tmp_path, by):
+    """A journal's lock is an flock too: a child forked while a writer (or a recover) held it keeps a copy of
+    its descriptor until it closes it. A journal let go (`JournalWriter.close`, a `recover` that could not
+    write its dataset) must be free for a `recover` at once, not taken for a run in progress meanwhile."""
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS)
+    w.append(block(0.0, 30))
+    child = subprocess.Popen(["sleep", "30"], pass_fds=[w._lock])
+    try:
+        w.close()  # killed, as far as the journal is concerned
+        if by == "failed recover":  # this one holds the lock and lets go of it (the dataset is in the way)
+            import fcntl
+
+            out.write_bytes(b"in the way")
+            real = fcntl.flock
+
+            def forking(fd, op):  # a child forked once recover holds the journal's lock
+                real(fd, op)
+                if op & fcntl.LOCK_EX:
+                    child.kill()
+                    child.wait()
+                    holders.append(subprocess.Popen(["sleep", "30"], pass_fds=[fd]))
+
+            holders = []
+            with pytest.MonkeyPatch.context() as patched:
+                patched.setattr(fcntl, "flock", forking)
+                with pytest.raises(FileExistsError):
+                    recover(out)
+            assert holders
+            child = holders[0]
+            out.unlink()
+        assert recover(out) == out
+    finally:
+        child.kill()
+        child.wait()
+    np.testing.assert_array_equal(open_run(out)["time"].values, block(0.0, 30)["time"])
