@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
 from ..specs.variables import variable_attrs
-from ._hdf5 import unlock
+from ._hdf5 import claim, drop_unmade, identity, publish, remove_own, unlock
 from .journal import CHUNK, COMPRESSION, _fsync_dir, actual_range, netcdf_attrs
 from .outputs import check_dataset_name, check_new
 
@@ -54,8 +53,16 @@ def write_blocks(path, samples: int, blocks, attrs, *, time_attrs=None, overwrit
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
     ranges = {}
+    claim(tmp)  # a dead write's half file removed
+    ident = None
     try:
-        with netCDF4.Dataset(tmp, "w", format="NETCDF4") as nc:
+        try:  # made here, not clobbering: of two writers that made way, one makes it
+            nc = netCDF4.Dataset(tmp, "w", clobber=False, format="NETCDF4")
+        except BaseException:
+            drop_unmade(tmp)  # what a failed make left (a full disk, Ctrl-C), never a live writer's
+            raise
+        ident = identity(tmp)
+        with nc:
             nc.createDimension("time", samples)
             made, end = {}, 0
             for start, stop, data in blocks:
@@ -75,14 +82,11 @@ def write_blocks(path, samples: int, blocks, attrs, *, time_attrs=None, overwrit
                 if span is not None:
                     made[name].setncattr("actual_range", span)
             nc.setncatts(netcdf_attrs(attrs()))
-            unlock(nc)  # no lock of HDF5's outlives the close, in a descriptor a process forked meanwhile holds
-        with open(tmp, "rb") as fh:  # as the journal's datasets: a file that is there is whole
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
+            unlock(nc, ident)  # no lock of HDF5's outlives the close, in a descriptor a process forked meanwhile holds
+        publish(tmp, path, ident)  # as the journal's datasets: fsync'd, renamed only if still the file made here
         _fsync_dir(path.parent)
     finally:
-        if tmp.exists():
-            tmp.unlink()
+        remove_own(tmp, ident)  # never a half-written file left behind, nor another writer's removed
     return path
 
 

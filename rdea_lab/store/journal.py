@@ -62,7 +62,7 @@ import xarray as xr
 
 from ..specs.errors import SpecError, UserError
 from . import pauses as _pauses
-from ._hdf5 import close_unlocked
+from ._hdf5 import claim, close_unlocked, drop_unmade, identity, publish, remove_own
 from .overview import OVERVIEW_ABOVE, OverviewBuilder, add_overview
 from .schema import EXTRA_VARIABLES, TEXT_VARIABLES, TIME_ENCODING, VARIABLES, time_attrs, variable_attrs
 
@@ -645,15 +645,19 @@ class _Converter:
         layout = _dataset(header, np.empty((0, len(self.columns))))
         self.attrs = dict(layout.attrs)
         self.tmp.parent.mkdir(parents=True, exist_ok=True)
-        self.done, self.ranges, self._nc, self._made, self._pid = 0, {}, None, False, os.getpid()
+        self.done, self.ranges, self._nc, self._made, self._pid = 0, {}, None, None, os.getpid()
         self.overview = OverviewBuilder()  # min/max per block, for the figure of a long run (store.overview)
         self.edges = _pauses.PauseEdges() if "paused" in self.columns else None  # the pauses so far
-        self.tmp.unlink(missing_ok=True)  # a dead conversion's file, whatever is in it (the journal is the record)
+        claim(self.tmp)  # a dead conversion's file removed (the journal is the record)
         try:
             layout.attrs = netcdf_attrs(layout.attrs)
-            with self._lock:  # made here (not clobbering: nobody else may make it meanwhile), kept open
-                self._nc = netCDF4.Dataset(self.tmp, "w", clobber=False, format="NETCDF4")
-            self._made = True
+            try:
+                with self._lock:  # made here (not clobbering: nobody else may make it meanwhile), kept open
+                    self._nc = netCDF4.Dataset(self.tmp, "w", clobber=False, format="NETCDF4")
+            except BaseException:
+                drop_unmade(self.tmp)  # what a failed make left (a full disk, Ctrl-C), never a live writer's
+                raise
+            self._made = identity(self.tmp)  # the file made: only it is ever renamed to the output, or removed
             # the layout through xarray, into the open file (xarray takes the HDF5 lock itself)
             layout.dump_to_store(NetCDF4DataStore(self._nc), unlimited_dims=["time"], encoding=_encoding(layout))
             with self._lock:
@@ -709,12 +713,10 @@ class _Converter:
                 self.overview.write(self._nc)
             nc, self._nc = self._nc, None
             if os.getpid() == self._pid:  # no lock left on the file for what reads it next (its row, open_run)
-                close_unlocked(nc)
+                close_unlocked(nc, self._made)
             else:  # a copy of the converter in a forked child: its copy of the descriptor closed, no more
                 nc.close()
-        with open(self.tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(self.tmp, out)
+        publish(self.tmp, out, self._made)  # fsync'd, and renamed only if it is still the file made here
         _fsync_dir(Path(out).parent)
 
     def discard(self, keep: bool = False) -> None:
@@ -726,8 +728,8 @@ class _Converter:
             except Exception:  # noqa: BLE001 - a broken file (full disk) is removed all the same
                 pass
             self._nc = None
-        if not keep and self._made:
-            self.tmp.unlink(missing_ok=True)
+        if not keep:
+            remove_own(self.tmp, self._made)
 
 
 def write_dataset(ds: xr.Dataset, out: Path) -> None:
@@ -757,11 +759,16 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
             span = actual_range(np.asarray(var.values))
             if span is not None:
                 var.attrs["actual_range"] = span
-    tmp.unlink(missing_ok=True)  # a dead write's half file (this one's is a new file, carrying no old lock)
-    nc = made = None
+    claim(tmp)  # a dead write's half file removed (this one's is a new file, carrying no old lock)
+    nc = made = ident = None
     try:
-        with HDF5_LOCK:  # made here, not clobbering: what is at the path now is another writer's
-            nc = made = netCDF4.Dataset(tmp, "w", clobber=False, format="NETCDF4")
+        try:
+            with HDF5_LOCK:  # made here, not clobbering: what is at the path now is another writer's
+                nc = made = netCDF4.Dataset(tmp, "w", clobber=False, format="NETCDF4")
+        except BaseException:
+            drop_unmade(tmp)  # what a failed make left (a full disk, Ctrl-C), never a live writer's
+            raise
+        ident = identity(tmp)
         # as to_netcdf writes it, into the open file (xarray takes the HDF5 lock itself; dask data at sync)
         writer = ArrayWriter()
         ds.dump_to_store(NetCDF4DataStore(nc), writer=writer, unlimited_dims=["time"], encoding=_encoding(ds))
@@ -770,19 +777,16 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
             if ds.sizes.get("time", 0) > OVERVIEW_ABOVE:  # a long run: its figure drawn from the overview
                 add_overview(nc)
             nc = None
-            close_unlocked(made)
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, out)
+            close_unlocked(made, ident)
+        publish(tmp, out, ident)  # fsync'd, and renamed only if it is still the file made here
     except BaseException:
         if nc is not None:
             try:
                 with HDF5_LOCK:
-                    close_unlocked(nc)
+                    close_unlocked(nc, ident)
             except Exception:  # noqa: BLE001 - a broken file (full disk) is removed all the same
                 pass
-        if made is not None:
-            tmp.unlink(missing_ok=True)  # never a half-written file left behind
+        remove_own(tmp, ident)  # never a half-written file left behind (nor another writer's removed)
         raise
     _fsync_dir(out.parent)
 

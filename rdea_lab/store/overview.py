@@ -237,7 +237,7 @@ class OverviewBuilder:
 
 def write_overview(path, block: int = BLOCK, chunk: int = CHUNK) -> None:
     """Add the overview group to a run's netCDF file written by any writer (`add_overview`, the file opened
-    for appending; closed with no lock of HDF5's left on it, `rdea_lab.store._hdf5.close_unlocked`).
+    for appending and closed; HDF5's lock is left to the close, as the file is not this process's alone).
 
     Parameters
     ----------
@@ -256,14 +256,12 @@ def write_overview(path, block: int = BLOCK, chunk: int = CHUNK) -> None:
     import netCDF4
     from xarray.backends.locks import HDF5_LOCK  # HDF5 is not thread-safe: one call at a time, as xarray's
 
-    from ._hdf5 import close_unlocked
-
     with HDF5_LOCK:
         nc = netCDF4.Dataset(path, "a")
         try:
             add_overview(nc, block, chunk)
         finally:
-            close_unlocked(nc)
+            nc.close()
 
 
 def add_overview(nc, block: int = BLOCK, chunk: int = CHUNK) -> None:

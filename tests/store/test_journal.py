@@ -605,3 +605,96 @@ def test_a_journal_let_go_is_not_held_by_a_process_forked_meanwhile(tmp_path, by
         child.kill()
         child.wait()
     np.testing.assert_array_equal(open_run(out)["time"].values, block(0.0, 30)["time"])
+
+
+def _dataset_of(b):
+    return xr.Dataset({k: ("time", b[k]) for k in VARIABLES if k != "time"}, coords={"time": b["time"]}, attrs=ATTRS)
+
+
+def test_a_second_writer_of_the_same_output_never_costs_a_run_its_samples(tmp_path, monkeypatch):
+    """Two writers given one output (a run finishing while an import writes to its name): the import, which
+    made way for its own temporary file (`_hdf5.claim`), writes the output; the run finds its temporary file
+    replaced, renames nothing and keeps its journal, every row of which `recover` then writes elsewhere."""
+    from rdea_lab.store import _hdf5, journal
+    from rdea_lab.store.journal import write_dataset
+
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS, background=False)
+    blocks = [block(0.0, 100), block(1.0, 57)]
+    for b in blocks:
+        w.append(b)
+    convert = journal._Converter.convert
+
+    def meanwhile(self, upto, stop=lambda: False):  # the import runs while the run's rows are converted
+        write_dataset(_dataset_of(block(5.0, 7)), out)
+        return convert(self, upto, stop)
+
+    monkeypatch.setattr(journal._Converter, "convert", meanwhile)
+    with pytest.raises(_hdf5.TmpTaken):
+        w.finish("complete", "")
+    monkeypatch.undo()
+    assert open_run(out)["time"].size == 7  # the import's, whole
+    assert journal_path(out).exists()
+    saved = recover(journal_path(out), tmp_path / "saved.nc")
+    np.testing.assert_array_equal(open_run(saved)["force"].values, np.concatenate([b["force"] for b in blocks]))
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+@pytest.mark.parametrize("by", ["finish", "write_dataset"])
+def test_a_temporary_file_whose_making_failed_is_not_left_behind(tmp_path, monkeypatch, by):
+    """The make of the temporary file fails after the file is on disk (a full disk at its first write): the
+    file is removed, as every half-written file is; a file a live writer holds is not (`_hdf5.drop_unmade`)."""
+    from rdea_lab.store.journal import DiskFull, write_dataset
+
+    real = netCDF4.Dataset
+
+    def full(path, mode="r", **kw):
+        if mode == "w":
+            Path(path).write_bytes(b"\x89HDF\r\n\x1a\n")  # made, then the disk is full
+            raise OSError(errno.ENOSPC, "No space left on device", str(path))
+        return real(path, mode, **kw)
+
+    out = tmp_path / "run.nc"
+    w = JournalWriter(out, ATTRS, background=False) if by == "finish" else None
+    if w is not None:
+        w.append(block(0.0, 50))
+    monkeypatch.setattr(netCDF4, "Dataset", full)
+    with pytest.raises((OSError, DiskFull)):
+        if w is not None:
+            w.finish("complete", "")
+        else:
+            write_dataset(_dataset_of(block(0.0, 50)), out)
+    monkeypatch.undo()
+    assert not list(tmp_path.glob("*.tmp")) and not out.exists()
+    if w is not None:
+        assert journal_path(out).exists()  # the journal stays, for recover
+
+
+def test_a_failed_make_leaves_a_live_writers_file_alone(tmp_path, monkeypatch):
+    """Where the make failed because another writer made the file first (and holds it open, locked), that
+    file is not removed."""
+    import sys
+
+    from rdea_lab.store.journal import write_dataset
+
+    out = tmp_path / "run.nc"
+    theirs = tmp_path / "run.nc.tmp"
+    real = netCDF4.Dataset
+
+    def beaten(path, mode="r", **kw):
+        if mode == "w":
+            raise OSError(errno.EEXIST, "File exists", str(path))
+        return real(path, mode, **kw)
+
+    theirs.write_bytes(b"theirs")
+    with subprocess.Popen([sys.executable, "-c", "import fcntl, sys\nf = open(sys.argv[1], 'rb')\n"
+                           "fcntl.flock(f, fcntl.LOCK_EX)\nprint(1, flush=True)\nsys.stdin.read()", str(theirs)],
+                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True) as holder:
+        assert holder.stdout.readline().strip() == "1"
+        monkeypatch.setattr("rdea_lab.store.journal.claim", lambda tmp: None)  # they made it after our claim
+        monkeypatch.setattr(netCDF4, "Dataset", beaten)
+        with pytest.raises(OSError):
+            write_dataset(_dataset_of(block(0.0, 50)), out)
+        monkeypatch.undo()
+        assert theirs.read_bytes() == b"theirs"
+        holder.stdin.close()
