@@ -50,6 +50,7 @@ sources changed. Set ``RDEA_LAB_KERNELS=numpy`` to run the reference everywhere.
 
 from __future__ import annotations
 
+import math
 import os
 import threading
 import time
@@ -636,8 +637,9 @@ def _core_free() -> bool:
     return _other_load() <= (os.cpu_count() or 1) - 1.5
 
 
-#: `_other_load`'s window: its start ``(time, machine busy, process CPU)`` and the last estimate.
-_LOAD = {"pid": -1, "start": None, "last": 0.0, "others": None}
+#: `_other_load`'s window: its start ``(time, machine busy, process CPU)``, the last estimate and this
+#: process's CPU use [cores] averaged over a minute.
+_LOAD = {"pid": -1, "start": None, "last": 0.0, "others": None, "own": 0.0}
 #: [s]: the shortest window an estimate is taken over, when a window starts afresh, and past which it is stale
 _WINDOW = (0.2, 1.0, 5.0)
 
@@ -665,14 +667,16 @@ def _other_load() -> float:
     process's CPU time (all its threads: numba's included) over the last 0.2-1 s, the latest such estimate
     between windows (read at most every 0.1 s). Not the load average, which counts this process's own
     threads (a run that keeps both cores busy raised it until it took itself for other work and left one
-    core idle) and lags a minute behind. Before the first window closes, after this process was idle for
-    over 5 s (other work may have begun since: the load average, less this process's share, if larger), and
-    where ``/proc/stat`` is not readable, the 1-minute load average stands in for it. This process's other
-    threads count as its own, not as other work: numba's cannot be told apart from them."""
+    core idle) and lags a minute behind. The first window opens when this module loads. Before it closes
+    (and where ``/proc/stat`` is not readable) the 1-minute load average less one (this process's running
+    thread) stands in; after this process was idle for over 5 s (other work may have begun since), the load
+    average less this process's share of it (its CPU use averaged as the load average averages, over a
+    minute), where that is larger than the window's figure. This process's other threads count as its own,
+    not as other work: numba's cannot be told apart from them."""
     state = _LOAD
     now = time.monotonic()
     if state["pid"] != os.getpid():  # a forked child: its parent's window is not its own
-        state.update(pid=os.getpid(), start=None, last=0.0, others=None)
+        state.update(pid=os.getpid(), start=None, last=0.0, others=None, own=0.0)
     start = state["start"]
     if start is None or (now - start[0] >= _WINDOW[0] and now - state["last"] >= 0.5 * _WINDOW[0]):
         busy = _busy()
@@ -681,8 +685,10 @@ def _other_load() -> float:
             if start is not None:
                 span = now - start[0]
                 others = max(0.0, (busy - start[1]) - (own - start[2])) / span
+                keep = math.exp(-span / 60.0)  # the load average's minute
+                state["own"] = keep * state["own"] + (1.0 - keep) * (own - start[2]) / span
                 if span > _WINDOW[2]:  # this process was idle a while: what the last minute's load says
-                    others = _load_average(others, (own - start[2]) / span)
+                    others = _load_average(others, state["own"])
                 state["others"] = others
                 state["last"] = now
             if start is None or now - start[0] >= _WINDOW[1]:
@@ -699,6 +705,9 @@ def _load_average(others, own):
         return max(others, os.getloadavg()[0] - own)
     except OSError:  # no load average here
         return others
+
+
+_other_load()  # its first window opens as the module loads
 
 
 @numba.njit(cache=True)

@@ -7,6 +7,8 @@ rule is held to what `solve`'s docstring states, and `solve` to passing its choi
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -73,18 +75,23 @@ class _Clock:
     process's CPU seconds and the load average."""
 
     def __init__(self, monkeypatch, kernels):
+        from types import SimpleNamespace
+
         self.t, self.busy, self.own, self.load = 100.0, 5000.0, 10.0, 0.0
-        monkeypatch.setattr(kernels, "_LOAD", {"pid": -1, "start": None, "last": 0.0, "others": None})
-        monkeypatch.setattr(kernels.time, "monotonic", lambda: self.t)
-        monkeypatch.setattr(kernels.time, "process_time", lambda: self.own)
+        monkeypatch.setattr(kernels, "_LOAD", {"pid": -1, "start": None, "last": 0.0, "others": None, "own": 0.0})
+        monkeypatch.setattr(kernels, "time", SimpleNamespace(monotonic=lambda: self.t, process_time=lambda: self.own))
         monkeypatch.setattr(kernels, "_busy", lambda: self.busy)
         monkeypatch.setattr(kernels.os, "getloadavg", lambda: (self.load, 0.0, 0.0))
 
-    def advance(self, seconds, machine, own):
-        """``seconds`` pass with ``machine`` cores busy, ``own`` of them this process's."""
+    def advance(self, seconds, machine, own, runnable=None):
+        """``seconds`` pass with ``machine`` cores busy, ``own`` of them this process's; the load average
+        follows the ``runnable`` threads (default ``machine``) as the kernel's does, a minute's exponential
+        average."""
         self.t += seconds
         self.busy += machine * seconds
         self.own += own * seconds
+        keep = math.exp(-seconds / 60.0)
+        self.load = keep * self.load + (1.0 - keep) * (machine if runnable is None else runnable)
 
 
 def test_other_load_leaves_out_this_process(monkeypatch):
@@ -100,6 +107,7 @@ def test_other_load_leaves_out_this_process(monkeypatch):
     assert abs(kernels._other_load()) < 1e-9
     assert kernels._core_free()
     clock.load = 2.0  # what a minute of this process's two threads does to the load average: not other work
+    assert kernels._core_free()
     clock.advance(0.5, machine=2.0, own=1.0)
     assert abs(kernels._other_load() - 0.5) < 1e-9  # the window so far: 1 s, half a core another's
     clock.advance(1.0, machine=2.0, own=1.0)  # a window starts afresh past 1 s
@@ -120,6 +128,26 @@ def test_other_load_reads_the_load_average_after_a_long_idle(monkeypatch):
     assert abs(kernels._other_load() - 1.6) < 1e-9
     clock.advance(0.05, machine=1.0, own=0.0)  # within 0.1 s of the last reading: the last estimate
     assert abs(kernels._other_load() - 1.6) < 1e-9
+
+
+def test_other_load_after_a_pause_does_not_count_this_process_earlier_work(monkeypatch):
+    """Two minutes on both cores, alone, then 6 s idle: the load average still holds this process's work, which
+    is not other work (its share, averaged over the same minute, is taken off); a process that began during
+    the pause is."""
+    from rdea_lab.physics import kernels
+
+    clock = _Clock(monkeypatch, kernels)
+    kernels._other_load()
+    for _ in range(120):
+        clock.advance(1.0, machine=2.0, own=2.0)
+        assert kernels._other_load() < 1e-9
+    assert clock.load > 1.7  # the load average's figure of this process's own work
+    clock.advance(6.0, machine=0.0, own=0.0)
+    assert kernels._other_load() < 0.05
+    assert kernels._core_free()
+    clock.advance(0.5, machine=2.0, own=1.0)  # a window: another process on one core, this one on the other
+    clock.advance(6.0, machine=1.0, own=0.0, runnable=1.0)  # this one idle, the other on
+    assert abs(kernels._other_load() - 1.0) < 0.05
 
 
 def test_other_load_starts_afresh_in_a_forked_child(monkeypatch):
