@@ -122,8 +122,8 @@ def claim(tmp) -> None:
 def drop_unmade(tmp) -> None:
     """After this writer failed to make ``tmp`` (a full disk, Ctrl-C, another writer made it first): remove a
     file there that no live writer holds (what the failed make left), never a live one's."""
-    if _locked_by_other(tmp) is False:
-        with contextlib.suppress(FileNotFoundError):
+    with contextlib.suppress(OSError):  # (called while the failure is raised: never one of its own instead)
+        if _locked_by_other(tmp) is False:
             os.unlink(tmp)
 
 
