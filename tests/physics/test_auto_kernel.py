@@ -40,7 +40,12 @@ def test_auto_never_compiles_cr_on_a_solid_roll_nor_when_turned_off(monkeypatch)
 
 @pytest.mark.parametrize("model, n", [("3r", 16384), ("1r", 16384), ("su", 16384)])
 def test_solve_takes_the_path_auto_picks(model, n, monkeypatch):
-    """From the stated count on, ``auto`` is the compiled path (bit for bit); below it the numpy one."""
+    """From the stated count on, ``auto`` is the compiled path (bit for bit); below it the numpy one. numba's
+    threads held to one choice for both calls (`kernels._core_free` follows the machine's load from moment to
+    moment): the kernel is what is compared here; threads against one thread is `test_thread_choice_...`'s."""
+    from rdea_lab.physics import kernels
+
+    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)
     geom = core("hollow")
     rng = np.random.default_rng(n)
     l1, v = rng.uniform(1.0, 1.6, n), rng.uniform(0.0, 3000.0, n)
@@ -161,3 +166,21 @@ def test_other_load_starts_afresh_in_a_forked_child(monkeypatch):
     kernels._LOAD["pid"] = -2  # as after a fork
     clock.load = 0.5
     assert kernels._other_load() == 0.0  # no window yet: the load average less one, not below 0
+
+
+@pytest.mark.parametrize("model", ["1r", "3r", "cr"])
+def test_threads_or_one_give_the_same_bits_on_a_random_hollow_scene(model, monkeypatch):
+    """`test_solve_takes_the_path_auto_picks`' scene (slack rolls, folds and all) solved on one thread and on
+    numba's threads: every field the same, bit for bit."""
+    from rdea_lab.physics import kernels
+
+    geom = core("hollow")
+    rng = np.random.default_rng(16384)
+    l1, v = rng.uniform(1.0, 1.6, 16384), rng.uniform(0.0, 3000.0, 16384)
+    monkeypatch.setattr(kernels, "_other_load", lambda: float(kernels.os.cpu_count() or 1))
+    one = solve(model, geom, RIZZELLO, l1, v, kernel="numba")
+    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)
+    threads = solve(model, geom, RIZZELLO, l1, v, kernel="numba")
+    for name in ("status", "sigma1", "force", "capacitance", "lambda2a", "lambda2b", "lambda2c", "r_i",
+                 "free_stretch", "critical_voltage"):
+        np.testing.assert_array_equal(getattr(one, name), getattr(threads, name), err_msg=name)
