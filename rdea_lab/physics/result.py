@@ -286,7 +286,7 @@ def finish(model, geom, l1, bad, shape, raw, fields, status, critical_voltage, r
     sigma1 = np.asarray(fields["sigma1"], float)
     with np.errstate(invalid="ignore", over="ignore"):
         force = sigma1 * geom.area / l1
-        finite = np.isfinite(force)  # so sigma1 too: l1 (>= 1) and the area are finite
+        finite = np.isfinite(force)  # so sigma1 too: a stress not finite gives a force not finite, any area or l1
         if fields["tension"] is not fields["sigma1"]:
             finite &= np.isfinite(np.asarray(fields["tension"], float))
     valid = is_valid(status)
