@@ -13,6 +13,9 @@ for the whole process would drop it for every file, other processes' writers inc
 ``flock(LOCK_UN)`` on this process's descriptors of the file undoes the lock of their description, which
 every copy shares, so no copy keeps it. Only for a file this process made and alone writes (a ``.tmp``
 renamed into place when whole): between the unlock and the close no other process opens it.
+
+A writer's temporary file ``<out>.tmp`` is made by `create` and renamed by `publish` only while it is still
+the file made, so that two writers given one output never cost each other what they measured.
 """
 
 from __future__ import annotations
@@ -125,6 +128,22 @@ def drop_unmade(tmp) -> None:
     with contextlib.suppress(OSError):  # (called while the failure is raised: never one of its own instead)
         if _locked_by_other(tmp) is False:
             os.unlink(tmp)
+
+
+def create(tmp, lock=None):
+    """``(nc, ident)``: a new netCDF4 file at ``tmp``, open for writing, and its `identity`. Way made first
+    (`claim`), then made exclusively (``clobber=False``; under ``lock``, xarray's ``HDF5_LOCK``, where given);
+    a make that fails leaves nothing behind but a live writer's file (`drop_unmade`)."""
+    import netCDF4
+
+    claim(tmp)
+    try:
+        with lock if lock is not None else contextlib.nullcontext():
+            nc = netCDF4.Dataset(tmp, "w", clobber=False, format="NETCDF4")
+    except BaseException:
+        drop_unmade(tmp)  # what a failed make left (a full disk, Ctrl-C), never a live writer's
+        raise
+    return nc, identity(tmp)
 
 
 def remove_own(tmp, ident) -> None:

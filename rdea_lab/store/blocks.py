@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..specs.variables import variable_attrs
-from ._hdf5 import claim, drop_unmade, identity, publish, remove_own, unlock
+from ._hdf5 import create, publish, remove_own, unlock
 from .journal import CHUNK, COMPRESSION, _fsync_dir, actual_range, netcdf_attrs
 from .outputs import check_dataset_name, check_new
 
@@ -45,7 +45,6 @@ def write_blocks(path, samples: int, blocks, attrs, *, time_attrs=None, overwrit
     ValueError
         Blocks that do not cover the samples in order.
     """
-    import netCDF4
 
     path = Path(path)
     check_dataset_name(path)
@@ -53,15 +52,9 @@ def write_blocks(path, samples: int, blocks, attrs, *, time_attrs=None, overwrit
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
     ranges = {}
-    claim(tmp)  # a dead write's half file removed
     ident = None
     try:
-        try:  # made here, not clobbering: of two writers that made way, one makes it
-            nc = netCDF4.Dataset(tmp, "w", clobber=False, format="NETCDF4")
-        except BaseException:
-            drop_unmade(tmp)  # what a failed make left (a full disk, Ctrl-C), never a live writer's
-            raise
-        ident = identity(tmp)
+        nc, ident = create(tmp)  # a dead write's half file removed; of two writers that made way, one makes it
         with nc:
             nc.createDimension("time", samples)
             made, end = {}, 0

@@ -62,7 +62,7 @@ import xarray as xr
 
 from ..specs.errors import SpecError, UserError
 from . import pauses as _pauses
-from ._hdf5 import claim, close_unlocked, drop_unmade, identity, publish, remove_own
+from ._hdf5 import close_unlocked, create, publish, remove_own
 from .overview import OVERVIEW_ABOVE, OverviewBuilder, add_overview
 from .schema import EXTRA_VARIABLES, TEXT_VARIABLES, TIME_ENCODING, VARIABLES, time_attrs, variable_attrs
 
@@ -635,7 +635,6 @@ class _Converter:
     the dataset at once (its catalogue row, `open_run`) would be refused the same way."""
 
     def __init__(self, folder: Path, tmp: Path):
-        import netCDF4
         from xarray.backends import NetCDF4DataStore
         from xarray.backends.locks import HDF5_LOCK
 
@@ -648,16 +647,11 @@ class _Converter:
         self.done, self.ranges, self._nc, self._made, self._pid = 0, {}, None, None, os.getpid()
         self.overview = OverviewBuilder()  # min/max per block, for the figure of a long run (store.overview)
         self.edges = _pauses.PauseEdges() if "paused" in self.columns else None  # the pauses so far
-        claim(self.tmp)  # a dead conversion's file removed (the journal is the record)
         try:
             layout.attrs = netcdf_attrs(layout.attrs)
-            try:
-                with self._lock:  # made here (not clobbering: nobody else may make it meanwhile), kept open
-                    self._nc = netCDF4.Dataset(self.tmp, "w", clobber=False, format="NETCDF4")
-            except BaseException:
-                drop_unmade(self.tmp)  # what a failed make left (a full disk, Ctrl-C), never a live writer's
-                raise
-            self._made = identity(self.tmp)  # the file made: only it is ever renamed to the output, or removed
+            # a dead conversion's file removed (the journal is the record); made here, kept open. The file made
+            # (its identity) is the only one ever renamed to the output, or removed
+            self._nc, self._made = create(self.tmp, self._lock)
             # the layout through xarray, into the open file (xarray takes the HDF5 lock itself)
             layout.dump_to_store(NetCDF4DataStore(self._nc), unlimited_dims=["time"], encoding=_encoding(layout))
             with self._lock:
@@ -742,7 +736,6 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
     it (`_hdf5.close_unlocked`): a file closed and opened again can be refused by HDF5's lock, held through a
     descriptor a process forked meanwhile copied (see `_Converter`), and so can what reads the dataset next.
     """
-    import netCDF4
     from xarray.backends import NetCDF4DataStore
     from xarray.backends.common import ArrayWriter
     from xarray.backends.locks import HDF5_LOCK
@@ -759,16 +752,10 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
             span = actual_range(np.asarray(var.values))
             if span is not None:
                 var.attrs["actual_range"] = span
-    claim(tmp)  # a dead write's half file removed (this one's is a new file, carrying no old lock)
-    nc = made = ident = None
+    nc = ident = None
     try:
-        try:
-            with HDF5_LOCK:  # made here, not clobbering: what is at the path now is another writer's
-                nc = made = netCDF4.Dataset(tmp, "w", clobber=False, format="NETCDF4")
-        except BaseException:
-            drop_unmade(tmp)  # what a failed make left (a full disk, Ctrl-C), never a live writer's
-            raise
-        ident = identity(tmp)
+        # a dead write's half file removed (this one's is a new file, carrying no old lock)
+        nc, ident = create(tmp, HDF5_LOCK)
         # as to_netcdf writes it, into the open file (xarray takes the HDF5 lock itself; dask data at sync)
         writer = ArrayWriter()
         ds.dump_to_store(NetCDF4DataStore(nc), writer=writer, unlimited_dims=["time"], encoding=_encoding(ds))
@@ -776,8 +763,8 @@ def write_dataset(ds: xr.Dataset, out: Path) -> None:
         with HDF5_LOCK:
             if ds.sizes.get("time", 0) > OVERVIEW_ABOVE:  # a long run: its figure drawn from the overview
                 add_overview(nc)
-            nc = None
-            close_unlocked(made, ident)
+            whole, nc = nc, None  # (closed here, not again below)
+            close_unlocked(whole, ident)
         publish(tmp, out, ident)  # fsync'd, and renamed only if it is still the file made here
     except BaseException:
         if nc is not None:

@@ -691,7 +691,7 @@ def test_a_failed_make_leaves_a_live_writers_file_alone(tmp_path, monkeypatch):
                            "fcntl.flock(f, fcntl.LOCK_EX)\nprint(1, flush=True)\nsys.stdin.read()", str(theirs)],
                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True) as holder:
         assert holder.stdout.readline().strip() == "1"
-        monkeypatch.setattr("rdea_lab.store.journal.claim", lambda tmp: None)  # they made it after our claim
+        monkeypatch.setattr("rdea_lab.store._hdf5.claim", lambda tmp: None)  # they made it after our claim
         monkeypatch.setattr(netCDF4, "Dataset", beaten)
         with pytest.raises(OSError):
             write_dataset(_dataset_of(block(0.0, 50)), out)
