@@ -4,7 +4,9 @@ No backend is chosen here: without a DISPLAY matplotlib picks Agg by itself.
 """
 
 import os
+import signal
 import sys
+import threading
 from pathlib import Path
 
 import pytest
@@ -20,6 +22,30 @@ def _close_figures():
     yield
     if "matplotlib.pyplot" in sys.modules:
         sys.modules["matplotlib.pyplot"].close("all")
+
+
+@pytest.fixture(autouse=True)
+def _signals_as_found():
+    """A test leaves this process's SIGINT and SIGTERM handlers and its signal mask as it found them: one left
+    changed changes every later test in the process, and every process a later test starts (a child inherits
+    an ignored or blocked signal). Put back, and the test fails at teardown naming what it left."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    wanted = (signal.SIGINT, signal.SIGTERM)
+    handlers = {sig: signal.getsignal(sig) for sig in wanted}
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, set())
+    yield
+    left = [f"{sig.name} handler {signal.getsignal(sig)!r} (was {handler!r})" for sig, handler in handlers.items()
+            if signal.getsignal(sig) is not handler]
+    now = signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    if now != mask:
+        left.append(f"signal mask {sorted(s.name for s in now)} (was {sorted(s.name for s in mask)})")
+    for sig, handler in handlers.items():
+        if handler is not None:  # None: a handler not installed from Python, which cannot be put back
+            signal.signal(sig, handler)
+    if left:
+        pytest.fail("the test left this process's signal handling changed: " + "; ".join(left), pytrace=False)
 
 
 @pytest.fixture(scope="session")

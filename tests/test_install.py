@@ -152,7 +152,9 @@ def test_the_readme_commands_in_order_in_a_fresh_clone(tmp_path):
     env["PATH"] = f"{bin_}{os.pathsep}{env['PATH']}"  # python3, rdea-lab: the venv's
     for command in (first, second):
         proc = subprocess.run(command, shell=True, cwd=clone, env=env, capture_output=True, text=True, timeout=3000)
-        assert proc.returncode == 0, (command, proc.stdout[-3000:], proc.stderr[-3000:])
+        if proc.returncode != 0:  # the nested suite's failures by name (its -ra summary), then the output's tail
+            named = [line for line in proc.stdout.splitlines() if line.startswith(("FAILED ", "ERROR "))]
+            pytest.fail("\n".join([command, *named, proc.stdout[-4000:], proc.stderr[-2000:]]), pytrace=False)
         if command is first:
             where = subprocess.run(["python3", "-c", "import rdea_lab; print(rdea_lab.__file__)"], cwd=tmp_path,
                                    env=env, capture_output=True, text=True, check=True).stdout.strip()

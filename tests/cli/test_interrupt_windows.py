@@ -111,9 +111,23 @@ main_thread_only = pytest.mark.skipif(threading.current_thread() is not threadin
                                       reason="signal handlers can only be installed from the main thread")
 
 
+@pytest.fixture
+def at_a_terminal():
+    """This process as one started at a terminal, for the block: SIGINT raises KeyboardInterrupt and neither
+    signal is blocked. A suite started in the background (``&`` in a script, CI) inherits SIGINT ignored, and
+    an ignored signal stays ignored (`rdea_lab.signals`): a run then rightly completes (exit 0)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    mask = signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+        signal.signal(signal.SIGINT, previous)
+
+
 @main_thread_only
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-def test_a_signal_during_the_final_write_waits_for_the_dataset(tmp_path, monkeypatch, sig):
+def test_a_signal_during_the_final_write_waits_for_the_dataset(tmp_path, monkeypatch, sig, at_a_terminal):
     """The signal comes in the middle of writing the dataset: the dataset is whole and complete, the
     journal gone, and the command still ends interrupted (130), saying the dataset is closed."""
     from rdea_lab.cli.errors import run
@@ -142,7 +156,7 @@ def test_a_signal_during_the_final_write_waits_for_the_dataset(tmp_path, monkeyp
 
 
 @main_thread_only
-def test_the_engine_raises_a_late_signal_once_the_dataset_is_closed(tmp_path, monkeypatch):
+def test_the_engine_raises_a_late_signal_once_the_dataset_is_closed(tmp_path, monkeypatch, at_a_terminal):
     import rdea_lab
     from rdea_lab.backends import RunInterrupted
     from rdea_lab.store import journal as journal_module
