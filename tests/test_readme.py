@@ -23,6 +23,7 @@ from glob import glob
 from pathlib import Path
 
 import pytest
+from terminal import as_at_a_terminal
 from vhb_data import MISSING, VHB
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -131,10 +132,10 @@ def test_readme_commands(tmp_path, monkeypatch):
 
 
 def _background(argv, cwd):
-    """A row that keeps running (a server, a paced run), as a process of its own."""
+    """A row that keeps running (a server, a paced run), as a process of its own, ended by SIGTERM."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
     return subprocess.Popen([sys.executable, "-m", "rdea_lab.cli.main", *argv], cwd=cwd, env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, preexec_fn=as_at_a_terminal)
 
 
 def _wait_running(out, process, timeout=120.0):

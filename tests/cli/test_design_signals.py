@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
+from terminal import in_a_group_of_its_own
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "rdea_lab" / "data"
@@ -28,14 +29,6 @@ chunk: 500
 """
 
 
-def as_at_a_terminal():
-    """In the child: a process group of its own (the terminal's foreground group: Ctrl-C reaches every process
-    in it, the workers too), SIGINT as at an interactive terminal (a suite started in the background inherits
-    it ignored)."""
-    os.setpgrp()
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 def start_study(tmp_path):
     (tmp_path / "long.yaml").write_text(STUDY)
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -43,7 +36,7 @@ def start_study(tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "rdea_lab.cli.main", "design", str(tmp_path / "long.yaml"),
                              "--out", str(tmp_path / "out"), "--workers", "2", "--no-figures"],
                             cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            preexec_fn=as_at_a_terminal)
+                            preexec_fn=in_a_group_of_its_own)
     seen, deadline = b"", time.monotonic() + 120
     while b" tasks, " not in seen:  # the progress bar's first line: the cluster is up, the tasks run
         assert time.monotonic() < deadline and proc.poll() is None, (proc.returncode, seen)

@@ -22,15 +22,12 @@ from pathlib import Path
 import pytest
 
 from rdea_lab.store import journal_path, open_run
+from terminal import as_at_a_terminal, this_process_at_a_terminal
 
 ROOT = Path(__file__).resolve().parents[2]
 PROTOCOL = ROOT / "rdea_lab" / "data" / "protocols" / "tensile_ramp_sine_0V.yaml"
 CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
 NAMES = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM"}
-
-
-def as_at_a_terminal():
-    signal.signal(signal.SIGINT, signal.SIG_DFL)  # a suite started in the background inherits SIGINT ignored
 
 
 def signalled_run(tmp_path, backend, sig, delay):
@@ -88,7 +85,7 @@ def test_sigterm_to_an_emulator_run_is_an_interruption_not_a_lost_connection(tmp
     proc = subprocess.Popen([sys.executable, "-m", "rdea_lab.cli", "run", str(PROTOCOL), "--specimen", str(CARD),
                              "--backend", "emulator", "--realtime", "--quiet", "--out", str(out)], cwd=tmp_path,
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=as_at_a_terminal)
     deadline = time.monotonic() + 30
     while not (journal_path(out) / "samples.f8").exists():
         assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
@@ -113,16 +110,10 @@ main_thread_only = pytest.mark.skipif(threading.current_thread() is not threadin
 
 @pytest.fixture
 def at_a_terminal():
-    """This process as one started at a terminal, for the block: SIGINT raises KeyboardInterrupt and neither
-    signal is blocked. A suite started in the background (``&`` in a script, CI) inherits SIGINT ignored, and
-    an ignored signal stays ignored (`rdea_lab.signals`): a run then rightly completes (exit 0)."""
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    mask = signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
-    try:
+    """This process as one started at a terminal (`terminal.this_process_at_a_terminal`): with SIGINT ignored,
+    as in a suite started in the background, a run rightly keeps it ignored and completes (exit 0)."""
+    with this_process_at_a_terminal():
         yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
-        signal.signal(signal.SIGINT, previous)
 
 
 @main_thread_only

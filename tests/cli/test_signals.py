@@ -15,16 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from rdea_lab.store import journal_path, open_run
+from terminal import as_at_a_terminal
 
 ROOT = Path(__file__).resolve().parents[2]
 RATE = 100.0  # Hz, tensile_ramp_sine_0V.yaml
-
-
-def interactive_sigint():
-    """In the child: SIGINT as at an interactive terminal. A suite launched from a background job of
-    a non-interactive shell inherits SIGINT ignored, and Python then leaves it ignored (the child
-    would not see Ctrl-C at all, which is the shell's doing, not the program's)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def start_run(out: Path):
@@ -34,7 +28,7 @@ def start_run(out: Path):
                              str(ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"), "--realtime", "--quiet",
                              "--out", str(out)],
                             cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=interactive_sigint)
+                            preexec_fn=as_at_a_terminal)
     header = journal_path(out) / "header.json"
     deadline = time.monotonic() + 30
     while not header.exists():

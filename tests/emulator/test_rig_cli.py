@@ -11,6 +11,7 @@ import pytest
 
 from rdea_lab.cli.errors import run
 from rdea_lab.cli.main import cli
+from terminal import as_at_a_terminal
 
 from .helpers import ROOT, Client
 
@@ -98,10 +99,9 @@ def test_bad_truth_file_names_file_and_field(capsys, tmp_path):
 
 def serve(*args):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    # SIGINT as at an interactive terminal (a suite run from a background job inherits it ignored)
     proc = subprocess.Popen([sys.executable, "-c", LAUNCH, "rig", "serve", "--specimen", CARD, "--port", "0", *args],
                             cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                            preexec_fn=as_at_a_terminal)
     ready, _, _ = select.select([proc.stdout], [], [], 60)
     assert ready, "the server printed nothing"
     line = proc.stdout.readline()

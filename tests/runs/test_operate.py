@@ -20,6 +20,7 @@ import rdea_lab
 from rdea_lab.protocols import load_plan
 from rdea_lab.protocols.pause import HELD, RUNNING, pause_intervals
 from rdea_lab.runs.control import RunControl, read_state
+from terminal import as_at_a_terminal
 
 ROOT = Path(__file__).resolve().parents[2]
 CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
@@ -136,7 +137,7 @@ def start(out: Path, *extra, stdin=None):
                              "--model", "su", "--realtime", "--quiet", "--out", str(out), *extra],
                             cwd=out.parent, env=env, stdin=stdin or subprocess.DEVNULL, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                            preexec_fn=as_at_a_terminal)
     deadline = time.monotonic() + 60
     while (read_state(out) or {}).get("samples", 0) < 50:
         assert proc.poll() is None, proc.communicate()

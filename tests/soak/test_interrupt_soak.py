@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from terminal import as_at_a_terminal
 
 ROOT = Path(__file__).resolve().parents[2]
 CARD = ROOT / "rdea_lab" / "data" / "specimens" / "specimen2.yaml"
@@ -113,7 +114,7 @@ def test_interrupt_soak(tmp_path):
         if backend == "twin":
             args += ["--model", "su"]
         proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # as at a terminal
+                                preexec_fn=as_at_a_terminal)
         with lock:
             alive[out] = proc
         part = out.with_name(out.name + ".part")
@@ -210,7 +211,7 @@ def test_interrupt_soak_live_table_and_sigterm(tmp_path):
             args.append("--quiet")
         proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                 start_new_session=group,
-                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # as at a terminal
+                                preexec_fn=as_at_a_terminal)
         part = out.with_name(out.name + ".part")
         t_seen, deadline = None, time.monotonic() + 60
         while t_seen is None and time.monotonic() < deadline and proc.poll() is None:
