@@ -236,37 +236,3 @@ def test_one_list_of_model_names():
     assert set(offenders) == {Path("specs") / "names.py"}
 
 
-# ------------------------------------------------------- split field passes
-#: The compiled parts of `ring_kernels.fields1` / `fields3`: they compose the numpy field functions' pieces
-#: (`yeoh.invariant_args`, `three_ring.ring_geometry`, ...) compiled, and write no equation themselves.
-SPLIT_PASSES = ("_log_args", "_gradient_of", "_first1", "_last1", "_first3", "_last3")
-
-
-def own_arithmetic(fn):
-    """``(line, what)`` of the arithmetic in ``fn`` that is not index arithmetic: a float literal (but 1.0, the
-    logarithm's argument of an unused row, and those compared with: which rings are present), a division, a
-    power, a subtraction or a sign change."""
-    compared = {id(c) for node in ast.walk(fn) if isinstance(node, ast.Compare) for c in ast.walk(node)}
-    for node in ast.walk(fn):
-        if id(node) in compared:
-            continue
-        if isinstance(node, ast.Constant) and isinstance(node.value, float) and node.value != 1.0:
-            yield node.lineno, repr(node.value)
-        elif isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Div, ast.Pow, ast.Sub, ast.FloorDiv)):
-            yield node.lineno, type(node.op).__name__
-        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
-            yield node.lineno, "USub"
-
-
-def test_own_arithmetic_sees_an_equation():
-    fn = ast.parse("def f(W, i, L):\n    W[0, i + 1] = -0.5 / (L * L)\n").body[0]
-    assert sorted(what for _, what in own_arithmetic(fn)) == ["0.5", "Div", "USub"]
-    ok = "def g(W, j, i, e):\n    W[4 + 4 * j, i] = e if e > 0.0 else 1.0\n"
-    assert list(own_arithmetic(ast.parse(ok).body[0])) == []
-
-
-def test_split_field_passes_write_no_equation():
-    found = dict(functions(parse(PKG / "physics" / "ring_kernels.py")))
-    assert set(SPLIT_PASSES) <= set(found)
-    bad = [f"{name}:{line} {what}" for name in SPLIT_PASSES for line, what in own_arithmetic(found[name])]
-    assert bad == []

@@ -108,6 +108,11 @@ def _jit(func, parallel=False, inline="never", **deps):
     return numba.njit(cache=True, error_model="numpy", parallel=parallel, inline=inline)(clone)
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _pick(c, a, b):
+    return a if c else b
+
+
 _parts = _jit(yeoh._psi2_parts)
 _psi2 = _jit(yeoh.psi2_terms, _psi2_parts=_parts)
 _psi2_first = _jit(yeoh.psi2_first, _psi2_parts=_parts)
@@ -116,9 +121,9 @@ _basis = _jit(su.basis)
 _radius = _jit(three_ring._radius)
 _ring = _jit(three_ring.ring_terms, inline="always", _radius=_radius, psi2_terms=_psi2, psi2_first=_psi2_first)
 _node = _jit(continuum.node_terms, inline="always", slope=_slope)
-_invariant = _jit(yeoh._invariant_terms, invariant_args=_jit(yeoh.invariant_args),
-                  invariant_from=_jit(yeoh.invariant_from), _expm1_own=np.expm1)
-_gradient = _jit(yeoh.gradient_terms, _invariant_terms=_invariant, gradient_from=_jit(yeoh.gradient_from, slope=_slope))
+_invariant = _jit(yeoh._invariant_terms, inline="always", _where=_pick)
+_gradient = _jit(yeoh.gradient_terms, inline="always", _invariant_terms=_invariant,
+                 gradient_from=_jit(yeoh.gradient_from, inline="always", slope=_slope))
 _radii = _jit(three_ring.radii)
 _state3 = _jit(three_ring.ring_state, ring_geometry=_jit(three_ring.ring_geometry, radii=_radii),
                ring_stress=_jit(three_ring.ring_stress), gradient_terms=_gradient)
@@ -253,11 +258,6 @@ def _verdict(y_prev, h_prev, s_prev, y, h, slope, K):
     if h >= K:
         return _CROSS
     return _GO
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _pick(c, a, b):
-    return a if c else b
 
 
 #: `branch.newton_step`: one step of the refinement of a root, ``(y_new, lo, hi, dx, done)`` (`_refine` and

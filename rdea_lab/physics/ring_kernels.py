@@ -4,18 +4,11 @@ The root of each sample is `kernels.branch_roots`' (a free state's trial: `kerne
 this module compiles is the rest of a `solve`, with the numpy code as the
 reference (the tests check one against the other):
 
-- the result fields at the equilibria: CR's `continuum.node_mechanics` /
-  `continuum.closing` compiled as they are (`kernels._jit`), one parallel pass;
-  1R's `one_ring.fields` and 3R's `three_ring.ring_fields` in split passes
-  (`fields1`, `fields3`: this numba has no vector math library, so its scalar
-  ``log`` and ``expm1`` cost 6-9 ns each against numpy's 1; the logarithms and
-  ``expm1`` of `yeoh._invariant_terms` are numpy's, over blocks, and the rest
-  is the pieces the numpy functions are composed of, compiled as they are
-  (`yeoh.invariant_args`, `yeoh.invariant_from`, `yeoh.gradient_from`,
-  `three_ring.ring_geometry`, `three_ring.ring_stress`,
-  `three_ring.fields_from`, `one_ring.stress_from`, `one_ring.fields_from`):
-  the same operations in the same order, so equal to the numpy functions bit
-  for bit);
+- the result fields at the equilibria: `one_ring.fields`,
+  `three_ring.ring_fields` and CR's `continuum.node_mechanics` /
+  `continuum.closing` compiled as they are (`kernels._jit`), one parallel
+  pass each (`fields1`, `fields3`, `fields_cr`), so equal to the numpy
+  functions bit for bit;
 - the problems' bounds and loads (`bounds`);
 - a slack roll's free state: `kernels.free_stretch` (the bracketing and
   Illinois iteration of `models._common.free_state`, the one compiled form of
@@ -33,15 +26,13 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
-import sys
 import threading
 
 import numba
 import numpy as np
 from numba import prange
 
-from . import kernels, yeoh
+from . import kernels
 from .branch import MAX_ITER, N_SCAN, RTOL
 from .kernels import (_arr, _basis, _fields3, _free_start, _free_step, _gradient, _h_start, _jit, _one, _parallel,
                       _put, _scan_block, _slope, _variants, free_check, free_stretch)
@@ -49,7 +40,9 @@ from .models import continuum, one_ring, three_ring
 from .models._common import FREE_STRETCH_MAX
 
 _stress_from1 = _jit(one_ring.stress_from, inline="always")
-_stress1 = _jit(one_ring.stress, gradient_terms=_gradient, stress_from=_stress_from1)
+_stress1 = _jit(one_ring.stress, inline="always", gradient_terms=_gradient, stress_from=_stress_from1)
+_fields1 = _jit(one_ring.fields, inline="always", stress=_stress1,
+                fields_from=_jit(one_ring.fields_from, inline="always"))
 # inlined: the loop over samples of `bounds` vectorizes
 _bounds1 = _jit(one_ring.bounds, inline="always")
 _xi_hoop = _jit(three_ring.xi_at_hoop_stretch, inline="always")
@@ -57,17 +50,13 @@ _bounds3 = _jit(three_ring.bounds, inline="always", xi_at_hoop_stretch=_xi_hoop)
 _bounds_cr = _jit(continuum.bounds, inline="always")
 _node_mech = _jit(continuum.node_mechanics, inline="always", slope=_slope)
 _closing = _jit(continuum.closing, inline="always")
-_slope_inline = _jit(yeoh.slope, inline="always")
-# the pieces of the numpy field functions that the split passes compose, inlined into their loops (those of
-# `_log_args` and `_first3` vectorize)
-_radii = _jit(three_ring.radii, inline="always")
-_inv_args = _jit(yeoh.invariant_args, inline="always")
-_inv_from = _jit(yeoh.invariant_from, inline="always")
-_grad_from = _jit(yeoh.gradient_from, inline="always", slope=_slope_inline)
-_geometry3 = _jit(three_ring.ring_geometry, inline="always", radii=_radii)
-_ring_stress = _jit(three_ring.ring_stress, inline="always")
-_fields_from3 = _jit(three_ring.fields_from, inline="always")
-_fields_from1 = _jit(one_ring.fields_from, inline="always")
+# `three_ring.ring_fields` with every piece inlined, for the loop of `fields3`
+_fields3_inline = _jit(three_ring.ring_fields, inline="always",
+                       fields_from=_jit(three_ring.fields_from, inline="always"),
+                       ring_state=_jit(three_ring.ring_state, inline="always", gradient_terms=_gradient,
+                                       ring_stress=_jit(three_ring.ring_stress, inline="always"),
+                                       ring_geometry=_jit(three_ring.ring_geometry, inline="always",
+                                                          radii=_jit(three_ring.radii, inline="always"))))
 
 _N_SCAN = N_SCAN
 _RTOL, _MAX_ITER = RTOL, MAX_ITER
@@ -130,184 +119,39 @@ def _fields_cr_loop(y, l1, v, xi0, x0, lx0p, Q, W, present, C10, C20, C30, Lb, k
 _fcr = _variants(_fields_cr_loop)
 
 
-#: Samples per block of the split field passes (`fields1`, `fields3`): their work rows (some 25 of them) stay in
-#: the core's cache between the passes.
-SPLIT_BLOCK = 4096
+def _fields1_loop(l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri, out):
+    for i in prange(l2.size):
+        out[0, i], out[1, i], out[2, i] = _fields1(l2[i], l1[i], v[i], C10, C20, C30, kap, C0, Ro, Ri)
 
 
-#: Rows of a split pass's work array (`_split`): the stretches whose logarithms `yeoh._invariant_terms` takes
-#: (``l1``, then each ring's hoop stretch), then the arguments of its ``expm1`` calls (`_log_args`), then the
-#: pass's own.
-_LOG, _EXP = 0, 4
+def _fields3_loop(y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
+    for i in prange(y.size):
+        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = _fields3_inline(
+            y[i], l1[i], v[i], R, C10, C20, C30, kap, C0, Ro)
 
 
-@numba.njit(cache=True, error_model="numpy", nogil=True, inline="always")
-def _log_args(W, rings, m):
-    """`yeoh.invariant_args` of each ring from the logarithms ``a = log l1`` (row ``_LOG``) and ``b = log l2`` of
-    each ring (the rows after it), into the rows from ``_EXP``: its first value (``2 a``, the same for every
-    ring) once, then its other four for each ring (in two loops, as one loop writing five rows 32 KiB apart was
-    slower)."""
-    for i in range(m):
-        e0, _, _, _, _ = _inv_args(W[_LOG, i], W[_LOG + 1, i])
-        W[_EXP, i] = e0
-    for j in range(rings):
-        for i in range(m):
-            _, e1, e2, e3, e4 = _inv_args(W[_LOG, i], W[_LOG + 1 + j, i])
-            W[_EXP + 1 + 4 * j, i], W[_EXP + 2 + 4 * j, i] = e1, e2
-            W[_EXP + 3 + 4 * j, i], W[_EXP + 4 + 4 * j, i] = e3, e4
-
-
-@numba.njit(cache=True, error_model="numpy", inline="always")
-def _gradient_of(W, j, i, l1, l2, C10, C20, C30):
-    """`yeoh.gradient_terms` of ring ``j`` of sample ``i`` from the ``expm1`` of `_log_args`' rows:
-    `yeoh.invariant_from`, then `yeoh.gradient_from`."""
-    x, I_1, I_2 = _inv_from(l1, l2, W[_EXP, i], W[_EXP + 1 + 4 * j, i], W[_EXP + 2 + 4 * j, i],
-                            W[_EXP + 3 + 4 * j, i], W[_EXP + 4 + 4 * j, i])
-    return _grad_from(x, I_1, I_2, C10, C20, C30)
-
-
-def _split(first, last, rings, own, n, args):
-    """A split field pass over ``n`` samples, by blocks of `SPLIT_BLOCK`: ``first(W, lo, m, *args)`` writes the
-    stretches whose logarithms `yeoh._invariant_terms` takes into the rows from ``_LOG`` (``l1``, then each of the
-    ``rings``' hoop stretch) and what else it keeps into its ``own`` rows (from ``_EXP + 1 + 4 rings``); numpy
-    takes their logarithms; `_log_args` writes the ``expm1`` arguments; numpy takes ``expm1`` (vectorized,
-    where this numba calls them one at a time, several times slower); ``last(W, lo, m, *args)`` combines them
-    into the fields. Where `kernels._parallel` allows, two threads take half the blocks each (the compiled
-    passes and numpy's run without the GIL)."""
-    if n >= 2 * SPLIT_BLOCK and _parallel(n):
-        mid = (n // 2 + SPLIT_BLOCK - 1) // SPLIT_BLOCK * SPLIT_BLOCK
-        other = _submit(_split_blocks, first, last, rings, own, mid, n, args)
-        if other is not None:
-            _split_blocks(first, last, rings, own, 0, mid, args)
-            other.result()
-            return
-    _split_blocks(first, last, rings, own, 0, n, args)
-
-
-def _submit(fn, *args):
-    """``fn(*args)`` handed to the helper thread (`_pool`), or None where the interpreter is shutting down (a
-    solve from an ``atexit`` handler or a finalizer: no thread starts then, and the caller does the work)."""
-    if sys.is_finalizing():
-        return None
-    try:
-        return _pool().submit(fn, *args)
-    except RuntimeError:  # the executor or `concurrent.futures` refuses work once shutdown has begun
-        return None
-
-
-_POOL = {}
-
-
-def _pool():
-    """The one helper thread of `_split`, started when first needed: one per process (a forked child has
-    its parent's executor but not its thread, so it starts its own)."""
-    pid = os.getpid()
-    if pid not in _POOL:
-        from concurrent.futures import ThreadPoolExecutor
-
-        _POOL.clear()
-        _POOL[pid] = ThreadPoolExecutor(1, thread_name_prefix="rdea-split")
-    return _POOL[pid]
-
-
-def _split_blocks(first, last, rings, own, i0, i1, args):
-    B = min(SPLIT_BLOCK, max(i1 - i0, 1))
-    W = np.empty((_EXP + 1 + 4 * rings + own, B))
-    logs, exps = W[_LOG:_LOG + 1 + rings], W[_EXP:_EXP + 1 + 4 * rings]
-    with np.errstate(all="ignore"):  # as the compiled passes: no warnings (NaN and inf carry through)
-        for lo in range(i0, i1, B):
-            m = min(B, i1 - lo)
-            first(W, lo, m, *args)
-            t = logs[:, :m]
-            np.log(t, out=t)
-            _args[rings](W, m)
-            e = exps[:, :m]
-            np.expm1(e, out=e)
-            last(W, lo, m, *args)
-
-
-@numba.njit(cache=True, error_model="numpy", nogil=True)
-def _args1(W, m):
-    _log_args(W, 1, m)
-
-
-@numba.njit(cache=True, error_model="numpy", nogil=True)
-def _args3(W, m):
-    _log_args(W, 3, m)
-
-
-_args = {1: _args1, 3: _args3}
-_OWN3 = _EXP + 13  # 3R's own rows: dr_ie, dr_oe, dr_o, l2a, l2b, l2c
-
-
-@numba.njit(cache=True, error_model="numpy", nogil=True)
-def _first3(W, lo, m, y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
-    eta_a, eta_c = R[6], R[8]
-    for i in range(m):  # `three_ring.ring_state` up to its `gradient_terms`: `ring_geometry`
-        L = l1[lo + i]
-        l2a, l2b, l2c, dr_ie, dr_oe, dr_o = _geometry3(y[lo + i], L, R)
-        W[_OWN3, i], W[_OWN3 + 1, i], W[_OWN3 + 2, i] = dr_ie, dr_oe, dr_o
-        W[_OWN3 + 3, i], W[_OWN3 + 4, i], W[_OWN3 + 5, i] = l2a, l2b, l2c  # (the logarithms overwrite those)
-        # a ring of zero volume: its row unused (1, not its NaN stretch: no special values for numpy's log)
-        W[_LOG, i], W[_LOG + 1, i] = L, l2b
-        W[_LOG + 2, i] = l2a if eta_a > 0.0 else 1.0
-        W[_LOG + 3, i] = l2c if eta_c > 0.0 else 1.0
-
-
-@numba.njit(cache=True, error_model="numpy", nogil=True)
-def _last3(W, lo, m, y, l1, v, R, C10, C20, C30, kap, C0, Ro, out):
-    eta_a, eta_c = R[6], R[8]
-    for i in range(m):  # the rest of `three_ring.ring_state` (`ring_stress`) and `ring_fields` (`fields_from`)
-        k = lo + i
-        L = l1[k]
-        dr_ie, dr_oe, dr_o = W[_OWN3, i], W[_OWN3 + 1, i], W[_OWN3 + 2, i]
-        l2a, l2b, l2c = W[_OWN3 + 3, i], W[_OWN3 + 4, i], W[_OWN3 + 5, i]
-        grad_b = _gradient_of(W, 0, i, L, l2b, C10, C20, C30)
-        grad_a = _gradient_of(W, 1, i, L, l2a, C10, C20, C30) if eta_a > 0.0 else grad_b
-        grad_c = _gradient_of(W, 2, i, L, l2c, C10, C20, C30) if eta_c > 0.0 else grad_b
-        sigma1 = _ring_stress(L, v[k], R, kap, l2b, dr_ie, dr_oe, dr_o, grad_a, grad_b, grad_c)
-        out[0, k], out[1, k], out[2, k], out[3, k], out[4, k], out[5, k] = _fields_from3(
-            y[k], L, sigma1, l2a, l2b, l2c, C0, Ro)
-
-
-@numba.njit(cache=True, error_model="numpy", nogil=True)
-def _first1(W, lo, m, l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri, out):
-    for i in range(m):
-        W[_LOG, i], W[_LOG + 1, i] = l1[lo + i], l2[lo + i]
-
-
-@numba.njit(cache=True, error_model="numpy", nogil=True)
-def _last1(W, lo, m, l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri, out):
-    for i in range(m):  # `one_ring.fields` from its `gradient_terms`: `stress_from`, `fields_from`
-        k = lo + i
-        L, y = l1[k], l2[k]
-        psi_1, _ = _gradient_of(W, 0, i, L, y, C10, C20, C30)
-        sigma1 = _stress_from1(y, L, v[k], kap, psi_1)
-        out[0, k], out[1, k], out[2, k] = _fields_from1(y, L, sigma1, C0, Ro, Ri)
+_f1 = _variants(_fields1_loop)
+_f3 = _variants(_fields3_loop)
 
 
 def fields1(l2, l1, v, C, kap, C0, Ro, Ri):
-    """`one_ring.fields` of every sample, ``(sigma1, capacitance, r_i)``: split passes (`_split`), the logarithms
-    and ``expm1`` of `yeoh._invariant_terms` by numpy, the rest the pieces `one_ring.fields` is composed of
-    (`yeoh.invariant_args`, `yeoh.invariant_from`, `yeoh.gradient_from`, `one_ring.stress_from`,
-    `one_ring.fields_from`) compiled: the numpy function's numbers bit for bit."""
+    """`one_ring.fields` of every sample, ``(sigma1, capacitance, r_i)``: the numpy function compiled as it is,
+    one pass over the samples (on every core from `kernels.PARALLEL_MIN` samples on); its numbers bit for bit."""
     l2 = _arr(l2)
     out = np.empty((3, l2.size))
-    _split(_first1, _last1, 1, 0, l2.size, (l2, _arr(l1, l2.shape), _arr(v, l2.shape), *map(float, C), float(kap),
-                                            float(C0), float(Ro), float(Ri), out))
+    _f1[_parallel(l2.size)](l2, _arr(l1, l2.shape), _arr(v, l2.shape), *map(float, C), float(kap), float(C0),
+                            float(Ro), float(Ri), out)
     return tuple(out)
 
 
 def fields3(y, l1, v, R, C, kap, C0, Ro):
-    """`three_ring.ring_fields` of every sample: the six rows of one block. Split passes (`_split`): the
-    logarithms and ``expm1`` of `yeoh._invariant_terms` by numpy, the rest the pieces `three_ring.ring_fields`
-    is composed of (`three_ring.ring_geometry`, `yeoh.invariant_args`, `yeoh.invariant_from`,
-    `yeoh.gradient_from`, `three_ring.ring_stress`, `three_ring.fields_from`) compiled: the numpy function's
-    numbers bit for bit."""
+    """`three_ring.ring_fields` of every sample: the six rows of one block. The numpy function compiled as it
+    is, one pass over the samples (on every core from `kernels.PARALLEL_MIN` samples on); its numbers bit for
+    bit."""
     y = _arr(y)
     out = np.empty((6, y.size))
-    _split(_first3, _last3, 3, 6, y.size, (y, _arr(l1, y.shape), _arr(v, y.shape), tuple(float(r) for r in R),
-                                         *map(float, C), float(kap), float(C0), float(Ro), out))
+    _f3[_parallel(y.size)](y, _arr(l1, y.shape), _arr(v, y.shape), tuple(float(r) for r in R), *map(float, C),
+                           float(kap), float(C0), float(Ro), out)
     return tuple(out)
 
 

@@ -3,9 +3,9 @@
 ``psi_m(l1, l2) = sum_i C_i0 (I1 - 3)**i`` with
 ``I1 = l1**2 + l2**2 + l1**-2 l2**-2`` (the third stretch is eliminated by
 incompressibility). ``I1 - 3`` and the derivatives of ``I1`` are evaluated
-from logarithmic stretches with ``expm1``, so they stay accurate as the
-stretches approach 1 (at ``l1 = 1 + 1e-12`` the plain formula loses every
-significant digit).
+in a form where nothing cancels to first order (`_invariant_terms`), so they
+stay accurate as the stretches approach 1 (at ``l1 = 1 + 1e-12`` the plain
+formula loses every significant digit).
 
 Functions take the coefficients ``C = (C10, C20, C30)`` [Pa] and broadcast
 over array stretches.
@@ -17,32 +17,36 @@ import numpy as np
 
 
 def _invariant_terms(l1, l2):
-    """``(x, I_1, I_2)``: ``x = I1 - 3`` and ``dI1/dl1``, ``dI1/dl2`` from logarithmic stretches, the one
-    implementation: the logarithms, `invariant_args`, ``expm1`` of each, `invariant_from` (compiled too:
-    `rdea_lab.physics.kernels`; `rdea_lab.physics.ring_kernels`' split passes take the logarithms and ``expm1``
-    by numpy over blocks and call the two pieces compiled)."""
-    e0, e1, e2, e3, e4 = invariant_args(np.log(l1), np.log(l2))
-    return invariant_from(l1, l2, _expm1_own(e0), _expm1_own(e1), _expm1_own(e2), _expm1_own(e3), _expm1_own(e4))
+    """``(x, I_1, I_2)``: ``x = I1 - 3`` and ``dI1/dl1``, ``dI1/dl2``, the one implementation, in plain algebra
+    arranged so that nothing cancels to first order as the stretches approach 1 (scalar or array arguments;
+    compiled too: `rdea_lab.physics.kernels`, `rdea_lab.physics.ring_kernels`).
+
+    With ``P = l1 l2`` and ``r = P - 1 = (l1 - 1) + l1 (l2 - 1)`` (``l - 1`` is exact for a stretch in [0.5, 2],
+    Sterbenz; ``P - 1`` itself where ``l2`` is outside [0.5, 1.5], so that ``P`` is far from 1 or ``l2 - 1``
+    large beside ``r``): ``I1 - 3 = l1**2 + l2**2 + P**-2 - 3 = (l1 - l2)**2 + r**2 (1 + 2 P) / P**2``, two terms
+    never negative, so ``x`` keeps its relative accuracy (a few ulps) however small the strain. The plain sum
+    ``l1**2 + l2**2 + P**-2 - 3`` loses every digit at ``l1 = 1 + 1e-12``; the logarithmic form this replaced
+    (``expm1`` of logarithmic stretches) kept them relative to its terms only (``~2e`` against ``x ~ 3 e**2``),
+    and cost a logarithm or ``expm1`` per term. ``dI1/dl1 = 2 l1 (1 - l1**-4 l2**-2) = 2 l1 s (S + 1) / S**2``
+    with ``S = l1 P``, ``s = S - 1 = (l1 - 1) + l1 r``; ``dI1/dl2`` likewise with ``T = l2 P``, ``t = (l2 - 1) +
+    l2 r``."""
+    p = l1 - 1.0
+    q = l2 - 1.0
+    P = l1 * l2
+    r = _where(abs(q) <= 0.5, p + l1 * q, P - 1.0)  # (q exact; else q lost l2's digits and P is far from 1)
+    d = l1 - l2
+    x = d * d + r * r * (1.0 + 2.0 * P) / (P * P)
+    S = l1 * P
+    T = l2 * P
+    I_1 = 2.0 * l1 * (p + l1 * r) * (S + 1.0) / (S * S)
+    I_2 = 2.0 * l2 * (q + l2 * r) * (T + 1.0) / (T * T)
+    return x, I_1, I_2
 
 
-def _expm1_own(t):
-    """``np.expm1(t)``, in place where ``t`` is an array: `invariant_args`' values are new arrays of
-    `_invariant_terms`' own, and five of them held at once with a new array for each ``expm1`` took up to twice
-    as long (`one_ring.stress` on 1e5 samples). The same numbers; the compiled forms bind it to ``np.expm1``."""
-    return np.expm1(t, out=t) if isinstance(t, np.ndarray) else np.expm1(t)
-
-
-def invariant_args(a, b):
-    """The arguments of the five ``expm1`` of `_invariant_terms` from ``a = log l1``, ``b = log l2``:
-    ``2 a``, ``2 b``, ``-2 (a + b)`` (the logarithms of ``l1**2``, ``l2**2``, ``l1**-2 l2**-2``) and
-    ``-4 a - 2 b``, ``-2 a - 4 b`` (of ``l1**-4 l2**-2``, ``l1**-2 l2**-4``)."""
-    return 2.0 * a, 2.0 * b, -2.0 * (a + b), -4.0 * a - 2.0 * b, -2.0 * a - 4.0 * b
-
-
-def invariant_from(l1, l2, e0, e1, e2, e3, e4):
-    """``(x, I_1, I_2)`` of `_invariant_terms` from the ``expm1`` of `invariant_args`' five values:
-    ``x = I1 - 3``, ``dI1/dl1 = 2 l1 (1 - l1**-4 l2**-2)``, ``dI1/dl2 = 2 l2 (1 - l1**-2 l2**-4)``."""
-    return e0 + e1 + e2, -2.0 * l1 * e3, -2.0 * l2 * e4
+def _where(c, a, b):
+    """``a`` where ``c``, else ``b``: `numpy.where`, a scalar for scalars (compiled: a conditional expression)."""
+    out = np.where(c, a, b)
+    return out if out.ndim else out[()]
 
 
 def slope(x, C):

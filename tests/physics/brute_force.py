@@ -253,9 +253,9 @@ class Landscape:
     def _rounding_scale(self, y):
         """Size of the terms the package sums for psi [Pa]: its rounding is NOISE times this.
 
-        ``yeoh.energy`` forms ``I1 - 3`` from ``expm1(2 ln l1) + expm1(2 ln l2) +
-        expm1(-2 ln(l1 l2))``: its rounding is relative to those terms, not to ``I1 - 3``
-        (at stretch 1 and a hoop strain ``e`` the terms are ``~2e`` and the sum ``~4e**2``).
+        The terms of ``I1 - 3 = (l1**2 - 1) + (l2**2 - 1) + ((l1 l2)**-2 - 1)`` (at stretch 1 and a hoop
+        strain ``e`` they are ``~2e`` and the sum ``~4e**2``): a bound on the rounding of any form of
+        ``psi`` (`yeoh.energy`'s keeps ``I1 - 3`` to a few ulps of itself, well inside it).
         """
         a = abs(np.log(self.l1))
         C10, C20, C30 = (abs(c) for c in self.C)

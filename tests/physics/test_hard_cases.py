@@ -82,8 +82,8 @@ def test_thin_shell():
 @pytest.mark.parametrize("model", MODELS)
 def test_stretch_exactly_one_and_one_plus_1e_12(model, any_core):
     """At rest the stress is exactly 0; at 1 + e (e = 1e-12, exact as l1 - 1) it is the
-    small-strain value 6 C10 e (Young's modulus 3 mu = 6 C10) to 1e-6: the expm1-based
-    invariants keep the digits the naive formula loses."""
+    small-strain value 6 C10 e (Young's modulus 3 mu = 6 C10) to 1e-6: the invariants' arrangement
+    (`yeoh._invariant_terms`) keeps the digits the naive formula loses."""
     assert solve(model, any_core, TABLE3, 1.0, 0.0).sigma1 == 0.0
     l1 = 1.0 + 1e-12
     e = l1 - 1.0

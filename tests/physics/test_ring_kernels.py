@@ -9,8 +9,8 @@
   micro-cores), each at stretches and voltages that make many rolls slack, and the bench scene.
 - The free-state searches in lockstep lanes (`_free_lanes`) against the one-by-one search, bit for bit.
 - The result fields: `fields1`, `fields3`, `fields_cr` against `one_ring.fields`, `three_ring.ring_fields` and
-  `continuum.evaluate`'s numpy fields (the split passes also near stretch 1, with rings of zero volume and
-  non-finite coordinates; their helper thread in a forked child); the problems' bounds (`ring_kernels.bounds`)
+  `continuum.evaluate`'s numpy fields (also near stretch 1, with rings of zero volume and non-finite
+  coordinates); the problems' bounds (`ring_kernels.bounds`)
   against the models' `bounds`, and the buffer they are kept in (`scratch`) shared by no result.
 """
 
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from rdea_lab.physics import ring_kernels
+from rdea_lab.physics import kernels, ring_kernels
 from rdea_lab.physics.models import continuum, one_ring, solve, three_ring
 from rdea_lab.physics.models._common import free_state, kappa, yeoh_coefficients
 from rdea_lab.physics.result import SLACK, is_valid
@@ -135,7 +135,7 @@ def test_bench_scene_whole_equal_reference(model):
 def test_fields_equal_numpy(geom):
     """Each compiled field pass against its numpy function at the same coordinates (not only at equilibria)."""
     rng = np.random.default_rng(7)
-    n = 2 * ring_kernels.SPLIT_BLOCK + 1000  # parallel from 4096 samples on; the split passes in three blocks
+    n = 2 * kernels.PARALLEL_MIN + 1000  # on numba's threads (from 4096 samples on)
     l1, v = rng.uniform(1.0, 2.0, n), rng.uniform(0.0, 4000.0, n)
     C, kap, C0 = yeoh_coefficients(RIZZELLO), kappa(geom, RIZZELLO), geom.C0(RIZZELLO.eps_r)
     # the problems' bounds and loads in one pass against the models' numpy `bounds`
@@ -166,13 +166,13 @@ def test_fields_equal_numpy(geom):
 
 
 @pytest.mark.parametrize("radii", [CORES_SPLIT["no ring a"], CORES_SPLIT["no ring c"], CORES_SPLIT["hollow"]])
-def test_split_field_passes_at_the_edges(radii):
-    """`fields1` and `fields3` (numpy's logarithms and ``expm1``, the rest compiled) against the numpy functions
-    where the logarithms matter: stretches 1e-14 to 1e-3 above 1, rings of zero volume (NaN stretch), NaN and
-    infinite coordinates, and a call shorter than a block."""
+def test_field_passes_at_the_edges(radii):
+    """`fields1` and `fields3` against the numpy functions where the invariant's arrangement matters: stretches
+    1e-14 to 1e-3 above 1, rings of zero volume (NaN stretch), NaN and infinite coordinates, a call on
+    numba's threads and one too short for them."""
     geom = core(radii)
     rng = np.random.default_rng(3)
-    n = ring_kernels.SPLIT_BLOCK + 7
+    n = kernels.PARALLEL_MIN + 7
     l1 = np.where(rng.random(n) < 0.5, 1.0 + 10.0 ** rng.uniform(-14, -3, n), rng.uniform(1.0, 3.0, n))
     v = rng.uniform(0.0, 5000.0, n)
     l1[:2], v[2] = np.nan, np.inf
@@ -225,37 +225,6 @@ def test_free_lanes_equal_one_by_one(model, monkeypatch):
     assert n_done > 200  # the lanes ran (a floor, not a figure)
 
 
-def _split_in_child(args, queue):
-    queue.put(ring_kernels.fields1(*args)[0])
-
-
-def test_split_pass_threads_in_a_forked_child(monkeypatch):
-    """A process forked after the split passes started their helper thread (a design study's workers) runs
-    them on its own thread, with the same numbers (the parent's executor has no thread in the child: work
-    handed to it would wait for ever)."""
-    import multiprocessing
-
-    if "fork" not in multiprocessing.get_all_start_methods():
-        pytest.skip("no fork here")
-    n = 3 * ring_kernels.SPLIT_BLOCK
-    l1 = np.linspace(1.0, 2.0, n)
-    args = (1.0 / np.sqrt(l1), l1, np.full(n, 1000.0), yeoh_coefficients(RIZZELLO), 1e-3, 1e-9, 1e-3, 5e-4)
-    monkeypatch.setattr(ring_kernels, "_POOL", {})  # (an earlier test's pool would pass the check below)
-    here = ring_kernels.fields1(*args)[0]  # two threads (the load is read as 0 here)
-    assert ring_kernels._POOL, "the split pass ran on one thread"
-    ctx = multiprocessing.get_context("fork")
-    queue = ctx.Queue()
-    child = ctx.Process(target=_split_in_child, args=(args, queue))
-    child.start()
-    try:
-        there = queue.get(timeout=20)
-    finally:
-        child.join(10)
-        if child.is_alive():
-            child.kill()
-    assert np.array_equal(there, here)
-
-
 _AT_EXIT = """
 import atexit, os, sys
 import numpy as np
@@ -278,9 +247,9 @@ atexit.register(at_exit)
 
 
 @pytest.mark.parametrize("model", ["1r", "3r"])
-def test_split_pass_from_an_atexit_handler(model, tmp_path):
-    """A solve while the interpreter shuts down (an ``atexit`` handler, a finalizer) runs the split passes
-    on its own thread (no thread can start then) and gives the reference's result."""
+def test_a_solve_from_an_atexit_handler(model, tmp_path):
+    """A solve while the interpreter shuts down (an ``atexit`` handler, a finalizer: no Python thread can start
+    then) on numba's threads gives the reference's result."""
     import os
     import subprocess
     import sys

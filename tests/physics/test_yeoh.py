@@ -56,15 +56,65 @@ def test_energy_is_zero_and_stationary_at_rest():
 
 def test_small_strain_modulus_is_six_C10():
     """Uniaxial tension of an incompressible solid: Young's modulus 3 mu = 6 C10, so at
-    lambda1 = 1 + e the energy is 3 C10 e^2 (higher orders are e^3 ~ 1e-36 relative).
-    e = l1 - 1 is exact in floating point (Sterbenz). I1 - 3 is a sum of three
-    expm1 terms of size ~2e that cancel to 3e^2: rounding bounds the relative error by
-    3 * eps * 2e / (3 e^2) = 2 eps / e = 4.4e-4 at e = 1e-12; the naive
-    l1^2 + l2^2 + ... - 3 would have no correct digit at all."""
+    lambda1 = 1 + e the energy is 3 C10 e^2 (1 + O(e)). e = l1 - 1 is exact in floating point
+    (Sterbenz). The invariant is formed as a sum of two terms that are never negative
+    (`yeoh._invariant_terms`), so it keeps its relative accuracy: the bound is the O(e) of the expansion
+    (1e-12) and the C20 term (x C20 / C10 ~ 1e-24), well inside 1e-10; the naive
+    l1^2 + l2^2 + ... - 3 would have no correct digit at all (and a sum of expm1 terms of size ~2e about
+    4e-4)."""
     l1 = 1.0 + 1e-12
     e = l1 - 1.0
     psi = yeoh.energy(l1, l1**-0.5, (242e3, -69e3, 47e3))
-    assert psi == pytest.approx(3 * 242e3 * e**2, rel=4.4e-4, abs=0)
+    assert psi == pytest.approx(3 * 242e3 * e**2, rel=1e-10, abs=0)
+
+
+def _exact_invariants(l1, l2):
+    """``(I1 - 3, dI1/dl1, dI1/dl2)`` of two floats in exact rational arithmetic."""
+    from fractions import Fraction
+
+    a, b = Fraction(float(l1)), Fraction(float(l2))
+    return a * a + b * b + 1 / (a * b) ** 2 - 3, 2 * a * (1 - 1 / (a**4 * b**2)), 2 * b * (1 - 1 / (a**2 * b**4))
+
+
+def _pairs(rng, n=150):
+    """Stretch pairs: independent near 1 (strains 0.3 down to 1e-13), uniaxial, ``l1 l2`` near 1, and wide
+    (``l1`` to 100, ``l2`` up to ten times its uniaxial value)."""
+    out = []
+    for scale in (3e-1, 1e-2, 1e-5, 1e-9, 1e-13):
+        a = 1.0 + rng.uniform(-scale, scale, n)
+        out.append(("independent", a, 1.0 + rng.uniform(-scale, scale, n)))
+        out.append(("uniaxial", a, a**-0.5))
+        out.append(("l1 l2 near 1", a, (1.0 / a) * (1.0 + rng.uniform(-1e-3, 1e-3, n) * scale)))
+    a = 10.0 ** rng.uniform(0.0, 2.0, n)
+    out.append(("wide", a, a**-0.5 * 10.0 ** rng.uniform(0.0, 1.0, n)))
+    return out
+
+
+def test_invariant_keeps_its_digits_against_exact_arithmetic():
+    """Against exact rational arithmetic on the same floats: ``I1 - 3`` to 8 ulps of itself however small the
+    strain (its two terms are never negative), and ``dI1/dl1``, ``dI1/dl2`` to 16 ulps times the condition of
+    the sum they are formed from (``s = (l1 - 1) + l1 r``, ``r = l1 l2 - 1`` itself a sum, or ``P - 1`` where
+    ``l2`` is outside [0.5, 1.5]): where ``l1**2 l2`` is near 1 the input's last bit decides ``dI1/dl1``, in
+    any form."""
+    from fractions import Fraction
+
+    eps = np.finfo(float).eps
+    for kind, l1, l2 in _pairs(np.random.default_rng(11)):
+        got = yeoh._invariant_terms(l1, l2)
+        for i in range(l1.size):
+            a, b = Fraction(float(l1[i])), Fraction(float(l2[i]))
+            exact = _exact_invariants(a, b)
+            p, q, r = abs(a - 1), abs(b - 1), abs(a * b - 1)
+            r_err = p + a * q if q <= Fraction(1, 2) else a * b  # what the rounding of r is relative to
+            cond = {1: (p + a * r + a * r_err) / (abs(a * a * b - 1) or 1), 2: (q + b * r + b * r_err) / (
+                abs(a * b * b - 1) or 1)}
+            for k, name in enumerate(("x", "I_1", "I_2")):
+                if exact[k] == 0:
+                    assert got[k][i] == 0.0, (kind, name)
+                    continue
+                err = abs((Fraction(float(got[k][i])) - exact[k]) / exact[k])
+                bound = 8 * eps if k == 0 else 16 * eps * max(1.0, float(cond[k]))
+                assert err <= bound, (kind, name, l1[i], l2[i], float(err) / eps)
 
 
 def test_arrays_broadcast():

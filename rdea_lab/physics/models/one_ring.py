@@ -40,8 +40,7 @@ def stress_from(l2, l1, v, kap, psi_1):
 
 def fields(l2, l1, v, C10, C20, C30, kap, C0, Ro, Ri):
     """``(sigma1 [Pa], capacitance [F], r_i [m])`` at the equilibrium ``lambda2 = l2``: `stress`, then
-    `fields_from`. Scalar or array arguments; `rdea_lab.physics.ring_kernels.fields1` composes the same pieces
-    in split passes (tested against it bit for bit)."""
+    `fields_from`. Scalar or array arguments (compiled as it is: `rdea_lab.physics.ring_kernels.fields1`)."""
     return fields_from(l2, l1, stress(l2, l1, v, C10, C20, C30, kap), C0, Ro, Ri)
 
 

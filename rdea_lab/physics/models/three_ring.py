@@ -147,8 +147,8 @@ def ring_state(xi, l1, v, R, C10, C20, C30, kap):
     """``(sigma1 [Pa], lambda2a, lambda2b, lambda2c)`` at the equilibrium ``xi``: ``sigma1 = lambda1
     dg/dlambda1`` at fixed ``xi`` (eq. (27) row 1 as corrected in ERRATA); a ring of zero volume has a
     NaN stretch. ``R`` as in `ring_terms`; scalar or array arguments (compiled too). Composed of
-    `ring_geometry`, `yeoh.gradient_terms` of each ring and `ring_stress`, the one implementation of each part
-    (`rdea_lab.physics.ring_kernels.fields3` composes the same pieces in split passes)."""
+    `ring_geometry`, `yeoh.gradient_terms` of each ring and `ring_stress`, the one implementation of each
+    part."""
     eta_a, eta_c = R[6], R[8]
     l2a, l2b, l2c, dr_ie, dr_oe, dr_o = ring_geometry(xi, l1, R)
     grad_b = gradient_terms(l1, l2b, C10, C20, C30)
@@ -193,9 +193,8 @@ def ring_stress(l1, v, R, kap, l2b, dr_ie, dr_oe, dr_o, grad_a, grad_b, grad_c):
 
 def ring_fields(xi, l1, v, R, C10, C20, C30, kap, C0, Ro):
     """``(sigma1 [Pa], lambda2a, lambda2b, lambda2c, capacitance [F], r_i [m])`` at the equilibrium ``xi``:
-    `ring_state`, then `fields_from`. Scalar or array arguments (compiled too: `rdea_lab.physics.kernels`
-    compiles it as it is for one sample; `rdea_lab.physics.ring_kernels.fields3` composes the same pieces in
-    split passes over blocks, tested against it bit for bit)."""
+    `ring_state`, then `fields_from`. Scalar or array arguments (compiled as it is: `rdea_lab.physics.kernels`
+    for one sample, `rdea_lab.physics.ring_kernels.fields3` over the samples)."""
     sigma1, l2a, l2b, l2c = ring_state(xi, l1, v, R, C10, C20, C30, kap)
     return fields_from(xi, l1, sigma1, l2a, l2b, l2c, C0, Ro)
 
