@@ -3,9 +3,7 @@
 - eq. (44) of [1] is composed in one function, `physics.viscoelastic.overstress_step`;
 - nothing outside `physics` reaches into its private names;
 - no library module picks a matplotlib backend (only the CLI may);
-- the twin's force composition, `carried_force`, is called in one place outside physics;
-- the split field passes of `physics.ring_kernels` do no arithmetic of their own but index arithmetic (the
-  equations are the numpy functions' pieces, compiled).
+- the twin's force composition, `carried_force`, is called in one place outside physics.
 """
 
 import ast

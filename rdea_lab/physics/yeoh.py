@@ -21,19 +21,20 @@ def _invariant_terms(l1, l2):
     arranged so that nothing cancels to first order as the stretches approach 1 (scalar or array arguments;
     compiled too: `rdea_lab.physics.kernels`, `rdea_lab.physics.ring_kernels`).
 
-    With ``P = l1 l2`` and ``r = P - 1 = (l1 - 1) + l1 (l2 - 1)`` (``l - 1`` is exact for a stretch in [0.5, 2],
-    Sterbenz; ``P - 1`` itself where ``l2`` is outside [0.5, 1.5], so that ``P`` is far from 1 or ``l2 - 1``
-    large beside ``r``): ``I1 - 3 = l1**2 + l2**2 + P**-2 - 3 = (l1 - l2)**2 + r**2 (1 + 2 P) / P**2``, two terms
-    never negative, so ``x`` keeps its relative accuracy (a few ulps) however small the strain. The plain sum
-    ``l1**2 + l2**2 + P**-2 - 3`` loses every digit at ``l1 = 1 + 1e-12``; the logarithmic form this replaced
-    (``expm1`` of logarithmic stretches) kept them relative to its terms only (``~2e`` against ``x ~ 3 e**2``),
-    and cost a logarithm or ``expm1`` per term. ``dI1/dl1 = 2 l1 (1 - l1**-4 l2**-2) = 2 l1 s (S + 1) / S**2``
-    with ``S = l1 P``, ``s = S - 1 = (l1 - 1) + l1 r``; ``dI1/dl2`` likewise with ``T = l2 P``, ``t = (l2 - 1) +
-    l2 r``."""
+    With ``P = l1 l2`` and ``r = P - 1 = (l1 - 1) + l1 (l2 - 1)`` (``l - 1`` is exact for a stretch in
+    [0.5, 2], Sterbenz, and rounded relative to itself above; ``P - 1`` itself where ``l2`` is outside
+    [0.5, 1.5]: below 0.5 ``l2 - 1`` loses ``l2``'s digits, and there ``(l1 - l2)**2`` or ``l1 - 1`` is large
+    beside ``r``, whose rounding then does not matter):
+    ``I1 - 3 = l1**2 + l2**2 + P**-2 - 3 = (l1 - l2)**2 + r**2 (1 + 2 P) / P**2``, two terms never negative,
+    so ``x`` keeps its relative accuracy (a few ulps) however small the strain. The plain sum loses every
+    digit at ``l1 = 1 + 1e-12``; the logarithmic form this replaced (``expm1`` of logarithmic stretches)
+    kept them relative to its terms only (``~2e`` against ``x ~ 3 e**2``), and cost a logarithm or ``expm1``
+    per term. ``dI1/dl1 = 2 l1 (1 - l1**-4 l2**-2) = 2 l1 s (S + 1) / S**2`` with ``S = l1 P``,
+    ``s = S - 1 = (l1 - 1) + l1 r``; ``dI1/dl2`` likewise with ``T = l2 P``, ``t = (l2 - 1) + l2 r``."""
     p = l1 - 1.0
     q = l2 - 1.0
     P = l1 * l2
-    r = _where(abs(q) <= 0.5, p + l1 * q, P - 1.0)  # (q exact; else q lost l2's digits and P is far from 1)
+    r = _where(abs(q) <= 0.5, p + l1 * q, P - 1.0)
     d = l1 - l2
     x = d * d + r * r * (1.0 + 2.0 * P) / (P * P)
     S = l1 * P
@@ -105,8 +106,8 @@ def gradient(l1, l2, C):
 
 def gradient_terms(l1, l2, C10, C20, C30):
     """`gradient` for scalar or array stretches and the coefficients as three numbers, the one implementation:
-    `_invariant_terms`, then `gradient_from` (compiled too: :mod:`rdea_lab.physics.kernels`; the split passes
-    of :mod:`rdea_lab.physics.ring_kernels` compose the same pieces)."""
+    `_invariant_terms`, then `gradient_from` (compiled too: :mod:`rdea_lab.physics.kernels`,
+    :mod:`rdea_lab.physics.ring_kernels`)."""
     x, I_1, I_2 = _invariant_terms(l1, l2)
     return gradient_from(x, I_1, I_2, C10, C20, C30)
 
