@@ -634,8 +634,11 @@ def _core_free() -> bool:
     numba's waiting threads spun, 2 cores at load 4 made 1R and 3R calls of 4096 samples 7-14x slower than one
     thread; asleep, as now, about as fast as one, and 1e5-sample calls 0.5-2x its time, mostly less), and what it takes
     it takes from the other work. The result is the same either way: each sample is computed on its own."""
-    return _other_load() <= (os.cpu_count() or 1) - 1.5
+    return _other_load() <= _CORES - 1.5
 
+
+#: The machine's cores, read once (`os.cpu_count` costs some 6 us, and `_core_free` is asked several times a call).
+_CORES = os.cpu_count() or 1
 
 #: `_other_load`'s window: its start ``(time, machine busy, process CPU)``, the last estimate and this
 #: process's CPU use [cores] averaged over a minute.
