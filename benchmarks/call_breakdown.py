@@ -22,7 +22,7 @@ import numba
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_models import RIZZELLO, _core, _envelope  # noqa: E402
+from bench_models import RIZZELLO, _core, _envelope, _times  # noqa: E402
 
 from rdea_lab.physics import kernels, ring_kernels  # noqa: E402
 from rdea_lab.physics.models import _common, one_ring, solve, three_ring  # noqa: E402
@@ -83,15 +83,8 @@ def scan(model, repeat=25):
     n = l1.size
 
     def median(a, threads=0):
-        def run():
-            kernels._roots[threads](*a, np.empty(n), np.zeros(n, np.int8), np.empty(n))
-        run()
-        ts = []
-        for _ in range(repeat):
-            t0 = time.perf_counter()
-            run()
-            ts.append(time.perf_counter() - t0)
-        return 1e3 * np.median(ts)
+        return 1e3 * np.median(_times(
+            lambda: kernels._roots[threads](*a, np.empty(n), np.zeros(n, np.int8), np.empty(n)), repeat))
 
     full = median(args)
     threads = median(args, 1)

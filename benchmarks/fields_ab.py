@@ -13,13 +13,13 @@ import subprocess
 import sys
 
 _ONE = """
-import sys, time
+import sys
 import numpy as np
 tree, repeat = sys.argv[1], int(sys.argv[2])
 sys.path.insert(0, tree + "/benchmarks")
 import rdea_lab
 assert rdea_lab.__file__.startswith(tree), rdea_lab.__file__
-from bench_models import RIZZELLO, _core, _envelope
+from bench_models import RIZZELLO, _core, _envelope, _times
 from rdea_lab.physics import ring_kernels
 from rdea_lab.physics.models import solve, three_ring
 from rdea_lab.physics.models._common import kappa
@@ -31,13 +31,7 @@ xi = solve("3r", g, RIZZELLO, l1, v, slack=False).r_i / g.Ro
 R = three_ring._Rings(g, l1).constants
 
 def timed(fn):
-    fn()
-    ts = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    ts = 1e3 * np.array(ts)
+    ts = 1e3 * _times(fn, repeat)
     return f"{np.median(ts):.3f} ms [{ts.min():.3f}, {ts.max():.3f}]"
 
 print(tree, "fields1", timed(lambda: ring_kernels.fields1(l2, l1, v, C, kap, C0, g.Ro, g.Ri)),
