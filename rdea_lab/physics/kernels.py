@@ -57,8 +57,8 @@ import time
 import types
 
 # numba's OpenMP threads (libgomp) spin after each parallel loop by default, on the cores the next pass needs: the
-# ring models' fields (the calling thread and `ring_kernels`' helper thread) waited for them, a 3R call of 1e5
-# samples 5-40 % slower (`benchmarks/ab_scenes.py`). Waiting threads sleep instead, unless the process says
+# passes after a parallel loop waited for them (then the ring models' fields on two Python threads), a 3R call of
+# 1e5 samples 5-40 % slower (`benchmarks/ab_scenes.py`). Waiting threads sleep instead, unless the process says
 # otherwise. The setting is the process's (its child processes and any other OpenMP runtime read it too) and is
 # read when libgomp is first loaded in the process (here: numba's first parallel loop, unless another library
 # loaded it before).
