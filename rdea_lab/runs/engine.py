@@ -211,6 +211,26 @@ def execute(plan, card, backend, out: Path, *, seed=0, command="", callbacks=(),
 def _execute(plan, card, backend, out, seed, command, subscribers, metadata, signals, control,
              suspenders) -> RunResult:
     started, writer = False, None
+    status, reason = "complete", ""
+    failure = None
+    failed_cb = [None]
+
+    def notify(method, *args):
+        for cb in subscribers:
+            fn = cb if method is None else getattr(cb, method, None)
+            if fn is None:
+                continue
+            try:
+                fn(*args)
+            except KeyboardInterrupt:
+                raise
+            except Exception as exc:
+                failed_cb[0] = cb
+                raise _SubscriberFailed(f"subscriber {subscriber_name(cb)} failed: "
+                                        f"{type(exc).__name__}: {exc}") from exc
+
+    # from the journal's claim on, every statement is inside a try that closes it: a signal lands between any
+    # two calls, and one outside both (the operator's first publish, say) left the journal unclosed
     try:
         metadata = check_metadata(metadata)
         plan = require_checked(plan, card)  # checked in preparation, unchanged since: before anything moves
@@ -240,28 +260,10 @@ def _execute(plan, card, backend, out, seed, command, subscribers, metadata, sig
             writer.abandon()
         backend.close()
         raise
-    status, reason = "complete", ""
-    failure = None
-    failed_cb = [None]
-    operator = Operator(control, backend, writer, suspenders)
-    operator.publish(0, force=True)
-
-    def notify(method, *args):
-        for cb in subscribers:
-            fn = cb if method is None else getattr(cb, method, None)
-            if fn is None:
-                continue
-            try:
-                fn(*args)
-            except KeyboardInterrupt:
-                raise
-            except Exception as exc:
-                failed_cb[0] = cb
-                raise _SubscriberFailed(f"subscriber {subscriber_name(cb)} failed: "
-                                        f"{type(exc).__name__}: {exc}") from exc
-
     try:
         try:
+            operator = Operator(control, backend, writer, suspenders)
+            operator.publish(0, force=True)
             max_force = plan.limits.max_force
             planned = plan.samples
             signals.acquiring = True

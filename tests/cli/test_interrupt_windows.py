@@ -11,6 +11,8 @@ hundred on a loaded machine), acts as Python's defaults; the delays below start 
 
 from __future__ import annotations
 
+import dis
+import inspect
 import os
 import signal
 import subprocess
@@ -166,3 +168,55 @@ def test_the_engine_raises_a_late_signal_once_the_dataset_is_closed(tmp_path, mo
     ds = open_run(out)
     assert ds.attrs["status"] == "complete" and ds.sizes["time"] == 5401
     ds.close()
+
+
+@main_thread_only
+def test_a_signal_at_every_line_of_the_set_up_closes_the_journal(tmp_path, at_a_terminal):
+    """SIGTERM sent at each line the engine runs from the start of a run to its first block (in-process, so
+    every window is reached, not one moment in a few): each run raises RunInterrupted and leaves no journal;
+    a run that had begun leaves a dataset that says it was interrupted. CI found one window a process could
+    hit: the operator's first publish, between the set-up's try and the loop's."""
+    import rdea_lab
+    from rdea_lab.runs import engine
+
+    card = rdea_lab.load_specimen(CARD)
+    first_line = engine._execute.__code__.co_firstlineno
+    loop = first_line + next(i for i, line in enumerate(inspect.getsource(engine._execute).splitlines())
+                             if "block = backend.read_block()" in line)
+    # a real signal raises only where the interpreter checks for one, just after a call returns: at the lines
+    # that call something (the tracer raises it at the line's start, inside the same try as its calls)
+    calling = {ins.positions.lineno for ins in dis.get_instructions(engine._execute) if ins.opname == "CALL"}
+    reached = []
+
+    def run_with_signal_at(k):
+        count = [0]
+
+        def local(frame, event, arg):
+            if event == "line" and frame.f_lineno <= loop and frame.f_lineno in calling:
+                count[0] += 1
+                if count[0] == k:
+                    reached.append(frame.f_lineno)
+                    os.kill(os.getpid(), signal.SIGTERM)  # raised from here: at the start of this line
+            return local
+
+        def tracer(frame, event, arg):
+            return local if frame.f_code is engine._execute.__code__ else None
+
+        out = tmp_path / f"run{k}.nc"
+        sys.settrace(tracer)
+        try:
+            with pytest.raises(KeyboardInterrupt, match="SIGTERM"):  # RunInterrupted, or a run's own interruption
+                rdea_lab.run_protocol(PROTOCOL, card, "twin", out=out)
+        finally:
+            sys.settrace(None)
+        assert not journal_path(out).exists(), f"line {reached[-1]}: a run left unclosed"
+        if out.exists():
+            ds = open_run(out)
+            assert ds.attrs["status"] == "interrupted", (reached[-1], ds.attrs["status_reason"])
+            ds.close()
+        return count[0]
+
+    k = 1
+    while run_with_signal_at(k) >= k and reached and reached[-1] < loop:
+        k += 1
+    assert k > 15 and reached[-1] == loop, (k, reached)  # every line up to the first read, not a few
