@@ -473,7 +473,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     else:
         for b in range(nb):
             h0[b0 + b] = 0.0
-    na = 0
+    na = np.int64(0)  # not `0`: numba would compile `_terms_block` once more for a literal 0 (see `_free_lanes`)
     for b in range(nb):
         i = b0 + b
         span[b] = y_max[i] - y0[i]
@@ -489,7 +489,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         L[na], XI[na], X0[na] = l1[i], xi0[i], x0[i]
         act[na] = b
         na += 1
-    nr = 0
+    nr = np.int64(0)
     while na > 0:
         _terms_block(code, na, S, R, Q, C10, C20, C30)
         for a in range(na):
@@ -592,6 +592,15 @@ def _roots_loop(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     for c in prange((n + BLOCK - 1) // BLOCK):
         _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
                     pitchfork, y, ok, h0, c * BLOCK, min(n, (c + 1) * BLOCK))
+
+
+def _table(q):
+    """A quadrature table ``Q`` as the compiled kernels take it: a read-only C-contiguous float64 copy. Every
+    ``Q`` is read-only (`_EMPTY_Q`, `ring_kernels.cr_tables`, the step kernel's compiled global), so that numba
+    compiles the kernels once, not once for read-only and once for writable tables."""
+    q = np.array(q, np.float64, order="C")
+    q.setflags(write=False)
+    return q
 
 
 def _arr(x, shape=None):
@@ -731,7 +740,8 @@ def _roots_args(problem, whole, rtol=branch.RTOL, max_iter=branch.MAX_ITER):
     n = problem.K.size
     l1 = _arr(consts["l1"])
     if code == CODES["cr"]:
-        cr = (_arr(consts["xi0"]), _arr(consts["x0"]), (0.0, 0.0, float(consts["Lb"])) + (0.0,) * 6, _arr(consts["Q"]))
+        cr = (_arr(consts["xi0"]), _arr(consts["x0"]), (0.0, 0.0, float(consts["Lb"])) + (0.0,) * 6,
+              _table(consts["Q"]))
     else:
         cr = (l1, l1, tuple(float(r) for r in consts.get("R", _NO_RING)), _EMPTY_Q)  # (xi0, x0 unused)
     return (code, l1, _arr(problem.y0, (n,)), _arr(problem.y_max, (n,)), _arr(problem.K, (n,)), *cr,
@@ -763,6 +773,7 @@ def branch_roots(problem, *, whole, start=None, rtol=branch.RTOL, max_iter=branc
 
 
 _EMPTY_Q = np.zeros((4, 0))
+_EMPTY_Q.setflags(write=False)  # read-only, as the step kernel's global `_Q` is: one compiled signature
 
 
 def _su_loop(l1, v, C10, C20, C30, kap, C0, sigma, l2, cap):

@@ -58,8 +58,10 @@ _fields3_inline = _jit(three_ring.ring_fields, inline="always",
                                        ring_geometry=_jit(three_ring.ring_geometry, inline="always",
                                                           radii=_jit(three_ring.radii, inline="always"))))
 
-_N_SCAN = N_SCAN
-_RTOL, _MAX_ITER = RTOL, MAX_ITER
+# typed, not Python ints: a literal argument makes numba compile a callee once more (see `step_kernel`)
+_N_SCAN = np.int64(N_SCAN)
+_RTOL, _MAX_ITER = RTOL, np.int64(MAX_ITER)
+_NO, _ZERO = np.bool_(False), np.int64(0)
 _FREE_MAX = FREE_STRETCH_MAX
 
 
@@ -163,6 +165,7 @@ def cr_tables(roll):
     Q = np.empty((5, s.size))
     Q[:4] = np.stack(roll.weights)
     Q[4] = roll.s_i / s
+    Q.setflags(write=False)  # read-only, as `_NO_Q` and a compiled global are: one signature of the kernels
     return Q, np.ascontiguousarray(roll.avg.T, float), np.array(roll.present, np.bool_)
 
 
@@ -245,7 +248,7 @@ def _rising(code, lam, v, R, B, Q, C10, C20, C30, kap, offsets, pitchfork):
         _, x0 = _basis(lam)
         R = (y0, x0, R[2], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     h0 = _h_start(code, y0, lam, R, Q, C10, C20, C30, pitchfork)
-    y, cert = _one(code, lam, y0, y_max, load * v * v, h0, R, Q, C10, C20, C30, offsets, False, _RTOL, _MAX_ITER,
+    y, cert = _one(code, lam, y0, y_max, load * v * v, h0, R, Q, C10, C20, C30, offsets, _NO, _RTOL, _MAX_ITER,
                    _N_SCAN, pitchfork)
     return y, cert == 1, R
 
@@ -336,7 +339,7 @@ def _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchf
                 busy += 1
         if busy == 0:
             break
-        na = 0
+        na = np.int64(0)
         for k in range(nl):  # `_rising`'s bounds
             if idx[k] < 0:
                 continue
@@ -356,8 +359,9 @@ def _free_lanes(code, l1, v, s1, R, B, Q, W, C10, C20, C30, kap, offsets, pitchf
             else:
                 xi0[na] = x0[na] = t  # (unused)
             na += 1
-        _scan_block(code, lam, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, False, _RTOL, _MAX_ITER, _N_SCAN,
-                    pitchfork, y, ok, h0, 0, na)
+        # every argument typed as `_roots_loop` passes it: a literal one compiles the scan once more (some 5 s)
+        _scan_block(code, lam, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, _NO, _RTOL, _MAX_ITER, _N_SCAN,
+                    pitchfork, y, ok, h0, _ZERO, na)
         for j in range(na):
             k = act[j]
             i = idx[k]
@@ -439,6 +443,7 @@ def free_states(code, l1, v, s1, C, kap, offsets, pitchfork, R=(0.0,) * 9, B=(0.
 
 
 _NO_Q = np.zeros((5, 0))
+_NO_Q.setflags(write=False)  # as every Q (`cr_tables`) and the step kernel's: one compiled signature
 _NO_W = np.zeros((3, 0))
 
 

@@ -44,12 +44,13 @@ import numpy as np
 from numba import prange
 
 from .kernels import (_EMPTY_Q, _NO_RING, _arr, _dh, _h_start, _next_node, _psi2_first, _refine, _ring, _root, _start,
-                      _terms, _variants)
+                      _table, _terms, _variants)
 from .branch import MAX_ITER, RTOL
 from .result import LIMIT_POINT, NOT_CONVERGED, OK, OUTSIDE_RANGE, SNAPPED
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)  # as `branch._GOLDEN`
 _jit = numba.njit(cache=True, error_model="numpy")
+_YES, _NO, _ZERO = np.bool_(True), np.bool_(False), np.int64(0)  # typed: a literal compiles a callee once more
 
 
 @_jit
@@ -337,7 +338,7 @@ def _runs(code, l1, y0, y_max, K, h0, R, xi0, x0, Q, C10, C20, C30, offsets, n_s
         Ri, C = _own(code, i, R, xi0, x0, C10, C20, C30)
         y[i], status[i], K_crit[i], K_range[i], was_lost = path_rule(
             code, l1[i], y0[i], y_max[i], K[i], h0[i], Ri, Q, C[0], C[1], C[2], offsets, n_scan, pitchfork,
-            y0[i] if prev != prev else prev, lost, label_status, label_K, False, rtol, max_iter)
+            y0[i] if prev != prev else prev, lost, label_status, label_K, _NO, rtol, max_iter)
         if was_lost:
             label_status, label_K = status[i], K_crit[i]
         lost, prev = was_lost, y[i]
@@ -351,7 +352,7 @@ def _constants(code, consts, n):
     C = tuple(np.atleast_1d(_arr(c)) for c in consts["C"])
     if code == 4:
         return C, (0.0, 0.0, consts["Lb"]) + (0.0,) * 6, _arr(consts["xi0"], (n,)), _arr(consts["x0"], (n,)), \
-            _arr(consts["Q"])
+            _table(consts["Q"])
     return C, consts.get("R", _NO_RING), np.zeros(0), np.zeros(0), _EMPTY_Q
 
 
@@ -456,7 +457,7 @@ def _ramp_finish(code, l1, y0, y_max, K, R, Q, C10, C20, C30, pitchfork, rtol, m
         # solved range where it is the range end's (the branch climbs on beyond the range)
         if not (abs(top_hi) < math.inf):
             return y0, OUTSIDE_RANGE, math.nan, top_h
-        _, K_crit = _extremum(code, l1, R, Q, C10, C20, C30, top_lo, top_hi, top_y, top_h, True, y0, pitchfork)
+        _, K_crit = _extremum(code, l1, R, Q, C10, C20, C30, top_lo, top_hi, top_y, top_h, _YES, y0, pitchfork)
         return y0, LIMIT_POINT, K_crit, math.nan
     y, ok = _refine(code, l1, R, Q, C10, C20, C30, start, lo, hi, K, y_max - y0, rtol, max_iter, 1.0)
     if not ok:
@@ -476,7 +477,7 @@ def branch_rule(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan
         code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, n_scan)
     y_top, K_fold = math.nan, math.nan
     if folded:
-        y_top, K_fold = _extremum(code, l1, R, Q, C10, C20, C30, fold_lo, fold_hi, fold_y, fold_h, True, y0,
+        y_top, K_fold = _extremum(code, l1, R, Q, C10, C20, C30, fold_lo, fold_hi, fold_y, fold_h, _YES, y0,
                                   pitchfork)
     return _ramp_finish(code, l1, y0, y_max, K, R, Q, C10, C20, C30, pitchfork, rtol, max_iter, found, folded, lo,
                         hi, start, fold_lo, y_top, K_fold, top_y, top_h, top_lo, top_hi)
@@ -543,7 +544,7 @@ def _branch_block(code, sel, t0, t1, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, 
     lane = np.empty(nl, np.int64)
     top = np.full((nl, 2), math.nan)  # (y_top, K_fold) of the first fold
     lanes = code != 4 and C10.size == 1 and C20.size == 1 and C30.size == 1
-    ng = 0
+    ng = _ZERO
     for t in range(t0, t1):
         i = sel[t]
         Ri, C = _own(code, i, R, xi0, x0, C10, C20, C30)
@@ -567,7 +568,7 @@ def _branch_block(code, sel, t0, t1, l1, y0, y_max, K, R, xi0, x0, Q, C10, C20, 
                 ng += 1
             else:
                 top[r, 0], top[r, 1] = _extremum(code, l1[i], Ri, Q, C[0], C[1], C[2], fold_lo, fold_hi, fold_y,
-                                                 fold_h, True, y0[i], pitchfork)
+                                                 fold_h, _YES, y0[i], pitchfork)
     if ng:
         _golden_lanes(code, ng, G, R, C10[0], C20[0], C30[0], left)
         for g in range(ng):  # `_extremum`'s end: the better of c and d, or the scan node itself

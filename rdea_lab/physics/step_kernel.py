@@ -50,8 +50,12 @@ from .viscoelastic import _FS_GROW, _FS_STEP, _FS_STRETCH_STEP
 CODES = {"su": 0, "1r": 1, "3r": 3}
 #: `step` results.
 DONE, NEEDS_REFERENCE, TIME_NOT_INCREASING = 0, 1, -1
-_N_SCAN = N_SCAN
-_RTOL, _MAX_ITER = RTOL, MAX_ITER
+# integers and flags passed to compiled calls as typed values, never as Python constants: numba compiles a
+# callee once more for each literal argument it is given (a `0`, a `False`, a global int), and the state's
+# chain (`_state`, `_path_state`, `scan_kernel.path_rule`, `kernels._one`) takes seconds to compile
+_N_SCAN = np.int64(N_SCAN)
+_RTOL, _MAX_ITER = RTOL, np.int64(MAX_ITER)
+_NO, _YES, _ZERO = np.bool_(False), np.bool_(True), np.int64(0)
 _FREE_MAX = FREE_STRETCH_MAX
 _Q = np.zeros((4, 0))
 #: Where the branches' strains start in ``S``.
@@ -121,17 +125,25 @@ def advance(S, P, t, l1, sigma_rev, capacitance, lambda2b, status, out):
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _state_su(P, l1, v):
+    """`_state` of the SU model (no branches: the stress at the stretch), on its own so that an SU caller
+    (`design_kernels`) compiles none of the ring models' state."""
+    C10, C20, C30, kap, C0 = P[0], P[1], P[2], P[3], P[4]
+    b, x = _basis(l1)
+    W1, _ = _slope(x, (C10, C20, C30))
+    return b * W1 - kap * (l1 * v ** 2), C0 * l1, 1.0 / np.sqrt(l1), math.nan, OK, math.nan, False
+
+
+@numba.njit(cache=True, error_model="numpy")
 def _state(code, P, R, B, offsets, pitchfork, l1, v, y_prev, label, label_status, label_K, origin):
     """The path's state at ``(l1, v)`` coming from ``y_prev`` (NaN: the unloaded roll) as
     `branch.follow_path` finds it: ``(sigma_rev, capacitance, lambda2b, y, status, K_crit, lost)``.
     ``label``: the sample before had no state (``label_status``, ``label_K``: its status and fold);
     ``origin``: descent from ``y_prev`` alone (the free state's trials). The certified root of
     `kernels._one` where it applies, else the reference's full scan (`scan_kernel.path_rule`)."""
-    C10, C20, C30, kap, C0 = P[0], P[1], P[2], P[3], P[4]
     if code == 0:
-        b, x = _basis(l1)
-        W1, _ = _slope(x, (C10, C20, C30))
-        return b * W1 - kap * (l1 * v ** 2), C0 * l1, 1.0 / np.sqrt(l1), math.nan, OK, math.nan, False
+        return _state_su(P, l1, v)
+    C10, C20, C30, kap, C0 = P[0], P[1], P[2], P[3], P[4]
     if code == 1:
         y0, y_max, load = _bounds1(l1, kap)
     else:
@@ -168,7 +180,7 @@ def _path_state(code, l1, y0, y_max, K, h0, R, C10, C20, C30, offsets, pitchfork
         n_off += 1
     off = offsets[:n_off]
     if K > h0:  # (at or below h0 `_one` certifies only the state y0 from below it, which `_state` took)
-        y, cert = _one(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, off, True, _RTOL, _MAX_ITER, _N_SCAN,
+        y, cert = _one(code, l1, y0, y_max, K, h0, R, _Q, C10, C20, C30, off, _YES, _RTOL, _MAX_ITER, _N_SCAN,
                        pitchfork)
         if cert == 1:
             return y, OK, math.nan, False
@@ -183,7 +195,16 @@ def _free_trial(lam, args):
     """A trial of `_free`: the path's state at stretch ``lam`` descending from ``origin``, ``(stress, valid)``;
     the trial's stretch, stress, capacitance, lambda2b and status kept in ``last``."""
     code, P, R, B, offsets, pitchfork, v, origin, last = args
-    sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, lam, v, origin, False, 0, 0.0, True)
+    sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, lam, v, origin, _NO, _ZERO, 0.0, _YES)
+    last[0], last[1], last[2], last[3], last[4] = lam, sig, cap, l2b, st
+    return sig, (st == OK or st == SNAPPED)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _free_trial_su(lam, args):
+    """`_free_trial` of the SU model (`_state_su`)."""
+    P, v, last = args
+    sig, cap, l2b, _, st, _, _ = _state_su(P, lam, v)
     last[0], last[1], last[2], last[3], last[4] = lam, sig, cap, l2b, st
     return sig, (st == OK or st == SNAPPED)
 
@@ -194,14 +215,22 @@ def _free(code, P, R, B, offsets, pitchfork, l1, v, sigma_l1, origin, last):
     `models._common.free_state`), each trial the path's state descending from ``origin``, then the
     reference's final check. ``(capacitance, lambda2b, found, free stretch)``. ``last``: scratch of 5
     floats (the caller's: no allocation per sample) for the last trial's state."""
+    if code == 0:
+        return _free_with(_free_trial_su, (P, v, last), l1, sigma_l1, last)
+    return _free_with(_free_trial, (code, P, R, B, offsets, pitchfork, v, origin, last), l1, sigma_l1, last)
+
+
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def _free_with(trial, args, l1, sigma_l1, last):
+    """`_free` with its trial function (``trial(stretch, args)``, which keeps its state in ``last``); inlined,
+    as `kernels.free_stretch` is (a compiled function passed as an argument could not be cached)."""
     last[0] = math.nan
-    x = free_stretch(_free_trial, (code, P, R, B, offsets, pitchfork, v, origin, last), l1, sigma_l1, _FREE_MAX)
+    x = free_stretch(trial, args, l1, sigma_l1, _FREE_MAX)
     if x != x:
         return math.nan, math.nan, False, math.nan
-    if last[0] == x:  # the stretch returned is the last trial's: its state, not computed a second time
-        sig, cap, l2b, st = last[1], last[2], last[3], int(last[4])
-    else:
-        sig, cap, l2b, _, st, _, _ = _state(code, P, R, B, offsets, pitchfork, x, v, origin, False, 0, 0.0, True)
+    if last[0] != x:  # the stretch returned is not the last trial's: its state computed once more
+        trial(x, args)
+    sig, cap, l2b, st = last[1], last[2], last[3], int(last[4])
     if not ((st == OK or st == SNAPPED) and free_check(sig, sigma_l1)):
         return math.nan, math.nan, False, math.nan
     return cap, l2b, True, x
@@ -220,7 +249,7 @@ def step(code, S, P, R, B, offsets, pitchfork, t, l1, v, out):
     label = started and S[4] == 0.0
     sigma, cap, l2b, y, status, K_crit, lost = _state(code, P, R, B, offsets, pitchfork, l1, v,
                                                       S[3] if started else math.nan, label, int(S[5]), S[6],
-                                                      False)
+                                                      _NO)
     if status == OK or status == SNAPPED:
         if not (abs(sigma) < math.inf and abs(sigma * P[5] / l1) < math.inf):
             sigma, cap, l2b, status = math.nan, math.nan, math.nan, OVERFLOW

@@ -19,6 +19,7 @@ pytest.importorskip("numba")
 
 from rdea_lab.physics import branch  # noqa: E402
 from rdea_lab.physics import scan_kernel as sk  # noqa: E402
+from rdea_lab.physics.kernels import _EMPTY_Q, _table  # noqa: E402
 from rdea_lab.physics.geometry import RollGeometry  # noqa: E402
 from rdea_lab.physics.models import continuum, one_ring, three_ring  # noqa: E402
 from rdea_lab.physics.result import LIMIT_POINT, OK, OUTSIDE_RANGE, SNAPPED  # noqa: E402
@@ -45,8 +46,8 @@ def _args(prob, i):
     code, c = prob.kernel
     if code == 4:
         R = (float(c["xi0"][i]), float(c["x0"][i]), c["Lb"], 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        return code, float(c["l1"][i]), R, c["Q"], c["C"]
-    return code, float(c["l1"][i]), c.get("R", (0.0,) * 9), np.zeros((4, 0)), c["C"]
+        return code, float(c["l1"][i]), R, _table(c["Q"]), c["C"]
+    return code, float(c["l1"][i]), c.get("R", (0.0,) * 9), _EMPTY_Q, c["C"]  # read-only, as the package's
 
 
 def compiled_path(prob, start=None, label=None, origin=None):
