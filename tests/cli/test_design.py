@@ -93,7 +93,7 @@ def test_constraints_no_design_meets_exit_2(tmp_path, capsys):
     assert "constraints" in err and "field spans" in err and len(err.strip().splitlines()) == 1
 
 
-@pytest.mark.parametrize("how", ["option", "environment"])
+@pytest.mark.parametrize("how", ["option", pytest.param("environment", marks=pytest.mark.slow)])  # 3 s each
 def test_a_scheduler_that_does_not_answer_exits_2_within_seconds(tmp_path, capsys, monkeypatch, how):
     (tmp_path / "s.yaml").write_text(GOOD)
     address = "tcp://127.0.0.1:9"  # the discard port: nothing listens on loopback here
