@@ -260,7 +260,7 @@ def _verdict(y_prev, h_prev, s_prev, y, h, slope, K):
     return _GO
 
 
-#: `branch.newton_step`: one step of the refinement of a root, ``(y_new, lo, hi, dx, done)`` (`_refine` and
+#: `branch.newton_step`: one step of the refinement of a root, ``(y_new, lo, hi, dx, done, dn)`` (`_refine` and
 #: `_scan_block`'s lanes).
 _newton = _jit(branch.newton_step, inline="always", _pick=_pick)
 
@@ -358,9 +358,10 @@ def _refine(code, l1, R, Q, C10, C20, C30, y, lo, hi, K, scale, rtol, max_iter, 
     """`_root` from ``y`` in ``[lo, hi]``: `newton_step` up to ``max_iter`` times, then `_guarded` (as
     `branch._refine_root`)."""
     tol = rtol * scale
+    dn = np.inf
     for _ in range(max_iter):
         p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
-        y, lo, hi, _, done = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, np.inf)
+        y, lo, hi, _, done, dn = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, np.inf, dn)
         if done:
             return y, True
     return _guarded(code, l1, R, Q, C10, C20, C30, lo, hi, K, tol, max_iter, sgn)
@@ -373,9 +374,10 @@ def _guarded(code, l1, R, Q, C10, C20, C30, lo, hi, K, tol, max_iter, sgn):
     before the last): ``(y, ok)``."""
     y = 0.5 * (lo + hi)
     dx1, dx2 = np.inf, np.inf  # the last step and the one before it
+    dn = np.inf  # the last step where it was Newton's
     for _ in range(max_iter):
         p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
-        y_new, lo, hi, dx, done = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx2)
+        y_new, lo, hi, dx, done, dn = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx2, dn)
         if done:
             return y_new, True
         y, dx2, dx1 = y_new, dx1, dx
@@ -455,7 +457,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     ys = S[18]  # where the Newton iteration starts (`_start`)
     # the Newton iteration's lanes
     TY, TL, TXI, TX0, TP, TPP, TCY, TCYY = T[6], T[7], T[8], T[9], T[10], T[11], T[12], T[13]
-    TLO, THI, TK, TTOL, TOUT = T[16], T[17], T[18], T[19], T[20]
+    TLO, THI, TK, TTOL, TOUT, TDN = T[16], T[17], T[18], T[19], T[20], T[21]
     N = np.empty((4, nb + 24), np.int64)
     jj, kk = N[0], N[1]
     ref = N[2]  # the samples to refine
@@ -546,6 +548,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         TK[a], TTOL[a], TL[a], TXI[a], TX0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
     for a in range(nr):
         LIVE[a] = 1
+        TDN[a] = np.inf
     live = nr
     for _ in range(max_iter):
         if live == 0:
@@ -553,8 +556,8 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         _terms_block(code, nr, T, R, Q, C10, C20, C30)
         live = 0
         for a in range(nr):
-            y_new, TLO[a], THI[a], _, done = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a], TCYY[a],
-                                                     TK[a], TTOL[a], 1.0, np.inf)
+            y_new, TLO[a], THI[a], _, done, TDN[a] = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a], TCYY[a],
+                                                             TK[a], TTOL[a], 1.0, np.inf, TDN[a])
             if LIVE[a] != 0 and done:
                 TOUT[a] = y_new
                 LIVE[a] = 0
@@ -567,7 +570,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
                 i = b0u + b
                 y[i], ok[i] = TOUT[a], 1
                 TY[keep], TLO[keep], THI[keep], TK[keep], TTOL[keep] = TY[a], TLO[a], THI[a], TK[a], TTOL[a]
-                TL[keep], TXI[keep], TX0[keep], TB[keep] = TL[a], TXI[a], TX0[a], b
+                TL[keep], TXI[keep], TX0[keep], TB[keep], TDN[keep] = TL[a], TXI[a], TX0[a], b, TDN[a]
                 keep += LIVE[a]
             for a in range(keep):
                 LIVE[a] = 1

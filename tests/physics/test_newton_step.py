@@ -96,7 +96,8 @@ def _steps(rng, n):
     tol = 10.0 ** rng.uniform(-18.0, -12.0, n)
     sgn = rng.choice([1.0, -1.0], n)
     dx_before = np.where(rng.uniform(size=n) < 0.3, np.inf, 10.0 ** rng.uniform(-16.0, 0.0, n))
-    return y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before
+    dn_last = np.where(rng.uniform(size=n) < 0.3, np.inf, 10.0 ** rng.uniform(-16.0, 0.0, n))
+    return y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before, dn_last
 
 
 def test_compiled_step_same_bits():
@@ -104,11 +105,11 @@ def test_compiled_step_same_bits():
     from rdea_lab.physics import kernels
 
     @numba.njit(cache=False)
-    def steps(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before):
-        out = np.empty((5, y.size))
+    def steps(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before, dn_last):
+        out = np.empty((6, y.size))
         for i in range(y.size):
-            out[0, i], out[1, i], out[2, i], out[3, i], done = kernels._newton(
-                y[i], lo[i], hi[i], p_y[i], p_yy[i], c_y[i], c_yy[i], K[i], tol[i], sgn[i], dx_before[i])
+            out[0, i], out[1, i], out[2, i], out[3, i], done, out[5, i] = kernels._newton(
+                y[i], lo[i], hi[i], p_y[i], p_yy[i], c_y[i], c_yy[i], K[i], tol[i], sgn[i], dx_before[i], dn_last[i])
             out[4, i] = 1.0 if done else 0.0
         return out
 
@@ -116,17 +117,19 @@ def test_compiled_step_same_bits():
     with np.errstate(divide="ignore", invalid="ignore"):
         ref = branch.newton_step(*args)
     got = steps(*args)
-    for j, name in enumerate(("y_new", "lo", "hi", "dx", "done")):
+    for j, name in enumerate(("y_new", "lo", "hi", "dx", "done", "dn")):
         assert np.array_equal(got[j], np.asarray(ref[j], float), equal_nan=True), name
     assert 0 < np.sum(ref[4]) < args[0].size  # both outcomes seen
 
 
 @pytest.mark.parametrize("model", ["1r", "3r", "cr"])
 def test_second_pass_the_same_in_the_reference_and_the_kernels(model, monkeypatch):
-    """With a budget of 2 steps most samples need the refinement's second pass (from the middle of the bracket
-    the first left, safeguarded), which converges some of them: the reference (`follow_branch`), its rule
-    compiled (`scan_kernel.follow_branch_at`, `kernels._refine`) and the certified kernel (`branch_roots`,
-    whose lanes hand their unconverged samples to `kernels._guarded`) agree on it as with the full budget."""
+    """With a budget of 2 steps and a tolerance far below the float spacing (``rtol`` 1e-20: only the rounding
+    floor, a bracket of adjacent floats or the quadratic rule ends the iteration) many samples need the
+    refinement's second pass (from the middle of the bracket the first left, safeguarded), which converges
+    some of them: the reference (`follow_branch`), its rule compiled (`scan_kernel.follow_branch_at`,
+    `kernels._refine`) and the certified kernel (`branch_roots`, whose lanes hand their unconverged samples to
+    `kernels._guarded`) agree on it as with the full budget and tolerance."""
     pytest.importorskip("numba")
     from rdea_lab.physics import kernels, scan_kernel
     from rdea_lab.physics.models import continuum, one_ring, three_ring
@@ -146,15 +149,61 @@ def test_second_pass_the_same_in_the_reference_and_the_kernels(model, monkeypatc
     rng = np.random.default_rng(5)
     l1, v = rng.uniform(1.0, 1.75, 2000), rng.uniform(0.0, 3500.0, 2000)
     problem = {"1r": one_ring, "3r": three_ring, "cr": continuum}[model].problem(core("hollow"), RIZZELLO, l1, v)
-    for max_iter in (2, branch.MAX_ITER):
+    for max_iter, rtol in ((2, 1e-20), (branch.MAX_ITER, branch.RTOL)):
         second.clear()
-        ref = branch.follow_branch(problem, max_iter=max_iter)
+        ref = branch.follow_branch(problem, max_iter=max_iter, rtol=rtol)
         if max_iter == 2:  # the second pass converges some samples, not all
             assert sum(second) > 0 and np.any(ref.status == NOT_CONVERGED), (second, np.bincount(ref.status))
-        comp = scan_kernel.follow_branch_at(problem, np.arange(l1.size), max_iter=max_iter)
+        comp = scan_kernel.follow_branch_at(problem, np.arange(l1.size), max_iter=max_iter, rtol=rtol)
         assert np.array_equal(comp.status, ref.status)
         assert np.allclose(comp.y, ref.y, rtol=1e-12, atol=0.0)
-        y, certified = kernels.branch_roots(problem, whole=False, max_iter=max_iter)
+        y, certified = kernels.branch_roots(problem, whole=False, max_iter=max_iter, rtol=rtol)
         # on this scene h rises over every bracket: the kernel certifies exactly the samples the reference solved
         assert np.array_equal(certified, ref.status == OK)
         assert np.allclose(y[certified], ref.y[certified], rtol=1e-12, atol=0.0)
+
+
+def _steep(n, seed, rtol):
+    """Roots ``r`` of ``g(y) = sinh(s (y - r))`` (``c_y = 1``, ``K = 0``: no rounding floor short of ``g = 0``),
+    ``s`` from 0.01 to 300 per unit of the bracket (Newton from far off crawls in steps of about ``1 / s``
+    before it converges quadratically), brackets ``[lo, hi]`` of 1 to 2 around them, starts anywhere in them."""
+    rng = np.random.default_rng(seed)
+    lo = rng.uniform(1.0, 2.0, n)
+    hi = lo + rng.uniform(1.0, 2.0, n)
+    r = lo + rng.uniform(0.0, 1.0, n) * (hi - lo)
+    s = 10.0 ** rng.uniform(-2.0, 2.5, n)
+    start = lo + rng.uniform(0.0, 1.0, n) * (hi - lo)
+    count = np.zeros(n, np.int64)  # the terms evaluated per sample: its steps
+
+    def terms(y, idx, second):
+        np.add.at(count, idx, 1)
+        x = s[idx] * (y - r[idx])
+        one = np.ones_like(y)
+        return np.sinh(x), s[idx] * np.cosh(x), one, 0.0 * one
+
+    def solve():
+        count[:] = 0
+        y, ok = branch._refine_root(terms, np.arange(n), lo.copy(), hi.copy(), np.zeros(n), hi - lo, rtol, 100,
+                                    start=start.copy())
+        return y, ok, count.copy()
+
+    return solve, r, rtol * (hi - lo)
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-10, 1e-13])
+def test_the_quadratic_rule_ends_within_the_tolerance(rtol, monkeypatch):
+    """`newton_step` ends an iteration where two Newton steps in a row show quadratic convergence and the next
+    step would be far below ``tol``: each root so found is within ``tol`` of the true one (``r``, exact in
+    floats; the iteration is Newton's on a function whose sign is exact near ``r``), also where Newton crawls
+    before it converges; and the rule only ever ends an iteration early: with it disabled (``dn_last`` always
+    inf) no sample takes fewer steps, and some take more."""
+    solve, r, tol = _steep(4000, 11, rtol)
+    y, ok, steps = solve()
+    assert ok.all()
+    err = np.abs(y - r)
+    assert np.all(err <= tol), (err / tol).max()
+    step = branch.newton_step
+    monkeypatch.setattr(branch, "newton_step", lambda *a: step(*a[:-1], np.inf))
+    y_off, ok_off, steps_off = solve()
+    assert ok_off.all() and np.all(np.abs(y_off - r) <= tol)
+    assert np.all(steps <= steps_off) and np.any(steps < steps_off)
