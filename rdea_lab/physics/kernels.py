@@ -396,9 +396,12 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
     first = _begin(span, K, h0, whole)
     if first >= 0:
         return y0, first
-    done_at_start = not (K > h0)
+    if whole:
+        return _one_whole(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan,
+                          pitchfork)
+    # the rising-ramp rule (`_begin` decided the samples whose load is at or below h(y0)): the scan ends at
+    # the bracketing node
     y_prev, h_prev, s_prev = y0, h0, np.nan
-    lo, hi, y_start = np.nan, np.nan, np.nan
     j = 0  # next scale offset
     k = 1  # next regular node
     while k <= n_scan:
@@ -411,20 +414,53 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
             return y0, _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_scan, pitchfork)
         if verdict == _DIP:
             return y0, 0
+        if verdict == _CROSS:
+            # Newton on g_y inside [lo, hi], bisection where it strays (or slows): `branch._refine_root` from
+            # `branch.newton_start` (as `branch.follow_branch`)
+            y, ok = _refine(code, l1, R, Q, C10, C20, C30, _start(y_prev, yk, h_prev, h, s_prev, slope, K), y_prev,
+                            yk, K, span, rtol, max_iter, 1.0)
+            return (y, 1) if ok else (y0, 0)
+        y_prev, h_prev, s_prev = yk, h, slope
+    return y0, 0  # no crossing in the range: the reference says what it is
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _one_whole(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan, pitchfork):
+    """`_one` on a path (``whole``: the scan covers the whole range, so every node is scanned unless a verdict
+    ends it): the nodes' terms first, all in one loop that the compiler vectorizes (`_terms_block`: the same
+    bits as `_terms`, called once a node before), then `_one`'s verdicts node by node.
+    The same nodes, verdicts, bracket and root as `_one`'s loop; a sample that a verdict ends early has had
+    the terms of its later nodes computed for nothing."""
+    m = offsets.size + n_scan
+    W = np.empty((16, m))  # `_terms_block`'s rows: 6 the node, 7 the stretch, 8-9 CR's xi0 and x0, 10-13 terms
+    cnt = np.int64(0)  # (not `0`: a literal count would compile `_terms_block` once more)
+    j, k = 0, 1
+    while k <= n_scan:
+        more = j < offsets.size
+        W[6, cnt], j, k = _next_node(y0, span, more, offsets[j] if more else 0.0, j, k, n_scan)
+        W[7, cnt], W[8, cnt], W[9, cnt] = l1, R[0], R[1]
+        cnt += 1
+    _terms_block(code, cnt, W, R, Q, C10, C20, C30)
+    done_at_start = not (K > h0)
+    y_prev, h_prev, s_prev = y0, h0, np.nan
+    lo, hi = np.nan, np.nan
+    for t in range(cnt):
+        yk = W[6, t]
+        h, slope = _h_slope(W[10, t], W[11, t], W[12, t], W[13, t])
+        verdict = _verdict(y_prev, h_prev, s_prev, yk, h, slope, K)
+        if verdict == _FALL:
+            return y0, _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_scan, pitchfork)
+        if verdict == _DIP:
+            return y0, 0
         if verdict == _CROSS and lo != lo and not done_at_start:
             lo, hi = y_prev, yk
-            y_start = 0.5 * (lo + hi) if whole else _start(y_prev, yk, h_prev, h, s_prev, slope, K)
-            if not whole:
-                break
         y_prev, h_prev, s_prev = yk, h, slope
     if done_at_start:
         return y0, 1
     if lo != lo:
         return y0, 0  # no crossing in the range: the reference says what it is
-    # Newton on g_y inside [lo, hi], bisection where it strays (or slows): `branch._refine_root` from
-    # `branch.newton_start` (the ramp rule, as `branch.follow_branch`), from the midpoint on a path (as
-    # `branch.follow_path`)
-    y, ok = _refine(code, l1, R, Q, C10, C20, C30, y_start, lo, hi, K, span, rtol, max_iter, 1.0)
+    # from the midpoint of the bracket, as `branch.follow_path`
+    y, ok = _refine(code, l1, R, Q, C10, C20, C30, 0.5 * (lo + hi), lo, hi, K, span, rtol, max_iter, 1.0)
     return (y, 1) if ok else (y0, 0)
 
 
