@@ -1,7 +1,8 @@
 """Two checkouts of rdea-lab timed in one process, in turn, call by call: a before/after comparison that this
 machine's changes of speed (a factor of up to 1.5 from minute to minute, which separate processes see as a
 difference between the trees) do not bias. Each round times each tree's calls once (the fastest of ``--calls``),
-old first; the figures are the median over rounds and the ratio new/old per round (its median and range).
+old first in odd rounds, new first in even ones; the figures are the median over rounds and the ratio new/old per
+round (its median and range).
 
 The old tree's package is copied to a temporary folder under another name (``rdea_lab_old``; every ``rdea_lab``
 in its sources renamed) and imported beside this one's, each with its own numba cache (the copy compiles once:
@@ -11,7 +12,8 @@ kV]) unless said:
 - ``scan``: the 1R, 3R and CR root scan alone (`kernels._roots`, one thread);
 - ``solve``: whole `solve` calls of 1R, 3R and CR (numba's threads as the call decides);
 - ``design``: `solve_designs` of 3R on a path for ``--designs`` rolls of the bench scene's core (outer radius
-  +-10 %) through the bench's 10 kHz tensile ramp-sine (5401 samples), one thread's CPU time.
+  +-10 %) through the bench's 10 kHz tensile ramp-sine (5401 samples), on one thread (numba's threads off for
+  the call in both trees), its CPU time.
 
     python3 benchmarks/ab_in_process.py OLD_TREE [--new NEW_TREE] [--what scan,solve,design] [--rounds 15]
 
@@ -81,7 +83,15 @@ def _cases(pkg, what, designs):
         Ro = geom.Ro * np.random.default_rng(1).uniform(0.9, 1.1, designs)
         rolls = dataclasses.replace(geom, Ro=Ro, Roe=Ro - (geom.Ro - geom.Roe))
         L, V = np.broadcast_to(lam, (designs, lam.size)), np.broadcast_to(volt, (designs, volt.size))
-        out["design 3r path"] = lambda: designs_mod.solve_designs("3r", rolls, RIZZELLO, L, V, path=True)
+        def design():
+            free = kernels._core_free
+            kernels._core_free = lambda: False  # one thread: CPU time is then the call's work
+            try:
+                designs_mod.solve_designs("3r", rolls, RIZZELLO, L, V, path=True)
+            finally:
+                kernels._core_free = free
+
+        out["design 3r path"] = design
     for f in out.values():
         f()
     return out
@@ -103,14 +113,14 @@ def main(argv=None):
         old = _cases(_import_old(args.old.resolve(), Path(tmp)), what, args.designs)
         new = _cases("rdea_lab", what, args.designs)
         times = {k: ([], []) for k in old}
-        for _ in range(args.rounds):
+        for r in range(args.rounds):
             for k in old:
                 clock = time.process_time if k.startswith("design") else time.perf_counter
                 calls = 1 if k.startswith("design") else args.calls
-                times[k][0].append(_fastest(old[k], calls, clock))
-                times[k][1].append(_fastest(new[k], calls, clock))
+                for which in ((0, 1) if r % 2 == 0 else (1, 0)):
+                    times[k][which].append(_fastest((old, new)[which][k], calls, clock))
     print(f"old {args.old}, new {args.new}; {args.rounds} rounds, each the fastest of {args.calls} calls "
-          "(design: one call's CPU time)")
+          "(design: one call's CPU time, one thread)")
     for k, (o, n) in times.items():
         o, n = np.array(o), np.array(n)
         r = n / o

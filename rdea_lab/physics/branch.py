@@ -722,25 +722,28 @@ def newton_start(lo, hi, h_lo, h_hi, s_lo, s_hi, K):
     return _pick((y >= lo) & (y <= hi), y, 0.5 * (lo + hi))
 
 
-def newton_step(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before, dn_last):
+def newton_step(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before, dn_last, g2_last):
     """One step of the refinement of a root: Newton on ``g_y = p_y - K c_y`` (``p_y ... c_yy``: the terms at
     ``y``) in the bracket ``[lo, hi]`` of a root (``sgn`` +1 where ``g_y`` rises through it, -1 where it
-    falls), bisection where it leaves the bracket or does not shrink: ``(y_new, lo, hi, dx, done, dn)``, the
-    bracket narrowed to the side of ``y`` that keeps the sign change, ``dx = |y_new - y|`` and ``dn`` that
-    step where it was Newton's (inf where it was not: the next call's ``dn_last``). Scalars or arrays
-    (compiled too: `rdea_lab.physics.kernels`).
+    falls), bisection where it leaves the bracket or does not shrink: ``(y_new, lo, hi, dx, done, dn, g2)``,
+    the bracket narrowed to the side of ``y`` that keeps the sign change, ``dx = |y_new - y|``, ``dn`` that
+    step if it was Newton's (inf otherwise) and ``g2`` the slope of ``g_y`` at ``y`` (the next call's
+    ``dn_last`` and ``g2_last``). Scalars or arrays (compiled too: `rdea_lab.physics.kernels`).
 
     Newton's step is taken where it stays in the bracket and (the safeguard, see `_refine_root`) is at most
     half ``dx_before``, the step before the last (inf: no safeguard). Done where ``g_y`` is at the rounding
-    floor of its two terms (``y`` kept: Newton cannot improve on it, bisection would crawl), where the step or
+    floor of its two terms (finite; ``y`` kept: Newton cannot improve on it, bisection would crawl), where the step or
     the bracket is within ``tol``, where the bracket is two adjacent floats (a ``tol`` below the float
-    spacing at ``y``: Newton would cycle between them), or where two Newton steps in a row show the
-    iteration converging quadratically and this step's own error is far below ``tol``: the error of ``y`` is
-    about the step from it, ``d``, and after it about ``M d**2``, with ``M = d / dn_last**2`` (the last step
-    ``dn_last`` and this one: ``e' = M e**2``), so the step is the last where ``d**3 <= 1e-3 tol dn_last**2``
-    and it shrank a hundredfold (``d <= 1e-2 dn_last``). Without this rule the iteration took one more step
-    (one more evaluation of the terms) whose own size was zero or below the float spacing at the root in all
-    but a few samples (the bench scene, 1R: 90 % of the roots).
+    spacing at ``y``: Newton would cycle between them), or where the iteration has converged quadratically
+    and this step's own error is far below ``tol`` (the quadratic rule). That takes two Newton steps in a row
+    (the last, ``dn_last``, and this one, ``d``) in the regime where Newton's model holds: the slope of
+    ``g_y`` changed by at most a tenth over the last step (``|g2 - g2_last| <= 0.1 |g2|``: ``g_y`` nearly
+    linear across it, not the far side of a steep rise that an overshoot lands on, where Newton crawls in
+    small steps that would pass the other tests) and the step shrank a hundredfold (``d <= 1e-2 dn_last``).
+    Then the error of ``y`` is about ``d``, and after the step about ``M d**2`` with ``M = d / dn_last**2``
+    (``e' = M e**2``); the rule asks ``(d / dn_last)**2 d <= 1e-3 tol``. Without it the iteration took one
+    more step (one more evaluation of the terms) whose own size was zero or below the float spacing at the
+    root in 90 % of the bench scene's 1R roots.
     """
     g1 = p_y - K * c_y
     g2 = p_yy - K * c_yy
@@ -751,13 +754,16 @@ def newton_step(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before, dn_last
     d = abs(y_n - y)
     mid = 0.5 * (lo + hi)
     newton = (y_n >= lo) & (y_n <= hi) & ((d <= 0.5 * dx_before) | (d <= tol))
-    floor = abs(g1) <= 64.0 * _EPS * (abs(p_y) + abs(K * c_y))
+    # (an infinite g_y is no floor, though inf <= inf: an overflowing evaluation bisects)
+    floor = (abs(g1) <= 64.0 * _EPS * (abs(p_y) + abs(K * c_y))) & (abs(g1) < np.inf)
     y_new = _pick(floor, y, _pick(newton, y_n, mid))
     dx = abs(y_new - y)
     dn = _pick(newton & ~floor, d, np.inf)
-    quadratic = (dn_last < np.inf) & (dn <= 1e-2 * dn_last) & (dn * dn * dn <= 1e-3 * tol * (dn_last * dn_last))
+    ratio = dn / dn_last
+    quadratic = ((dn_last < np.inf) & (ratio <= 1e-2) & (abs(g2 - g2_last) <= 0.1 * abs(g2))
+                 & (ratio * ratio * dn <= 1e-3 * tol))
     done = floor | (dx <= tol) | (hi - lo <= tol) | (mid == lo) | (mid == hi) | quadratic
-    return y_new, lo, hi, dx, done, dn
+    return y_new, lo, hi, dx, done, dn, g2
 
 
 def _refine_root(terms, idx, lo, hi, K, scale, rtol, max_iter, sign=None, start=None):
@@ -791,19 +797,20 @@ def _iterate(terms, idx, y, lo, hi, K, tol, sgn, max_iter, safeguard):
     a_lo, a_hi = lo, hi
     dx1 = np.full(y.size, np.inf)  # the last step and the one before it
     dx2 = np.full(y.size, np.inf)
-    dn = np.full(y.size, np.inf)  # the last step where it was Newton's
+    dn = np.full(y.size, np.inf)  # the last step, if it was Newton's (inf otherwise), and g_y's slope before it
+    g2 = np.full(y.size, np.nan)
     for _ in range(max_iter):
         if active.size == 0:
             break
         p_y, p_yy, c_y, c_yy = terms(y, idx[active], True)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            y_new, a_lo, a_hi, dx, done, dn = newton_step(y, a_lo, a_hi, p_y, p_yy, c_y, c_yy, K[active],
-                                                          tol[active], sgn[active], dx2, dn)
+            y_new, a_lo, a_hi, dx, done, dn, g2 = newton_step(y, a_lo, a_hi, p_y, p_yy, c_y, c_yy, K[active],
+                                                              tol[active], sgn[active], dx2, dn, g2)
         out[active[done]] = y_new[done]
         ok[active[done]] = True
         keep = ~done
         lo[active], hi[active] = a_lo, a_hi
-        active, y, a_lo, a_hi, dn = active[keep], y_new[keep], a_lo[keep], a_hi[keep], dn[keep]
+        active, y, a_lo, a_hi, dn, g2 = active[keep], y_new[keep], a_lo[keep], a_hi[keep], dn[keep], g2[keep]
         if safeguard:
             dx2, dx1 = dx1[keep], dx[keep]
         else:

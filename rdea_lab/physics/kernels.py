@@ -260,7 +260,7 @@ def _verdict(y_prev, h_prev, s_prev, y, h, slope, K):
     return _GO
 
 
-#: `branch.newton_step`: one step of the refinement of a root, ``(y_new, lo, hi, dx, done, dn)`` (`_refine` and
+#: `branch.newton_step`: one step of the refinement of a root, ``(y_new, lo, hi, dx, done, dn, g2)`` (`_refine` and
 #: `_scan_block`'s lanes).
 _newton = _jit(branch.newton_step, inline="always", _pick=_pick)
 
@@ -358,10 +358,10 @@ def _refine(code, l1, R, Q, C10, C20, C30, y, lo, hi, K, scale, rtol, max_iter, 
     """`_root` from ``y`` in ``[lo, hi]``: `newton_step` up to ``max_iter`` times, then `_guarded` (as
     `branch._refine_root`)."""
     tol = rtol * scale
-    dn = np.inf
+    dn, g2 = np.inf, np.nan  # the last step, if it was Newton's (inf otherwise), and g_y's slope before it
     for _ in range(max_iter):
         p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
-        y, lo, hi, _, done, dn = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, np.inf, dn)
+        y, lo, hi, _, done, dn, g2 = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, np.inf, dn, g2)
         if done:
             return y, True
     return _guarded(code, l1, R, Q, C10, C20, C30, lo, hi, K, tol, max_iter, sgn)
@@ -374,10 +374,10 @@ def _guarded(code, l1, R, Q, C10, C20, C30, lo, hi, K, tol, max_iter, sgn):
     before the last): ``(y, ok)``."""
     y = 0.5 * (lo + hi)
     dx1, dx2 = np.inf, np.inf  # the last step and the one before it
-    dn = np.inf  # the last step where it was Newton's
+    dn, g2 = np.inf, np.nan  # the last step, if it was Newton's (inf otherwise), and g_y's slope before it
     for _ in range(max_iter):
         p_y, p_yy, c_y, c_yy = _terms(code, y, l1, R, Q, C10, C20, C30)
-        y_new, lo, hi, dx, done, dn = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx2, dn)
+        y_new, lo, hi, dx, done, dn, g2 = _newton(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx2, dn, g2)
         if done:
             return y_new, True
         y, dx2, dx1 = y_new, dx1, dx
@@ -424,37 +424,47 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
     return y0, 0  # no crossing in the range: the reference says what it is
 
 
+#: Nodes a time of `_one_whole`: its terms' vectorized loop, and at most that many computed past a verdict that
+#: ends the scan.
+_WHOLE_CHUNK = np.int64(8)
+
+
 @numba.njit(cache=True, error_model="numpy")
 def _one_whole(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan, pitchfork):
     """`_one` on a path (``whole``: the scan covers the whole range, so every node is scanned unless a verdict
-    ends it): the nodes' terms first, all in one loop that the compiler vectorizes (`_terms_block`: the same
-    bits as `_terms`, called once a node before), then `_one`'s verdicts node by node.
-    The same nodes, verdicts, bracket and root as `_one`'s loop; a sample that a verdict ends early has had
-    the terms of its later nodes computed for nothing."""
+    ends it): the nodes' terms `_WHOLE_CHUNK` at a time in one loop that the compiler vectorizes
+    (`_terms_block`: the same bits as `_terms`, called once a node before), then `_one`'s verdicts node by
+    node. The same nodes, verdicts, bracket and root as `_one`'s loop."""
     m = offsets.size + n_scan
-    W = np.empty((16, m))  # `_terms_block`'s rows: 6 the node, 7 the stretch, 8-9 CR's xi0 and x0, 10-13 terms
-    cnt = np.int64(0)  # (not `0`: a literal count would compile `_terms_block` once more)
+    # row 0: the nodes; rows 6-13 `_terms_block`'s (6 the node, 7 the stretch, 8-9 CR's xi0 and x0, 10-13 the
+    # terms; 14-15 CR's scratch) for the chunk at columns 0 ..
+    W = np.empty((16, max(m, _WHOLE_CHUNK)))
+    cnt = 0
     j, k = 0, 1
     while k <= n_scan:
         more = j < offsets.size
-        W[6, cnt], j, k = _next_node(y0, span, more, offsets[j] if more else 0.0, j, k, n_scan)
-        W[7, cnt], W[8, cnt], W[9, cnt] = l1, R[0], R[1]
+        W[0, cnt], j, k = _next_node(y0, span, more, offsets[j] if more else 0.0, j, k, n_scan)
         cnt += 1
-    _terms_block(code, cnt, W, R, Q, C10, C20, C30)
     done_at_start = not (K > h0)
     y_prev, h_prev, s_prev = y0, h0, np.nan
     lo, hi = np.nan, np.nan
-    for t in range(cnt):
-        yk = W[6, t]
-        h, slope = _h_slope(W[10, t], W[11, t], W[12, t], W[13, t])
-        verdict = _verdict(y_prev, h_prev, s_prev, yk, h, slope, K)
-        if verdict == _FALL:
-            return y0, _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_scan, pitchfork)
-        if verdict == _DIP:
-            return y0, 0
-        if verdict == _CROSS and lo != lo and not done_at_start:
-            lo, hi = y_prev, yk
-        y_prev, h_prev, s_prev = yk, h, slope
+    for t0 in range(0, cnt, _WHOLE_CHUNK):
+        na = min(cnt - t0, _WHOLE_CHUNK)
+        for a in range(na):
+            W[6, a], W[7, a], W[8, a], W[9, a] = W[0, t0 + a], l1, R[0], R[1]
+        _terms_block(code, na, W, R, Q, C10, C20, C30)
+        for a in range(na):
+            yk = W[6, a]
+            h, slope = _h_slope(W[10, a], W[11, a], W[12, a], W[13, a])
+            verdict = _verdict(y_prev, h_prev, s_prev, yk, h, slope, K)
+            if verdict == _FALL:
+                return y0, _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_scan,
+                                   pitchfork)
+            if verdict == _DIP:
+                return y0, 0
+            if verdict == _CROSS and lo != lo and not done_at_start:
+                lo, hi = y_prev, yk
+            y_prev, h_prev, s_prev = yk, h, slope
     if done_at_start:
         return y0, 1
     if lo != lo:
@@ -493,7 +503,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     ys = S[18]  # where the Newton iteration starts (`_start`)
     # the Newton iteration's lanes
     TY, TL, TXI, TX0, TP, TPP, TCY, TCYY = T[6], T[7], T[8], T[9], T[10], T[11], T[12], T[13]
-    TLO, THI, TK, TTOL, TOUT, TDN = T[16], T[17], T[18], T[19], T[20], T[21]
+    TLO, THI, TK, TTOL, TOUT, TDN, TG2 = T[16], T[17], T[18], T[19], T[20], T[21], T[22]
     N = np.empty((4, nb + 24), np.int64)
     jj, kk = N[0], N[1]
     ref = N[2]  # the samples to refine
@@ -584,7 +594,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         TK[a], TTOL[a], TL[a], TXI[a], TX0[a] = K[i], rtol * span[b], l1[i], xi0[i], x0[i]
     for a in range(nr):
         LIVE[a] = 1
-        TDN[a] = np.inf
+        TDN[a], TG2[a] = np.inf, np.nan
     live = nr
     for _ in range(max_iter):
         if live == 0:
@@ -592,8 +602,9 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         _terms_block(code, nr, T, R, Q, C10, C20, C30)
         live = 0
         for a in range(nr):
-            y_new, TLO[a], THI[a], _, done, TDN[a] = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a], TCYY[a],
-                                                             TK[a], TTOL[a], 1.0, np.inf, TDN[a])
+            y_new, TLO[a], THI[a], _, done, TDN[a], TG2[a] = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a],
+                                                                     TCYY[a], TK[a], TTOL[a], 1.0, np.inf, TDN[a],
+                                                                     TG2[a])
             if LIVE[a] != 0 and done:
                 TOUT[a] = y_new
                 LIVE[a] = 0
@@ -606,7 +617,8 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
                 i = b0u + b
                 y[i], ok[i] = TOUT[a], 1
                 TY[keep], TLO[keep], THI[keep], TK[keep], TTOL[keep] = TY[a], TLO[a], THI[a], TK[a], TTOL[a]
-                TL[keep], TXI[keep], TX0[keep], TB[keep], TDN[keep] = TL[a], TXI[a], TX0[a], b, TDN[a]
+                TL[keep], TXI[keep], TX0[keep], TB[keep] = TL[a], TXI[a], TX0[a], b
+                TDN[keep], TG2[keep] = TDN[a], TG2[a]
                 keep += LIVE[a]
             for a in range(keep):
                 LIVE[a] = 1

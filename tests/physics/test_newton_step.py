@@ -83,7 +83,9 @@ def test_wiggly_h_every_bracketed_root_converges_to_a_root():
 
 def _steps(rng, n):
     """Inputs of `branch.newton_step`: Newton inside, outside and beyond half the step before last, at the
-    rounding floor, a NaN slope, brackets of adjacent floats."""
+    rounding floor, a NaN slope, brackets of adjacent floats; and (the second half) Newton's regime, a root
+    ``delta`` below ``y`` inside the bracket, with a last step ``dn_last`` 10 to 1e8 times larger and the slope
+    before it within 20 % of this one's, so that the quadratic rule ends some of them alone."""
     lo = rng.uniform(1.0, 2.0, n)
     hi = lo + 10.0 ** rng.uniform(-16.0, 0.0, n)
     y = lo + rng.uniform(0.0, 1.0, n) * (hi - lo)
@@ -97,7 +99,19 @@ def _steps(rng, n):
     sgn = rng.choice([1.0, -1.0], n)
     dx_before = np.where(rng.uniform(size=n) < 0.3, np.inf, 10.0 ** rng.uniform(-16.0, 0.0, n))
     dn_last = np.where(rng.uniform(size=n) < 0.3, np.inf, 10.0 ** rng.uniform(-16.0, 0.0, n))
-    return y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before, dn_last
+    g2_last = np.where(rng.uniform(size=n) < 0.1, np.nan, rng.normal(size=n))
+    h = slice(n // 2, n)  # Newton's regime
+    m = n - n // 2
+    lo[h], hi[h] = 1.0, 2.0
+    y[h] = rng.uniform(1.4, 1.6, m)
+    delta = 10.0 ** rng.uniform(-14.0, -6.0, m)
+    g2 = rng.uniform(0.5, 2.0, m)
+    p_y[h], p_yy[h] = K[h] * c_y[h] + g2 * delta, g2 + K[h] * c_yy[h]  # g_y = g2 delta, its slope g2
+    sgn[h], dx_before[h] = 1.0, np.inf
+    dn_last[h] = delta * 10.0 ** rng.uniform(1.0, 8.0, m)
+    g2_last[h] = g2 * rng.uniform(0.8, 1.2, m)
+    tol[h] = 10.0 ** rng.uniform(-18.0, -8.0, m)
+    return y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before, dn_last, g2_last
 
 
 def test_compiled_step_same_bits():
@@ -105,21 +119,25 @@ def test_compiled_step_same_bits():
     from rdea_lab.physics import kernels
 
     @numba.njit(cache=False)
-    def steps(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before, dn_last):
-        out = np.empty((6, y.size))
+    def steps(y, lo, hi, p_y, p_yy, c_y, c_yy, K, tol, sgn, dx_before, dn_last, g2_last):
+        out = np.empty((7, y.size))
         for i in range(y.size):
-            out[0, i], out[1, i], out[2, i], out[3, i], done, out[5, i] = kernels._newton(
-                y[i], lo[i], hi[i], p_y[i], p_yy[i], c_y[i], c_yy[i], K[i], tol[i], sgn[i], dx_before[i], dn_last[i])
+            out[0, i], out[1, i], out[2, i], out[3, i], done, out[5, i], out[6, i] = kernels._newton(
+                y[i], lo[i], hi[i], p_y[i], p_yy[i], c_y[i], c_yy[i], K[i], tol[i], sgn[i], dx_before[i], dn_last[i],
+                g2_last[i])
             out[4, i] = 1.0 if done else 0.0
         return out
 
     args = _steps(np.random.default_rng(3), 5000)
     with np.errstate(divide="ignore", invalid="ignore"):
         ref = branch.newton_step(*args)
+        without = branch.newton_step(*args[:-2], np.full(args[0].size, np.inf), args[-1])  # no quadratic rule
     got = steps(*args)
-    for j, name in enumerate(("y_new", "lo", "hi", "dx", "done", "dn")):
+    for j, name in enumerate(("y_new", "lo", "hi", "dx", "done", "dn", "g2")):
         assert np.array_equal(got[j], np.asarray(ref[j], float), equal_nan=True), name
     assert 0 < np.sum(ref[4]) < args[0].size  # both outcomes seen
+    by_rule = ref[4] & ~without[4]  # ended by the quadratic rule alone
+    assert 100 < np.sum(by_rule) < np.sum(~without[4]), (np.sum(by_rule), np.sum(~without[4]))
 
 
 @pytest.mark.parametrize("model", ["1r", "3r", "cr"])
@@ -163,10 +181,12 @@ def test_second_pass_the_same_in_the_reference_and_the_kernels(model, monkeypatc
         assert np.allclose(y[certified], ref.y[certified], rtol=1e-12, atol=0.0)
 
 
-def _steep(n, seed, rtol):
-    """Roots ``r`` of ``g(y) = sinh(s (y - r))`` (``c_y = 1``, ``K = 0``: no rounding floor short of ``g = 0``),
-    ``s`` from 0.01 to 300 per unit of the bracket (Newton from far off crawls in steps of about ``1 / s``
-    before it converges quadratically), brackets ``[lo, hi]`` of 1 to 2 around them, starts anywhere in them."""
+def _steep(n, seed, rtol, g="sinh"):
+    """Roots ``r`` of ``g(y) = sinh(s (y - r))`` (no curvature at the root: Newton converges there cubically)
+    or ``expm1(s (y - r))`` (curvature ``s / 2`` a unit of slope: quadratically), ``c_y = 1`` and ``K = 0`` (no
+    rounding floor short of ``g = 0``; ``g``'s sign is exact near ``r``), ``s`` from 0.01 to 300 per unit of
+    the bracket (Newton from far off crawls in steps of about ``1 / s`` before it converges), brackets
+    ``[lo, hi]`` of 1 to 2 around them, starts anywhere in them."""
     rng = np.random.default_rng(seed)
     lo = rng.uniform(1.0, 2.0, n)
     hi = lo + rng.uniform(1.0, 2.0, n)
@@ -174,12 +194,13 @@ def _steep(n, seed, rtol):
     s = 10.0 ** rng.uniform(-2.0, 2.5, n)
     start = lo + rng.uniform(0.0, 1.0, n) * (hi - lo)
     count = np.zeros(n, np.int64)  # the terms evaluated per sample: its steps
+    f, df = (np.sinh, np.cosh) if g == "sinh" else (np.expm1, np.exp)
 
     def terms(y, idx, second):
         np.add.at(count, idx, 1)
         x = s[idx] * (y - r[idx])
         one = np.ones_like(y)
-        return np.sinh(x), s[idx] * np.cosh(x), one, 0.0 * one
+        return f(x), s[idx] * df(x), one, 0.0 * one
 
     def solve():
         count[:] = 0
@@ -190,20 +211,48 @@ def _steep(n, seed, rtol):
     return solve, r, rtol * (hi - lo)
 
 
+def _without_rule(monkeypatch):
+    """`branch.newton_step` without its quadratic rule (``dn_last`` always inf)."""
+    step = branch.newton_step
+    monkeypatch.setattr(branch, "newton_step", lambda *a: step(*a[:-2], np.inf, a[-1]))
+
+
+@pytest.mark.parametrize("g", ["sinh", "expm1"])
 @pytest.mark.parametrize("rtol", [1e-6, 1e-10, 1e-13])
-def test_the_quadratic_rule_ends_within_the_tolerance(rtol, monkeypatch):
+def test_the_quadratic_rule_ends_within_the_tolerance(rtol, g, monkeypatch):
     """`newton_step` ends an iteration where two Newton steps in a row show quadratic convergence and the next
     step would be far below ``tol``: each root so found is within ``tol`` of the true one (``r``, exact in
-    floats; the iteration is Newton's on a function whose sign is exact near ``r``), also where Newton crawls
-    before it converges; and the rule only ever ends an iteration early: with it disabled (``dn_last`` always
-    inf) no sample takes fewer steps, and some take more."""
-    solve, r, tol = _steep(4000, 11, rtol)
-    y, ok, steps = solve()
-    assert ok.all()
-    err = np.abs(y - r)
-    assert np.all(err <= tol), (err / tol).max()
-    step = branch.newton_step
-    monkeypatch.setattr(branch, "newton_step", lambda *a: step(*a[:-1], np.inf))
-    y_off, ok_off, steps_off = solve()
+    floats), also where Newton crawls before it converges; and the rule only ever ends an iteration early: with
+    it disabled no sample takes fewer steps, and some take more."""
+    solve, r, tol = _steep(4000, 11, rtol, g)
+    with np.errstate(over="ignore"):
+        y, ok, steps = solve()
+        assert ok.all()
+        err = np.abs(y - r)
+        assert np.all(err <= tol), (err / tol).max()
+        _without_rule(monkeypatch)
+        y_off, ok_off, steps_off = solve()
     assert ok_off.all() and np.all(np.abs(y_off - r) <= tol)
     assert np.all(steps <= steps_off) and np.any(steps < steps_off)
+
+
+@pytest.mark.parametrize("s, rtol", [(1e5, 1e-6), (1e8, 1e-10), (1e12, 1e-14)])
+def test_the_quadratic_rule_is_not_fooled_by_an_overshoot(s, rtol):
+    """A Newton step from the flat side of ``expm1(s (y - r))`` lands far up its steep side; from there Newton
+    crawls down in steps of about ``1 / s``, each a hundredth of the overshoot and, for a steep enough rise,
+    small enough that the step and contraction tests alone took the first crawl step for convergence (the
+    root then hundreds to 1e4 tolerances off). The slope of ``g_y`` changes by a factor ``e`` and more over a
+    crawl step, so the rule waits until Newton's model holds: the root is within ``tol``."""
+    r = 0.5
+    start = np.array([r - 5.0 / s, r - 3.0 / s, r - 8.0 / s])
+    n = start.size
+
+    def terms(y, idx, second):
+        x = s * (y - r)
+        return np.expm1(x), s * np.exp(x), np.ones_like(y), np.zeros_like(y)
+
+    with np.errstate(over="ignore"):
+        y, ok = branch._refine_root(terms, np.arange(n), np.zeros(n), np.ones(n), np.zeros(n), np.ones(n), rtol, 100,
+                                    start=start)
+    assert ok.all()
+    assert np.all(np.abs(y - r) <= rtol), np.abs(y - r) / rtol
