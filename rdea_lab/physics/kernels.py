@@ -424,47 +424,39 @@ def _one(code, l1, y0, y_max, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, 
     return y0, 0  # no crossing in the range: the reference says what it is
 
 
-#: Nodes a time of `_one_whole`: its terms' vectorized loop, and at most that many computed past a verdict that
-#: ends the scan.
-_WHOLE_CHUNK = np.int64(8)
-
-
 @numba.njit(cache=True, error_model="numpy")
 def _one_whole(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, rtol, max_iter, n_scan, pitchfork):
     """`_one` on a path (``whole``: the scan covers the whole range, so every node is scanned unless a verdict
-    ends it): the nodes' terms `_WHOLE_CHUNK` at a time in one loop that the compiler vectorizes
-    (`_terms_block`: the same bits as `_terms`, called once a node before), then `_one`'s verdicts node by
-    node. The same nodes, verdicts, bracket and root as `_one`'s loop."""
+    ends it): the nodes' terms first, all in one loop that the compiler vectorizes (`_terms_block`: the same
+    bits as `_terms`, called once a node before), then `_one`'s verdicts node by node.
+    The same nodes, verdicts, bracket and root as `_one`'s loop; a sample that a verdict ends early has had
+    the terms of its later nodes computed for nothing (at most one scan's: a fold's sample then takes
+    `_fallen`, whose cost is many scans'; computing them 8 at a time, to stop sooner, made the design loop of
+    3R 6 % slower, `benchmarks/ab_in_process.py`)."""
     m = offsets.size + n_scan
-    # row 0: the nodes; rows 6-13 `_terms_block`'s (6 the node, 7 the stretch, 8-9 CR's xi0 and x0, 10-13 the
-    # terms; 14-15 CR's scratch) for the chunk at columns 0 ..
-    W = np.empty((16, max(m, _WHOLE_CHUNK)))
-    cnt = 0
+    W = np.empty((16, m))  # `_terms_block`'s rows: 6 the node, 7 the stretch, 8-9 CR's xi0 and x0, 10-13 terms
+    cnt = np.int64(0)  # (not `0`: a literal count would compile `_terms_block` once more)
     j, k = 0, 1
     while k <= n_scan:
         more = j < offsets.size
-        W[0, cnt], j, k = _next_node(y0, span, more, offsets[j] if more else 0.0, j, k, n_scan)
+        W[6, cnt], j, k = _next_node(y0, span, more, offsets[j] if more else 0.0, j, k, n_scan)
+        W[7, cnt], W[8, cnt], W[9, cnt] = l1, R[0], R[1]
         cnt += 1
+    _terms_block(code, cnt, W, R, Q, C10, C20, C30)
     done_at_start = not (K > h0)
     y_prev, h_prev, s_prev = y0, h0, np.nan
     lo, hi = np.nan, np.nan
-    for t0 in range(0, cnt, _WHOLE_CHUNK):
-        na = min(cnt - t0, _WHOLE_CHUNK)
-        for a in range(na):
-            W[6, a], W[7, a], W[8, a], W[9, a] = W[0, t0 + a], l1, R[0], R[1]
-        _terms_block(code, na, W, R, Q, C10, C20, C30)
-        for a in range(na):
-            yk = W[6, a]
-            h, slope = _h_slope(W[10, a], W[11, a], W[12, a], W[13, a])
-            verdict = _verdict(y_prev, h_prev, s_prev, yk, h, slope, K)
-            if verdict == _FALL:
-                return y0, _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_scan,
-                                   pitchfork)
-            if verdict == _DIP:
-                return y0, 0
-            if verdict == _CROSS and lo != lo and not done_at_start:
-                lo, hi = y_prev, yk
-            y_prev, h_prev, s_prev = yk, h, slope
+    for t in range(cnt):
+        yk = W[6, t]
+        h, slope = _h_slope(W[10, t], W[11, t], W[12, t], W[13, t])
+        verdict = _verdict(y_prev, h_prev, s_prev, yk, h, slope, K)
+        if verdict == _FALL:
+            return y0, _fallen(code, l1, y0, span, K, h0, R, Q, C10, C20, C30, offsets, whole, n_scan, pitchfork)
+        if verdict == _DIP:
+            return y0, 0
+        if verdict == _CROSS and lo != lo and not done_at_start:
+            lo, hi = y_prev, yk
+        y_prev, h_prev, s_prev = yk, h, slope
     if done_at_start:
         return y0, 1
     if lo != lo:
