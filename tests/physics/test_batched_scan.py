@@ -33,7 +33,7 @@ def _threads_whatever_the_load(monkeypatch):
 
 MODULES = {"1r": one_ring, "3r": three_ring, "cr": continuum}
 #: Cases of each seeded family (a prefix; all of them under ``-m slow``).
-N_CASES = 5
+N_CASES = 3  # (5 until the default suite neared 4 min in CI)
 
 
 @numba.njit(cache=False, error_model="numpy")
