@@ -241,7 +241,7 @@ def test_the_quadratic_rule_is_not_fooled_by_an_overshoot(s, rtol):
     """A Newton step from the flat side of ``expm1(s (y - r))`` lands far up its steep side; from there Newton
     crawls down in steps of about ``1 / s``, each a hundredth of the overshoot and, for a steep enough rise,
     small enough that the step and contraction tests alone took the first crawl step for convergence (the
-    root then hundreds to 1e4 tolerances off). The slope of ``g_y`` changes by a factor ``e`` and more over a
+    root then a thousand tolerances off and more). The slope of ``g_y`` changes by a factor ``e`` and more over a
     crawl step, so the rule waits until Newton's model holds: the root is within ``tol``."""
     r = 0.5
     start = np.array([r - 5.0 / s, r - 3.0 / s, r - 8.0 / s])
