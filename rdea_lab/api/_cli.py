@@ -25,6 +25,7 @@ _EXPORTS = {
     "parse_faults": "rdea_lab.emulator.controller", "load_truth": "rdea_lab.specs.truth",
     "load_target": "rdea_lab.specs.target", "load_plan": "rdea_lab.protocols",
     "load_campaign": "rdea_lab.specs.campaign", "is_loopback": "rdea_lab.emulator",
+    "dedicate_process": "rdea_lab.emulator.server",
     "format_cv": "rdea_lab.calibration.crossval", "suggest": "rdea_lab.calibration.suggest",
     "write_suggestion": "rdea_lab.calibration.suggest", "load_scene": "rdea_lab.calibration.suggest",
     "experiments": "rdea_lab.runs.campaign",

@@ -73,6 +73,7 @@ def serve(card_path, truth_path, host, port, realtime, token_file, faults, max_v
         bound_host, bound_port = server.start()
     except OSError as exc:
         die(f"--host/--port: cannot listen on {host}:{port} ({exc.strerror or exc})")
+    api.dedicate_process()  # this process only serves now: no full collection delays an ABOR
     stop = threading.Event()
     try:
         previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())

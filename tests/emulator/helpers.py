@@ -141,8 +141,10 @@ def crc_of_what_was_sent(sent, x, v) -> str:
 def _serve_apart(card, truth, options, pipe) -> None:
     """The child of `ServerProcess`: serve, answer ``"voltage_on"`` on the pipe, stop on ``"stop"``."""
     from rdea_lab.emulator import RigServer
+    from rdea_lab.emulator.server import dedicate_process
 
     with RigServer(card, truth, port=0, **options) as srv:
+        dedicate_process()  # as rdea-lab rig serve does once it listens
         pipe.send(srv.address)
         while True:
             request = pipe.recv()
@@ -167,7 +169,8 @@ class ServerProcess:
     What a latency figure measures is the server: served in the test's own process it would share the
     interpreter lock and the garbage collector with whatever the test session holds (after the other slow
     tests, a heap whose full collection may alone take longer than the e-stop budget: 0.24 s for 12 million
-    objects here). ``controller.voltage_on`` asks the server process, as `RigServer.controller` answers in
+    objects here). Its heap is settled as ``rdea-lab rig serve`` settles it (`dedicate_process`).
+    ``controller.voltage_on`` asks the server process, as `RigServer.controller` answers in
     process, a pipe's round trip later (about 0.1 ms).
     """
 
