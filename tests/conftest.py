@@ -15,6 +15,12 @@ from vhb_data import LOADING_UNLOADING, MISSING
 
 ROOT = Path(__file__).resolve().parents[1]
 
+# The test run puts a worker on each core (pytest-xdist): a call that took the other core for numba's threads
+# would only take it from the other worker, and compile the threaded variants, some 30 s of CPU with an empty
+# numba cache, wherever a large call happened to meet an idle moment. The tests of the threaded variants say
+# so themselves (they set `kernels._other_load`); the processes the tests start inherit this.
+os.environ.setdefault("RDEA_LAB_THREADS", "1")
+
 
 @pytest.fixture(autouse=True)
 def _close_figures():

@@ -727,7 +727,13 @@ def _other_load() -> float:
     thread) stands in; after this process was idle for over 5 s (other work may have begun since), the load
     average less this process's share of it (its CPU use averaged as the load average averages, over a
     minute), where that is larger than the window's figure. This process's other threads count as its own,
-    not as other work: numba's cannot be told apart from them."""
+    not as other work: numba's cannot be told apart from them.
+
+    ``RDEA_LAB_THREADS=1`` says the other cores are taken (a batch queue that gives each job one core, a
+    test run that puts a worker on each): then every core counts as busy, and every call keeps to one
+    thread, so numba's threaded variants are never compiled."""
+    if os.environ.get("RDEA_LAB_THREADS") == "1":
+        return float(_CORES)
     state = _LOAD
     now = time.monotonic()
     if state["pid"] != os.getpid():  # a forked child: its parent's window is not its own

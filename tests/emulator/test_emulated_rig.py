@@ -138,7 +138,8 @@ def test_same_seed_same_data_other_seed_other_noise(card, truth):
         np.testing.assert_array_equal(a[:, COL[name]], c[:, COL[name]])
 
 
-@pytest.mark.parametrize("sizes", [[1, 7, 333], [500, 1], [BLOCK - 1, 2], [BLOCK, BLOCK], [3] * 3000])
+@pytest.mark.parametrize("sizes", [[1, 7, 333], [BLOCK - 1, 2], *(pytest.param(s, marks=pytest.mark.slow)
+                                                                 for s in ([500, 1], [BLOCK, BLOCK], [3] * 3000))])
 def test_chunking_does_not_change_the_data(card, truth, sizes):
     t, x, v = slow_trajectory(10_001)  # more than two blocks of BLOCK samples
     whole = rig(card, truth, config(x, v)).produce(10_001)

@@ -191,6 +191,7 @@ def test_a_declared_hold_stretch_is_reached_at_zero_volts_and_left_the_same_way(
     assert np.max(np.abs(np.diff(paused[:, X_SP]))) <= 0.05 / RATE * (1 + 1e-9)
 
 
+@pytest.mark.slow  # 3 s paced; the default suite has the pause in virtual time, sample by sample
 @pytest.mark.parametrize("server", [{"realtime": True}], indirect=True)
 def test_in_realtime_a_pause_acts_within_a_short_block(server, client):
     client.configure(pause=(1e4, 0.0, 0.05))  # 2 kV to 0 in 0.2 s
@@ -231,6 +232,7 @@ def test_held_samples_are_paced_by_the_wall_clock_in_virtual_time(client):
     assert client.q("STAT?").startswith("RUNNING,")
 
 
+@pytest.mark.slow  # the default suite has the heartbeat's abort outside a pause (test_rig_server.py)
 def test_a_silent_client_is_aborted_by_the_heartbeat_during_a_pause(card, truth):
     with RigServer(card, truth, port=0, heartbeat=1.0) as srv:  # 1 s: the test's own steps fit in it when busy
         c = Client(srv.address)

@@ -83,6 +83,7 @@ class _Clock:
         from types import SimpleNamespace
 
         self.t, self.busy, self.own, self.load = 100.0, 5000.0, 10.0, 0.0
+        monkeypatch.delenv("RDEA_LAB_THREADS", raising=False)  # the estimate itself, not the test session's
         monkeypatch.setattr(kernels, "_LOAD", {"pid": -1, "start": None, "last": 0.0, "others": None, "own": 0.0})
         monkeypatch.setattr(kernels, "time", SimpleNamespace(monotonic=lambda: self.t, process_time=lambda: self.own))
         monkeypatch.setattr(kernels, "_busy", lambda: self.busy)
