@@ -71,9 +71,10 @@ FAST = [("twin", 0.4), ("twin", 1.3), ("emulator", 2.2)]
 SLOW = [("twin", d) for d in (0.5, 0.7, 1.0, 1.6, 1.9, 2.2, 2.6, 3.2)] + [
     ("emulator", d) for d in (0.6, 0.9, 1.5, 2.7, 3.2, 3.6, 4.2)]
 SIGNALS = [(signal.SIGINT, "SIGINT"), (signal.SIGTERM, "SIGTERM")]
-#: the emulator's Ctrl-C by default only as slow: its SIGTERM and the twin's Ctrl-C cover the same path
-MOMENTS = [pytest.param(b, d, sig, id=f"{b}-{d}-{name}",
-                        marks=[pytest.mark.slow] if (b, d) in SLOW or (b == "emulator" and name == "SIGINT") else [])
+#: by default both signals early in a twin run, and Ctrl-C in the middle of one; the emulator's moments and the
+#: twin's SIGTERM mid-run in the slow step (`test_sigterm_to_an_emulator_run_is_...` has the emulator's SIGTERM)
+DEFAULT = {("twin", 0.4, "SIGINT"), ("twin", 0.4, "SIGTERM"), ("twin", 1.3, "SIGINT")}
+MOMENTS = [pytest.param(b, d, sig, id=f"{b}-{d}-{name}", marks=[] if (b, d, name) in DEFAULT else [pytest.mark.slow])
            for b, d in FAST + SLOW for sig, name in SIGNALS]
 
 

@@ -40,12 +40,12 @@ def test_auto_never_compiles_cr_on_a_solid_roll_nor_when_turned_off(monkeypatch)
 
 @pytest.mark.parametrize("model, n", [("3r", 16384), ("1r", 16384), ("su", 16384)])
 def test_solve_takes_the_path_auto_picks(model, n, monkeypatch):
-    """From the stated count on, ``auto`` is the compiled path (bit for bit); below it the numpy one. numba's
-    threads held to one choice for both calls (`kernels._core_free` follows the machine's load from moment to
-    moment): the kernel is what is compared here; threads against one thread is `test_thread_choice_...`'s."""
+    """From the stated count on, ``auto`` is the compiled path (bit for bit); below it the numpy one. Both calls
+    on one thread (`kernels._core_free` follows the machine's load from moment to moment): the kernel is what is
+    compared here; threads against one thread is `test_thread_choice_...`'s."""
     from rdea_lab.physics import kernels
 
-    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)
+    monkeypatch.setattr(kernels, "_other_load", lambda: float(kernels._CORES))
     geom = core("hollow")
     rng = np.random.default_rng(n)
     l1, v = rng.uniform(1.0, 1.6, n), rng.uniform(0.0, 3000.0, n)
