@@ -29,6 +29,12 @@ def parse(path: Path) -> ast.Module:
     return ast.parse(path.read_text(), filename=str(path))
 
 
+@functools.lru_cache(maxsize=None)
+def walk(tree) -> tuple:
+    """Every node below ``tree`` (``ast.walk``), listed once per tree: the tests walk each module many times."""
+    return tuple(ast.walk(tree))
+
+
 def called_name(call: ast.Call) -> str | None:
     """``f`` of ``f(...)`` and ``m.f(...)``."""
     func = call.func
@@ -39,6 +45,7 @@ def called_name(call: ast.Call) -> str | None:
     return None
 
 
+@functools.lru_cache(maxsize=None)
 def functions(tree):
     """Every function (and method) with its qualified name."""
     out = []
@@ -55,10 +62,11 @@ def functions(tree):
                 visit(child, prefix)
 
     visit(tree, "")
-    return out
+    return tuple(out)
 
 
-def own_calls(fn) -> set[str]:
+@functools.lru_cache(maxsize=None)
+def own_calls(fn) -> frozenset[str]:
     """Names called in the body of ``fn`` itself (not in functions nested in it)."""
     names = set()
     stack = list(fn.body)
@@ -69,13 +77,13 @@ def own_calls(fn) -> set[str]:
         if isinstance(node, ast.Call):
             names.add(called_name(node))
         stack.extend(ast.iter_child_nodes(node))
-    return names
+    return frozenset(names)
 
 
 def calls_anywhere(name: str):
     """``(module, line)`` of every call of ``name`` (plain or as an attribute) in the package."""
     for path in modules():
-        for node in ast.walk(parse(path)):
+        for node in walk(parse(path)):
             if isinstance(node, ast.Call) and called_name(node) == name:
                 yield rel(path), node.lineno
 
@@ -91,7 +99,7 @@ def resolve(node: ast.ImportFrom, module: Path) -> list[str]:
 
 def imported_modules(path: Path):
     """``(absolute module parts, imported names, line)`` of every import in a module."""
-    for node in ast.walk(parse(path)):
+    for node in walk(parse(path)):
         if isinstance(node, ast.ImportFrom):
             yield resolve(node, rel(path)), [alias.name for alias in node.names], node.lineno
         elif isinstance(node, ast.Import):
@@ -103,14 +111,14 @@ def references(tree, name: str):
     """Lines where the function ``name`` is used at all: called, passed, imported, bare or as ``module.name``
     of an imported module. A data attribute of the same name (``spec.stretch_rate``, a pause's rate) or a
     field declared under it is not the function."""
-    modules = {(a.asname or a.name).split(".")[0] for node in ast.walk(tree)
+    modules = {(a.asname or a.name).split(".")[0] for node in walk(tree)
                if isinstance(node, (ast.Import, ast.ImportFrom)) for a in node.names}
     # a name the module binds itself (a local variable, an argument: a pause's ``stretch_rate``) is not the
     # function, unless the module imports it
-    bound = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
-    bound |= {a.arg for a in ast.walk(tree) if isinstance(a, ast.arg)}
+    bound = {n.id for n in walk(tree) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
+    bound |= {a.arg for a in walk(tree) if isinstance(a, ast.arg)}
     local = name in bound and name not in modules
-    for node in ast.walk(tree):
+    for node in walk(tree):
         if (isinstance(node, ast.Name) and node.id == name and isinstance(node.ctx, ast.Load) and not local) or (
                 isinstance(node, ast.Attribute) and node.attr == name and isinstance(node.value, ast.Name)
                 and node.value.id in modules):
@@ -227,7 +235,7 @@ def test_one_list_of_model_names():
     # no other module spells out its own list of allowed names
     offenders = []
     for path in modules():
-        for node in ast.walk(parse(path)):
+        for node in walk(parse(path)):
             if isinstance(node, ast.Assign) and isinstance(node.value, ast.Tuple) and any(
                     isinstance(t, ast.Name) and t.id in ("MODELS", "MODEL_CHOICES", "ORDER") for t in node.targets):
                 offenders.append(rel(path))

@@ -20,7 +20,7 @@ import numpy as np
 from numba import prange
 
 from . import step_kernel
-from .kernels import _parallel, _variants
+from .kernels import _parallel, _readonly, _variants
 from .result import OK, SLACK
 
 
@@ -94,8 +94,9 @@ def rolls(model, rows, l1, v, *, path, slack):
     for j, c in enumerate(consts):
         offsets[j, :c[4].size] = c[4]
     pitchfork = np.array([c[5] for c in consts], np.bool_)
-    l1 = np.ascontiguousarray(l1, float)
-    v = np.ascontiguousarray(np.broadcast_to(v, l1.shape), float)
+    # read-only, whatever the caller's are: one compiled variant of the loop (numba compiles one per writability)
+    l1 = _readonly(l1, float)
+    v = _readonly(np.broadcast_to(v, l1.shape), float)
     out = {k: np.empty(l1.shape) for k in ("sigma1", "tension", "capacitance", "lambda2b", "y", "free_stretch")}
     out["status"] = np.empty(l1.shape, np.int8)
     out["ok"] = np.empty(l1.shape, np.bool_)
