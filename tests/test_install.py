@@ -40,10 +40,9 @@ def without_extras(argv, cwd, blocked=EXTRA_MODULES, timeout=600, then=None):
 
 @pytest.mark.parametrize("argv, extra", [
     (["design", "stroke_spring", "--synchronous"], "design"),
-    # the same message from the same function for each extra: the other two in the slow step
-    pytest.param(["import", "x.tdms", "--format", "tdms", "--map", "time=g/t,position=g/x,force=g/f", "--specimen",
-                  "specimen2", "--protocol-kind", "tensile"], "import", marks=pytest.mark.slow),
-    pytest.param(["monitor", ".", "--no-browser"], "monitor", marks=pytest.mark.slow),
+    (["import", "x.tdms", "--format", "tdms", "--map", "time=g/t,position=g/x,force=g/f", "--specimen", "specimen2",
+      "--protocol-kind", "tensile"], "import"),
+    (["monitor", ".", "--no-browser"], "monitor"),
 ])
 def test_a_missing_extra_is_exit_2_with_the_pip_command(tmp_path, argv, extra):
     if extra == "import":

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import signal
 import threading
 
@@ -73,7 +74,6 @@ def serve(card_path, truth_path, host, port, realtime, token_file, faults, max_v
         bound_host, bound_port = server.start()
     except OSError as exc:
         die(f"--host/--port: cannot listen on {host}:{port} ({exc.strerror or exc})")
-    api.dedicate_process()  # this process only serves now: no full collection delays an ABOR
     stop = threading.Event()
     try:
         previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
@@ -81,6 +81,7 @@ def serve(card_path, truth_path, host, port, realtime, token_file, faults, max_v
         previous = None
     shown = f"[{bound_host}]" if ":" in bound_host else bound_host
     try:
+        api.dedicate_process()  # serving is all this process does now: no full collection delays an ABOR
         click.echo(f"rig emulator: {card.id} (truth {truth.name}, {'realtime' if realtime else 'virtual time'}"
                    f"{', faults ' + ', '.join(faults) if faults else ''}; limits {max_voltage}, {max_field}, "
                    f"stretch {max_stretch}, {max_force}) listening on tcp://{shown}:{bound_port}",
@@ -92,5 +93,6 @@ def serve(card_path, truth_path, host, port, realtime, token_file, faults, max_v
         pass
     finally:
         server.shutdown()  # voltage off, connections closed
+        gc.unfreeze()  # an embedded serve hands its caller's heap back to the collector
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)

@@ -48,7 +48,8 @@ def is_loopback(host: str) -> bool:
 
 
 def dedicate_process() -> int:
-    """Settle the heap of a process that serves the rig and does nothing else (``rdea-lab rig serve``).
+    """Settle the heap of a process that serves the rig and does nothing else (``rdea-lab rig serve``, which
+    undoes it with `gc.unfreeze` when it stops serving).
 
     Call it once the server is started. It collects, then hands every object alive (the imports, the card,
     the truth, the model's compiled code: about 2e5 objects) to `gc.freeze`, which keeps them out of every
@@ -428,4 +429,4 @@ class RigServer:
             sock.settimeout(None)
 
 
-__all__ = ["RigServer", "auth_response", "is_loopback"]
+__all__ = ["RigServer", "auth_response", "dedicate_process", "is_loopback"]

@@ -1130,6 +1130,9 @@ def su_solve(l1, v, C, kap, area, slack, codes):
     field read). The rows not computed yet are not touched (reserved, not in memory, where the chunk is new).
     """
     n = l1.size
+    # read-only views whatever the caller's are: one compiled variant of the pass (numba compiles one per
+    # writability of each array argument)
+    l1, v = _readonly(l1, float), _readonly(v, float)
     block = np.empty((len(SU_ROWS), n))
     work = block.view()
     block.flags.writeable = False  # ``work``, a view taken before, stays writeable: the kernels fill it

@@ -13,7 +13,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from rdea_lab.store import journal_path, open_run
 from terminal import as_at_a_terminal
@@ -46,7 +45,6 @@ def journal_samples(out: Path) -> int:
     return (folder / "samples.f8").stat().st_size // (8 * columns)
 
 
-@pytest.mark.slow  # the default suite has the twin's Ctrl-C mid-run in test_interrupt_windows.py
 def test_ctrl_c_closes_the_dataset_as_interrupted(tmp_path):
     out = tmp_path / "run.nc"
     proc, started = start_run(out)

@@ -388,7 +388,9 @@ def test_estop_status_and_heartbeat_during_a_realtime_run_at_100_kHz(card, quiet
 
 
 def _quietly(fn, *args):
+    """A load in a thread of its own, which ends where the test closes its connection: a read on the closed
+    socket's file raises ValueError (seen once, in a slow step run beside other tests), a reset OSError."""
     try:
         fn(*args)
-    except (OSError, ConnectionError, AssertionError):
+    except (OSError, ConnectionError, AssertionError, ValueError):
         pass

@@ -191,7 +191,6 @@ def test_a_declared_hold_stretch_is_reached_at_zero_volts_and_left_the_same_way(
     assert np.max(np.abs(np.diff(paused[:, X_SP]))) <= 0.05 / RATE * (1 + 1e-9)
 
 
-@pytest.mark.slow  # 3 s paced; the default suite has the pause in virtual time, sample by sample
 @pytest.mark.parametrize("server", [{"realtime": True}], indirect=True)
 def test_in_realtime_a_pause_acts_within_a_short_block(server, client):
     client.configure(pause=(1e4, 0.0, 0.05))  # 2 kV to 0 in 0.2 s

@@ -95,6 +95,22 @@ class _Clock:
         self.load = keep * self.load + (1.0 - keep) * (machine if runnable is None else runnable)
 
 
+def test_rdea_lab_threads_1_takes_every_core_for_other_work(monkeypatch):
+    """``RDEA_LAB_THREADS=1``: every core counts as taken, so no call goes to numba's threads, on an idle machine
+    too; any other value leaves it to the estimate (here an idle machine: threads)."""
+    from rdea_lab.physics import kernels
+
+    clock = _Clock(monkeypatch, kernels)  # an idle machine, the variable unset
+    monkeypatch.setattr(kernels, "_CORES", 4)  # whatever this machine has
+    kernels._other_load()
+    clock.advance(0.5, machine=0.0, own=0.0)
+    assert kernels._other_load() < 1e-9 and kernels._parallel(kernels.PARALLEL_MIN) == 1
+    monkeypatch.setenv("RDEA_LAB_THREADS", "1")
+    assert kernels._other_load() == kernels._CORES and kernels._parallel(kernels.PARALLEL_MIN) == 0
+    monkeypatch.setenv("RDEA_LAB_THREADS", "0")
+    assert kernels._parallel(kernels.PARALLEL_MIN) == 1
+
+
 def test_other_load_leaves_out_this_process(monkeypatch):
     """The other processes' CPU use is the machine's less this process's (both cores busy with this process's
     two threads: no other load; one of them another process's: one core), and before any window closes the

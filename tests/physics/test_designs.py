@@ -341,6 +341,31 @@ def test_solve_designs_3r_cr_equal_per_roll_with_own_radii_and_material(model, k
     assert (geom.Ri == 0).any() and (geom.Ri > 0).any()
 
 
+@pytest.mark.slow  # it compiles the design loop's threaded variant, which no default test needs
+@pytest.mark.parametrize("model", ["su", "3r"])
+def test_solve_designs_on_threads_or_one_give_the_same_bits(model, monkeypatch):
+    """The design loop's threaded variant (from `kernels.PARALLEL_MIN` samples on, a core free) against its
+    one-thread form, on random rolls along paths: every field and status the same, bit for bit."""
+    pytest.importorskip("numba")
+    from rdea_lab.physics import kernels
+
+    rng = np.random.default_rng([43, len(model)])
+    n = 48
+    geom, _ = random_rolls(rng, n)
+    stretch, voltage = path_history(rng, n, samples=100)
+    assert stretch.size >= kernels.PARALLEL_MIN
+    got = {}
+    for load in (float(kernels._CORES), 0.0):  # every core taken, then all free
+        monkeypatch.setattr(kernels, "_other_load", lambda load=load: load)
+        assert kernels._parallel(stretch.size) == (load == 0.0)
+        got[load] = solve_designs(model, geom, TABLE3, stretch, voltage, path=True, kernel="numba")
+    one, threads = got.values()
+    assert np.array_equal(one.status, threads.status)
+    for name in FIELDS:
+        np.testing.assert_array_equal(getattr(one, name), getattr(threads, name), err_msg=name)
+    assert {OK, SLACK} <= set(np.unique(one.status).tolist())
+
+
 def test_solve_designs_3r_hands_uncertified_samples_to_solve():
     """Solid 3R rolls at voltages around their hole's opening (the pitchfork): the compiled states leave
     samples to `solve`, on a path in runs continued from the state before; the result is still the loop."""

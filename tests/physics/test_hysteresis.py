@@ -220,7 +220,6 @@ def test_enthalpy_is_psi_minus_v_squared_c(model, name, material):
             np.testing.assert_allclose(g, psi - v * v * c, rtol=0, atol=1e-12 * np.max(np.abs(psi) + v * v * c))
 
 
-@pytest.mark.slow  # a check of the cases themselves, not of the package: the slow step
 @pytest.mark.parametrize("name", list(CASES))
 def test_case_is_well_posed(name):
     """Each loop crosses the up fold once on the way up and the down fold once on the way down; no
@@ -295,12 +294,7 @@ def test_rising_half_of_reference_equals_the_rising_ramp_rule(name):
     assert old.critical_voltage[k_up] == pytest.approx(v_up, rel=CV_RTOL)
 
 
-#: the default suite: the bug report's case, a hollow 3R and an active 3R core; every case in the slow step
-SEQUENTIAL_DEFAULT = ("1r-hollow-1.2", "3r-hollow-1.2", "3r-active-RZ-1.0")
-
-
-@pytest.mark.parametrize("name", [pytest.param(n, marks=[] if n in SEQUENTIAL_DEFAULT else [pytest.mark.slow])
-                                  for n in CASES])
+@pytest.mark.parametrize("name", list(CASES))
 def test_path_matches_the_sequential_reference(name):
     c = CASES[name]
     _, rp = reference(name)

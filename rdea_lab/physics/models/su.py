@@ -173,7 +173,7 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
     read-only views of the caller's arrays; nothing is computed from them later.)"""
     end = check_start("su", path, start)
     kap = float(kappa(geom, material))
-    l1c, vc = fast._readonly(l1, float), fast._readonly(v, float)  # read-only: one compiled variant, not three
+    l1c, vc = np.ascontiguousarray(l1), np.ascontiguousarray(v)
     area = float(geom.area)
     block, work, status, converged, idx, low = fast.su_solve(l1c, vc, C, kap, area, slack, _CODES)
     if low:
