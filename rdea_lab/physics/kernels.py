@@ -730,8 +730,9 @@ def _other_load() -> float:
     not as other work: numba's cannot be told apart from them.
 
     ``RDEA_LAB_THREADS=1`` says the other cores are taken (a batch queue that gives each job one core, a
-    test run that puts a worker on each): then every core counts as busy, and every call keeps to one
-    thread, so numba's threaded variants are never compiled."""
+    test run that puts a worker on each): then every core counts as busy, and every compiled call keeps to
+    one thread, so numba's threaded variants are never compiled. Exactly ``1``: any other value leaves the
+    choice to this estimate."""
     if os.environ.get("RDEA_LAB_THREADS") == "1":
         return float(_CORES)
     state = _LOAD
