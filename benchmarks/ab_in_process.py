@@ -10,7 +10,7 @@ some 30 s). What is timed, on the bench scene (hollow core, 1e5 samples, ``lambd
 kV]) unless said:
 
 - ``scan``: the 1R, 3R and CR root scan alone (`kernels._roots`, one thread);
-- ``solve``: whole `solve` calls of 1R, 3R and CR (numba's threads as the call decides);
+- ``solve``: whole `solve` calls of SU, 1R, 3R and CR (numba's threads as the call decides);
 - ``design``: `solve_designs` of 3R on a path for ``--designs`` rolls of the bench scene's core (outer radius
   +-10 %) through the bench's 10 kHz tensile ramp-sine (5401 samples), on one thread (numba's threads off for
   the call in both trees), its CPU time.
@@ -75,7 +75,7 @@ def _cases(pkg, what, designs):
             bufs = (np.empty(l1.size), np.zeros(l1.size, np.int8), np.empty(l1.size))
             out[f"scan {m}"] = lambda a=args, b=bufs: kernels._roots[0](*a, *b)
     if "solve" in what:
-        for m in mods:
+        for m in ("su", *mods):
             out[f"solve {m}"] = lambda m=m: models.solve(m, geom, RIZZELLO, l1, v)
     if "design" in what:
         designs_mod = importlib.import_module(pkg + ".physics.designs")

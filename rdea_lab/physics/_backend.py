@@ -27,6 +27,8 @@ AUTO_WEIGHT = {("su", False): 1, ("su", True): 1, ("1r", False): 1, ("1r", True)
 
 
 _SAID = set()
+#: `rdea_lab.physics.kernels` once `compiled` has imported it.
+_KERNELS = []
 
 
 def _say_once(line: str) -> None:
@@ -49,6 +51,8 @@ def compiled(kernel, n=None):
         return None
     if kernel == "auto" and os.environ.get("RDEA_LAB_KERNELS", "numba").lower() == "numpy":
         return None  # turned off (`kernels.enabled`): numba is not even loaded
+    if _KERNELS:  # imported before (the import statement costs microseconds a call)
+        return _KERNELS[0]
     try:
         from . import kernels
     except ImportError:  # numba missing: the reference is the fallback
@@ -59,7 +63,8 @@ def compiled(kernel, n=None):
         _say_once("rdea-lab: numba is not installed, so the models run at numpy speed "
                   "(python3 -m pip install 'rdea-lab[fast]' compiles them)")
         return None
-    return kernels if (kernel == "numba" or kernels.enabled()) else None
+    _KERNELS.append(kernels)  # ``auto`` has been checked against RDEA_LAB_KERNELS above (`kernels.enabled`)
+    return kernels
 
 
 def auto_kernel(kernel, model, geom, n):
@@ -71,6 +76,6 @@ def auto_kernel(kernel, model, geom, n):
     if kernel != "auto":
         return kernel
     Ri = getattr(geom, "Ri", 0.0)
-    hollow = bool(np.any(np.asarray(Ri) > 0.0))
+    hollow = bool(Ri > 0.0) if isinstance(Ri, float) else bool(np.any(np.asarray(Ri) > 0.0))
     weight = AUTO_WEIGHT.get((model, hollow), 1)
     return "numba" if weight and compiled("auto", n * weight) is not None else "numpy"

@@ -936,14 +936,16 @@ def _su_free(l1, v, s1, C10, C20, C30, kap, free_max):
 
 @numba.njit(cache=True, error_model="numpy")
 def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, status, converged):
-    """What a whole SU solve computes up front, in one loop over the inputs as given: the tension (eq. (39)
-    at the given stretch), the stretch of the state (the given one; a slack sample's free stretch comes
-    later), the status and whether it converged; NaN where the sample has no state (a NaN or infinite
-    input: `BAD_INPUT`). Returns ``(slack samples, finite samples with a stretch below 1)``."""
+    """What a whole SU solve computes up front, in one loop over the inputs as given (a block of them:
+    `_su_pass_loop`): the tension (eq. (39) at the given stretch), the stretch of the state (the given one; a
+    slack sample's free stretch comes later), the status and whether it converged; NaN where the sample has
+    no state (a NaN or infinite input: `BAD_INPUT`). Returns ``(slack samples, finite samples with a stretch
+    below 1)``."""
     OK_, SLACK_, BAD_, OVER_ = codes[0], codes[1], codes[2], codes[3]
     n_slack = 0
     n_low = 0
-    # without branches (`&`, selects), so that the compiler vectorizes the loop
+    # without branches (`&`, selects), so that the compiler vectorizes the loop; over the arrays' own length
+    # (a loop over ``lo:hi`` of longer arrays, its index possibly negative to the compiler, was not vectorized)
     for i in range(l1.size):
         lam = l1[i]
         w = v[i]
@@ -964,15 +966,53 @@ def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, s
     return n_slack, n_low
 
 
+#: Samples per block of SU's eager pass (`_su_pass_loop`): a block's slack samples are found while its status
+#: is in the cache, and numba's threads take blocks (a scene's slack samples may crowd in one part of it).
+SU_BLOCK = 4096
+
+
+def _su_pass_loop(l1, v, C10, C20, C30, kap, area, slack, codes, work, status, converged, scratch, counts):
+    """`_su_tension` of every sample into the rows of ``work`` (the tension, the state stretch), block by
+    block (`SU_BLOCK`); each block's counts into ``counts[c]`` (slack samples, stretches below 1) and its slack
+    samples' indices, in order, into ``scratch`` from the block's first index on (`_su_slack_take` collects
+    them)."""
+    n = l1.size
+    code = codes[1]
+    for c in prange(counts.shape[0]):
+        lo = c * SU_BLOCK
+        hi = min(n, lo + SU_BLOCK)
+        ns, nl = _su_tension(l1[lo:hi], v[lo:hi], C10, C20, C30, kap, area, slack, codes, work[0, lo:hi],
+                             work[1, lo:hi], status[lo:hi], converged[lo:hi])
+        counts[c, 0] = ns
+        counts[c, 1] = nl
+        if ns:
+            k = lo
+            for i in range(lo, hi):
+                if status[i] == code:
+                    scratch[k] = i
+                    k += 1
+
+
 @numba.njit(cache=True, error_model="numpy")
-def _su_slack_index(status, code, count):
-    idx = np.empty(count, np.intp)
+def _su_slack_take(scratch, counts, v):
+    """``(idx, v[idx], low)``: the slack samples' indices that `_su_pass_loop` left in ``scratch``, in order,
+    their voltages and the number of finite samples with a stretch below 1."""
+    total = 0
+    low = 0
+    for c in range(counts.shape[0]):
+        total += counts[c, 0]
+        low += counts[c, 1]
+    idx = np.empty(total, np.intp)
+    v_slack = np.empty(total)
     k = 0
-    for i in range(status.size):
-        if status[i] == code:
+    for c in range(counts.shape[0]):
+        lo = c * SU_BLOCK
+        for j in range(counts[c, 0]):
+            i = scratch[lo + j]
             idx[k] = i
+            v_slack[k] = v[i]
             k += 1
-    return idx
+    return idx, v_slack, low
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -1078,6 +1118,7 @@ def _su_free_fields(state, idx, found, C0, Ri, l2, cap, r_i):
 
 _roots = _variants(_roots_loop)
 _su = _variants(_su_loop)
+_su_pass = _variants(_su_pass_loop)
 
 
 def su_state(l1, v, C, kap, C0, out=None):
@@ -1090,18 +1131,13 @@ def su_state(l1, v, C, kap, C0, out=None):
     v = _arr(v, l1.shape)
     if out is None:
         out = (np.empty_like(l1), np.empty_like(l1), np.empty_like(l1))
-    # one thread, as `su_solve`: memory-bound, and threads on a loaded machine made it slower than numpy
+    # one thread: memory-bound, and threads on a loaded machine made it slower than numpy
     _su[0](l1.ravel(), v.ravel(), C[0], C[1], C[2], kap, C0, *(o.reshape(-1) for o in out))
     return out
 
 
 #: The rows of `su_solve`'s one float block: the tension and state stretch, then the fields `su_fields` fills.
 SU_ROWS = ("tension", "state", "sigma1", "force", "lambda2", "capacitance", "r_i")
-
-
-@numba.njit(cache=True, error_model="numpy")
-def _su_tension_rows(l1, v, C10, C20, C30, kap, area, slack, codes, work, status, converged):
-    return _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, work[0], work[1], status, converged)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -1116,12 +1152,13 @@ def _su_free_rows(work, idx, found, C0, Ri):
 
 def su_solve(l1, v, C, kap, area, slack, codes):
     """The eager part of a whole SU solve of 1-D float inputs as given, one compiled pass: ``(block, work,
-    status, converged, slack, low)``. ``block``: one (7, n) float array for every float field of the solve
-    (`SU_ROWS`), not writeable (nor can a view of it be made so); ``work``: a writeable view of it, for the
-    kernels only. The pass fills the tension [Pa] (eq. (39) at the given stretch) and the stretch of the
+    status, converged, idx, v_slack, low)``. ``block``: one (7, n) float array for every float field of the
+    solve (`SU_ROWS`), not writeable (nor can a view of it be made so); ``work``: a writeable view of it, for
+    the kernels only. The pass fills the tension [Pa] (eq. (39) at the given stretch) and the stretch of the
     state [-] (the given one, NaN where the sample has no state); ``status`` (``codes``: ``(OK, SLACK,
     BAD_INPUT, OVERFLOW)``; a NaN or infinite input is ``BAD_INPUT``), where it is OK or SLACK, the indices
-    of the slack samples and the number of finite samples with a stretch below 1 (the caller's error). The
+    of the slack samples and their voltages (copies: the caller may change its arrays before it reads a field
+    computed from them) and the number of finite samples with a stretch below 1 (the caller's error). The
     slack samples' free stretch is `su_free`'s, every other field `su_fields`' (`rdea_lab.physics.models.su`
     computes them when they are asked for).
 
@@ -1129,6 +1166,10 @@ def su_solve(l1, v, C, kap, area, slack, codes):
     the next result when this one is dropped, where seven arrays freed at once were given back to the system
     and taken again, page by page (750 page faults, a third of the time, per call of 1e5 samples with every
     field read). The rows not computed yet are not touched (reserved, not in memory, where the chunk is new).
+
+    The pass runs on numba's threads where `_parallel` allows (a large call from the main thread, a core
+    free), block by block (`SU_BLOCK`): each sample is computed on its own, so the result is the same to the
+    bit either way.
     """
     n = l1.size
     # read-only views whatever the caller's are: one compiled variant of the pass (numba compiles one per
@@ -1140,11 +1181,12 @@ def su_solve(l1, v, C, kap, area, slack, codes):
     status = np.empty(n, np.int8)
     converged = np.empty(n, np.bool_)
     codes = np.asarray(codes, np.int8)
-    # one thread: the pass is memory-bound, and a shared machine's busy cores made the threaded
-    # form up to 10x slower than this one
-    count, low = _su_tension_rows(l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, work, status, converged)
-    idx = _su_slack_index(status, codes[1], count) if count else np.empty(0, np.intp)
-    return block, work, status, converged, idx, low
+    counts = np.empty(((n + SU_BLOCK - 1) // SU_BLOCK, 2), np.int64)
+    scratch = np.empty(n, np.intp)  # only the slack samples' slots are written (and so in memory)
+    _su_pass[_parallel(n)](l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, work, status, converged,
+                           scratch, counts)
+    idx, v_slack, low = _su_slack_take(scratch, counts, v)
+    return block, work, status, converged, idx, v_slack, low
 
 
 def su_free(l1, v, s1, C, kap, free_max):
@@ -1161,9 +1203,9 @@ def su_fields(work, idx, v_slack, C, kap, free_max, slack, area, C0, Ri, which):
     their rows: ``which`` 0, the stress, force, hoop stretch, capacitance and inner radius at the state
     stretch, in one pass (`_su_state_pass`); 1 (after 0), the slack samples' free stretches by `su_free`
     (``v_slack``: their voltages) and the fields there (`_su_free_fields`): the state stretch becomes the
-    free stretch. One thread, as `su_solve`: the passes are memory-bound, and on a shared machine's busy
-    cores numba's threads waited some 8 ms per pass (24 ms for every field of 1e5 samples, against 1 ms on
-    one thread)."""
+    free stretch. One thread: the passes are memory-bound, and on a shared machine's busy cores numba's
+    threads waited some 8 ms per pass (24 ms for every field of 1e5 samples, against 1 ms on one thread;
+    measured before `_core_free` kept calls off busy cores, which `su_solve` now relies on)."""
     if which == 0:
         _su_state_rows(work, slack, area, C0, Ri)
     elif idx.size:

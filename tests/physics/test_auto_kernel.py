@@ -181,7 +181,7 @@ def test_other_load_starts_afresh_in_a_forked_child(monkeypatch):
 
 
 # 3R's and CR's threaded field passes in the slow step: each compiles a variant of its own, seconds of CPU
-@pytest.mark.parametrize("model", ["1r", pytest.param("3r", marks=pytest.mark.slow),
+@pytest.mark.parametrize("model", ["su", "1r", pytest.param("3r", marks=pytest.mark.slow),
                                    pytest.param("cr", marks=pytest.mark.slow)])
 def test_threads_or_one_give_the_same_bits_on_a_random_hollow_scene(model, monkeypatch):
     """`test_solve_takes_the_path_auto_picks`' scene (slack rolls, folds and all) solved on one thread and on

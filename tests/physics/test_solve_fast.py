@@ -261,7 +261,7 @@ def _lanes_against_one_by_one(seeds):
         C, kap = (mat.C10, mat.C20, mat.C30), float(kappa(geom, mat))
         ok = np.isfinite(l1) & np.isfinite(v)
         l1, v = l1[ok], v[ok]
-        block, _, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True,
+        block, _, _, _, idx, _, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True,
                                                  (0, SLACK, BAD_INPUT, OVERFLOW))
         tension = block[0]
         args = (l1[idx].copy(), v[idx].copy(), tension[idx].copy(), *C, kap, FREE_STRETCH_MAX)
@@ -290,7 +290,7 @@ def test_su_compiled_free_states_equal_the_numpy_reference_bit_for_bit():
         C, kap = (mat.C10, mat.C20, mat.C30), float(kappa(geom, mat))
         ok = np.isfinite(l1) & np.isfinite(v)
         l1, v = l1[ok], v[ok]
-        block, _, _, _, idx, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True,
+        block, _, _, _, idx, _, _ = kernels.su_solve(l1, v, C, kap, float(geom.area), True,
                                                  (0, SLACK, BAD_INPUT, OVERFLOW))
         lam, vs, s1 = l1[idx].copy(), v[idx].copy(), block[0][idx].copy()
         with np.errstate(over="ignore", invalid="ignore"):

@@ -39,6 +39,8 @@ def yeoh_coefficients(material):
 
 def _number(value):
     """A float for a scalar, a float array (broadcast against the samples) otherwise."""
+    if type(value) is float:
+        return value
     value = np.asarray(value, float)
     return float(value) if value.ndim == 0 else value
 

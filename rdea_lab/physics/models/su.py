@@ -175,15 +175,15 @@ def _solve_compiled(fast, geom, material, C, l1, v, shape, path, start, slack) -
     kap = float(kappa(geom, material))
     l1c, vc = np.ascontiguousarray(l1), np.ascontiguousarray(v)
     area = float(geom.area)
-    block, work, status, converged, idx, low = fast.su_solve(l1c, vc, C, kap, area, slack, _CODES)
+    block, work, status, converged, idx, v_slack, low = fast.su_solve(l1c, vc, C, kap, area, slack, _CODES)
     if low:
         check_inputs(l1, v, shape)  # raises `StretchBelowOneError`, with the first such sample
     if path:  # SU has no coordinate: a path ends where it started only when it had no sample to solve
         none = end is not None and status.size and not (status != BAD_INPUT).any()
         end = PathEnd("su", *(end if none else (None, None)))
     status.flags.writeable = converged.flags.writeable = False
-    # the slack samples' inputs, for their free states (copies: a few samples)
-    derive = _Fields(fast, shape, block, work, idx, vc[idx], C, kap, area, float(geom.C0(material.eps_r)),
+    # the slack samples' voltages (``v_slack``: copies, a few samples) for their free states
+    derive = _Fields(fast, shape, block, work, idx, v_slack, C, kap, area, float(geom.C0(material.eps_r)),
                      float(geom.Ri), bool(slack))
     nan = nan_field(shape)  # SU has no fold and no range end
     return deferred({"model": "su", "stretch": read_only(l1.reshape(shape)), "voltage": read_only(v.reshape(shape)),
