@@ -14,7 +14,8 @@ passive cores. The fsolve baseline solves the corrected six-equation system
 (27) sample by sample (``baseline_3r_fsolve.py``); speed-up and agreement are
 measured on the hollow core, where the baseline's first stationary point is
 the physical one. Rates are the median of ``repeat`` timed runs after one
-warm-up, with their spread (slowest and fastest run) beside them, and beside
+warm-up (a run: calls in a row for at least 20 ms, `MIN_RUN_S`, its time per
+call), with their spread (slowest and fastest run) beside them, and beside
 each the ratio to a plain numpy expression of the model's stress equation on
 the same arrays, timed in the same process (`plain_numpy`; for SU also on
 specimen 2 at 2.6 kV, where a few percent of the samples are slack). The compiled
@@ -25,6 +26,7 @@ are `bench_kernels.py`'s (keys ``kernels``, ``step_latency_us``, ``compile_s``).
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import platform
 import time
@@ -57,15 +59,22 @@ def _core(name):
     return RollGeometry(*CORES[name], L1=34e-3, L1e=34e-3, L3=48e-6)
 
 
-def _times(fn, repeat, warm_up=True):
-    """Wall times [s] of ``repeat`` calls of ``fn`` (after one untimed warm-up call)."""
+def _times(fn, repeat, warm_up=True, min_s=0.0):
+    """Wall times [s] of ``repeat`` calls of ``fn`` (after one untimed warm-up call). ``min_s`` > 0: each of the
+    ``repeat`` runs is as many calls in a row as take ``min_s`` or more (counted from the warm-up call), its time
+    per call: a call well under a millisecond, timed alone, is mostly the machine's noise (`timeit`'s rule)."""
+    calls = 1
     if warm_up:
+        t0 = time.perf_counter()
         fn()
+        if min_s > 0.0:
+            calls = max(1, math.ceil(min_s / max(time.perf_counter() - t0, 1e-9)))
     out = []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t0)
+        for _ in range(calls):
+            fn()
+        out.append((time.perf_counter() - t0) / calls)
     return np.array(out)
 
 
@@ -123,17 +132,24 @@ def plain_numpy(model, geom, material, l1, v):
         1.0 + l1 * roll.Lb * (roll.opening(xi, roll.xi0) + xi * xi))
 
 
+#: The shortest timed run of a scene [s]: calls in a row (`_times`' ``min_s``), the same rule for `solve` and
+#: the plain numpy expression (an SU call of 1e5 samples takes some 0.3 ms, the others one or more runs).
+MIN_RUN_S = 0.02
+
+
 def _scene(geom, material, l1, v, repeat, models=MODELS):
-    """Per model: whole-call samples/s of `solve` (median, slowest, fastest of ``repeat``), the plain
-    numpy expression's (`plain_numpy`) and their ratio, timed in turn in this process."""
+    """Per model: whole-call samples/s of `solve` (median, slowest, fastest of ``repeat`` runs, each at least
+    `MIN_RUN_S` of calls in a row), the plain numpy expression's (`plain_numpy`, timed alike) and their ratio,
+    timed in turn in this process."""
     out = {}
     for m in models:
-        rate, lo, hi = _rate(l1.size, _times(lambda: solve(m, geom, material, l1, v), repeat))
-        plain = _rate(l1.size, _times(plain_numpy(m, geom, material, l1, v), repeat))
+        rate, lo, hi = _rate(l1.size, _times(lambda: solve(m, geom, material, l1, v), repeat, min_s=MIN_RUN_S))
+        plain = _rate(l1.size, _times(plain_numpy(m, geom, material, l1, v), repeat, min_s=MIN_RUN_S))
         out[m] = {"samples_per_s": rate, "spread": [lo, hi], "plain_numpy": plain[0],
                   "plain_numpy_spread": [plain[1], plain[2]], "plain_numpy_ratio": rate / plain[0]}
         if m == "su":  # a compiled SU result computes most fields when read: the call with every one read too
-            read = _rate(l1.size, _times(lambda: _read_all(solve(m, geom, material, l1, v)), repeat))
+            read = _rate(l1.size, _times(lambda: _read_all(solve(m, geom, material, l1, v)), repeat,
+                                         min_s=MIN_RUN_S))
             out[m].update(every_field_read=read[0], every_field_read_spread=[read[1], read[2]],
                           every_field_read_ratio=read[0] / plain[0])
     return out
@@ -277,7 +293,7 @@ def format_text(r: dict) -> str:
     others = r.get("machine", {}).get("other_processes_cores")
     busy = "" if others is None else f"; other processes used {others:.2f} of {r['machine']['cpus']} cores meanwhile"
     lines = [f"quasi-static solvers, {r['samples']} samples (hollow core, lambda1 1-1.75, 0-3.5 kV), "
-             f"median (slowest-fastest) of the runs{busy}:"]
+             f"median (slowest-fastest) of the runs (each {1e3 * MIN_RUN_S:g} ms or more of calls in a row){busy}:"]
     for m, x in r["samples_per_s"].items():
         lo, hi = r["samples_per_s_spread"][m]
         extra = ""
