@@ -116,11 +116,13 @@ class Problem:
                        self.scale, None, self.graded_span())
 
     def graded_span(self) -> float:
-        """The span the scale nodes are graded against (see `span_max`)."""
-        if self.span_max is not None:
-            return self.span_max
-        span = self.y_max - self.y0
-        return float(np.max(span)) if span.size else 0.0
+        """The span the scale nodes are graded against (see `span_max`), computed once (a solve asks for it
+        twice, the scan's nodes and the free states'; each time was some 0.4 ms on 1e5 samples): a problem's
+        bounds are not changed after it is made."""
+        if self.span_max is None:
+            span = self.y_max - self.y0
+            self.span_max = float(np.max(span)) if span.size else 0.0
+        return self.span_max
 
     def voltage(self, K):
         """The voltage [V] of load parameters ``K`` (NaN stays NaN)."""
