@@ -61,14 +61,20 @@ def _core(name):
 
 def _times(fn, repeat, warm_up=True, min_s=0.0):
     """Wall times [s] of ``repeat`` calls of ``fn`` (after one untimed warm-up call). ``min_s`` > 0: each of the
-    ``repeat`` runs is as many calls in a row as take ``min_s`` or more (counted from the warm-up call), its time
-    per call: a call well under a millisecond, timed alone, is mostly the machine's noise (`timeit`'s rule)."""
-    calls = 1
+    ``repeat`` runs is as many calls in a row as take ``min_s`` or more, its time per call: a call well under a
+    millisecond, timed alone, is mostly the machine's noise (`timeit`'s rule). The count is found after the
+    warm-up (whose call may load or compile code), doubling it until a run of warm calls lasts ``min_s``."""
     if warm_up:
-        t0 = time.perf_counter()
         fn()
-        if min_s > 0.0:
-            calls = max(1, math.ceil(min_s / max(time.perf_counter() - t0, 1e-9)))
+    calls = 1
+    while min_s > 0.0:
+        t0 = time.perf_counter()
+        for _ in range(calls):
+            fn()
+        spent = time.perf_counter() - t0
+        if spent >= min_s:
+            break
+        calls = max(2 * calls, math.ceil(calls * min_s / max(spent, 1e-9)))
     out = []
     for _ in range(repeat):
         t0 = time.perf_counter()

@@ -47,7 +47,7 @@ with two basins, never over all samples.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -104,6 +104,8 @@ class Problem:
     #: the largest span ``y_max - y0`` the scale nodes are graded against (default: this problem's);
     #: a subset of a problem's samples keeps its parent's, so that it is scanned at the same nodes
     span_max: float | None = None
+    #: `graded_span` once computed (not an input: `dataclasses.replace` starts afresh)
+    _graded: float | None = field(default=None, init=False, repr=False, compare=False)
 
     def subset(self, sel) -> "Problem":
         """The samples ``sel`` (integer array) as a problem of their own, scanned at the same nodes."""
@@ -119,10 +121,12 @@ class Problem:
         """The span the scale nodes are graded against (see `span_max`), computed once (a solve asks for it
         twice, the scan's nodes and the free states'; each time was some 0.4 ms on 1e5 samples): a problem's
         bounds are not changed after it is made."""
-        if self.span_max is None:
+        if self.span_max is not None:
+            return self.span_max
+        if self._graded is None:
             span = self.y_max - self.y0
-            self.span_max = float(np.max(span)) if span.size else 0.0
-        return self.span_max
+            self._graded = float(np.max(span)) if span.size else 0.0
+        return self._graded
 
     def voltage(self, K):
         """The voltage [V] of load parameters ``K`` (NaN stays NaN)."""

@@ -969,6 +969,11 @@ def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, s
 #: Samples per block of SU's eager pass (`_su_pass_loop`): a block's slack samples are found while its status
 #: is in the cache, and numba's threads take blocks (a scene's slack samples may crowd in one part of it).
 SU_BLOCK = 4096
+#: SU's eager pass runs on numba's threads from this many samples (where `_parallel` allows): an SU sample costs
+#: a few ns, so below it waking the threads costs what they save. Measured here (`su_solve`, medians of 200 calls,
+#: one thread / threads): 8192 samples 41-46 / 44-53 us back to back and 79-98 / 140-143 us after 2 ms idle;
+#: 16384 70-77 / 65-71 and 130-148 / 140-162 us; 32768 139-150 / 93-120 and 186-219 / 183-187 us.
+SU_PARALLEL_MIN = 32768
 
 
 def _su_pass_loop(l1, v, C10, C20, C30, kap, area, slack, codes, work, status, converged, scratch, counts):
@@ -1167,9 +1172,9 @@ def su_solve(l1, v, C, kap, area, slack, codes):
     and taken again, page by page (750 page faults, a third of the time, per call of 1e5 samples with every
     field read). The rows not computed yet are not touched (reserved, not in memory, where the chunk is new).
 
-    The pass runs on numba's threads where `_parallel` allows (a large call from the main thread, a core
-    free), block by block (`SU_BLOCK`): each sample is computed on its own, so the result is the same to the
-    bit either way.
+    The pass runs on numba's threads from `SU_PARALLEL_MIN` samples where `_parallel` allows (the main thread,
+    a core free), block by block (`SU_BLOCK`): each sample is computed on its own, so the result is the same to
+    the bit either way.
     """
     n = l1.size
     # read-only views whatever the caller's are: one compiled variant of the pass (numba compiles one per
@@ -1182,9 +1187,9 @@ def su_solve(l1, v, C, kap, area, slack, codes):
     converged = np.empty(n, np.bool_)
     codes = np.asarray(codes, np.int8)
     counts = np.empty(((n + SU_BLOCK - 1) // SU_BLOCK, 2), np.int64)
-    scratch = np.empty(n, np.intp)  # only the slack samples' slots are written (and so in memory)
-    _su_pass[_parallel(n)](l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes, work, status, converged,
-                           scratch, counts)
+    scratch = np.empty(n, np.intp)  # each block's slack samples' indices, from the block's first index on
+    _su_pass[int(n >= SU_PARALLEL_MIN and _parallel(n))](l1, v, C[0], C[1], C[2], kap, area, bool(slack), codes,
+                                                         work, status, converged, scratch, counts)
     idx, v_slack, low = _su_slack_take(scratch, counts, v)
     return block, work, status, converged, idx, v_slack, low
 

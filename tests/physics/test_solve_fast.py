@@ -251,6 +251,38 @@ def test_su_stretch_below_one_is_the_callers_error(kernel):
         solve("su", core("hollow"), TABLE3, l1, np.array([0.0, 1.0, 1.0, np.inf, 1.0]), kernel=kernel)
 
 
+@pytest.mark.parametrize("threads", [False, True])
+@pytest.mark.parametrize("n", [0, 1, 4096, 2 * 4096 + 17, 32768 + 1234])
+def test_su_solve_indexes_its_slack_samples_in_order_with_their_voltages(n, threads, monkeypatch):
+    """`kernels.su_solve` finds its slack samples block by block (`SU_BLOCK`), on one thread or on numba's threads
+    (from `SU_PARALLEL_MIN` samples): their indices are where the status is SLACK, in order, their voltages the
+    caller's there (a copy), and the stretches below 1 are counted, for any count of samples (none, one, a
+    whole block, blocks and a part); the slack samples crowd in one part of the scene, as a ramp's do."""
+    from rdea_lab.physics import kernels
+    from rdea_lab.physics.models._common import kappa
+    from rdea_lab.physics.result import OK
+
+    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0 if threads else float(kernels.os.cpu_count() or 1))
+    ran = []  # which variant of the pass ran: 0 one thread, 1 numba's threads
+    monkeypatch.setattr(kernels, "_su_pass", tuple((lambda *a, k=k, f=f: ran.append(k) or f(*a))
+                                                   for k, f in enumerate(kernels._su_pass)))
+    geom = core("hollow")
+    rng = np.random.default_rng(n)
+    l1, v = rng.uniform(1.0, 1.6, n), rng.uniform(0.0, 1000.0, n)
+    v[n // 3: n // 2] = 3000.0  # slack here, where the stretch is low
+    l1[::997] = 0.99
+    C, kap = (TABLE3.C10, TABLE3.C20, TABLE3.C30), float(kappa(geom, TABLE3))
+    _, _, status, _, idx, v_slack, low = kernels.su_solve(l1, v, C, kap, float(geom.area), True,
+                                                          (OK, SLACK, BAD_INPUT, OVERFLOW))
+    np.testing.assert_array_equal(idx, np.flatnonzero(status == SLACK))
+    np.testing.assert_array_equal(v_slack, v[idx])
+    assert not np.shares_memory(v_slack, v)
+    assert low == np.count_nonzero(l1 < 1.0)
+    assert ran == [int(threads and n >= kernels.SU_PARALLEL_MIN)]
+    if n > 4096:
+        assert 0 < idx.size < n and np.count_nonzero((idx >= n // 3) & (idx < n // 2)) > idx.size // 2
+
+
 def _lanes_against_one_by_one(seeds):
     from rdea_lab.physics import kernels
     from rdea_lab.physics.models._common import kappa
