@@ -970,9 +970,9 @@ def _su_tension(l1, v, C10, C20, C30, kap, area, slack, codes, tension, state, s
 #: is in the cache, and numba's threads take blocks (a scene's slack samples may crowd in one part of it).
 SU_BLOCK = 4096
 #: SU's eager pass runs on numba's threads from this many samples (where `_parallel` allows): an SU sample costs
-#: a few ns, so below it waking the threads costs what they save. Measured here (`su_solve`, medians of 200 calls,
-#: one thread / threads): 8192 samples 41-46 / 44-53 us back to back and 79-98 / 140-143 us after 2 ms idle;
-#: 16384 70-77 / 65-71 and 130-148 / 140-162 us; 32768 139-150 / 93-120 and 186-219 / 183-187 us.
+#: a few ns, so below it waking the threads costs what they save. Measured here (`benchmarks/su_threads.py`:
+#: medians of 200 calls, one thread / threads): 8192 samples 41-46 / 44-53 us back to back and 79-98 / 140-143 us
+#: after 2 ms idle; 16384 70-77 / 65-71 and 130-148 / 140-162 us; 32768 139-150 / 93-120 and 186-219 / 183-187 us.
 SU_PARALLEL_MIN = 32768
 
 

@@ -259,7 +259,7 @@ def nan_field(shape) -> np.ndarray:
     """A read-only NaN field of ``shape`` that allocates nothing (a broadcast view of one NaN, itself not
     writeable: the view cannot be made writeable, as the broadcast of a writeable NaN could, which would
     write every sample of every field that shares it). A fresh view of one kept per shape (`np.broadcast_to`
-    costs some 10 us a call, a view well under 1 us): no result's array object is another's."""
+    costs some 10 us a call, a view well under 1 us): no two results share an array object."""
     out = _NAN_FIELDS.get(shape)
     if out is None:
         out = np.broadcast_to(_NAN, shape)
