@@ -265,6 +265,20 @@ def _verdict(y_prev, h_prev, s_prev, y, h, slope, K):
 _newton = _jit(branch.newton_step, inline="always", _pick=_pick)
 
 
+@numba.njit(cache=True, error_model="numpy")
+def _newton_lanes(n, T, done):
+    """One `_newton` step of each lane ``a < n`` of `_scan_block`'s refinement (``T``: its lane rows, the iterate
+    ``T[6]``, the terms ``T[10:14]``, the bracket ``T[16:18]``, the load ``T[18]``, the tolerance ``T[19]``, the last
+    Newton step and slope ``T[21:23]``, all updated in place; ``done[a]``: the lane's step converged). Its own loop,
+    with nothing else in it, so that the compiler vectorizes it (it did not inside `_scan_block`'s loop, which also
+    keeps the lanes' results)."""
+    for a in range(n):
+        y_new, T[16, a], T[17, a], _, done[a], T[21, a], T[22, a] = _newton(
+            T[6, a], T[16, a], T[17, a], T[10, a], T[11, a], T[12, a], T[13, a], T[18, a], T[19, a], 1.0, np.inf,
+            T[21, a], T[22, a])
+        T[6, a] = y_new
+
+
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)
 
 
@@ -482,8 +496,9 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     node the terms of every sample still scanning in one vectorized call (`_terms_block`), then each sample's
     steps (`_begin`, `_next_node`, `_verdict`, `_fallen`) as `_one` takes them, so the same nodes, verdicts
     and brackets; the samples that end drop out. The Newton refinement likewise (`_newton`, as `_one`'s
-    `_refine`), its lanes packed once a quarter of them converged (a converged lane runs on unused, its
-    result kept: packing after every step cost a third of the refinement).
+    `_refine`, a step of every lane in one vectorized loop: `_newton_lanes`), its lanes packed once a quarter of
+    them converged (a converged lane runs on unused, its result kept: packing after every step cost a third of
+    the refinement).
     CR: ``xi0``, ``x0`` per sample, ``R = (0, 0, Lb, ...)``; the others ignore them."""
     nb = b1 - b0
     n_off = offsets.size
@@ -493,8 +508,8 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     # per sample still in play, compacted: the node, its arguments and terms (rows 6-15: `_terms_block`'s)
     Y, L, XI, X0, P, PP, CY, CYY, H, SL = S[6], S[7], S[8], S[9], S[10], S[11], S[12], S[13], S[16], S[17]
     ys = S[18]  # where the Newton iteration starts (`_start`)
-    # the Newton iteration's lanes
-    TY, TL, TXI, TX0, TP, TPP, TCY, TCYY = T[6], T[7], T[8], T[9], T[10], T[11], T[12], T[13]
+    # the Newton iteration's lanes (the terms, rows 10-13, and the step's rows are `_newton_lanes`')
+    TY, TL, TXI, TX0 = T[6], T[7], T[8], T[9]
     TLO, THI, TK, TTOL, TOUT, TDN, TG2 = T[16], T[17], T[18], T[19], T[20], T[21], T[22]
     N = np.empty((4, nb + 24), np.int64)
     jj, kk = N[0], N[1]
@@ -504,6 +519,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     act, TB = U[0], U[1]  # the samples still scanning; the samples refined, packed
     b0u = np.uint64(b0)
     at_start = np.empty(nb, np.bool_)
+    DONE = np.empty(nb + 24, np.bool_)  # whether a lane's Newton step converged (`_newton_lanes`)
     if pitchfork:  # `_h_start`
         for b in range(nb):
             Y[b], L[b], XI[b], X0[b] = y0[b0 + b], l1[b0 + b], xi0[b0 + b], x0[b0 + b]
@@ -592,15 +608,12 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
         if live == 0:
             break
         _terms_block(code, nr, T, R, Q, C10, C20, C30)
+        _newton_lanes(nr, T, DONE)
         live = 0
         for a in range(nr):
-            y_new, TLO[a], THI[a], _, done, TDN[a], TG2[a] = _newton(TY[a], TLO[a], THI[a], TP[a], TPP[a], TCY[a],
-                                                                     TCYY[a], TK[a], TTOL[a], 1.0, np.inf, TDN[a],
-                                                                     TG2[a])
-            if LIVE[a] != 0 and done:
-                TOUT[a] = y_new
+            if LIVE[a] != 0 and DONE[a]:
+                TOUT[a] = TY[a]
                 LIVE[a] = 0
-            TY[a] = y_new
             live += LIVE[a]
         if 4 * live <= 3 * nr:  # pack: the converged lanes' results out
             keep = 0

@@ -4,8 +4,10 @@ The reference is `models._common.solve_model` with the model's numpy `evaluate`
 (equilibria, then the slack roll's free state by `free_state`, then `finish`),
 the path every model took before the fused ones; it is itself checked against
 closed forms and brute force (test_models, test_random_cases). The fused SU
-pass (`kernels.su_solve`: stress, free state, status and fields in one
-compiled loop) must give its statuses exactly and its numbers to 1e-12 of
+call (`kernels.su_solve`: the tension, status, convergence and slack samples in
+one compiled pass, block by block; `kernels.su_fields` and `su_free`: the fields
+and the slack rolls' free states when first read) must give its statuses
+exactly and its numbers to 1e-12 of
 each field's largest magnitude (test_kernels' `assert_same`), on random rolls,
 materials and inputs that reach slack (near 1 and far beyond the free-stretch
 search's end), overflow, NaN and infinite samples, broadcast shapes and paths.
