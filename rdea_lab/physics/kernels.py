@@ -260,18 +260,18 @@ def _verdict(y_prev, h_prev, s_prev, y, h, slope, K):
     return _GO
 
 
-#: `branch.newton_step`: one step of the refinement of a root, ``(y_new, lo, hi, dx, done, dn, g2)`` (`_refine` and
-#: `_scan_block`'s lanes).
+#: `branch.newton_step`: one step of the refinement of a root, ``(y_new, lo, hi, dx, done, dn, g2)`` (`_refine`,
+#: `_guarded` and `_newton_lanes`).
 _newton = _jit(branch.newton_step, inline="always", _pick=_pick)
 
 
 @numba.njit(cache=True, error_model="numpy")
 def _newton_lanes(n, T, done):
-    """One `_newton` step of each lane ``a < n`` of `_scan_block`'s refinement (``T``: its lane rows, the iterate
-    ``T[6]``, the terms ``T[10:14]``, the bracket ``T[16:18]``, the load ``T[18]``, the tolerance ``T[19]``, the last
-    Newton step and slope ``T[21:23]``, all updated in place; ``done[a]``: the lane's step converged). Its own loop,
-    with nothing else in it, so that the compiler vectorizes it (it did not inside `_scan_block`'s loop, which also
-    keeps the lanes' results)."""
+    """One `_newton` step of each lane ``a < n`` of `_scan_block`'s refinement. ``T``: its lane rows; the step
+    reads the terms ``T[10:14]``, the load ``T[18]`` and the tolerance ``T[19]``, and updates the iterate ``T[6]``,
+    the bracket ``T[16:18]`` and the last Newton step and slope ``T[21:23]`` in place; ``done[a]``: the lane's
+    step converged. Its own loop, with nothing else in it, so that the compiler vectorizes it (it did not inside
+    `_scan_block`'s loop, which also keeps the lanes' results)."""
     for a in range(n):
         y_new, T[16, a], T[17, a], _, done[a], T[21, a], T[22, a] = _newton(
             T[6, a], T[16, a], T[17, a], T[10, a], T[11, a], T[12, a], T[13, a], T[18, a], T[19, a], 1.0, np.inf,
@@ -508,7 +508,7 @@ def _scan_block(code, l1, y0, y_max, K, xi0, x0, R, Q, C10, C20, C30, offsets, w
     # per sample still in play, compacted: the node, its arguments and terms (rows 6-15: `_terms_block`'s)
     Y, L, XI, X0, P, PP, CY, CYY, H, SL = S[6], S[7], S[8], S[9], S[10], S[11], S[12], S[13], S[16], S[17]
     ys = S[18]  # where the Newton iteration starts (`_start`)
-    # the Newton iteration's lanes (the terms, rows 10-13, and the step's rows are `_newton_lanes`')
+    # the Newton iteration's lanes (rows 10-13: the terms, `_terms_block`'s; `_newton_lanes` indexes T's rows by number)
     TY, TL, TXI, TX0 = T[6], T[7], T[8], T[9]
     TLO, THI, TK, TTOL, TOUT, TDN, TG2 = T[16], T[17], T[18], T[19], T[20], T[21], T[22]
     N = np.empty((4, nb + 24), np.int64)

@@ -7,10 +7,10 @@ closed forms and brute force (test_models, test_random_cases). The fused SU
 call (`kernels.su_solve`: the tension, status, convergence and slack samples in
 one compiled pass, block by block; `kernels.su_fields` and `su_free`: the fields
 and the slack rolls' free states when first read) must give its statuses
-exactly and its numbers to 1e-12 of
-each field's largest magnitude (test_kernels' `assert_same`), on random rolls,
-materials and inputs that reach slack (near 1 and far beyond the free-stretch
-search's end), overflow, NaN and infinite samples, broadcast shapes and paths.
+exactly and its numbers to 1e-12 of each field's largest magnitude
+(test_kernels' `assert_same`), on random rolls, materials and inputs that reach
+slack (near 1 and far beyond the free-stretch search's end), overflow, NaN and
+infinite samples, broadcast shapes and paths.
 """
 
 from __future__ import annotations
