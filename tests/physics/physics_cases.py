@@ -6,6 +6,7 @@ subset of both run together with xdist could import the wrong one)."""
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from rdea_lab.physics.geometry import RollGeometry
 
@@ -20,6 +21,21 @@ CORES = {
     "active": (0.0, 0.088e-3, 1.76e-3, 1.8e-3),
     "passive": (0.0, 0.81e-3, 1.76e-3, 1.8e-3),
 }
+
+
+#: A test's ``threads`` parameter: the compiled loops on one thread in the default run, and on numba's threads
+#: (as on an idle machine) under ``-m slow`` too. A threaded variant is the same loop body under ``prange``
+#: (`kernels._variants`), compiled once more: some 20 s of CPU with an empty numba cache, which the default run
+#: (the test session keeps to one thread, tests/conftest.py) leaves to the slow one.
+THREADS = [pytest.param(False, id="one-thread"), pytest.param(True, id="threads", marks=pytest.mark.slow)]
+
+
+def on_threads(monkeypatch, threads):
+    """Calls from `kernels.PARALLEL_MIN` samples on run on numba's threads (``threads``), as on an idle machine
+    (`kernels._core_free` reads the other processes' CPU use, which the other test worker raises), or on one."""
+    from rdea_lab.physics import kernels
+
+    monkeypatch.setattr(kernels, "_other_load", (lambda: 0.0) if threads else (lambda: float(kernels._CORES)))
 
 
 def core(name_or_radii, L1=34e-3, L1e=34e-3, L3=48e-6):

@@ -24,18 +24,11 @@ from rdea_lab.physics.models import continuum, one_ring, solve, three_ring
 from rdea_lab.physics.models._common import free_state, kappa, yeoh_coefficients
 from rdea_lab.physics.result import SLACK, is_valid
 
-from physics_cases import RIZZELLO, assert_close, core
+from physics_cases import RIZZELLO, THREADS, assert_close, core, on_threads
 from test_kernels import assert_same
 from test_random_cases import cases
 
 
-@pytest.fixture(autouse=True)
-def _threads_whatever_the_load(monkeypatch):
-    """The threaded variants run from their sample counts on, as on an idle machine (`kernels._core_free`
-    reads the other processes' CPU use, which the other test worker raises)."""
-    from rdea_lab.physics import kernels
-
-    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)
 
 MODULES = {"1r": one_ring, "3r": three_ring, "cr": continuum}
 KEYS = ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i")
@@ -105,8 +98,9 @@ def test_free_states_equal_free_state_on_random_families(model, family, n_cases=
 @pytest.mark.parametrize("model, family", [("1r", "general"), ("3r", "general"), ("cr", "general"),
                                            ("1r", "small core"), ("3r", "small core"),
                                            ("3r", "hollow micro-core"), ("cr", "hollow micro-core")])
-def test_free_states_many_cases(model, family):
-    """The test above on 200 cases of each family (minutes)."""
+def test_free_states_many_cases(model, family, monkeypatch):
+    """The test above on 200 cases of each family (minutes), on numba's threads."""
+    on_threads(monkeypatch, True)
     test_free_states_equal_free_state_on_random_families(model, family, n_cases=200)
 
 
@@ -116,8 +110,10 @@ def _bench_scene(n):
     return core("hollow"), rng.uniform(1.0, 1.75, n), rng.uniform(0.0, 3500.0, n)
 
 
+@pytest.mark.parametrize("threads", THREADS)
 @pytest.mark.parametrize("model", ["1r", "3r", "cr"])
-def test_bench_scene_equal_reference(model, n=4000):
+def test_bench_scene_equal_reference(model, threads, monkeypatch, n=4000):
+    on_threads(monkeypatch, threads)  # (the free states' searches from `FREE_PARALLEL_MIN` slack samples on)
     geom, l1, v = _bench_scene(n)
     s, d = check_free_states(model, geom, RIZZELLO, l1, v)
     assert s > 0 and d == s  # on the bench scene every slack roll's free state is compiled
@@ -127,16 +123,17 @@ def test_bench_scene_equal_reference(model, n=4000):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("model", ["1r", "3r", "cr"])
-def test_bench_scene_whole_equal_reference(model):
-    test_bench_scene_equal_reference(model, n=100_000)
+def test_bench_scene_whole_equal_reference(model, monkeypatch):
+    test_bench_scene_equal_reference(model, True, monkeypatch, n=100_000)
 
 
+@pytest.mark.parametrize("threads", THREADS)
 @pytest.mark.parametrize("geom", [core("hollow"), core("active"), core("passive")])
-def test_fields_equal_numpy(geom, monkeypatch):
+def test_fields_equal_numpy(geom, threads, monkeypatch):
     """Each compiled field pass against its numpy function at the same coordinates (not only at equilibria)."""
-    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)  # numba's threads, whatever else the machine runs
+    on_threads(monkeypatch, threads)
     rng = np.random.default_rng(7)
-    n = 2 * kernels.PARALLEL_MIN + 1000  # on numba's threads (from 4096 samples on)
+    n = 2 * kernels.PARALLEL_MIN + 1000  # enough for numba's threads (from 4096 samples on)
     l1, v = rng.uniform(1.0, 2.0, n), rng.uniform(0.0, 4000.0, n)
     C, kap, C0 = yeoh_coefficients(RIZZELLO), kappa(geom, RIZZELLO), geom.C0(RIZZELLO.eps_r)
     # the problems' bounds and loads in one pass against the models' numpy `bounds`
@@ -166,12 +163,13 @@ def test_fields_equal_numpy(geom, monkeypatch):
         _close(x, y, f"cr {name}")
 
 
+@pytest.mark.parametrize("threads", THREADS)
 @pytest.mark.parametrize("radii", [CORES_SPLIT["no ring a"], CORES_SPLIT["no ring c"], CORES_SPLIT["hollow"]])
-def test_field_passes_at_the_edges(radii, monkeypatch):
+def test_field_passes_at_the_edges(radii, threads, monkeypatch):
     """`fields1` and `fields3` against the numpy functions where the invariant's arrangement matters: stretches
-    1e-14 to 1e-3 above 1, rings of zero volume (NaN stretch), NaN and infinite coordinates, a call on
-    numba's threads and one too short for them."""
-    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)  # numba's threads, whatever else the machine runs
+    1e-14 to 1e-3 above 1, rings of zero volume (NaN stretch), NaN and infinite coordinates, a call long enough
+    for numba's threads (on them with ``threads``) and one too short for them."""
+    on_threads(monkeypatch, threads)
     geom = core(radii)
     rng = np.random.default_rng(3)
     n = kernels.PARALLEL_MIN + 7
@@ -248,6 +246,7 @@ atexit.register(at_exit)
 """
 
 
+@pytest.mark.slow  # it compiles the threaded variants (in a process of its own), which no default test needs
 @pytest.mark.parametrize("model", ["1r", "3r"])
 def test_a_solve_from_an_atexit_handler(model, tmp_path):
     """A solve while the interpreter shuts down (an ``atexit`` handler, a finalizer: no Python thread can start

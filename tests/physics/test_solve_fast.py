@@ -22,7 +22,7 @@ from rdea_lab.physics.models import solve, su
 from rdea_lab.physics.models._common import FREE_STRETCH_MAX, solve_model
 from rdea_lab.physics.result import BAD_INPUT, OVERFLOW, SLACK
 
-from physics_cases import RIZZELLO, TABLE3, core
+from physics_cases import RIZZELLO, TABLE3, THREADS, core, on_threads
 from test_kernels import assert_same
 
 pytest.importorskip("numba")
@@ -253,7 +253,7 @@ def test_su_stretch_below_one_is_the_callers_error(kernel):
         solve("su", core("hollow"), TABLE3, l1, np.array([0.0, 1.0, 1.0, np.inf, 1.0]), kernel=kernel)
 
 
-@pytest.mark.parametrize("threads", [False, True])
+@pytest.mark.parametrize("threads", THREADS)
 @pytest.mark.parametrize("n", [0, 1, 4096, 2 * 4096 + 17, 32768 + 1234])
 def test_su_solve_indexes_its_slack_samples_in_order_with_their_voltages(n, threads, monkeypatch):
     """`kernels.su_solve` finds its slack samples block by block (`SU_BLOCK`), on one thread or on numba's threads
@@ -264,7 +264,7 @@ def test_su_solve_indexes_its_slack_samples_in_order_with_their_voltages(n, thre
     from rdea_lab.physics.models._common import kappa
     from rdea_lab.physics.result import OK
 
-    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0 if threads else float(kernels.os.cpu_count() or 1))
+    on_threads(monkeypatch, threads)
     ran = []  # which variant of the pass ran: 0 one thread, 1 numba's threads
     monkeypatch.setattr(kernels, "_su_pass", tuple((lambda *a, k=k, f=f: ran.append(k) or f(*a))
                                                    for k, f in enumerate(kernels._su_pass)))
