@@ -50,7 +50,7 @@ def compiled(kernel, n=None):
     if kernel == "numpy" or (kernel == "auto" and (n is None or n < AUTO_MIN_SAMPLES)):
         return None
     if kernel == "auto" and os.environ.get("RDEA_LAB_KERNELS", "numba").lower() == "numpy":
-        return None  # turned off (`kernels.enabled`): numba is not even loaded
+        return None  # turned off: numba is not even loaded
     if _KERNELS:  # imported before (the import statement costs microseconds a call)
         return _KERNELS[0]
     try:
@@ -63,7 +63,7 @@ def compiled(kernel, n=None):
         _say_once("rdea-lab: numba is not installed, so the models run at numpy speed "
                   "(python3 -m pip install 'rdea-lab[fast]' compiles them)")
         return None
-    _KERNELS.append(kernels)  # ``auto`` has been checked against RDEA_LAB_KERNELS above (`kernels.enabled`)
+    _KERNELS.append(kernels)  # ``auto`` has been checked against RDEA_LAB_KERNELS above
     return kernels
 
 

@@ -1346,8 +1346,3 @@ def linear_strains(lengths, index, slope, tau, q0, q):
     if index is None:
         index = np.arange(np.size(lengths))
     _linear(_readonly(lengths, float), _readonly(index, np.intp), _readonly(slope, float), _arr(tau), _arr(q0), q)
-
-
-def enabled() -> bool:
-    """Whether the compiled kernels are used (``RDEA_LAB_KERNELS=numpy`` turns them off)."""
-    return os.environ.get("RDEA_LAB_KERNELS", "numba").lower() != "numpy"
