@@ -165,7 +165,7 @@ def run(repeat: int = 5, fit_kinds=FITS, kernels=KERNELS, fresh_process: bool = 
         before = os.environ.get("RDEA_LAB_KERNELS")
         try:
             for kernel in kernels:
-                os.environ["RDEA_LAB_KERNELS"] = kernel  # read at every call (kernels.enabled)
+                os.environ["RDEA_LAB_KERNELS"] = kernel  # read at every call (`_backend.compiled`)
                 k = out["kernels"][kernel] = {"evaluation": evaluation_cost(runs, start)}
                 if fresh_process:
                     k["fresh_process"] = fresh(paths, kernel)

@@ -23,16 +23,18 @@ CORES = {
 }
 
 
-#: A test's ``threads`` parameter: the compiled loops on one thread in the default run, and on numba's threads
-#: (as on an idle machine) under ``-m slow`` too. A threaded variant is the same loop body under ``prange``
+#: A test's ``threads`` parameter: the compiled loops on one thread in the default run, on numba's threads (as
+#: on an idle machine) under ``-m slow``. A threaded variant is the same loop body under ``prange``
 #: (`kernels._variants`), compiled once more: some 20 s of CPU with an empty numba cache, which the default run
 #: (the test session keeps to one thread, tests/conftest.py) leaves to the slow one.
 THREADS = [pytest.param(False, id="one-thread"), pytest.param(True, id="threads", marks=pytest.mark.slow)]
 
 
 def on_threads(monkeypatch, threads):
-    """Calls from `kernels.PARALLEL_MIN` samples on run on numba's threads (``threads``), as on an idle machine
-    (`kernels._core_free` reads the other processes' CPU use, which the other test worker raises), or on one."""
+    """Calls large enough for numba's threads run on them (``threads``), as on an idle machine, or on one thread:
+    `kernels._core_free` reads the other processes' CPU use (`kernels._other_load`, which the other test worker
+    raises), whatever the call's own threshold (`kernels.PARALLEL_MIN`, SU's `SU_PARALLEL_MIN`,
+    `ring_kernels.FREE_PARALLEL_MIN` slack samples, `scan_kernel.BRANCH_PARALLEL_MIN`)."""
     from rdea_lab.physics import kernels
 
     monkeypatch.setattr(kernels, "_other_load", (lambda: 0.0) if threads else (lambda: float(kernels._CORES)))

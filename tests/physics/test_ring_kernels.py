@@ -29,7 +29,6 @@ from test_kernels import assert_same
 from test_random_cases import cases
 
 
-
 MODULES = {"1r": one_ring, "3r": three_ring, "cr": continuum}
 KEYS = ("lambda2a", "lambda2b", "lambda2c", "capacitance", "r_i")
 RTOL = 1e-12
@@ -98,9 +97,8 @@ def test_free_states_equal_free_state_on_random_families(model, family, n_cases=
 @pytest.mark.parametrize("model, family", [("1r", "general"), ("3r", "general"), ("cr", "general"),
                                            ("1r", "small core"), ("3r", "small core"),
                                            ("3r", "hollow micro-core"), ("cr", "hollow micro-core")])
-def test_free_states_many_cases(model, family, monkeypatch):
-    """The test above on 200 cases of each family (minutes), on numba's threads."""
-    on_threads(monkeypatch, True)
+def test_free_states_many_cases(model, family):
+    """The test above on 200 cases of each family (minutes)."""
     test_free_states_equal_free_state_on_random_families(model, family, n_cases=200)
 
 
@@ -110,10 +108,8 @@ def _bench_scene(n):
     return core("hollow"), rng.uniform(1.0, 1.75, n), rng.uniform(0.0, 3500.0, n)
 
 
-@pytest.mark.parametrize("threads", THREADS)
 @pytest.mark.parametrize("model", ["1r", "3r", "cr"])
-def test_bench_scene_equal_reference(model, threads, monkeypatch, n=4000):
-    on_threads(monkeypatch, threads)  # (the free states' searches from `FREE_PARALLEL_MIN` slack samples on)
+def test_bench_scene_equal_reference(model, n=4000):
     geom, l1, v = _bench_scene(n)
     s, d = check_free_states(model, geom, RIZZELLO, l1, v)
     assert s > 0 and d == s  # on the bench scene every slack roll's free state is compiled
@@ -124,7 +120,9 @@ def test_bench_scene_equal_reference(model, threads, monkeypatch, n=4000):
 @pytest.mark.slow
 @pytest.mark.parametrize("model", ["1r", "3r", "cr"])
 def test_bench_scene_whole_equal_reference(model, monkeypatch):
-    test_bench_scene_equal_reference(model, True, monkeypatch, n=100_000)
+    """The test above on the bench's 1e5 samples, on numba's threads (the roots, fields and free states)."""
+    on_threads(monkeypatch, True)
+    test_bench_scene_equal_reference(model, n=100_000)
 
 
 @pytest.mark.parametrize("threads", THREADS)
