@@ -16,7 +16,7 @@ from rdea_lab.physics._backend import auto_kernel
 from rdea_lab.physics.models import solve
 from rdea_lab.physics.result import SLACK
 
-from physics_cases import RIZZELLO, core
+from physics_cases import RIZZELLO, core, on_threads
 from test_kernels import assert_same
 
 pytest.importorskip("numba")
@@ -195,9 +195,9 @@ def test_threads_or_one_give_the_same_bits_on_a_random_hollow_scene(model, monke
     rng = np.random.default_rng(16384)
     n = kernels.SU_PARALLEL_MIN + 1234
     l1, v = rng.uniform(1.0, 1.6, n), rng.uniform(0.0, 3000.0, n)
-    monkeypatch.setattr(kernels, "_other_load", lambda: float(kernels.os.cpu_count() or 1))
+    on_threads(monkeypatch, False)
     one = solve(model, geom, RIZZELLO, l1, v, kernel="numba")
-    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)
+    on_threads(monkeypatch, True)
     threads = solve(model, geom, RIZZELLO, l1, v, kernel="numba")
     assert np.any(one.status == SLACK)
     for name in ("status", "converged", "tension", "sigma1", "force", "capacitance", "lambda2a", "lambda2b",

@@ -19,17 +19,14 @@ import pytest
 from rdea_lab.physics import kernels
 from rdea_lab.physics.models import continuum, one_ring, solve, three_ring
 
-from physics_cases import RIZZELLO, core
+from physics_cases import RIZZELLO, core, on_threads
 from test_random_cases import cases
 
 
 @pytest.fixture(autouse=True)
 def _threads_whatever_the_load(monkeypatch):
-    """The threaded variants run from their sample counts on, as on an idle machine (`kernels._core_free`
-    reads the other processes' CPU use, which the other test worker raises)."""
-    from rdea_lab.physics import kernels
-
-    monkeypatch.setattr(kernels, "_other_load", lambda: 0.0)
+    """The threaded variants run from their sample counts on, as on an idle machine (`on_threads`)."""
+    on_threads(monkeypatch, True)
 
 MODULES = {"1r": one_ring, "3r": three_ring, "cr": continuum}
 #: Cases of each seeded family (a prefix; all of them under ``-m slow``).
